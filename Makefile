@@ -1,0 +1,25 @@
+# impact_fenics: set-up, the main demo, the tests.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+MPIRUN := scripts/mpirun.sh
+NP ?= 2
+
+.PHONY: setup demo test test-serial test-mpi clean
+
+setup:
+	@scripts/setup.sh
+
+demo: setup
+	$(MPIRUN) -n $(NP) $(PY) demos/bar_impact.py --method film --out results/bar_impact
+
+test: setup
+	$(MAKE) --no-print-directory test-serial test-mpi
+
+test-serial:
+	$(PY) -m pytest tests -q
+
+test-mpi:
+	N=$(NP) PY=$(PY) scripts/mpi_pytest.sh tests -q
+
+clean:
+	rm -rf results .pytest_cache

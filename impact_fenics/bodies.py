@@ -1,0 +1,98 @@
+"""Deformable bodies on one mesh: the function space, the parts and the dof maps.
+
+All deformable bodies share one P1 vector space (u_r, u_z). Dof indices here are
+local, unrolled (2 * node + component) and, unless said otherwise, owned by
+this rank: they index the local arrays of the PETSc vectors directly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import fem, mesh as dmesh
+
+from .errors import InputError, require
+from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
+from .meshing import TaggedMesh
+
+R, Z = 0, 1  # displacement components
+
+
+@dataclass
+class Body:
+    """A deformable body: the name of its cell group and its material."""
+
+    name: str
+    material: Material
+
+
+class DeformableModel:
+    """The space, the parts and the dof maps of the deformable bodies of a scene."""
+
+    def __init__(self, tmesh: TaggedMesh, bodies: list[Body], degree: int = STIFFNESS_DEGREE):
+        require(len(bodies) > 0, "a scene needs at least one deformable body")
+        self.tmesh = tmesh
+        self.mesh = tmesh.mesh
+        self.comm = self.mesh.comm
+        self.bodies = {b.name: b for b in bodies}
+        self.V = fem.VectorFunctionSpace(self.mesh, ("CG", 1))
+        imap = self.V.dofmap.index_map
+        self.bs = self.V.dofmap.index_map_bs
+        self.n_owned = imap.size_local * self.bs
+        self.n_global = imap.size_global * self.bs
+        self.offset = imap.local_range[0] * self.bs
+        covered = 0
+        self.parts: list[Part] = []
+        for b in bodies:
+            tag = tmesh.cell_tag(b.name)
+            covered += tmesh.cells(b.name).size
+            self.parts.append((b.material, cell_measure(self.mesh, tmesh.cell_tags, tag, degree)))
+        n_cells = self.mesh.topology.index_map(2).size_local + self.mesh.topology.index_map(2).num_ghosts
+        if self.comm.allreduce(int(covered < n_cells)):
+            raise InputError("some cells belong to no body: every cell group of the mesh "
+                             f"must be a body (bodies given: {', '.join(self.bodies)})")
+        # coordinates of the local nodes (owned first, then ghosts), (n_nodes, 2)
+        self.node_xy = self.V.tabulate_dof_coordinates()[:, :2].copy()
+        self.n_local = self.node_xy.shape[0] * self.bs
+        self.length_scale = float(self.comm.allreduce(
+            np.ptp(self.node_xy, axis=0).max() if self.node_xy.size else 0.0, op=_max()))
+
+    # --------------------------------------------------------------- dof maps
+    def _unrolled(self, blocks: np.ndarray, component: int, owned: bool) -> np.ndarray:
+        if owned:
+            blocks = blocks[blocks < self.n_owned // self.bs]
+        return np.sort(blocks * self.bs + component).astype(np.int32)
+
+    def facet_dofs(self, facet_name: str, component: int, owned: bool = True) -> np.ndarray:
+        """Unrolled dofs of ``component`` on the facets of group ``facet_name``
+        (owned ones, or all local ones with ``owned=False``)."""
+        facets = self.tmesh.facets(facet_name)
+        if self.comm.allreduce(facets.size) == 0:
+            raise InputError(f"facet group '{facet_name}' is empty")
+        return self._unrolled(fem.locate_dofs_topological(self.V, 1, facets), component, owned)
+
+    def body_dofs(self, body: str, component: int) -> np.ndarray:
+        """Owned unrolled dofs of ``component`` of the nodes of body ``body``."""
+        require(body in self.bodies, f"no body named '{body}' (bodies: {', '.join(self.bodies)})")
+        cells = self.tmesh.cells(body)
+        blocks = np.unique(self.V.dofmap.list.array.reshape(-1, 3)[cells].ravel())
+        return self._unrolled(blocks, component, owned=True)
+
+    def axis_dofs(self, owned: bool = True) -> np.ndarray:
+        """Radial dofs of the nodes on the axis r = 0 (u_r = 0 there)."""
+        tol = 1e-10 * max(self.length_scale, 1e-300)
+        return self._unrolled(np.flatnonzero(np.abs(self.node_xy[:, R]) <= tol), R, owned)
+
+    def dof_coordinates(self, dofs: np.ndarray) -> np.ndarray:
+        """(r, z) in m of the nodes of owned unrolled ``dofs``."""
+        return self.node_xy[dofs // self.bs]
+
+    def to_global(self, dofs: np.ndarray) -> np.ndarray:
+        """Global (PETSc) indices of owned unrolled ``dofs``."""
+        return (dofs + self.offset).astype(np.int32)
+
+
+def _max():
+    from mpi4py import MPI
+
+    return MPI.MAX

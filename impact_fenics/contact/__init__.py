@@ -1,0 +1,11 @@
+"""Node-to-node contact: pairing, the interface, and three methods side by side."""
+from .dme import DME
+from .film import FILM
+from .interface import ContactSet, RigidBody
+from .pairing import Constraints, pair_surfaces, rigid_face
+from .penalty import Penalty
+
+METHODS = {"penalty": Penalty, "film": FILM, "dme": DME}
+
+__all__ = ["DME", "FILM", "Penalty", "ContactSet", "RigidBody", "Constraints",
+           "pair_surfaces", "rigid_face", "METHODS"]

@@ -1,0 +1,113 @@
+"""Penalty (paper eq. 5): a spring of stiffness p_i (N/m) on each predicted penetration.
+
+    force_i = p_i * max(0, -g~_i)
+
+Stability for persistent contact. With S = dt^2 G M^-1 G' (m/N) and P = diag(p),
+the corrected gaps are g = (I - S P) g~. Take an isolated pair (or a mode of
+P^1/2 S P^1/2 with eigenvalue beta) and no elastic coupling. With y^n the gap
+change of the last step, g^{n+1} = (1 - beta)(g^n + y^n) and
+y^{n+1} = g^{n+1} - g^n, whose amplification matrix
+
+    [[1 - beta, 1 - beta], [-beta, 1 - beta]]
+
+has trace 2 (1 - beta) and determinant 1 - beta. The Jury conditions give
+beta > 0 and 1 + trace + det = 4 - 3 beta > 0:
+
+    0 < beta < 4/3.
+
+At beta = 1 the matrix is nilpotent: the gap closes in one step (this is FILM).
+For beta < 1 the roots are complex with |z|^2 = 1 - beta (the penalty damps);
+at beta = 4/3 a root reaches z = -1, so above it the gap alternates sign every
+step: a tied pair grows without bound, a unilateral contact chatters (opens
+and closes on alternate steps) and gains energy. An elastic body behind the
+node adds a mode stiffness w = dt^2 omega^2 in [0, 4) and moves the limit to
+beta < (4 - w)/(3 - w) >= 4/3, so 4/3 is the bound that holds for every mode.
+
+With a rigid punch, S = diag(d) + kappa 1 1' with kappa = dt^2 / m_p couples
+every spring through the light punch: with a uniform p, beta_max = p *
+lambda_max(S) >= p (max d + n kappa) grows with the number of constraints, which
+a per-pair choice of p cannot see. The ``scaled`` choice p_i = c / d_i puts every
+pair at the same beta_ii = c and takes c from the coupled operator:
+lambda_max(I + kappa w w') = 1 + kappa sum(1/d) with w_i = d_i^-1/2, so
+beta_max = c (1 + kappa sum 1/d_i) = beta_target exactly.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+
+STABILITY_BOUND = 4.0 / 3.0
+
+
+def lambda_max_diag_plus_rank_one(a: np.ndarray, kappa: float, z: np.ndarray) -> float:
+    """Largest eigenvalue of diag(a) + kappa z z' (kappa >= 0), by bisection on the
+    secular equation 1 = kappa sum z_i^2 / (lambda - a_i)."""
+    top = float(a.max())
+    if kappa == 0.0 or not np.any(z):
+        return top
+    lo, hi = top, top + kappa * float(z @ z)
+    z2 = z * z
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if kappa * np.sum(z2 / (mid - a)) > 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+class Penalty:
+    """Penalty contact. ``p``: a stiffness in N/m, ``"auto"`` (the paper's rule, see
+    ``auto_reading``) or ``"scaled"`` (stability-scaled, beta_max = ``beta_target``)."""
+
+    name = "penalty"
+
+    def __init__(self, p: float | str = "scaled", auto_reading: str = "mean_of_inverse",
+                 beta_target: float = 1.0):
+        if isinstance(p, str) and p not in ("auto", "scaled"):
+            try:
+                p = float(p)
+            except ValueError:
+                raise InputError(f"penalty = '{p}': give a stiffness in N/m, 'auto' or 'scaled'")
+        if not isinstance(p, str) and not p > 0:
+            raise InputError(f"penalty = {p} N/m: must be > 0")
+        if auto_reading not in ("mean_of_inverse", "inverse_of_mean"):
+            raise InputError(f"auto_reading = '{auto_reading}': use 'mean_of_inverse' "
+                             "or 'inverse_of_mean'")
+        if not 0 < beta_target:
+            raise InputError(f"beta_target = {beta_target}: must be > 0")
+        self.choice = p
+        self.auto_reading = auto_reading
+        self.beta_target = beta_target
+        self.info: dict[str, float | str] = {}
+
+    def setup(self, c) -> None:
+        d = c.s_diagonal()
+        kappa = c.s_coupling()
+        # the paper's sentence, both readings: an average of S's diagonal as p
+        auto = {"mean_of_inverse": float(np.mean(1.0 / d)),
+                "inverse_of_mean": float(1.0 / np.mean(d))}
+        if self.choice == "scaled":
+            scale = self.beta_target / (1.0 + kappa * float(np.sum(1.0 / d)))
+            self.p = scale / d
+        elif self.choice == "auto":
+            self.p = np.full(c.n, auto[self.auto_reading])
+        else:
+            self.p = np.full(c.n, float(self.choice))
+        sqrt_p = np.sqrt(self.p)
+        beta_max = lambda_max_diag_plus_rank_one(self.p * d, kappa, sqrt_p)
+        self.info = {"p_choice": str(self.choice), "p_min": float(self.p.min()),
+                     "p_max": float(self.p.max()), "p_auto_mean_of_inverse": auto["mean_of_inverse"],
+                     "p_auto_inverse_of_mean": auto["inverse_of_mean"],
+                     "beta_max": beta_max, "beta_bound": STABILITY_BOUND}
+        self._pen = np.empty(c.n)
+
+    def correct(self, c) -> None:
+        np.negative(c.gap, out=self._pen)
+        np.maximum(self._pen, 0.0, out=self._pen)
+        np.multiply(self._pen, self.p, out=c.force)
+        np.greater(self._pen, 0.0, out=c.active)
+        c.apply_forces(c.force)

@@ -1,0 +1,65 @@
+"""Errors a user can act on, and the one-line exit that reports them.
+
+Input checks are collective: every rank sees the same data (or reduces it) and
+raises the same :class:`InputError`, so every rank can leave with the same exit
+code without a hang. Anything unexpected aborts all ranks.
+"""
+from __future__ import annotations
+
+import functools
+import sys
+from typing import Callable, TypeVar
+
+F = TypeVar("F", bound=Callable)
+
+EXIT_INPUT = 2
+EXIT_UNSTABLE = 3
+
+
+class InputError(ValueError):
+    """Bad input: the message names the field and the problem in one line."""
+
+
+class UnstableRunError(RuntimeError):
+    """The run diverged (NaN or energy growth); the message gives step and stable dt."""
+
+
+def _print_rank0(message: str) -> None:
+    from mpi4py import MPI
+
+    sys.stdout.flush()
+    if MPI.COMM_WORLD.rank == 0:
+        print(message, file=sys.stderr, flush=True)
+
+
+def _abort_on_unexpected(exc_type, exc, tb) -> None:
+    """Excepthook: print the traceback, then take every rank down (never hang)."""
+    sys.__excepthook__(exc_type, exc, tb)
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.size > 1:
+        MPI.COMM_WORLD.Abort(1)
+
+
+def user_errors(func: F) -> F:
+    """Decorate a ``main()``: InputError exits 2 and UnstableRunError exits 3, one line each."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        sys.excepthook = _abort_on_unexpected
+        try:
+            return func(*args, **kwargs)
+        except InputError as exc:
+            _print_rank0(f"error: {exc}")
+            raise SystemExit(EXIT_INPUT)
+        except UnstableRunError as exc:
+            _print_rank0(f"error: {exc}")
+            raise SystemExit(EXIT_UNSTABLE)
+
+    return wrapper  # type: ignore[return-value]
+
+
+def require(condition: bool, message: str) -> None:
+    """Raise :class:`InputError` with ``message`` unless ``condition`` holds."""
+    if not condition:
+        raise InputError(message)

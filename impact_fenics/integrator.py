@@ -1,0 +1,127 @@
+"""The explicit loop of paper eq. (1) on PETSc vectors: one MatMultAdd and one AXPY per step.
+
+The modified Euler scheme
+
+    a^n = M^-1 (f^n - K u^n),  v^{n+1} = v^n + dt a^n,  u^{n+1} = u^n + dt v^{n+1}
+
+runs as  v <- A u + v  (MatMultAdd with A = -dt M^-1 K, scaled once), the few
+loaded dofs get dt M^-1 f^n, then  u <- u + dt v  (VecAXPY). Fixed dofs have
+zero rows in A and stay at rest. The velocity is kept as a state of its own
+(not recovered from differences of displacements), so a body that drifts far
+keeps its velocity to full precision.
+
+Contact methods read the predicted state with :meth:`take_predicted` and
+commit corrected positions and velocities of their dofs with :meth:`put`.
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from .bodies import DeformableModel
+from .errors import InputError
+from .loads import SurfaceLoad
+from .operators import assemble_stiffness, lumped_mass
+
+
+class Integrator:
+    """State (u^n, v^n) of the deformable dofs and the step without contact.
+
+    Units: dt in s, displacements in m, velocities in m/s, masses in kg.
+    """
+
+    def __init__(self, model: DeformableModel, dt: float, fixed_dofs: np.ndarray,
+                 loads: list[SurfaceLoad] | None = None, matrix_type: str = "aij"):
+        if not dt > 0.0:
+            raise InputError(f"dt = {dt} s: the time step must be > 0")
+        self.model = model
+        self.dt = float(dt)
+        self.n = 0
+        self.loads = loads or []
+        self.fixed = np.unique(np.asarray(fixed_dofs, dtype=np.int32))
+        self.K = assemble_stiffness(model, matrix_type)
+        self.mass = lumped_mass(model)
+        self.A = self._update_matrix()
+        self._u = self.K.createVecRight()
+        self._v = self.K.createVecRight()
+        self._u.set(0.0), self._v.set(0.0)
+        self._ua = self._u.array  # numpy views on the owned entries
+        self._va = self._v.array
+        self._free = np.ones(model.n_owned, dtype=bool)
+        self._free[self.fixed] = False
+        # per load: its dofs, dt f / m there, and two buffers
+        self._load_dofs = [ld.dofs.astype(np.intp) for ld in self.loads]
+        self._load_coef = [self.dt * ld.force / self.mass[ld.dofs] for ld in self.loads]
+        self._load_buf = [(np.empty(ld.dofs.size), np.empty(ld.dofs.size)) for ld in self.loads]
+
+    def _update_matrix(self) -> PETSc.Mat:
+        """A = -dt M^-1 K with zero rows on the fixed dofs."""
+        scale = self.K.createVecRight()
+        scale.array[:] = -self.dt / self.mass
+        A = self.K.copy()
+        A.diagonalScale(L=scale)
+        A.zeroRows(self.model.to_global(self.fixed).astype(PETSc.IntType), diag=0.0)
+        scale.destroy()
+        return A
+
+    # ------------------------------------------------------------ state
+    @property
+    def t(self) -> float:
+        """Time of the current state (s)."""
+        return self.n * self.dt
+
+    def set_initial(self, u0: np.ndarray | None, v0: np.ndarray | None) -> None:
+        """Set u^0 (m) and v^0 (m/s) on the owned dofs; fixed dofs are kept at zero."""
+        self.n = 0
+        for target, values in ((self._ua, u0), (self._va, v0)):
+            target[:] = 0.0 if values is None else values
+            target[~self._free] = 0.0
+
+    def displacement(self, out: np.ndarray) -> np.ndarray:
+        """u^n (m) on the owned dofs, copied into ``out``."""
+        out[:] = self._ua
+        return out
+
+    def velocity(self, out: np.ndarray) -> np.ndarray:
+        """v^n (m/s) on the owned dofs, copied into ``out``."""
+        out[:] = self._va
+        return out
+
+    @property
+    def u_vec(self) -> PETSc.Vec:
+        """The displacement vector u^n (read it, do not resize it)."""
+        return self._u
+
+    # ------------------------------------------------------------ the step
+    def predict(self) -> None:
+        """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
+        self.A.multAdd(self._u, self._v, self._v)
+        if self.loads:
+            t = self.t
+            for ld, dofs, coef, (buf, inc) in zip(self.loads, self._load_dofs,
+                                                  self._load_coef, self._load_buf):
+                value = ld.history(t)
+                if value != 0.0:
+                    np.take(self._va, dofs, out=buf)
+                    np.multiply(coef, value, out=inc)
+                    buf += inc
+                    self._va[dofs] = buf
+        self._u.axpy(self.dt, self._v)
+
+    def take_predicted(self, dofs: np.ndarray, u_out: np.ndarray, v_out: np.ndarray) -> None:
+        """Predicted u~^{n+1} (m) and v~^{n+1} (m/s) on owned ``dofs`` (after :meth:`predict`)."""
+        np.take(self._ua, dofs, out=u_out)
+        np.take(self._va, dofs, out=v_out)
+
+    def take_velocity(self, dofs: np.ndarray, out: np.ndarray) -> None:
+        """v on owned ``dofs`` (m/s): v^n before :meth:`predict`."""
+        np.take(self._va, dofs, out=out)
+
+    def put(self, dofs: np.ndarray, u_new: np.ndarray, v_new: np.ndarray) -> None:
+        """Commit u^{n+1} (m) and v^{n+1} (m/s) on owned ``dofs``."""
+        self._ua[dofs] = u_new
+        self._va[dofs] = v_new
+
+    def advance(self) -> None:
+        """Accept the step: the corrected state becomes (u^{n+1}, v^{n+1})."""
+        self.n += 1

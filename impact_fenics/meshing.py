@@ -1,0 +1,270 @@
+"""Meshes of the scenes: gmsh generators on rank 0, read on every rank with gdim = 2.
+
+Every generator returns a :class:`TaggedMesh` whose cell and facet groups are
+known by name. Lengths are in metres; r = x[0] >= 0, z = x[1]. ``load_msh``
+reads a .msh file with named physical groups through the same path.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+from mpi4py import MPI
+from dolfinx import mesh as dmesh
+from dolfinx.io import gmshio
+
+from .errors import InputError, require
+
+
+@dataclass
+class TaggedMesh:
+    """A dolfinx mesh with its cell and facet tags, addressed by group name."""
+
+    mesh: dmesh.Mesh
+    cell_tags: dmesh.MeshTags
+    facet_tags: dmesh.MeshTags
+    cell_names: dict[str, int]
+    facet_names: dict[str, int]
+    info: dict = field(default_factory=dict)
+
+    def cell_tag(self, name: str) -> int:
+        """Integer tag of the cell group ``name``; a clear error if the mesh lacks it."""
+        if name not in self.cell_names:
+            raise InputError(f"mesh has no cell group named '{name}' "
+                             f"(it has: {', '.join(sorted(self.cell_names)) or 'none'})")
+        return self.cell_names[name]
+
+    def facet_tag(self, name: str) -> int:
+        """Integer tag of the facet group ``name``; a clear error if the mesh lacks it."""
+        if name not in self.facet_names:
+            raise InputError(f"mesh has no facet group named '{name}' "
+                             f"(it has: {', '.join(sorted(self.facet_names)) or 'none'})")
+        return self.facet_names[name]
+
+    def facets(self, name: str) -> np.ndarray:
+        """Local indices of the facets in group ``name``."""
+        return self.facet_tags.find(self.facet_tag(name))
+
+    def cells(self, name: str) -> np.ndarray:
+        """Local indices of the cells in group ``name``."""
+        return self.cell_tags.find(self.cell_tag(name))
+
+
+_GMSH_READY = False
+
+
+def _gmsh():
+    """The gmsh module, initialised once per process (gmsh 4.8 has no isInitialized)."""
+    global _GMSH_READY
+    import gmsh
+
+    if not _GMSH_READY:
+        gmsh.initialize()
+        _GMSH_READY = True
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("General.Verbosity", 1)
+    return gmsh
+
+
+def _physical_names(gmsh) -> tuple[dict[str, int], dict[str, int]]:
+    cells, facets = {}, {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
+        if dim == 2:
+            cells[name] = tag
+        elif dim == 1:
+            facets[name] = tag
+    return cells, facets
+
+
+def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
+    """Run ``build(gmsh)`` on rank 0 (it must leave a meshed model), read on all ranks."""
+    gmsh = _gmsh()
+    names = None
+    error = None
+    if comm.rank == 0:
+        gmsh.model.add("impact_fenics")
+        try:
+            build(gmsh)
+            names = _physical_names(gmsh)
+            if not names[0]:
+                error = "mesh has no physical group of cells (dimension 2)"
+        except InputError as exc:
+            error = str(exc)
+        except Exception as exc:  # gmsh raises plain Exceptions for unreadable files
+            error = f"mesh could not be built or read: {exc}"
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        if comm.rank == 0:
+            gmsh.model.remove()
+        raise InputError(error)
+    names = comm.bcast(names, root=0)
+    msh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
+    if comm.rank == 0:
+        gmsh.model.remove()
+    msh.topology.create_connectivity(1, 2)
+    return TaggedMesh(msh, cell_tags, facet_tags, names[0], names[1], info)
+
+
+def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """Read a 2D .msh file whose physical groups carry names (r = x, z = y)."""
+    require(os.path.isfile(path), f"mesh file '{path}' does not exist")
+
+    def build(gmsh):
+        gmsh.open(path)
+        if gmsh.model.getDimension() != 2:
+            raise InputError(f"mesh file '{path}' is not a 2D (r, z) mesh")
+        if not gmsh.model.mesh.getNodes()[0].size:
+            raise InputError(f"mesh file '{path}' holds no mesh nodes")
+
+    return _to_dolfinx(comm, build, {"source": os.path.abspath(path)})
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def _rectangle(gmsh, r0, z0, r1, z1, h, n_r=None, structured=False):
+    """Rectangle [r0, r1] x [z0, z1] in the geo kernel. Returns the surface and its
+    curves (bottom, right, top, left). ``n_r`` fixes the intervals along r on the
+    bottom and top curves (so that faces of touching bodies pair node to node)."""
+    geo = gmsh.model.geo
+    p = [geo.addPoint(r0, z0, 0, h), geo.addPoint(r1, z0, 0, h),
+         geo.addPoint(r1, z1, 0, h), geo.addPoint(r0, z1, 0, h)]
+    c = [geo.addLine(p[0], p[1]), geo.addLine(p[1], p[2]),
+         geo.addLine(p[2], p[3]), geo.addLine(p[3], p[0])]
+    s = geo.addPlaneSurface([geo.addCurveLoop(c)])
+    geo.synchronize()
+    if n_r is not None:
+        for k in (0, 2):
+            gmsh.model.mesh.setTransfiniteCurve(c[k], n_r + 1)
+    if structured:
+        n_z = max(1, int(round((z1 - z0) / h)))
+        for k in (1, 3):
+            gmsh.model.mesh.setTransfiniteCurve(c[k], n_z + 1)
+        gmsh.model.mesh.setTransfiniteSurface(s, "Alternate")
+    return s, c
+
+
+def _group(gmsh, dim: int, entities: list[int], name: str, tag: int) -> None:
+    gmsh.model.addPhysicalGroup(dim, entities, tag)
+    gmsh.model.setPhysicalName(dim, tag, name)
+
+
+def _generate(gmsh) -> None:
+    gmsh.option.setNumber("Mesh.Algorithm", 6)
+    gmsh.model.mesh.generate(2)
+
+
+# ----------------------------------------------------------------------------- scenes
+
+def bar(radius: float = 0.05, length: float = 1.0, h: float = 0.01, structured: bool = True,
+        comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """(a) A single bar r in [0, radius], z in [0, length] (m), element size h (m).
+
+    Groups: cells "bar"; facets "loaded_end" (z = 0), "free_end" (z = length),
+    "lateral" (r = radius), "axis" (r = 0).
+    """
+    require(radius > 0 and length > 0 and h > 0, "bar: radius, length and h must be > 0 (m)")
+
+    def build(gmsh):
+        n_r = max(1, int(round(radius / h)))
+        s, c = _rectangle(gmsh, 0.0, 0.0, radius, length, h, n_r=n_r, structured=structured)
+        _group(gmsh, 2, [s], "bar", 1)
+        for name, curve, tag in (("loaded_end", c[0], 11), ("lateral", c[1], 12),
+                                 ("free_end", c[2], 13), ("axis", c[3], 14)):
+            _group(gmsh, 1, [curve], name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "bar", "radius": radius, "length": length, "h": h})
+
+
+def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length: float = 0.85,
+                 h: float = 0.02, structured: bool = False,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """(b) Two coaxial bars touching at z = 0: the striker in z in [-striker_length, 0],
+    the target in z in [0, target_length], both of the given radius (m).
+
+    Both contact faces are split into round(radius/h) equal intervals, so their
+    nodes pair one to one. Groups: cells "striker", "target"; facets
+    "striker_contact", "target_contact", "striker_end", "target_end",
+    "striker_lateral", "target_lateral", "axis".
+    """
+    require(radius > 0 and striker_length > 0 and target_length > 0 and h > 0,
+            "coaxial_bars: radius, lengths and h must be > 0 (m)")
+
+    def build(gmsh):
+        n_r = max(1, int(round(radius / h)))
+        s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h, n_r=n_r,
+                            structured=structured)
+        s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h, n_r=n_r,
+                            structured=structured)
+        _group(gmsh, 2, [s1], "striker", 1)
+        _group(gmsh, 2, [s2], "target", 2)
+        for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
+                                  ("striker_contact", [c1[2]], 13), ("target_contact", [c2[0]], 14),
+                                  ("target_lateral", [c2[1]], 15), ("target_end", [c2[2]], 16),
+                                  ("axis", [c1[3], c2[3]], 17)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "coaxial_bars", "radius": radius, "h": h,
+                                     "striker_length": striker_length,
+                                     "target_length": target_length})
+
+
+# Surface intervals of the punch block: breaks at r = 1, 3, 6 m with 106, 201 and
+# 302 intervals give 107, 308 and 610 surface nodes with r <= 1, 3 and 6 m.
+PUNCH_SURFACE_BREAKS = ((1.0, 106), (3.0, 201), (6.0, 302))
+
+
+def punch_block(width: float = 6.9, depth: float = 0.45, h_surface: float = 0.01,
+                grading: float = 0.055, h_max: float = 0.25,
+                breaks: tuple[tuple[float, int], ...] = PUNCH_SURFACE_BREAKS,
+                comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """(c) The indented block r in [0, width], z in [-depth, 0] (m).
+
+    The surface z = 0 is split at the radii of ``breaks`` with the given numbers
+    of equal intervals (about h_surface each); beyond the last break, and with
+    depth, the element size grows as h_surface + grading * distance from the
+    contact surface, up to h_max. Groups: cells "block"; facets "surface"
+    (z = 0), "axis" (r = 0), "far" (r = width), "bottom" (z = -depth).
+    """
+    r_last = breaks[-1][0]
+    require(width > r_last and depth > 0 and h_surface > 0,
+            f"punch_block: need width > {r_last} m and depth, h_surface > 0")
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        radii = [0.0] + [b[0] for b in breaks] + [width]
+        top = [geo.addPoint(r, 0.0, 0.0, h_surface) for r in radii]
+        corner_far = geo.addPoint(width, -depth, 0.0, h_max)
+        corner_axis = geo.addPoint(0.0, -depth, 0.0, h_max)
+        surface = [geo.addLine(top[k], top[k + 1]) for k in range(len(top) - 1)]
+        far = geo.addLine(top[-1], corner_far)
+        bottom = geo.addLine(corner_far, corner_axis)
+        axis = geo.addLine(corner_axis, top[0])
+        loop = geo.addCurveLoop(surface + [far, bottom, axis])
+        s = geo.addPlaneSurface([loop])
+        geo.synchronize()
+        for curve, (_, n) in zip(surface, breaks):
+            gmsh.model.mesh.setTransfiniteCurve(curve, n + 1)
+        field = gmsh.model.mesh.field
+        dist = field.add("Distance")
+        field.setNumbers(dist, "CurvesList", surface[:len(breaks)])
+        field.setNumber(dist, "NumPointsPerCurve", 2000)
+        size = field.add("MathEval")
+        field.setString(size, "F", f"Min({h_surface} + {grading} * F{dist}, {h_max})")
+        field.setAsBackgroundMesh(size)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        _group(gmsh, 2, [s], "block", 1)
+        _group(gmsh, 1, surface, "surface", 11)
+        _group(gmsh, 1, [axis], "axis", 12)
+        _group(gmsh, 1, [far], "far", 13)
+        _group(gmsh, 1, [bottom], "bottom", 14)
+        gmsh.option.setNumber("Mesh.Algorithm", 5)
+        gmsh.model.mesh.generate(2)
+
+    return _to_dolfinx(comm, build, {"scene": "punch_block", "width": width, "depth": depth,
+                                     "h_surface": h_surface, "grading": grading})

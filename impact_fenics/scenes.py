@@ -1,0 +1,85 @@
+"""The scenes of the paper and of the tests, built once and shared by demos, tests and studies.
+
+Each builder returns a ready :class:`~impact_fenics.simulation.Simulation`
+(contact and probes added). Units: m, s, kg, Pa.
+"""
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from . import loads, meshing
+from .bodies import Body, DeformableModel
+from .contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face
+from .errors import InputError
+from .materials import LinearElastic
+from .simulation import Settings, Simulation
+
+STEEL = dict(E=200e9, density=7850.0)
+
+
+def elastic_bar(settings: Settings, h: float = 0.005, nu: float = 0.0, peak: float = 100e6,
+                t_rise: float = 2e-5, t_fall: float = 1e-4, t_end: float = 1.2e-4,
+                radius: float = 0.05, length: float = 1.0, structured: bool = True,
+                clamp_far_end: bool = False, comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """A steel bar (radius, length in m) loaded on z = 0 by a trapezoid pressure pulse (Pa);
+    with ``clamp_far_end`` its end z = length has u_z = 0."""
+    material = LinearElastic(nu=nu, **STEEL)
+    tmesh = meshing.bar(radius=radius, length=length, h=h, structured=structured, comm=comm)
+    model = DeformableModel(tmesh, [Body("bar", material)])
+    pulse = loads.Trapezoid(peak=peak, t_rise=t_rise, t_fall=t_fall, t_end=t_end)
+    fixed = [model.facet_dofs("free_end", 1)] if clamp_far_end else []
+    return Simulation(model, settings, fixed=fixed,
+                      loads=[loads.SurfaceLoad(model, "loaded_end", pulse)])
+
+
+def make_method(method: str, penalty: float | str = "scaled", restitution: float = 0.0,
+                positions: str = "mass_weighted", film_solver: str = "fast",
+                auto_reading: str = "mean_of_inverse"):
+    """A contact method by name: 'penalty', 'film' or 'dme'."""
+    if method == "penalty":
+        return Penalty(penalty, auto_reading=auto_reading)
+    if method == "film":
+        return FILM(film_solver)
+    if method == "dme":
+        return DME(restitution, positions)
+    raise InputError(f"method = '{method}': use penalty, film or dme")
+
+
+def bar_impact(settings: Settings, method, h: float = 0.02, nu: float = 0.3, v0: float = 5.0,
+               radius: float = 0.1, striker_length: float = 0.8, target_length: float = 0.85,
+               structured: bool = False, observe: tuple[float, float] | None = (0.1, 0.2),
+               comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """Two coaxial steel bars touching at z = 0; the striker (below) moves at v0 (m/s) in +z.
+
+    ``observe`` is the (r, z) point of the target where sigma_zz is recorded."""
+    material = LinearElastic(nu=nu, **STEEL)
+    tmesh = meshing.coaxial_bars(radius=radius, striker_length=striker_length,
+                                 target_length=target_length, h=h, structured=structured, comm=comm)
+    model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
+    sim = Simulation(model, settings, initial_velocity={"striker": (0.0, v0)})
+    sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"), method)
+    if observe is not None:
+        sim.add_probe("sigma_zz_obs", observe, "sigma_zz")
+    return sim
+
+
+# The paper's punch scene: constraints per punch radius (m) on our block mesh.
+PUNCH_RADII = {1: 1.0, 3: 3.0, 6: 6.0}
+
+
+def punch_indentation(settings: Settings, method, radius: float = 1.0, punch_mass: float = 0.1,
+                      peak: float = 200e6, t_rise: float = 1e-5, t_fall: float = 9e-5,
+                      t_end: float = 1e-4, block: dict | None = None,
+                      comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """A rigid flat punch (one z dof, mass in kg) of radius R_z (m) pushed into a steel block
+    by -sigma(t) pi R_z^2, sigma a trapezoid pulse (Pa)."""
+    material = LinearElastic(nu=0.3, **STEEL)
+    tmesh = meshing.punch_block(comm=comm, **(block or {}))
+    model = DeformableModel(tmesh, [Body("block", material)])
+    area = 3.141592653589793 * radius ** 2
+    pulse = loads.Trapezoid(peak=peak, t_rise=t_rise, t_fall=t_fall, t_end=t_end)
+    punch = RigidBody("punch", punch_mass, force=lambda t: -area * pulse(t))
+    bottom = model.facet_dofs("bottom", 1)
+    sim = Simulation(model, settings, fixed=[bottom])
+    sim.add_contact(rigid_face(model, "surface", radius, "punch"), method, rigid=punch)
+    return sim

@@ -1,0 +1,498 @@
+"""A run: the explicit loop with contact, the energy ledger, outputs, timers and progress.
+
+Units throughout: s, m, kg, N, Pa, J.
+"""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from mpi4py import MPI
+
+from . import forms, output
+from .bodies import DeformableModel
+from .contact import ContactSet, RigidBody
+from .contact.pairing import Constraints
+from .energy import Ledger, LoadWork, deformable_energy
+from .errors import InputError, UnstableRunError, require
+from .integrator import Integrator
+from .loads import SurfaceLoad
+from .probes import Probes
+from .stability import converged_omega_max, critical_dt, element_omega_bound
+
+PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
+
+
+@dataclass
+class Settings:
+    """How a run steps and what it writes.
+
+    ``dt`` in s, or ``cfl``: dt = cfl * the stable limit (element bound);
+    ``t_end`` in s (or ``n_steps``); outputs every ``output_every`` steps (XDMF
+    fields and the energy ledger) and ``history_every`` steps (CSV rows)."""
+
+    dt: float | None = None
+    cfl: float | None = None
+    t_end: float | None = None
+    n_steps: int | None = None
+    out: str | None = None
+    output_every: int = 50
+    history_every: int = 1
+    fields: bool = True
+    force_dt: bool = False
+    converged_dt: bool = False
+    matrix_type: str = "aij"
+    energy_growth_limit: float = 10.0
+    quiet: bool = False
+    timers: bool = True
+
+    def steps(self) -> int:
+        """Number of steps to run."""
+        require(self.dt is not None and self.dt > 0, f"dt = {self.dt} s: must be > 0")
+        if self.n_steps is None:
+            require(self.t_end is not None and self.t_end > 0, "give t_end > 0 (s) or n_steps")
+            return int(math.ceil(self.t_end / self.dt - 1e-9))
+        require(self.n_steps > 0, f"n_steps = {self.n_steps}: must be > 0")
+        return int(self.n_steps)
+
+
+class Simulation:
+    """Deformable bodies, their conditions, loads, contact and the run settings."""
+
+    def __init__(self, model: DeformableModel, settings: Settings,
+                 fixed: list[np.ndarray] | None = None, loads: list[SurfaceLoad] | None = None,
+                 initial_velocity: dict[str, tuple[float, float]] | None = None):
+        self.model = model
+        self.comm: MPI.Comm = model.comm
+        self.settings = settings
+        require((settings.dt is None) != (settings.cfl is None), "give either dt or cfl")
+        require(settings.output_every > 0 and settings.history_every > 0,
+                "output_every and history_every must be > 0 (steps)")
+        fixed = [model.axis_dofs()] + list(fixed or [])
+        fixed_owned = np.unique(np.concatenate(fixed)).astype(np.int32)
+        self.loads = list(loads or [])
+        # stability: refuse dt above the conservative element bound unless forced
+        fixed_local = np.unique(np.concatenate([model.axis_dofs(owned=False)] +
+                                               [self._local_fixed(f) for f in fixed[1:]]))
+        self.dt_critical = critical_dt(element_omega_bound(model, fixed_local))
+        if settings.cfl is not None:
+            require(settings.cfl > 0, f"cfl = {settings.cfl}: must be > 0")
+            settings.dt = settings.cfl * self.dt_critical
+        self.n_steps = settings.steps()
+        if settings.dt > self.dt_critical and not settings.force_dt:
+            raise InputError(f"dt = {settings.dt:.4g} s is above the stable limit "
+                             f"{self.dt_critical:.4g} s (element bound on 2/omega_max); "
+                             "lower dt or force it")
+        self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
+                                     settings.matrix_type)
+        self.dt_converged = None
+        if settings.converged_dt:
+            self.dt_converged = critical_dt(converged_omega_max(
+                self.integrator.K, self.integrator.mass, model.to_global(fixed_owned)))
+        v0 = np.zeros(model.n_owned)
+        for body, (vr, vz) in (initial_velocity or {}).items():
+            v0[model.body_dofs(body, 0)] = vr
+            v0[model.body_dofs(body, 1)] = vz
+        self.integrator.set_initial(None, v0)
+        self._body_z = {name: model.body_dofs(name, 1).astype(np.intp) for name in model.bodies}
+        self.body_mass = {name: self.comm.allreduce(float(self.integrator.mass[d].sum()))
+                          for name, d in self._body_z.items()}
+        self.contacts: list[ContactSet] = []
+        self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
+        self.status = "not started"
+
+    def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
+        """Local (ghosted) indices of fixed dofs given as owned ones: share them via a scatter."""
+        from dolfinx import fem
+
+        f = fem.Function(self.model.V)
+        f.x.array[:] = 0.0
+        f.x.array[owned] = 1.0
+        f.x.scatter_forward()
+        return np.flatnonzero(f.x.array > 0.5).astype(np.int32)
+
+    # ------------------------------------------------------------ scene set-up
+    def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:
+        """Enforce ``constraints`` with ``method`` (penalty, FILM or DME)."""
+        c = ContactSet(constraints, self.integrator, method, rigid)
+        c.initialize()
+        self.contacts.append(c)
+        return c
+
+    def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz") -> None:
+        """Record ``quantity`` (a stress component name, or u_r, u_z) at ``point`` (r, z) in m."""
+        self._probe_specs.append((name, point, quantity))
+
+    # ------------------------------------------------------------ the run
+    def run(self, extra=None) -> dict:
+        """Step to the end (or to a failure or a signal) and return the summary.
+
+        ``extra(sim)`` may return more summary entries (checks of a demo); they are
+        written with the rest, before the output directory is published."""
+        s = self.settings
+        model, integ, comm = self.model, self.integrator, self.comm
+        n_steps = self.n_steps
+        staging = output.prepare_directory(s.out, comm) if s.out else None
+        writer = self._field_writer(staging) if (staging and s.fields) else None
+        u_fn = writer.u if writer else None
+        probes = self._make_probes(u_fn) if self._probe_specs else None
+        tables = self._tables(staging, probes)
+        self.history = tables["history"]
+        self.energy = tables["energy"]
+        self.probes = probes
+        ledger = Ledger(comm)
+        load_work = LoadWork(self.loads, s.dt, comm)
+        times = np.zeros((n_steps, len(PHASES))) if s.timers else None
+        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku", "u_hist")}
+        Ku = integ.K.createVecRight()
+        energy_rows, max_bal = [], 0.0
+        track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
+        stop = _StopFlag()
+        progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
+        self.status = "running"
+        stopped_at = n_steps
+        clock = time.perf_counter
+        t_run = clock()
+        try:
+            for n in range(n_steps):
+                is_output = (n % s.output_every == 0) or (n == n_steps - 1)
+                is_history = (n % s.history_every == 0) or is_output
+                t0 = clock()
+                if is_output:
+                    pre = self._pre_output(buf, Ku)
+                load_work.accumulate(integ)
+                integ.predict()
+                t1 = clock()
+                for c in self.contacts:
+                    c.step()
+                t2 = clock()
+                self._track_contact(track, n)
+                integ.advance()
+                t3 = clock()
+                if is_history:
+                    self._history_row(tables, probes, u_fn, buf)
+                t4 = clock()
+                if is_output:
+                    row = self._post_output(pre, buf, ledger, load_work)
+                    max_bal = max(max_bal, row["balance_error_rel"])
+                    energy_rows.append(row)
+                    tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
+                    self._check_stability(row, ledger, n)
+                    if writer is not None:
+                        writer.set_state(buf["u"], buf["v"])
+                        writer.write((integ.n - 1) * s.dt)
+                    for tbl in tables.values():
+                        tbl.flush()
+                t5 = clock()
+                if times is not None:
+                    times[n, 0] = t1 - t0
+                    if self.contacts:
+                        times[n, 1] = sum(c.times.detection for c in self.contacts)
+                        times[n, 2] = sum(c.times.solve for c in self.contacts)
+                        times[n, 3] = sum(c.times.update for c in self.contacts)
+                    times[n, 4] = t4 - t3
+                    times[n, 5] = t5 - t4
+                progress.update(n + 1)
+                if (n + 1) % 64 == 0 and stop.collective(comm):
+                    self.status = f"interrupted by {stop.name}"
+                    stopped_at = n + 1
+                    break
+            else:
+                self.status = "completed"
+        except UnstableRunError as exc:
+            self.status = "diverged"
+            stopped_at = integ.n
+            self._failure = str(exc)
+        finally:
+            progress.done()
+            stop.restore()
+            wall = clock() - t_run
+            for tbl in tables.values():
+                tbl.flush()
+            if writer is not None:
+                writer.close()
+        summary = self._summary(times, stopped_at, wall, energy_rows, max_bal, track)
+        self.summary = summary
+        if extra is not None and self.status == "completed":
+            summary.update(extra(self))
+        if staging:
+            output.write_json(os.path.join(staging, "summary.json"), summary, comm)
+            output.finalize_directory(staging, s.out, comm)
+        if self.status == "diverged":
+            raise UnstableRunError(self._failure)
+        return summary
+
+    # ------------------------------------------------------------ pieces of the loop
+    def _pre_output(self, buf, Ku) -> dict:
+        integ = self.integrator
+        integ.displacement(buf["u"])
+        integ.velocity(buf["v"])
+        integ.K.mult(integ.u_vec, Ku)
+        buf["ku"][:] = Ku.array
+        return {"rigid_v": [c.rigid.v if c.rigid else 0.0 for c in self.contacts]}
+
+    def _post_output(self, pre, buf, ledger, load_work) -> dict:
+        integ = self.integrator
+        integ.velocity(buf["v_next"])
+        kinetic, strain = deformable_energy(integ.mass, buf["v"], buf["v_next"], buf["u"],
+                                            buf["ku"], self.comm)
+        ext = load_work.total()
+        work_c = 0.0
+        for c, v_now in zip(self.contacts, pre["rigid_v"]):
+            if c.rigid is not None:
+                kinetic += c.kinetic_energy_rigid(v_now, c.rigid.v)
+                ext += c.rigid_external_work
+            work_c += c.contact_work
+        row = ledger.record(kinetic, strain, ext, work_c)
+        row["activation_loss"] = sum(c.activation_loss for c in self.contacts)
+        row["step"] = integ.n - 1
+        row["time"] = (integ.n - 1) * self.settings.dt
+        # z momentum (kg m/s) of v^{n+1}, per body and in total
+        v_z = buf["v_next"]
+        local = np.array([float(np.dot(integ.mass[d], v_z[d])) for d in self._body_z.values()])
+        momenta = np.zeros_like(local)
+        self.comm.Allreduce(local, momenta)
+        total = float(momenta.sum())
+        for name, p in zip(self._body_z, momenta):
+            row[f"momentum_z_{name}"] = float(p)
+        for c in self.contacts:
+            if c.rigid is not None:
+                row[f"momentum_z_{c.rigid.name}"] = c.rigid.mass * c.rigid.v
+                total += c.rigid.mass * c.rigid.v
+        row["momentum_z"] = total
+        return row
+
+    def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
+        values = [row["kinetic"], row["strain"], row["external_work"], row["contact_work"]]
+        budget = max(abs(ledger.E0 or 0.0), abs(row["external_work"]), 1e-300)
+        if not all(np.isfinite(values)):
+            raise UnstableRunError(self._diagnosis(n, "the energy is not finite"))
+        limit = self.settings.energy_growth_limit
+        if row["total"] > limit * budget and (ledger.E0 or row["external_work"]):
+            raise UnstableRunError(self._diagnosis(
+                n, f"the energy {row['total']:.4g} J grew beyond {limit:g} x the energy put in "
+                   f"({budget:.4g} J)"))
+
+    def _diagnosis(self, n: int, what: str) -> str:
+        penalty = [c.method.info.get("beta_max") for c in self.contacts if c.method.name == "penalty"]
+        extra = ""
+        if penalty:
+            extra = f"; penalty beta_max = {max(penalty):.3g} (stable below 4/3)"
+        return (f"run diverged at step {n} (t = {n * self.settings.dt:.6g} s): {what}; "
+                f"dt = {self.settings.dt:.4g} s, stable dt <= {self.dt_critical:.4g} s{extra}")
+
+    def _track_contact(self, track: dict, n: int) -> None:
+        if not self.contacts:
+            return
+        pen = max(c.max_penetration() for c in self.contacts)
+        track["max_penetration"] = max(track["max_penetration"], pen)
+        if any(c.active.any() for c in self.contacts):
+            if track["first_contact"] is None:
+                track["first_contact"] = n
+            track["last_contact"] = n
+
+    # ------------------------------------------------------------ outputs
+    def _stress_pieces(self, u, name: str):
+        pieces = []
+        for body in self.model.bodies.values():
+            expr = forms.stress_components(u, body.material)[name]
+            pieces.append((expr, self.model.tmesh.cells(body.name)))
+        return pieces
+
+    def _field_writer(self, staging: str) -> output.FieldWriter:
+        names = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
+        return output.FieldWriter(os.path.join(staging, "fields.xdmf"), self.model.V,
+                                  lambda u: {k: self._stress_pieces(u, k) for k in names})
+
+    def _make_probes(self, u_fn):
+        from dolfinx import fem
+
+        if u_fn is None:
+            u_fn = fem.Function(self.model.V)
+        self._probe_u = u_fn
+        specs = []
+        for name, point, quantity in self._probe_specs:
+            if quantity in ("u_r", "u_z"):
+                expr = u_fn[0 if quantity == "u_r" else 1]
+            else:
+                body = self._body_at(point)
+                comps = forms.stress_components(u_fn, body.material)
+                require(quantity in comps, f"probe '{name}': unknown quantity '{quantity}' "
+                                           f"(use u_r, u_z or {', '.join(comps)})")
+                expr = comps[quantity]
+            specs.append((name, point, expr))
+        return Probes(u_fn, specs)
+
+    def _body_at(self, point):
+        from .probes import locate_cell
+
+        cell, mine = locate_cell(self.model.mesh, point)
+        name = None
+        if mine:
+            for body in self.model.bodies:
+                if cell in self.model.tmesh.cells(body):
+                    name = body
+        name = self.comm.allreduce([name] if name else [], op=MPI.SUM)[0]
+        return self.model.bodies[name]
+
+    def _tables(self, staging: str | None, probes) -> dict:
+        """History (kept in memory, and on disk with an output directory), energy and
+        per-pair tables."""
+        comm = self.comm
+        path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
+        cap = min(self.n_steps // self.settings.history_every + 2, 4096)
+        cols = ["step", "time"] + (probes.names if probes else [])
+        for k, c in enumerate(self.contacts):
+            tag = f"c{k}_" if len(self.contacts) > 1 else ""
+            cols += [f"{tag}n_active", f"{tag}contact_force", f"{tag}min_gap"]
+            if c.rigid is not None:
+                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v", f"{tag}{c.rigid.name}_force"]
+            cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
+        tables = {"history": output.Table(path("history.csv"), cols, comm, cap, keep=True),
+                  "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
+                                         + self._momentum_columns(), comm, 256, keep=True)}
+        for k, c in enumerate(self.contacts):
+            name = "contact_pairs.csv" if len(self.contacts) == 1 else f"contact_pairs_{k}.csv"
+            if staging:
+                tables[f"pairs{k}"] = output.Table(
+                    path(name), ["step", "time", "pair", "r", "gap", "force", "active"],
+                    comm, min(cap, 256) * c.n)
+        return tables
+
+    def _momentum_columns(self) -> list[str]:
+        names = list(self._body_z) + [c.rigid.name for c in self.contacts if c.rigid is not None]
+        return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
+
+    def _history_row(self, tables, probes, u_fn, buf) -> None:
+        integ = self.integrator
+        n = integ.n  # state after the step
+        t = n * self.settings.dt
+        row = tables["history"].row()
+        row[0], row[1] = n, t
+        k = 2
+        if probes is not None:
+            integ.displacement(buf["u_hist"])
+            self._probe_u.x.array[: self.model.n_owned] = buf["u_hist"]
+            self._probe_u.x.scatter_forward()
+            vals = probes.evaluate()
+            row[k:k + vals.size] = vals
+            k += vals.size
+        for i, c in enumerate(self.contacts):
+            gap = c.committed_gap()
+            row[k:k + 3] = [int(c.active.sum()), float(c.force.sum()), float(gap.min())]
+            k += 3
+            if c.rigid is not None:
+                row[k:k + 3] = [c.rigid.u, c.rigid.v, float(c.force.sum())]
+                k += 3
+            row[k:k + 3] = [c.times.detection, c.times.solve, c.times.update]
+            k += 3
+            tbl = tables.get(f"pairs{i}")
+            if tbl is not None:
+                block = tbl.rows(c.n)
+                block[:, 0], block[:, 1], block[:, 2], block[:, 3] = n, t, c.pair_index, c.r
+                block[:, 4], block[:, 5], block[:, 6] = gap, c.force, c.active
+
+    def _summary(self, times, stopped_at, wall, energy_rows, max_bal, track) -> dict:
+        model, s = self.model, self.settings
+        n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
+        summary = {
+            "status": self.status,
+            "stopped_at_step": int(stopped_at),
+            "n_steps": int(self.n_steps),
+            "n_ranks": self.comm.size,
+            "n_dofs": int(model.n_global),
+            "n_cells": int(n_cells),
+            "dt": s.dt,
+            "dt_critical": self.dt_critical,
+            "t_end": self.n_steps * s.dt,
+            "wall_time": wall,
+        }
+        if self.dt_converged is not None:
+            summary["dt_critical_converged"] = self.dt_converged
+        if times is not None and stopped_at > 0:
+            med = np.median(times[:stopped_at], axis=0)
+            self.comm.Allreduce(MPI.IN_PLACE, med, op=MPI.MAX)
+            summary["time_per_step_median"] = {k: float(v) for k, v in zip(PHASES, med)}
+            total = times[:stopped_at].sum(axis=1)
+            summary["step_time_median"] = float(self.comm.allreduce(np.median(total), op=MPI.MAX))
+        if energy_rows:
+            last = energy_rows[-1]
+            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
+            summary["energy_balance_error_rel"] = max_bal
+        if self.contacts:
+            c = self.contacts[0]
+            summary["contact"] = {
+                "method": c.method.name,
+                "n_constraints": c.n,
+                "max_penetration": track["max_penetration"],
+                "method_info": getattr(c.method, "info", {}),
+                "first_contact_step": track["first_contact"],
+                "last_contact_step": track["last_contact"],
+            }
+            if times is not None and stopped_at > 0:
+                summary["contact_cpu_time_per_step_median"] = float(
+                    self.comm.allreduce(np.median(times[:stopped_at, 1:4].sum(axis=1)), op=MPI.MAX))
+        return summary
+
+
+_ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
+                   "activation_loss", "balance_error", "balance_error_rel")
+
+
+class _StopFlag:
+    """SIGINT/SIGTERM set a flag; the loop checks it collectively and stops cleanly."""
+
+    def __init__(self):
+        self.name = None
+        self._old = {}
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._old[sig] = signal.signal(sig, self._handler)
+            except ValueError:  # not the main thread
+                pass
+
+    def _handler(self, signum, frame):
+        self.name = signal.Signals(signum).name
+
+    def collective(self, comm: MPI.Comm) -> bool:
+        flag = comm.allreduce(1 if self.name else 0, op=MPI.MAX)
+        if flag and self.name is None:
+            self.name = "a signal on another rank"
+        return bool(flag)
+
+    def restore(self) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+class _Progress:
+    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal."""
+
+    def __init__(self, n_steps: int, dt: float, quiet: bool):
+        self.n_steps, self.dt = n_steps, dt
+        self.enabled = (not quiet) and sys.stdout.isatty()
+        self.t0 = time.perf_counter()
+        self.last = self.t0
+
+    def update(self, n: int) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self.last < 0.5 and n < self.n_steps:
+            return
+        self.last = now
+        rate = n / max(now - self.t0, 1e-9)
+        eta = (self.n_steps - n) / max(rate, 1e-9)
+        sys.stdout.write(f"\rstep {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
+                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
+        sys.stdout.flush()
+
+    def done(self) -> None:
+        if self.enabled:
+            sys.stdout.write("\n")
+            sys.stdout.flush()

@@ -1,0 +1,102 @@
+"""Stable time step of the undamped modified Euler scheme: dt < 2 / omega_max.
+
+Two estimates that err in opposite directions:
+
+* :func:`element_omega_bound` is an upper bound on omega_max (rad/s): the
+  assembled K and lumped M are sums of element matrices, so every Rayleigh
+  quotient x'Kx / x'Mx is at most the largest element eigenvalue. Its dt is
+  conservative; it is the one that refuses input.
+* :func:`converged_omega_max` solves for the largest eigenvalue of M^-1 K (with
+  the fixed dofs removed) to a tight tolerance with SLEPc. Its dt is the true
+  limit; tests of stability measure against it.
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+from dolfinx import fem
+
+from .bodies import DeformableModel
+from .forms import lumped_mass_form, stiffness_form
+from .operators import compile_form
+
+_CHUNK = 65536  # cells per batched eigenvalue call
+
+
+def element_omega_bound(model: DeformableModel, fixed_local: np.ndarray) -> float:
+    """Upper bound on omega_max (rad/s) from element eigenvalues of K_e v = w^2 M_e v.
+
+    The element matrices come from assembling the same forms on a broken (DG1)
+    space, whose matrix is block diagonal with one 6x6 block per cell. Dofs in
+    ``fixed_local`` (local unrolled indices, ghosts included) are removed from
+    each element problem: the bound then holds on the constrained space, and
+    the tiny radial masses of axis nodes no longer dominate it.
+    """
+    V_dg = fem.VectorFunctionSpace(model.mesh, ("DG", 1))
+    K = fem.petsc.assemble_matrix(compile_form(stiffness_form(V_dg, model.parts)))
+    K.assemble()
+    m_vec = fem.petsc.assemble_vector(compile_form(lumped_mass_form(V_dg, model.parts)))
+    indptr, indices, data = K.getValuesCSR()
+    start = K.getOwnershipRange()[0]
+    K.destroy()
+    with m_vec.localForm() as local:
+        m = local.array_r.copy()
+    m_vec.destroy()
+    n_cells = model.mesh.topology.index_map(2).size_local
+    bs = 2
+    dofs = V_dg.dofmap.list.array.reshape(-1, 3)[:n_cells]
+    dofs = (dofs[:, :, None] * bs + np.arange(bs)).reshape(n_cells, 6)
+    cg = model.V.dofmap.list.array.reshape(-1, 3)[:n_cells]
+    cg = (cg[:, :, None] * bs + np.arange(bs)).reshape(n_cells, 6)
+    is_fixed = np.zeros(model.n_local, dtype=bool)
+    is_fixed[fixed_local] = True
+    free = ~is_fixed[cg]
+    import scipy.sparse as sp
+
+    n_rows = indptr.size - 1
+    A = sp.csr_matrix((data, indices - start, indptr), shape=(n_rows, n_rows))
+    w2 = 0.0
+    for lo in range(0, n_cells, _CHUNK):
+        d = dofs[lo:lo + _CHUNK]
+        rows = np.repeat(d, 6, axis=1)
+        cols = np.tile(d, (1, 6))
+        Ke = np.asarray(A[rows.ravel(), cols.ravel()]).reshape(-1, 6, 6)
+        s = np.where(free[lo:lo + _CHUNK], 1.0 / np.sqrt(m[d]), 0.0)
+        Ke = Ke * s[:, :, None] * s[:, None, :]
+        if Ke.shape[0]:
+            w2 = max(w2, float(np.linalg.eigvalsh(Ke)[:, -1].max()))
+    return float(np.sqrt(model.comm.allreduce(w2, op=MPI.MAX)))
+
+
+def converged_omega_max(K: PETSc.Mat, mass: np.ndarray, fixed_global: np.ndarray,
+                        tol: float = 1e-10) -> float:
+    """omega_max (rad/s) of M^-1 K with the fixed dofs removed, by SLEPc Krylov-Schur.
+
+    ``mass`` holds the owned lumped masses (kg); ``fixed_global`` the global
+    indices of the owned fixed dofs.
+    """
+    from slepc4py import SLEPc
+
+    S = K.copy()
+    d = S.createVecRight()
+    d.array[:] = 1.0 / np.sqrt(mass)
+    S.diagonalScale(d, d)
+    S.zeroRowsColumns(fixed_global.astype(PETSc.IntType), diag=0.0)
+    eps = SLEPc.EPS().create(K.getComm())
+    eps.setOperators(S)
+    eps.setProblemType(SLEPc.EPS.ProblemType.HEP)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_REAL)
+    eps.setDimensions(1)
+    eps.setTolerances(tol, 10000)
+    eps.solve()
+    if eps.getConverged() < 1:
+        raise RuntimeError("SLEPc did not converge on omega_max")
+    w2 = eps.getEigenvalue(0).real
+    eps.destroy(), S.destroy(), d.destroy()
+    return float(np.sqrt(w2))
+
+
+def critical_dt(omega_max: float) -> float:
+    """Stability limit 2 / omega_max (s) of the undamped modified Euler scheme."""
+    return 2.0 / omega_max

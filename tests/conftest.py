@@ -1,0 +1,63 @@
+"""Test set-up shared by the serial and the MPI runs.
+
+Under mpirun a failure on one rank must not leave the others waiting in a
+collective: any failing test aborts every rank.
+"""
+import logging
+
+import pytest
+from mpi4py import MPI
+
+logging.getLogger().setLevel(logging.WARNING)  # the form compiler logs at INFO
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if MPI.COMM_WORLD.size > 1 and report.failed:
+        import sys
+
+        sys.stderr.write(f"\n[rank {MPI.COMM_WORLD.rank}] {item.nodeid} failed:\n"
+                         f"{report.longreprtext}\n")
+        sys.stderr.flush()
+        MPI.COMM_WORLD.Abort(1)
+
+
+@pytest.fixture
+def comm():
+    return MPI.COMM_WORLD
+
+
+def load_demo(name: str):
+    """Import demos/<name>.py as a module (its run() and checks are the tested API)."""
+    import importlib.util
+    import os
+
+    path = os.path.join(os.path.dirname(__file__), "..", "demos", f"{name}.py")
+    spec = importlib.util.spec_from_file_location(f"demo_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def gather_field(model, values):
+    """(coordinates, values) of an owned dof array, gathered and sorted by node on every rank."""
+    import numpy as np
+
+    xy = model.node_xy[: model.n_owned // 2]
+    vals = values.reshape(-1, 2)
+    all_xy = np.concatenate(model.comm.allgather(xy))
+    all_v = np.concatenate(model.comm.allgather(vals))
+    key = np.round(all_xy, 10)  # coordinates equal up to round-off sort alike
+    # coincident nodes of two bodies (a contact face) are told apart by their values
+    order = np.lexsort((all_v[:, 1], all_v[:, 0], key[:, 1], key[:, 0]))
+    return all_xy[order], all_v[order]
+
+
+def clean_mpi_env() -> dict:
+    """The environment without this process's MPI variables, for launching mpirun anew."""
+    import os
+
+    return {k: v for k, v in os.environ.items()
+            if not k.startswith(("OMPI_", "PMIX_", "OPAL_", "ORTE_", "HYDRA_", "PMI_"))}

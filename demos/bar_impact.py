@@ -80,8 +80,8 @@ def main(argv=None):
     parser.add_argument("--penalty", default="scaled",
                         help="penalty stiffness in N/m, 'auto' (paper) or 'scaled' (stability)")
     parser.add_argument("--restitution", type=float, default=0.0, help="DME restitution e in [0, 1]")
-    parser.add_argument("--positions", choices=("mass_weighted", "equal"), default="mass_weighted",
-                        help="DME pair positions: mass-weighted, or the paper's equal weights")
+    parser.add_argument("--positions", choices=("mass_weighted", "paper"), default="mass_weighted",
+                        help="DME pair positions: mass-weighted, or the paper's equal weights (eq. 9)")
     parser.add_argument("--h", type=float, default=0.02, help="element size (m)")
     parser.add_argument("--t-end", type=float, default=T_END, help="end time (s)")
     parser.add_argument("--out", default=None, help="output directory")

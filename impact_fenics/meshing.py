@@ -78,12 +78,20 @@ def _physical_names(gmsh) -> tuple[dict[str, int], dict[str, int]]:
     return cells, facets
 
 
+# gmsh options that a generator may change, reset before every mesh
+_DEFAULTS = {"Mesh.MeshSizeExtendFromBoundary": 1, "Mesh.MeshSizeFromPoints": 1,
+             "Mesh.MeshSizeFromCurvature": 0, "Mesh.Algorithm": 6}
+
+
 def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
     """Run ``build(gmsh)`` on rank 0 (it must leave a meshed model), read on all ranks."""
     gmsh = _gmsh()
     names = None
     error = None
     if comm.rank == 0:
+        gmsh.clear()  # no model, field or option left over from an earlier mesh
+        for option, value in _DEFAULTS.items():
+            gmsh.option.setNumber(option, value)
         gmsh.model.add("impact_fenics")
         try:
             build(gmsh)

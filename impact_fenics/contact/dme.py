@@ -6,7 +6,13 @@ Case 1, rigid upper body (paper eq. 8): the active nodes join the body as one
 rigid cluster. Its velocity is the momentum average of the predicted
 velocities, v_c = (m_p v~_p + sum m_i v~_i) / (m_p + sum m_i), i.e. the cluster
 acceleration is the total force over the total mass; the body moves to
-u_p^n + dt v_c and each active node to u_p + b_i. A node is released when the
+u_p^n + dt v_c and each active node onto it, u_i = u_p + b_i. While the cluster
+persists this is exactly FILM. At an activation with an open gap g^n the node
+jumps by g^n onto the body: against the elastic forces of its loaded
+neighbours, so DME gains strain energy where FILM dissipates (the ledger books
+the jump). A mass-weighted cluster position (keeping the centre of mass, as in
+case 2) does worse with a light body: it shifts the whole loaded cluster and
+leaves released nodes penetrating, so case 1 keeps eq. (8). A node is released when the
 reaction needed to hold it, m_i (v~_i - v_c) / dt (N, the quantity FILM calls
 the multiplier), would pull: sorting the candidates by v~_i finds the largest
 consistent cluster in O(n log n).
@@ -15,8 +21,8 @@ Case 2, two deformable bodies: each active pair moves as one. Velocities come
 from momentum and Newton's restitution law, v'_up - v'_lo = -e (v~_up - v~_lo),
 e in [0, 1]; positions from the mass-weighted average of the predicted ones,
 which keeps the centre of mass and, while the pair stays closed,
-u^{n+1} = u^n + dt v^{n+1}. ``positions="equal"`` uses the paper's eq. (9) average
-instead. The holding reaction of a closed pair is compressive exactly when its
+u^{n+1} = u^n + dt v^{n+1}. ``positions="paper"`` uses the paper's eq. (9) equal
+weights instead. The holding reaction of a closed pair is compressive exactly when its
 predicted gap is negative, so detection and release coincide.
 
 The set velocity is independent of the set position at an activation (a
@@ -30,8 +36,8 @@ from ..errors import InputError
 
 
 class DME:
-    """Direct manifold elimination; ``restitution`` e in [0, 1] and ``positions``
-    'mass_weighted' or 'equal' apply to node pairs (case 2)."""
+    """Direct manifold elimination. For node pairs (case 2): ``restitution`` e in [0, 1]
+    and ``positions`` 'mass_weighted' or 'paper' (the equal weights of eq. 9)."""
 
     name = "dme"
     jumps = True
@@ -39,8 +45,8 @@ class DME:
     def __init__(self, restitution: float = 0.0, positions: str = "mass_weighted"):
         if not 0.0 <= restitution <= 1.0:
             raise InputError(f"restitution = {restitution}: must lie in [0, 1]")
-        if positions not in ("mass_weighted", "equal"):
-            raise InputError(f"dme positions = '{positions}': use 'mass_weighted' or 'equal'")
+        if positions not in ("mass_weighted", "paper"):
+            raise InputError(f"dme positions = '{positions}': use 'mass_weighted' or 'paper'")
         self.e = float(restitution)
         self.positions = positions
         self.info: dict[str, float | str] = {"restitution": self.e, "positions": positions}
@@ -97,7 +103,7 @@ class DME:
         c.active[:] = False
         c.active[members] = True
         c.force[members] = c.m_lo[members] * (c.v_lo[members] - v_c) / dt
-        u_rigid = c.rigid.u + dt * v_c  # committed u_p^n + dt v_c
+        u_rigid = c.rigid.u + dt * v_c  # the body keeps u_p^n + dt v_c; nodes move onto it
         c.set_upper_rigid(v_c, u_rigid)
         c.v_lo[members] = v_c
         c.u_lo[members] = u_rigid + c.b[members]

@@ -141,21 +141,25 @@ def test_dme_pair_collision_law(e, positions):
     u_lo, u_up = np.array([1e-6, 1e-6, 0.0]), np.array([0.0, 5e-7, 0.0])
     v_lo, v_up = np.array([3.0, 1.0, -1.0]), np.array([-1.0, 0.5, 2.0])
     b = np.array([0.0, 0.0, 1e-3])
-    c = SimpleNamespace(n=3, rigid=None, dt=1e-6, m_lo=m_lo, m_up=m_up, b=b,
-                        u_lo=u_lo.copy(), u_up=u_up.copy(), v_lo=v_lo.copy(), v_up=v_up.copy(),
-                        force=np.zeros(3), active=np.zeros(3, dtype=bool))
+    # slots: the three lower nodes, then the three upper ones
+    c = SimpleNamespace(n=3, rigid=None, dt=1e-6, b=b, lo=np.arange(3), up=np.arange(3, 6),
+                        mass=np.concatenate([m_lo, m_up]), u=np.concatenate([u_lo, u_up]),
+                        v=np.concatenate([v_lo, v_up]), force=np.zeros(3),
+                        active=np.zeros(3, dtype=bool))
     c.gap = b + u_up - u_lo  # pairs 0 and 1 penetrate, pair 2 is open
     method = DME(restitution=e, positions=positions)
     method.setup(c)
     method.correct(c)
     assert c.active.tolist() == [True, True, False]
     a = c.active
+    new_u_lo, new_u_up, new_v_lo, new_v_up = c.u[:3], c.u[3:], c.v[:3], c.v[3:]
     rel_before = v_up[a] - v_lo[a]
-    assert np.allclose(c.v_up[a] - c.v_lo[a], -e * rel_before, rtol=0, atol=1e-14)
-    assert np.allclose(m_lo * c.v_lo + m_up * c.v_up, m_lo * v_lo + m_up * v_up, rtol=1e-14)
-    assert np.allclose(c.u_lo[a], c.u_up[a] + b[a], rtol=0, atol=1e-20)  # on the manifold
+    assert np.allclose(new_v_up[a] - new_v_lo[a], -e * rel_before, rtol=0, atol=1e-14)
+    assert np.allclose(m_lo * new_v_lo + m_up * new_v_up, m_lo * v_lo + m_up * v_up, rtol=1e-14)
+    assert np.allclose(new_u_lo[a], new_u_up[a] + b[a], rtol=0, atol=1e-20)  # on the manifold
     w = m_lo / (m_lo + m_up) if positions == "mass_weighted" else np.full(3, 0.5)
-    assert np.allclose(c.u_lo[a], (w * u_lo + (1 - w) * (u_up + b))[a], rtol=1e-14)
+    assert np.allclose(new_u_lo[a], (w * u_lo + (1 - w) * (u_up + b))[a], rtol=1e-14)
+    assert new_u_lo[2] == u_lo[2] and new_v_up[2] == v_up[2]  # the open pair is untouched
     # the reported force is the momentum change of the upper node over dt
-    assert np.allclose(c.force[a], m_up[a] * (c.v_up[a] - v_up[a]) / c.dt, rtol=1e-12)
+    assert np.allclose(c.force[a], m_up[a] * (new_v_up[a] - v_up[a]) / c.dt, rtol=1e-12)
     assert np.all(c.force[a] > 0) and c.force[2] == 0.0

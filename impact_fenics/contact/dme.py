@@ -31,6 +31,7 @@ jump); the interface encodes it and books its energy.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..errors import InputError
 
@@ -52,58 +53,63 @@ class DME:
         self.info: dict[str, float | str] = {"restitution": self.e, "positions": positions}
 
     def setup(self, c) -> None:
-        if c.rigid is None:
-            total = c.m_lo + c.m_up
-            self._w_lo = c.m_lo / total if self.positions == "mass_weighted" else np.full(c.n, 0.5)
-            self._share_lo = c.m_lo / total  # momentum weights
-            self._mu = c.m_lo * c.m_up / total  # reduced mass (kg)
-        self._rel = np.empty(c.n)
-        self._x = np.empty(c.n)
+        pass
 
     def correct(self, c) -> None:
-        np.less(c.gap, 0.0, out=c.active)
-        c.force.fill(0.0)
-        if not c.active.any():
-            return
         if c.rigid is None:
-            self._pairs(c)
+            _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.dt, self.e, self.positions == "mass_weighted",
+                   c.u, c.v, c.force, c.active)
         else:
-            self._cluster(c)
+            _cluster(c.gap, c.b, c.lo, c.up[0], c.mass, c.dt, c.u_now, c.u, c.v, c.force, c.active)
 
-    def _pairs(self, c) -> None:
-        a = c.active
-        dt = c.dt
-        rel = self._rel  # approach velocity v~_up - v~_lo (m/s), < 0 when closing
-        np.subtract(c.v_up, c.v_lo, out=rel)
-        # velocities: v_mean from momentum, then the restitution split
-        v_mean = c.v_lo[a] + (1.0 - self._share_lo[a]) * rel[a]
-        k = self.e * rel[a]
-        c.force[a] = -(1.0 + self.e) * self._mu[a] * rel[a] / dt
-        c.v_lo[a] = v_mean + (1.0 - self._share_lo[a]) * k
-        c.v_up[a] = v_mean - self._share_lo[a] * k
-        # positions on the manifold u_lo = u_up + b
-        x = self._w_lo[a] * c.u_lo[a] + (1.0 - self._w_lo[a]) * (c.u_up[a] + c.b[a])
-        c.u_lo[a] = x
-        c.u_up[a] = x - c.b[a]
 
-    def _cluster(self, c) -> None:
-        dt = c.dt
-        v_p = c.rigid_state[1]  # predicted velocity
-        m_p = c.rigid.mass
-        cand = np.flatnonzero(c.active)
-        order = cand[np.argsort(-c.v_lo[cand], kind="stable")]
-        m = c.m_lo[order]
-        mom = m_p * v_p + np.cumsum(m * c.v_lo[order])
-        mass = m_p + np.cumsum(m)
-        v_before = np.concatenate(([v_p], (mom / mass)[:-1]))  # cluster velocity before adding k
-        keep = c.v_lo[order] >= v_before
-        k = int(np.argmin(keep)) if not keep.all() else keep.size
-        members = order[:k]
-        v_c = float(mom[k - 1] / mass[k - 1])
-        c.active[:] = False
-        c.active[members] = True
-        c.force[members] = c.m_lo[members] * (c.v_lo[members] - v_c) / dt
-        u_rigid = c.rigid.u + dt * v_c  # the body keeps u_p^n + dt v_c; nodes move onto it
-        c.set_upper_rigid(v_c, u_rigid)
-        c.v_lo[members] = v_c
-        c.u_lo[members] = u_rigid + c.b[members]
+@njit(cache=True)
+def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
+    """Case 2: each penetrating pair moves as one (momentum, restitution, positions)."""
+    for i in range(gap.size):
+        active[i] = gap[i] < 0.0
+        force[i] = 0.0
+        if not active[i]:
+            continue
+        p, q = lo[i], up[i]
+        share = mass[p] / (mass[p] + mass[q])  # momentum weight of the lower node
+        rel = v[q] - v[p]  # approach velocity (m/s), < 0 when closing
+        v_mean = v[p] + (1.0 - share) * rel
+        force[i] = -(1.0 + e) * share * mass[q] * rel / dt
+        v[p] = v_mean + (1.0 - share) * e * rel
+        v[q] = v_mean - share * e * rel
+        w = share if mass_weighted else 0.5
+        x = w * u[p] + (1.0 - w) * (u[q] + b[i])  # on the manifold u_lo = u_up + b
+        u[p] = x
+        u[q] = x - b[i]
+
+
+@njit(cache=True)
+def _cluster(gap, b, lo, body, mass, dt, u_now, u, v, force, active):
+    """Case 1: the largest consistent set of penetrating nodes moves with the body."""
+    cand = np.flatnonzero(gap < 0.0)
+    order = cand[np.argsort(-v[lo[cand]], kind="mergesort")]  # fastest upward first
+    momentum = mass[body] * v[body]
+    total = mass[body]
+    k = 0
+    for j in range(order.size):
+        node = lo[order[j]]
+        if v[node] < momentum / total:  # holding it would pull: it and all slower stay free
+            break
+        momentum += mass[node] * v[node]
+        total += mass[node]
+        k += 1
+    v_c = momentum / total
+    u_body = u_now[body] + dt * v_c
+    v[body] = v_c
+    u[body] = u_body
+    for i in range(gap.size):
+        active[i] = False
+        force[i] = 0.0
+    for j in range(k):
+        i = order[j]
+        node = lo[i]
+        active[i] = True
+        force[i] = mass[node] * (v[node] - v_c) / dt
+        v[node] = v_c
+        u[node] = u_body + b[i]

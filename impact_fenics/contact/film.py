@@ -19,37 +19,57 @@ complementarity conditions hold.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..errors import InputError
+from .interface import apply_forces
 
 
-def solve_fast(gap: np.ndarray, d: np.ndarray, kappa: float, out: np.ndarray) -> np.ndarray:
-    """Exact forces (N) for S = diag(d) + kappa 1 1', in O(n log n)."""
-    np.divide(gap, d, out=out)
-    np.negative(out, out=out)
-    np.maximum(out, 0.0, out=out)  # the answer for kappa = 0, and force_i(F = 0)
-    if kappa == 0.0 or not np.any(out):
+@njit(cache=True)
+def solve_fast(gap, d, kappa, out):
+    """Exact forces (N) for S = diag(d) + kappa 1 1' (m/N), in O(n log n)."""
+    n = gap.size
+    for i in range(n):
+        out[i] = -gap[i] / d[i] if gap[i] < 0.0 else 0.0  # the answer for kappa = 0
+    if kappa == 0.0:
         return out
     cand = np.flatnonzero(gap < 0.0)
+    k = cand.size
+    if k == 0:
+        return out
     # candidate i carries force while F < -g~_i / kappa: sort by that break point
-    order = cand[np.argsort(gap[cand], kind="stable")]
-    a = np.cumsum(-gap[order] / d[order])
-    w = np.cumsum(1.0 / d[order])
-    total = a / (1.0 + kappa * w)  # F if exactly the first k candidates carry force
-    breaks = -gap[order] / kappa
-    next_break = np.append(breaks[1:], 0.0)
-    k = int(np.argmax(total >= next_break))  # first k whose F leaves the others unloaded
-    # On the active set A, g~_i + kappa F is a small difference of large numbers
-    # (the light body's predicted overshoot). Writing g~_i = g_ref + delta_i gives
-    # g~_i + kappa F = delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d)
-    # without that cancellation.
-    A = order[: k + 1]
-    g_ref = float(gap[A].mean())
-    delta = gap[A] - g_ref
-    inv_d = 1.0 / d[A]
-    base = (g_ref - kappa * float(delta @ inv_d)) / (1.0 + kappa * float(inv_d.sum()))
-    out[:] = 0.0
-    out[A] = np.maximum(-(delta + base) * inv_d, 0.0)
+    order = cand[np.argsort(gap[cand], kind="mergesort")]
+    a = 0.0
+    w = 0.0
+    m = k
+    for j in range(k):
+        i = order[j]
+        a -= gap[i] / d[i]
+        w += 1.0 / d[i]
+        total = a / (1.0 + kappa * w)  # F if exactly the first j + 1 carry force
+        next_break = -gap[order[j + 1]] / kappa if j + 1 < k else 0.0
+        if total >= next_break:  # it leaves the others unloaded: the active set
+            m = j + 1
+            break
+    # On the active set, g~_i + kappa F is a small difference of large numbers (the
+    # light body's predicted overshoot). With g~_i = g_ref + delta_i,
+    # g~_i + kappa F = delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d).
+    g_ref = 0.0
+    for j in range(m):
+        g_ref += gap[order[j]]
+    g_ref /= m
+    s = 0.0
+    w = 0.0
+    for j in range(m):
+        i = order[j]
+        s += (gap[i] - g_ref) / d[i]
+        w += 1.0 / d[i]
+    base = (g_ref - kappa * s) / (1.0 + kappa * w)
+    for i in range(n):
+        out[i] = 0.0
+    for j in range(m):
+        i = order[j]
+        out[i] = max(-(gap[i] - g_ref + base) / d[i], 0.0)
     return out
 
 
@@ -87,14 +107,23 @@ class FILM:
         if solver not in ("fast", "dense"):
             raise InputError(f"film solver = '{solver}': use 'fast' or 'dense'")
         self.solver = solver
-        self._solve = solve_fast if solver == "fast" else solve_dense
         self.info: dict[str, float | str] = {"solver": solver}
 
     def setup(self, c) -> None:
-        self._d = c.s_diagonal()
-        self._kappa = c.s_coupling()
+        pass
 
     def correct(self, c) -> None:
-        self._solve(c.gap, self._d, self._kappa, c.force)
-        np.greater(c.force, 0.0, out=c.active)
-        c.apply_forces(c.force)
+        if self.solver == "fast":
+            _film_fast(c.gap, c.d, c.kappa, c.force, c.active, c.lo, c.up, c.mass, c.dt, c.u, c.v)
+        else:
+            solve_dense(c.gap, c.d, c.kappa, c.force)
+            np.greater(c.force, 0.0, out=c.active)
+            c.apply_forces(c.force)
+
+
+@njit(cache=True)
+def _film_fast(gap, d, kappa, force, active, lo, up, mass, dt, u, v):
+    solve_fast(gap, d, kappa, force)
+    for i in range(gap.size):
+        active[i] = force[i] > 0.0
+    apply_forces(force, lo, up, mass, dt, u, v)

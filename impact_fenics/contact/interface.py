@@ -5,16 +5,21 @@ then
 
 1. *detection*: gathers the predicted z displacement and velocity of the
    contact dofs (one Allgatherv), in global constraint order, on every rank,
-   and forms the predicted gaps g~ = b + u~_upper - u~_lower;
+   and forms the predicted gaps g~_i = b_i + u~[up_i] - u~[lo_i];
 2. *solve*: hands the set to the method, which corrects positions and
    velocities of the contact dofs (and of the rigid body) only;
 3. *update*: writes the corrected values back to the owned dofs and books
    the contact work.
 
-Every rank computes the same correction from the same gathered data, so the
-answer does not depend on the partition. Signs: the contact force ``force``
-(N) is compressive-positive; it pushes the upper side up (+z) and the lower
-side down.
+State lives in *slots*: one per contact dof (the lower nodes first, then the
+upper nodes of node pairs) and one more for a rigid upper body. Constraint i
+ties slot ``lo[i]`` to slot ``up[i]``; every constraint on a rigid body points
+to its single slot, so scatter-adding the forces sums them on the body. The
+numeric kernels are compiled with numba; every rank runs them on the same
+gathered data, so the answer does not depend on the partition.
+
+Signs: the contact force ``force`` (N) is compressive-positive; it pushes the
+upper side up (+z) and the lower side down.
 """
 from __future__ import annotations
 
@@ -24,6 +29,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from ..errors import InputError
 from .pairing import Constraints
@@ -57,7 +63,7 @@ class ContactMethod(Protocol):
         """Precompute what depends only on masses and dt."""
 
     def correct(self, c: "ContactSet") -> None:
-        """Correct the predicted state in place; set ``c.force`` and ``c.active``."""
+        """Correct ``c.u``, ``c.v`` in place from the predicted state; set ``c.force``, ``c.active``."""
 
 
 @dataclass
@@ -69,16 +75,105 @@ class PhaseTimes:
     update: float = 0.0
 
 
+# ----------------------------------------------------------------------------- kernels
+
+@njit(cache=True)
+def apply_forces(force, lo, up, mass, dt, u, v):
+    """Compressive forces (N) move each lower slot down and each upper slot up:
+    velocities by dt F/m, positions by dt^2 F/m (a rigid slot sums its forces)."""
+    for i in range(force.size):
+        f = force[i]
+        if f != 0.0:
+            a, b = lo[i], up[i]
+            dv_a = dt * f / mass[a]
+            dv_b = dt * f / mass[b]
+            v[a] -= dv_a
+            u[a] -= dt * dv_a
+            v[b] += dv_b
+            u[b] += dt * dv_b
+
+
+@njit(cache=True)
+def _take(src_u, src_v, local, pos, u_out, v_out):
+    for k in range(local.size):
+        u_out[pos[k]] = src_u[local[k]]
+        v_out[pos[k]] = src_v[local[k]]
+
+
+@njit(cache=True)
+def _pack(src_u, src_v, local, send):
+    m = local.size
+    for k in range(m):
+        send[k] = src_u[local[k]]
+        send[m + k] = src_v[local[k]]
+
+
+@njit(cache=True)
+def _unpack(recv, recv_u, recv_v, pos, u_out, v_out):
+    for k in range(pos.size):
+        u_out[pos[k]] = recv[recv_u[k]]
+        v_out[pos[k]] = recv[recv_v[k]]
+
+
+@njit(cache=True)
+def _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active):
+    for k in range(u.size):
+        u[k] = u_pred[k]
+        v[k] = v_pred[k]
+    for i in range(b.size):
+        gap[i] = b[i] + u_pred[up[i]] - u_pred[lo[i]]
+        was_active[i] = active[i]
+
+
+@njit(cache=True)
+def _write_back(u, v, local, pos, dst_u, dst_v):
+    for k in range(local.size):
+        dst_u[local[k]] = u[pos[k]]
+        dst_v[local[k]] = v[pos[k]]
+
+
+@njit(cache=True)
+def _book(dt, first, n_deformable, mass, u, v, u_pred, v_pred, u_now, v_now,
+          f_prev, ku_prev, jump, jumps, jumped, active, was_active):
+    """Contact work increment of step n (see _ContactWork); rolls the state to n+1.
+    Returns the increment (J), whether this step jumped, and whether the active set grew."""
+    inc = 0.0
+    jumped_now = False
+    grew = False
+    for i in range(active.size):
+        if active[i] and not was_active[i]:
+            grew = True
+    for k in range(mass.size):
+        f = mass[k] * (v[k] - v_pred[k]) / dt
+        if not first:
+            inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
+        f_prev[k] = f
+    if jumps:
+        for k in range(n_deformable):
+            ku = -mass[k] * (v_pred[k] - v_now[k]) / dt  # K u^n on this dof
+            if jumped:
+                inc += 0.5 * jump[k] * (ku_prev[k] + ku)
+            ku_prev[k] = ku
+            jump[k] = u[k] - u_now[k] - dt * v[k]
+            if jump[k] != 0.0:
+                jumped_now = True
+    for k in range(mass.size):
+        u_now[k] = u[k]
+        v_now[k] = v[k]
+    return inc, jumped_now, grew
+
+
+# ----------------------------------------------------------------------------- the set
+
 class ContactSet:
     """Constraints, their gathered state and the rigid body, on every rank.
 
-    Arrays in global constraint order (length n): ``u_lo``/``v_lo`` the lower z
-    displacement (m) and velocity (m/s), ``u_up``/``v_up`` the upper ones (the
-    rigid body's values repeated when the upper side is rigid), ``gap`` the
-    predicted gap (m), ``m_lo``/``m_up`` the lumped masses (kg), ``force`` the
-    contact force (N) and ``active`` the active set. Methods correct the state
-    with :meth:`apply_forces` (force methods) or by setting positions and
-    velocities directly (DME, then with :meth:`set_upper_rigid`).
+    Slot arrays (length ``n_slots``): ``u``, ``v`` the state the method corrects
+    (m, m/s; on entry the prediction), ``u_pred``, ``v_pred`` the prediction,
+    ``mass`` (kg). Constraint arrays (length n): ``lo``, ``up`` their slots,
+    ``b`` the initial gaps (m), ``gap`` the predicted gaps, ``force`` (N) and
+    ``active``. ``d`` and ``kappa`` describe S = dt^2 G M^-1 G' = diag(d) +
+    kappa 1 1' (m/N): kappa = dt^2 / m_rigid, 0 for node pairs.
     """
 
     def __init__(self, constraints: Constraints, integrator, method: ContactMethod,
@@ -97,121 +192,73 @@ class ContactSet:
         self.b = constraints.b
         self.r = constraints.r
         self.pair_index = np.arange(n)
-        # all contact dofs in one array: lower ones first, then upper ones (pairs only)
         dofs = constraints.lower if rigid else np.concatenate([constraints.lower, constraints.upper])
-        self._n_dofs = nd = dofs.size
-        lo, hi = model.offset, model.offset + model.n_owned
-        mine = np.flatnonzero((dofs >= lo) & (dofs < hi))
-        self._my_local = (dofs[mine] - lo).astype(np.intp)
-        self._my_pos = mine.astype(np.intp)
-        self._counts = np.array(self.comm.allgather(2 * mine.size))
-        self._displs = np.concatenate([[0], np.cumsum(self._counts)[:-1]])
-        positions = np.concatenate(self.comm.allgather(mine))
+        self.n_deformable = nd = dofs.size
+        self.n_slots = ns = nd + (1 if rigid else 0)
+        self.lo = np.arange(n, dtype=np.int64)
+        self.up = np.full(n, nd, dtype=np.int64) if rigid else np.arange(n, 2 * n, dtype=np.int64)
+        # which slots this rank owns, and where the gathered values go
+        lo_dof, hi_dof = model.offset, model.offset + model.n_owned
+        mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
+        self._local = (dofs[mine] - lo_dof).astype(np.int64)
+        self._pos = mine.astype(np.int64)
+        counts = np.array(self.comm.allgather(mine.size))
+        positions = np.concatenate(self.comm.allgather(mine)).astype(np.int64)
         if not np.array_equal(np.sort(positions), np.arange(nd)):
             raise InputError("contact dofs are not all owned exactly once: "
                              "each contact node must belong to one body")
-        self._all_pos = positions.astype(np.intp)
-        # send buffer: [u of my dofs, v of my dofs]; receive: the same, rank after rank
+        self._all_pos = positions
+        starts = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
+        self._counts, self._displs = 2 * counts, starts
+        self._recv_u = np.concatenate([s + np.arange(c) for s, c in zip(starts, counts)]).astype(np.int64)
+        self._recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(starts, counts)]).astype(np.int64)
         self._send = np.empty(2 * mine.size)
         self._recv = np.empty(2 * nd)
-        order = []
-        for r, count in enumerate(self._counts // 2):
-            start = self._displs[r]
-            order.append(np.arange(start, start + count))
-        self._recv_u = np.concatenate(order).astype(np.intp) if order else np.zeros(0, np.intp)
-        self._recv_v = (self._recv_u + np.repeat(self._counts // 2, self._counts // 2)).astype(np.intp)
-        # masses (kg) of all contact dofs
-        self.mass = np.empty(nd)
-        self._gather(integrator.mass, integrator.mass, self.mass, np.empty(nd))
-        self.m_lo = self.mass[:n]
-        self.m_up = self.mass[n:] if rigid is None else None
-        # committed state (u^n, v^n) of the contact dofs, replicated
-        self.u_now = np.zeros(nd)
-        self.v_now = np.zeros(nd)
-        # predicted (then corrected) state; methods read and correct the views
-        self.u_pred, self.v_pred = np.empty(nd), np.empty(nd)
-        self.u_new, self.v_new = np.empty(nd), np.empty(nd)
-        self.u_lo, self.v_lo = self.u_new[:n], self.v_new[:n]
-        if rigid is None:
-            self.u_up, self.v_up = self.u_new[n:], self.v_new[n:]
-        else:
-            self.u_up, self.v_up = np.empty(n), np.empty(n)
+        # slot state
+        self.u, self.v = np.zeros(ns), np.zeros(ns)
+        self.u_pred, self.v_pred = np.zeros(ns), np.zeros(ns)
+        self.u_now, self.v_now = np.zeros(ns), np.zeros(ns)
+        self.mass = np.empty(ns)
+        self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
+        if rigid:
+            self.mass[nd] = rigid.mass
         self.gap = np.empty(n)
         self.force = np.zeros(n)
-        self.active = np.zeros(n, dtype=bool)
-        self.was_active = np.zeros(n, dtype=bool)
+        self.active = np.zeros(n, dtype=np.bool_)
+        self.was_active = np.zeros(n, dtype=np.bool_)
+        self.kappa = 0.0 if rigid is None else self.dt ** 2 / rigid.mass
+        self.d = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
         self.times = PhaseTimes()
         self.jumps = bool(getattr(method, "jumps", False))
-        self._tmp = np.empty(nd)
-        self._out_u = np.empty(mine.size)
-        self._out_v = np.empty(mine.size)
         self._ledger = _ContactWork(self)
-        self._rigid_u = self._rigid_v = 0.0
-        self._rigid_v_pred = 0.0
-        self._rigid_f = 0.0
         method.setup(self)
 
-    # ------------------------------------------------------------ gather / scatter
-    def _gather(self, u_src: np.ndarray, v_src: np.ndarray, u_out: np.ndarray,
+    # ------------------------------------------------------------ gather
+    def _gather(self, src_u: np.ndarray, src_v: np.ndarray, u_out: np.ndarray,
                 v_out: np.ndarray) -> None:
-        """u_src, v_src (owned arrays) on the contact dofs, into global order on every rank."""
-        k = self._my_local.size
-        np.take(u_src, self._my_local, out=self._send[:k])
-        np.take(v_src, self._my_local, out=self._send[k:])
+        """src_u, src_v (owned arrays) on the contact dofs, into slot order on every rank."""
         if self.comm.size == 1:
-            u_out[self._my_pos] = self._send[:k]
-            v_out[self._my_pos] = self._send[k:]
+            _take(src_u, src_v, self._local, self._pos, u_out, v_out)
             return
+        _pack(src_u, src_v, self._local, self._send)
         self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
-        u_out[self._all_pos] = self._recv[self._recv_u]
-        v_out[self._all_pos] = self._recv[self._recv_v]
+        _unpack(self._recv, self._recv_u, self._recv_v, self._all_pos, u_out, v_out)
 
     def initialize(self) -> None:
         """Read u^0 and v^0 of the contact dofs (call after the integrator's set_initial)."""
         integ = self.integrator
         self._gather(integ._ua, integ._va, self.u_now, self.v_now)
+        if self.rigid is not None:
+            self.u_now[-1], self.v_now[-1] = self.rigid.u, self.rigid.v
 
-    # ------------------------------------------------------------ helpers for methods
+    # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:
         """Diagonal part d of S = dt^2 G M^-1 G' = diag(d) + kappa 1 1' (m/N)."""
-        d = 1.0 / self.m_lo
-        if self.m_up is not None:
-            d = d + 1.0 / self.m_up
-        return self.dt ** 2 * d
-
-    def s_coupling(self) -> float:
-        """kappa = dt^2 / m_rigid (m/N) for a rigid upper side, 0 for node pairs."""
-        return 0.0 if self.rigid is None else self.dt ** 2 / self.rigid.mass
+        return self.d
 
     def apply_forces(self, force: np.ndarray) -> None:
-        """Apply compressive contact forces (N): velocities change by dt F/m, positions by dt^2 F/m."""
-        dt = self.dt
-        dv = self._tmp[: self.n]
-        np.divide(force, self.m_lo, out=dv)
-        dv *= dt
-        self.v_lo -= dv
-        dv *= dt
-        self.u_lo -= dv
-        if self.rigid is None:
-            np.divide(force, self.m_up, out=dv)
-            dv *= dt
-            self.v_up += dv
-            dv *= dt
-            self.u_up += dv
-        else:
-            dv_rigid = dt * float(force.sum()) / self.rigid.mass
-            self.set_upper_rigid(self._rigid_v + dv_rigid, self._rigid_u + dt * dv_rigid)
-
-    def set_upper_rigid(self, v: float, u: float) -> None:
-        """Set the rigid body's corrected velocity (m/s) and position (m)."""
-        self._rigid_v, self._rigid_u = v, u
-        self.u_up.fill(u)
-        self.v_up.fill(v)
-
-    @property
-    def rigid_state(self) -> tuple[float, float]:
-        """The rigid body's current (predicted or corrected) (u, v) in m and m/s."""
-        return self._rigid_u, self._rigid_v
+        """Apply compressive contact forces (N) to the predicted state."""
+        apply_forces(force, self.lo, self.up, self.mass, self.dt, self.u, self.v)
 
     # ------------------------------------------------------------ the step
     def step(self) -> None:
@@ -219,31 +266,21 @@ class ContactSet:
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
-        # --- detection
         self._gather(integ._ua, integ._va, self.u_pred, self.v_pred)
-        self.u_new[:] = self.u_pred
-        self.v_new[:] = self.v_pred
         if self.rigid is not None:
             rb = self.rigid
             self._rigid_f = rb.force(integ.t)
-            self._rigid_v_pred = rb.v + self.dt * self._rigid_f / rb.mass
-            self.set_upper_rigid(self._rigid_v_pred, rb.u + self.dt * self._rigid_v_pred)
-        np.subtract(self.u_up, self.u_lo, out=self.gap)
-        self.gap += self.b
-        self.was_active[:] = self.active
+            v_tilde = rb.v + self.dt * self._rigid_f / rb.mass
+            self.u_pred[-1], self.v_pred[-1] = rb.u + self.dt * v_tilde, v_tilde
+        _predicted_gaps(self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up,
+                        self.gap, self.active, self.was_active)
         t1 = clock()
-        # --- solve
         self.method.correct(self)
         t2 = clock()
-        # --- update
-        np.take(self.u_new, self._my_pos, out=self._out_u)
-        np.take(self.v_new, self._my_pos, out=self._out_v)
-        integ.put(self._my_local, self._out_u, self._out_v)
+        _write_back(self.u, self.v, self._local, self._pos, integ._ua, integ._va)
         self._ledger.book(integ.n)
-        self.u_now[:] = self.u_new
-        self.v_now[:] = self.v_new
         if self.rigid is not None:
-            self.rigid.u, self.rigid.v = self._rigid_u, self._rigid_v
+            self.rigid.u, self.rigid.v = float(self.u[-1]), float(self.v[-1])
         t3 = clock()
         self.times.detection, self.times.solve, self.times.update = t1 - t0, t2 - t1, t3 - t2
 
@@ -269,9 +306,7 @@ class ContactSet:
 
     def committed_gap(self) -> np.ndarray:
         """Gap (m) of the committed state, in global constraint order."""
-        n = self.n
-        up = self.u_now[n:] if self.rigid is None else self.rigid.u
-        return self.b + up - self.u_now[:n]
+        return self.b + self.u_now[self.up] - self.u_now[self.lo]
 
     def max_penetration(self) -> float:
         """Largest committed penetration max(0, -g) (m)."""
@@ -281,7 +316,7 @@ class ContactSet:
 class _ContactWork:
     """Work of the contact forces in the ledger's discrete form (impact_fenics.energy).
 
-    The contact force on a contact dof is its momentum change over the step,
+    The contact force on a slot is its momentum change over the step,
     F^n = m (v^{n+1} - v~^{n+1}) / dt; step n adds 1/2 dt v^n . (F^{n-1} + F^n).
     A position set apart from u^n + dt v^{n+1} (a jump j, DME) adds
     1/2 j . K (u^n + u^{n+1}) one step later, when K u^{n+1} on the contact dofs
@@ -290,49 +325,27 @@ class _ContactWork:
 
     def __init__(self, c: ContactSet):
         self.c = c
-        nd = c.u_now.size
-        self.f_prev, self.f_now = np.zeros(nd), np.zeros(nd)
-        self.ku_prev, self.ku_now = np.zeros(nd), np.zeros(nd)
-        self.jump = np.zeros(nd)
-        self.tmp = np.empty(nd)
+        self.f_prev = np.zeros(c.n_slots)
+        self.ku_prev = np.zeros(c.n_deformable)
+        self.jump = np.zeros(c.n_deformable)
         self.jumped = False
         self.grew_last = False
         self.work = 0.0
         self.activation_loss = 0.0
         self.rigid_external_work = 0.0
-        self.rigid_fc_prev = 0.0
-        self.rigid_f_prev = 0.0
+        self._rigid_f_prev = 0.0
 
     def book(self, n_step: int) -> None:
-        c, dt = self.c, self.c.dt
-        np.subtract(c.v_new, c.v_pred, out=self.f_now)
-        self.f_now *= c.mass / dt
-        inc = 0.0
-        if n_step > 0:
-            self.f_prev += self.f_now
-            inc = 0.5 * dt * float(np.dot(c.v_now, self.f_prev))
-        if c.jumps:
-            np.subtract(c.v_pred, c.v_now, out=self.ku_now)
-            self.ku_now *= -c.mass / dt
-            if self.jumped:
-                self.ku_prev += self.ku_now
-                inc += 0.5 * float(np.dot(self.jump, self.ku_prev))
-            # this step's jump: u^{n+1} - u^n - dt v^{n+1}
-            np.multiply(c.v_new, dt, out=self.tmp)
-            np.subtract(c.u_new, c.u_now, out=self.jump)
-            self.jump -= self.tmp
-            self.jumped = bool(np.any(self.jump))
-            self.ku_prev[:] = self.ku_now
+        c = self.c
+        if c.rigid is not None and n_step > 0:
+            self.rigid_external_work += 0.5 * c.dt * c.v_now[-1] * (self._rigid_f_prev + c._rigid_f)
         if c.rigid is not None:
-            rb = c.rigid  # still at (u^n, v^n)
-            fc = rb.mass * (c._rigid_v - c._rigid_v_pred) / dt
-            if n_step > 0:
-                inc += 0.5 * dt * rb.v * (self.rigid_fc_prev + fc)
-                self.rigid_external_work += 0.5 * dt * rb.v * (self.rigid_f_prev + c._rigid_f)
-            self.rigid_fc_prev, self.rigid_f_prev = fc, c._rigid_f
+            self._rigid_f_prev = c._rigid_f
+        inc, self.jumped, grew = _book(c.dt, n_step == 0, c.n_deformable, c.mass, c.u, c.v,
+                                       c.u_pred, c.v_pred, c.u_now, c.v_now, self.f_prev,
+                                       self.ku_prev, self.jump, c.jumps, self.jumped,
+                                       c.active, c.was_active)
         self.work += inc
-        grew = bool(np.any(c.active & ~c.was_active))
         if grew or self.grew_last:
             self.activation_loss -= inc
         self.grew_last = grew
-        self.f_prev[:] = self.f_now

@@ -34,8 +34,10 @@ beta_max = c (1 + kappa sum 1/d_i) = beta_target exactly.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..errors import InputError
+from .interface import apply_forces
 
 STABILITY_BOUND = 4.0 / 3.0
 
@@ -85,8 +87,7 @@ class Penalty:
         self.info: dict[str, float | str] = {}
 
     def setup(self, c) -> None:
-        d = c.s_diagonal()
-        kappa = c.s_coupling()
+        d, kappa = c.d, c.kappa
         # the paper's sentence, both readings: an average of S's diagonal as p
         auto = {"mean_of_inverse": float(np.mean(1.0 / d)),
                 "inverse_of_mean": float(1.0 / np.mean(d))}
@@ -103,11 +104,14 @@ class Penalty:
                      "p_max": float(self.p.max()), "p_auto_mean_of_inverse": auto["mean_of_inverse"],
                      "p_auto_inverse_of_mean": auto["inverse_of_mean"],
                      "beta_max": beta_max, "beta_bound": STABILITY_BOUND}
-        self._pen = np.empty(c.n)
 
     def correct(self, c) -> None:
-        np.negative(c.gap, out=self._pen)
-        np.maximum(self._pen, 0.0, out=self._pen)
-        np.multiply(self._pen, self.p, out=c.force)
-        np.greater(self._pen, 0.0, out=c.active)
-        c.apply_forces(c.force)
+        _penalty(c.gap, self.p, c.force, c.active, c.lo, c.up, c.mass, c.dt, c.u, c.v)
+
+
+@njit(cache=True)
+def _penalty(gap, p, force, active, lo, up, mass, dt, u, v):
+    for i in range(gap.size):
+        active[i] = gap[i] < 0.0
+        force[i] = -p[i] * gap[i] if active[i] else 0.0
+    apply_forces(force, lo, up, mass, dt, u, v)

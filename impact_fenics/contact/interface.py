@@ -134,15 +134,21 @@ def _write_back(u, v, local, pos, dst_u, dst_v):
 
 @njit(cache=True)
 def _book(dt, first, n_deformable, mass, u, v, u_pred, v_pred, u_now, v_now,
-          f_prev, ku_prev, jump, jumps, jumped, active, was_active):
+          f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up):
     """Contact work increment of step n (see _ContactWork); rolls the state to n+1.
-    Returns the increment (J), whether this step jumped, and whether the active set grew."""
+    Returns the increment (J), whether this step jumped, whether the active set
+    grew, whether any constraint is active and the smallest committed gap (m)."""
     inc = 0.0
     jumped_now = False
     grew = False
+    any_active = False
+    min_gap = np.inf
     for i in range(active.size):
-        if active[i] and not was_active[i]:
-            grew = True
+        if active[i]:
+            any_active = True
+            if not was_active[i]:
+                grew = True
+        min_gap = min(min_gap, b[i] + u[up[i]] - u[lo[i]])
     for k in range(mass.size):
         f = mass[k] * (v[k] - v_pred[k]) / dt
         if not first:
@@ -160,7 +166,7 @@ def _book(dt, first, n_deformable, mass, u, v, u_pred, v_pred, u_now, v_now,
     for k in range(mass.size):
         u_now[k] = u[k]
         v_now[k] = v[k]
-    return inc, jumped_now, grew
+    return inc, jumped_now, grew, any_active, min_gap
 
 
 # ----------------------------------------------------------------------------- the set
@@ -229,6 +235,8 @@ class ContactSet:
         self.kappa = 0.0 if rigid is None else self.dt ** 2 / rigid.mass
         self.d = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
         self.times = PhaseTimes()
+        self.any_active = False  # after each step: is any constraint active,
+        self.min_gap = np.inf  # and the smallest committed gap (m)
         self.jumps = bool(getattr(method, "jumps", False))
         self._ledger = _ContactWork(self)
         method.setup(self)
@@ -309,8 +317,8 @@ class ContactSet:
         return self.b + self.u_now[self.up] - self.u_now[self.lo]
 
     def max_penetration(self) -> float:
-        """Largest committed penetration max(0, -g) (m)."""
-        return float(max(0.0, -self.committed_gap().min()))
+        """Committed penetration max(0, -g) (m) of the last step."""
+        return max(0.0, -self.min_gap)
 
 
 class _ContactWork:
@@ -341,10 +349,10 @@ class _ContactWork:
             self.rigid_external_work += 0.5 * c.dt * c.v_now[-1] * (self._rigid_f_prev + c._rigid_f)
         if c.rigid is not None:
             self._rigid_f_prev = c._rigid_f
-        inc, self.jumped, grew = _book(c.dt, n_step == 0, c.n_deformable, c.mass, c.u, c.v,
-                                       c.u_pred, c.v_pred, c.u_now, c.v_now, self.f_prev,
-                                       self.ku_prev, self.jump, c.jumps, self.jumped,
-                                       c.active, c.was_active)
+        inc, self.jumped, grew, c.any_active, c.min_gap = _book(
+            c.dt, n_step == 0, c.n_deformable, c.mass, c.u, c.v, c.u_pred, c.v_pred, c.u_now,
+            c.v_now, self.f_prev, self.ku_prev, self.jump, c.jumps, self.jumped, c.active,
+            c.was_active, c.b, c.lo, c.up)
         self.work += inc
         if grew or self.grew_last:
             self.activation_loss -= inc

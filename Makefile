@@ -9,7 +9,9 @@ NP ?= 2
 setup:
 	@scripts/setup.sh
 
+# the main job: the 1D-wave check of the explicit scheme, then the thick-bar impact
 demo: setup
+	$(MPIRUN) -n $(NP) $(PY) demos/elastic_wave.py --out results/elastic_wave
 	$(MPIRUN) -n $(NP) $(PY) demos/bar_impact.py --method film --out results/bar_impact
 
 test: setup

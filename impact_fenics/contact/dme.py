@@ -88,17 +88,29 @@ def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
 def _cluster(gap, b, lo, body, mass, dt, u_now, u, v, force, active):
     """Case 1: the largest consistent set of penetrating nodes moves with the body."""
     cand = np.flatnonzero(gap < 0.0)
-    order = cand[np.argsort(-v[lo[cand]], kind="mergesort")]  # fastest upward first
     momentum = mass[body] * v[body]
     total = mass[body]
-    k = 0
-    for j in range(order.size):
-        node = lo[order[j]]
-        if v[node] < momentum / total:  # holding it would pull: it and all slower stay free
-            break
+    v_min = np.inf
+    for i in cand:
+        node = lo[i]
         momentum += mass[node] * v[node]
         total += mass[node]
-        k += 1
+        v_min = min(v_min, v[node])
+    if v_min >= momentum / total:  # no candidate would pull: all join (the usual case)
+        order = cand
+        k = cand.size
+    else:
+        order = cand[np.argsort(-v[lo[cand]], kind="mergesort")]  # fastest upward first
+        momentum = mass[body] * v[body]
+        total = mass[body]
+        k = 0
+        for j in range(order.size):
+            node = lo[order[j]]
+            if v[node] < momentum / total:  # holding it would pull: it and all slower stay free
+                break
+            momentum += mass[node] * v[node]
+            total += mass[node]
+            k += 1
     v_c = momentum / total
     u_body = u_now[body] + dt * v_c
     v[body] = v_c

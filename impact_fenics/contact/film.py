@@ -27,7 +27,8 @@ from .interface import apply_forces
 
 @njit(cache=True)
 def solve_fast(gap, d, kappa, out):
-    """Exact forces (N) for S = diag(d) + kappa 1 1' (m/N), in O(n log n)."""
+    """Exact forces (N) for S = diag(d) + kappa 1 1' (m/N), in O(n log n) (O(n) when
+    every penetrating constraint carries force, the usual case under a punch)."""
     n = gap.size
     for i in range(n):
         out[i] = -gap[i] / d[i] if gap[i] < 0.0 else 0.0  # the answer for kappa = 0
@@ -37,6 +38,15 @@ def solve_fast(gap, d, kappa, out):
     k = cand.size
     if k == 0:
         return out
+    a = 0.0
+    w = 0.0
+    g_max = -np.inf
+    for i in cand:
+        a -= gap[i] / d[i]
+        w += 1.0 / d[i]
+        g_max = max(g_max, gap[i])
+    if g_max + kappa * a / (1.0 + kappa * w) <= 0.0:  # all candidates carry force
+        return _loaded(gap, d, kappa, cand, out)
     # candidate i carries force while F < -g~_i / kappa: sort by that break point
     order = cand[np.argsort(gap[cand], kind="mergesort")]
     a = 0.0
@@ -51,24 +61,31 @@ def solve_fast(gap, d, kappa, out):
         if total >= next_break:  # it leaves the others unloaded: the active set
             m = j + 1
             break
-    # On the active set, g~_i + kappa F is a small difference of large numbers (the
-    # light body's predicted overshoot). With g~_i = g_ref + delta_i,
-    # g~_i + kappa F = delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d).
+    return _loaded(gap, d, kappa, order[:m], out)
+
+
+@njit(cache=True)
+def _loaded(gap, d, kappa, loaded, out):
+    """Forces when exactly the constraints ``loaded`` carry force.
+
+    There g~_i + kappa F is a small difference of large numbers (a light body's
+    predicted overshoot). With g~_i = g_ref + delta_i it is evaluated as
+    delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d), without that
+    cancellation."""
+    m = loaded.size
     g_ref = 0.0
-    for j in range(m):
-        g_ref += gap[order[j]]
+    for i in loaded:
+        g_ref += gap[i]
     g_ref /= m
     s = 0.0
     w = 0.0
-    for j in range(m):
-        i = order[j]
+    for i in loaded:
         s += (gap[i] - g_ref) / d[i]
         w += 1.0 / d[i]
     base = (g_ref - kappa * s) / (1.0 + kappa * w)
-    for i in range(n):
+    for i in range(gap.size):
         out[i] = 0.0
-    for j in range(m):
-        i = order[j]
+    for i in loaded:
         out[i] = max(-(gap[i] - g_ref + base) / d[i], 0.0)
     return out
 

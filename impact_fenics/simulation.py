@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 
-from . import forms, output
+from . import forms, output, plotting
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
 from .contact.pairing import Constraints
@@ -50,6 +50,7 @@ class Settings:
     energy_growth_limit: float = 10.0
     quiet: bool = False
     timers: bool = True
+    plots: bool = True  # history.png and energy.png in the output directory (rank 0)
 
     def steps(self) -> int:
         """Number of steps to run."""
@@ -137,11 +138,18 @@ class Simulation:
         s = self.settings
         model, integ, comm = self.model, self.integrator, self.comm
         n_steps = self.n_steps
-        staging = output.prepare_directory(s.out, comm) if s.out else None
-        writer = self._field_writer(staging) if (staging and s.fields) else None
-        u_fn = writer.u if writer else None
-        probes = self._make_probes(u_fn) if self._probe_specs else None
-        tables = self._tables(staging, probes)
+        # catch SIGINT/SIGTERM before any output exists: a signal during the set-up
+        # (JIT of the output expressions) then stops the run cleanly at step 64
+        stop = _StopFlag()
+        try:
+            staging = output.prepare_directory(s.out, comm) if s.out else None
+            writer = self._field_writer(staging) if (staging and s.fields) else None
+            u_fn = writer.u if writer else None
+            probes = self._make_probes(u_fn) if self._probe_specs else None
+            tables = self._tables(staging, probes)
+        except BaseException:
+            stop.restore()
+            raise
         self.history = tables["history"]
         self.energy = tables["energy"]
         self.probes = probes
@@ -152,7 +160,6 @@ class Simulation:
         Ku = integ.K.createVecRight()
         energy_rows, max_bal = [], 0.0
         track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
-        stop = _StopFlag()
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
         stopped_at = n_steps
@@ -221,6 +228,9 @@ class Simulation:
         if extra is not None and self.status == "completed":
             summary.update(extra(self))
         if staging:
+            if s.plots and comm.rank == 0:
+                plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
+                                             [(name, q) for name, _, q in self._probe_specs])
             output.write_json(os.path.join(staging, "summary.json"), summary, comm)
             output.finalize_directory(staging, s.out, comm)
         if self.status == "diverged":
@@ -291,7 +301,7 @@ class Simulation:
             return
         pen = max(c.max_penetration() for c in self.contacts)
         track["max_penetration"] = max(track["max_penetration"], pen)
-        if any(c.active.any() for c in self.contacts):
+        if any(c.any_active for c in self.contacts):
             if track["first_contact"] is None:
                 track["first_contact"] = n
             track["last_contact"] = n

@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 
 PACKAGES="python3-dolfinx python3-petsc4py python3-mpi4py python3-ufl python3-basix \
 python3-gmsh openmpi-bin python3-scipy python3-matplotlib python3-pytest python3-venv \
-python3-slepc4py gcc libgl1 libegl1 libx11-6 libxrender1"
+python3-slepc4py gcc libgl1 libegl1 libx11-6 libxrender1 python3-h5py python3-setuptools \
+python3-wheel libopenblas0-serial"
 VENV="${VENV:-.venv}"
 
 missing=""

@@ -1,0 +1,156 @@
+"""The command line: run a scene file, render the fields of a finished run.
+
+    impact-fenics run scenes/bar_impact.toml [--method film] [--out DIR] [--quiet]
+    impact-fenics plot results/bar_impact [--times 1e-4 2e-4] [--field sigma_zz] [--scale 50]
+
+(or ``python -m impact_fenics ...``). ``run`` works under mpirun. Exit codes:
+0 done; 2 bad input, reported in one line "error: ..." before anything is
+written; 3 the run diverged (one line with the step and the stable dt; the
+output directory keeps what was written); 128 + the signal number when SIGINT
+or SIGTERM stopped the run (the output directory is complete up to there).
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+
+from .errors import InputError, UnstableRunError, user_errors
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad command line as one InputError line (exit 2)."""
+
+    def error(self, message: str):
+        raise InputError(f"{self.prog}: {message}")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="impact-fenics",
+                     description="Explicit axisymmetric dynamics with node-to-node contact.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,plot}")
+    run = sub.add_parser("run", help="run a scene file (TOML)",
+                         description="Run a scene file; results go to one directory.")
+    run.add_argument("scene", help="the scene file, e.g. scenes/bar_impact.toml")
+    run.add_argument("--method", choices=("penalty", "film", "dme"),
+                     help="contact method for every [[contact]] (overrides the file)")
+    run.add_argument("--out", help="output directory (overrides [output] dir; default "
+                                   "results/<scene name>)")
+    run.add_argument("--quiet", action="store_true",
+                     help="no progress line and no report (errors are still printed)")
+    plot = sub.add_parser("plot", help="render a field of a finished run (PNG files)",
+                          description="Render a field of RUN_DIR/fields.xdmf on the deformed "
+                                      "mesh at chosen times; PNG files go to RUN_DIR.")
+    plot.add_argument("run_dir", help="a run directory (holding fields.xdmf)")
+    plot.add_argument("--times", nargs="+", type=float, metavar="T",
+                      help="times in s (the nearest output times are used; default: four "
+                           "spread over the run)")
+    plot.add_argument("--field", default="sigma_zz",
+                      help="sigma_rr, sigma_zz, sigma_tt, sigma_rz, von_mises, displacement "
+                           "or velocity (default sigma_zz)")
+    plot.add_argument("--scale", type=float,
+                      help="displacement magnification (default: the largest displacement "
+                           "shows as 5 %% of the model size)")
+    return parser
+
+
+@user_errors
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``impact-fenics`` and ``python -m impact_fenics``; returns the exit code."""
+    args = _parser().parse_args(argv)
+    if args.command == "run":
+        return run_scene(args.scene, method=args.method, out=args.out, quiet=args.quiet)
+    return plot_run(args.run_dir, field=args.field, times=args.times, scale=args.scale)
+
+
+def run_scene(path: str, method: str | None = None, out: str | None = None,
+              quiet: bool = False) -> int:
+    """Check the scene file in full, build it, run it; returns the exit code."""
+    from mpi4py import MPI
+
+    from . import scene_file
+
+    _quiet_compiler_logs()
+    comm = MPI.COMM_WORLD
+    scene = scene_file.read_scene(path)
+    if method:
+        scene.set_method(method)
+    out_dir = out or scene.output["dir"] or os.path.join("results", scene.stem)
+    scene_file.check_output_dir(out_dir, "--out" if out else "[output] dir =", comm)
+    sim = scene_file.build(scene, {"out": out_dir, "quiet": quiet}, comm)
+    try:
+        summary = sim.run(extra=lambda s: _scene_checks(s, scene.path))
+    except UnstableRunError as exc:
+        raise UnstableRunError(f"{exc}; the output so far is in {out_dir}/") from None
+    if comm.rank == 0 and not quiet:
+        _report(scene.title, summary, out_dir)
+    if sim.status.startswith("interrupted"):
+        name = sim.status.split()[-1]
+        code = 128 + signal.Signals[name].value if name in signal.Signals.__members__ else 1
+        if comm.rank == 0:
+            print(f"stopped: run {sim.status} at step {summary['stopped_at_step']} of "
+                  f"{summary['n_steps']}; the output so far is in {out_dir}/",
+                  file=sys.stderr, flush=True)
+        return code
+    return 0
+
+
+def _quiet_compiler_logs() -> None:
+    """Show warnings only on the console: the form compiler's C builds log at INFO
+    through the root logger (and lower its level while they run)."""
+    root = logging.getLogger()
+    if not root.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+        root.addHandler(handler)
+    for handler in root.handlers:
+        if type(handler) is logging.StreamHandler:
+            handler.setLevel(logging.WARNING)
+
+
+def _scene_checks(sim, scene_path: str) -> dict:
+    """Summary entries of any scene: the scene file and the contact duration (s)."""
+    extra = {"scene_file": scene_path}
+    contact = sim.summary.get("contact")
+    if contact is not None:
+        first, last = contact["first_contact_step"], contact["last_contact_step"]
+        extra["contact_duration"] = ((last - first + 1) * sim.settings.dt
+                                     if first is not None else 0.0)
+    return extra
+
+
+def _report(title: str, s: dict, out_dir: str) -> None:
+    """A few lines on rank 0 after the run."""
+    print(f"{title}: {s['status']}, {s['stopped_at_step']} of {s['n_steps']} steps of "
+          f"{s['dt']:.4g} s (stable limit {s['dt_critical']:.4g} s), {s['n_dofs']} dofs on "
+          f"{s['n_ranks']} rank(s), {s['wall_time']:.1f} s")
+    if "energy" in s:
+        e = s["energy"]
+        print(f"energy: kinetic {e['kinetic']:.6g} J, strain {e['strain']:.6g} J, balance "
+              f"error {s['energy_balance_error_rel']:.1e} (relative)")
+    if "contact" in s:
+        c = s["contact"]
+        first, last = c["first_contact_step"], c["last_contact_step"]
+        span = (f"active from step {first} to {last} ({(last - first + 1) * s['dt'] * 1e6:.1f} us)"
+                if first is not None else "never active")
+        print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
+              f"max penetration {c['max_penetration']:.3g} m")
+    print(f"results in {out_dir}/ (open fields.xdmf in ParaView; "
+          f"impact-fenics plot {out_dir} renders it)")
+
+
+def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
+             scale: float | None = None) -> int:
+    """Render ``field`` of a finished run at ``times`` (s) into PNG files (rank 0)."""
+    from mpi4py import MPI
+
+    from . import plotting
+
+    if not os.path.isdir(run_dir):
+        raise InputError(f"run directory '{run_dir}' does not exist")
+    if MPI.COMM_WORLD.rank == 0:
+        for path in plotting.render_fields(run_dir, field, times, scale):
+            print(path)
+    return 0

@@ -1,0 +1,360 @@
+"""Pictures of a run: history plots (matplotlib) and field renders from the XDMF (pyvista).
+
+* :func:`write_history_plots` writes ``history.png`` (probes, contact force and
+  gap, rigid body motion) and ``energy.png`` (the energy ledger and its balance
+  error) into a run directory; :class:`~impact_fenics.simulation.Simulation`
+  calls it on rank 0 at the end of every run with an output directory.
+* :func:`render_fields` reads ``fields.xdmf`` and its HDF5 file as dolfinx
+  writes them and renders one field on the deformed mesh (displacement scaled
+  for visibility) at chosen times, offscreen, as PNG files.
+
+Axes are labelled in the units plotted: time in microseconds, stresses in MPa,
+displacements in mm, velocities in m/s, forces in N, energies in J. Neither
+function imports dolfinx, so plotting a finished run needs no MPI.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import numpy as np
+
+STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
+DISPLACEMENTS = ("u_r", "u_z")
+
+
+# ----------------------------------------------------------------------------- histories
+
+def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
+                        energy: dict[str, np.ndarray],
+                        probes: list[tuple[str, str]] | None = None) -> list[str]:
+    """Write history.png and energy.png into ``run_dir``; returns the paths written.
+
+    ``history`` and ``energy`` map column names to arrays (time in s);
+    ``probes`` lists (column, quantity) of the probe columns. A failure to plot
+    never loses a run: it is reported in one line on stderr and skipped."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        title = os.path.basename(os.path.normpath(run_dir)).removesuffix(".partial")
+        written = []
+        path = os.path.join(run_dir, "history.png")
+        if _plot_history(path, history, probes or [], title):
+            written.append(path)
+        path = os.path.join(run_dir, "energy.png")
+        if _plot_energy(path, energy, title):
+            written.append(path)
+        return written
+    except Exception as exc:  # a picture must not cost the results
+        print(f"warning: history plots not written: {exc}", file=sys.stderr, flush=True)
+        return []
+
+
+def _finite(y: np.ndarray) -> np.ndarray:
+    return np.where(np.isfinite(y), y, np.nan)
+
+
+def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, str]],
+                  title: str) -> bool:
+    import matplotlib.pyplot as plt
+
+    if "time" not in h or h["time"].size == 0:
+        return False
+    t = h["time"] * 1e6
+    probe_names = {name for name, _ in probes}
+    panels = []  # (ylabel, [(label, values)])
+    stress = [(n, h[n] / 1e6) for n, q in probes if q in STRESSES and n in h]
+    disp = [(n, h[n] * 1e3) for n, q in probes if q in DISPLACEMENTS and n in h]
+    if stress:
+        panels.append(("probe stress (MPa)", stress))
+    if disp:
+        panels.append(("probe displacement (mm)", disp))
+    force = [(c, h[c]) for c in h if c.endswith("contact_force")]
+    if force:
+        panels.append(("contact force (N)", force))
+        gaps = [(c, h[c] * 1e3) for c in h if c.endswith("min_gap")]
+        panels.append(("smallest gap (mm)", gaps))
+    rigid_u = [(c, h[c] * 1e3) for c in h if c.endswith("_u") and c not in probe_names]
+    rigid_v = [(c, h[c]) for c in h if c.endswith("_v") and c not in probe_names]
+    if rigid_u:
+        panels.append(("rigid body displacement (mm)", rigid_u))
+        panels.append(("rigid body velocity (m/s)", rigid_v))
+    if not panels:
+        return False
+    fig, axes = plt.subplots(len(panels), 1, sharex=True, squeeze=False,
+                             figsize=(8, 1.0 + 2.2 * len(panels)))
+    for ax, (label, curves) in zip(axes[:, 0], panels):
+        for name, y in curves:
+            ax.plot(t, _finite(y), lw=1.2, label=name)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small", loc="best")
+    axes[-1, 0].set_xlabel("t (µs)")
+    axes[0, 0].set_title(f"{title}: histories")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
+    import matplotlib.pyplot as plt
+
+    if "time" not in e or e["time"].size == 0:
+        return False
+    t = e["time"] * 1e6
+    fig, (ax, ax_err) = plt.subplots(2, 1, sharex=True, figsize=(8, 6),
+                                     gridspec_kw={"height_ratios": [2, 1]})
+    for name in ("kinetic", "strain", "total", "external_work", "contact_work"):
+        if name in e:
+            ax.plot(t, _finite(e[name]), lw=1.4 if name == "total" else 1.0, label=name,
+                    marker="." if t.size < 40 else None)
+    ax.set_ylabel("energy, work (J)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small", loc="best")
+    ax.set_title(f"{title}: energy ledger")
+    err = np.abs(_finite(e.get("balance_error_rel", np.full(t.size, np.nan))))
+    shown = np.where(err > 0, err, np.nan)
+    ax_err.semilogy(t, shown, ".-", lw=1.0, color="k")
+    ax_err.set_ylabel("|balance error| / scale")
+    ax_err.set_xlabel("t (µs)")
+    ax_err.grid(alpha=0.3, which="both")
+    if not np.any(np.isfinite(shown)):
+        ax_err.text(0.5, 0.5, "balance error 0 at every output step", ha="center",
+                    va="center", transform=ax_err.transAxes)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+# ----------------------------------------------------------------------------- fields
+
+@dataclass
+class FieldSeries:
+    """One field of an XDMF file: its times (s), HDF5 datasets and where it lives."""
+
+    name: str
+    center: str  # "Node" or "Cell"
+    times: np.ndarray
+    datasets: list[str]
+
+
+@dataclass
+class XdmfRun:
+    """The mesh and the field series of a dolfinx XDMF file (r = x, z = y, in m)."""
+
+    h5_path: str
+    points: np.ndarray  # (n_nodes, 2)
+    cells: np.ndarray   # (n_cells, 3) triangles
+    fields: dict[str, FieldSeries]
+
+    def values(self, name: str, k: int) -> np.ndarray:
+        """Values of field ``name`` at its k-th time (nodal or cell, SI units)."""
+        import h5py
+
+        with h5py.File(self.h5_path, "r") as f:
+            return np.asarray(f[self.fields[name].datasets[k]])
+
+
+def _hdf_item(item: ET.Element, xdmf_dir: str) -> tuple[str, str]:
+    """(HDF5 file path, dataset) of a DataItem 'file.h5:/path'."""
+    text = (item.text or "").strip()
+    filename, _, dataset = text.partition(":")
+    return os.path.join(xdmf_dir, filename), dataset
+
+
+def read_xdmf(path: str) -> XdmfRun:
+    """Parse a dolfinx XDMF file (mesh grid, then temporal collections of functions)."""
+    import h5py
+
+    from .errors import InputError
+
+    if not os.path.isfile(path):
+        raise InputError(f"'{path}' does not exist (a run directory holds fields.xdmf)")
+    try:
+        domain = ET.parse(path).getroot().find("Domain")
+        mesh_grid = next(g for g in domain.findall("Grid") if g.get("GridType") == "Uniform")
+        h5_path, topo = _hdf_item(mesh_grid.find("Topology/DataItem"), os.path.dirname(path))
+        _, geom = _hdf_item(mesh_grid.find("Geometry/DataItem"), os.path.dirname(path))
+    except (ET.ParseError, StopIteration, AttributeError) as exc:
+        raise InputError(f"'{path}' is not an XDMF file written by dolfinx ({exc})")
+    if not os.path.isfile(h5_path):
+        raise InputError(f"'{h5_path}', the data of '{path}', does not exist")
+    with h5py.File(h5_path, "r") as f:
+        points = np.asarray(f[geom])[:, :2]
+        cells = np.asarray(f[topo]).astype(np.int64)
+    fields = {}
+    for coll in domain.findall("Grid"):
+        if coll.get("CollectionType") != "Temporal":
+            continue
+        times, datasets, center = [], [], "Node"
+        for grid in coll.findall("Grid"):
+            attr = grid.find("Attribute")
+            times.append(float(grid.find("Time").get("Value")))
+            datasets.append(_hdf_item(attr.find("DataItem"), os.path.dirname(path))[1])
+            center = attr.get("Center", "Node")
+        name = coll.get("Name")
+        fields[name] = FieldSeries(name, center, np.array(times), datasets)
+    return XdmfRun(h5_path, points, cells, fields)
+
+
+def _scalar(values: np.ndarray) -> np.ndarray:
+    """A scalar per node or cell: the value, or the magnitude of a vector."""
+    values = values.reshape(values.shape[0], -1)
+    return values[:, 0] if values.shape[1] == 1 else np.linalg.norm(values, axis=1)
+
+
+def _pick_times(series: FieldSeries, times: list[float] | None, n_default: int = 4) -> list[int]:
+    """Indices of the stored times nearest to ``times`` (s), or n_default spread over the run."""
+    if times:
+        picks = [int(np.argmin(np.abs(series.times - t))) for t in times]
+    else:
+        picks = np.linspace(0, series.times.size - 1, min(n_default, series.times.size))
+        picks = [int(round(k)) for k in picks]
+    return sorted(set(picks))
+
+
+def _unit(field: str) -> tuple[float, str]:
+    """Scale and unit label of a field for display."""
+    if field in STRESSES:
+        return 1e-6, "MPa"
+    if field == "displacement":
+        return 1e3, "mm"
+    if field == "velocity":
+        return 1.0, "m/s"
+    return 1.0, ""
+
+
+def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
+                  scale: float | None = None, width: int = 1400) -> list[str]:
+    """Render ``field`` on the deformed mesh at the stored times nearest to ``times`` (s).
+
+    The displacement is multiplied by ``scale`` (default: the largest
+    displacement of the chosen times shows as 5 % of the model size); the
+    factor is stated in each title. One PNG per time in ``run_dir``, named
+    ``<field>_t<time in s>.png``; returns their paths."""
+    from .errors import InputError
+
+    data = read_xdmf(os.path.join(run_dir, "fields.xdmf"))
+    if field not in data.fields:
+        raise InputError(f"--field {field}: not in fields.xdmf (it has: "
+                         f"{', '.join(sorted(data.fields))})")
+    if scale is not None and not scale >= 0:
+        raise InputError(f"--scale {scale}: must be >= 0")
+    if "dolfinx.cpp" in sys.modules:
+        return _render_in_fresh_process(run_dir, field, times, scale, width)
+    series = data.fields[field]
+    picks = _pick_times(series, times)
+    disp = data.fields.get("displacement")
+    u_at = {}
+    for k in picks:
+        t = series.times[k]
+        if disp is not None:
+            j = int(np.argmin(np.abs(disp.times - t)))
+            u_at[k] = data.values("displacement", j)[:, :2]
+        else:
+            u_at[k] = np.zeros_like(data.points)
+    size = float(np.ptp(data.points, axis=0).max())
+    if scale is None:
+        u_max = max(float(np.abs(u).max()) for u in u_at.values())
+        scale = _round_scale(0.05 * size / u_max) if u_max > 0 else 0.0
+    factor, unit = _unit(field)
+    values = {k: _scalar(data.values(field, k)) * factor for k in picks}
+    lo = min(float(np.nanmin(v)) for v in values.values())
+    hi = max(float(np.nanmax(v)) for v in values.values())
+    diverging = field in STRESSES and field != "von_mises" and lo < 0 < hi
+    if diverging:
+        lo, hi = -max(-lo, hi), max(-lo, hi)
+    written = []
+    for k in picks:
+        t = float(series.times[k])
+        path = os.path.join(run_dir, f"{field}_t{t:.6e}.png")
+        label = f"{field} ({unit})" if unit else field
+        title = (f"{label} at t = {t * 1e6:.2f} µs, displacement x {scale:g}"
+                 if scale else f"{label} at t = {t * 1e6:.2f} µs, undeformed")
+        _render(path, data, u_at[k] * scale, values[k], series.center, (lo, hi),
+                "coolwarm" if diverging else "viridis", label, title, width)
+        written.append(path)
+    return written
+
+
+def _render_in_fresh_process(run_dir: str, field: str, times: list[float] | None,
+                             scale: float | None, width: int) -> list[str]:
+    """Run :func:`render_fields` in a new interpreter. VTK's C++ library aborts when it is
+    loaded after dolfinx's in one process (they bind each other's libstdc++ symbols), so a
+    process that ran a simulation renders through a child that never imports dolfinx."""
+    import json
+    import subprocess
+
+    code = ("import json, sys; from impact_fenics.plotting import render_fields; "
+            "print(json.dumps(render_fields(*json.loads(sys.argv[1]))))")
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("OMPI_", "PMIX_", "OPAL_", "ORTE_", "PMI_", "HYDRA_"))}
+    proc = subprocess.run([sys.executable, "-c", code,
+                           json.dumps([run_dir, field, times, scale, width])],
+                          capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
+        raise RuntimeError(f"rendering in a separate process failed: {last}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _round_scale(s: float) -> float:
+    """s rounded down to 1, 2 or 5 times a power of ten (a factor easy to read)."""
+    exp = np.floor(np.log10(s))
+    for m in (5.0, 2.0, 1.0):
+        if m * 10 ** exp <= s:
+            return float(m * 10 ** exp)
+    return float(10 ** exp)
+
+
+def _render(path: str, data: XdmfRun, u: np.ndarray, values: np.ndarray, center: str,
+            clim: tuple[float, float], cmap: str, label: str, title: str, width: int) -> None:
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    xy = data.points + u
+    points = np.column_stack([xy, np.zeros(len(xy))])
+    cells = np.column_stack([np.full(len(data.cells), 3), data.cells]).ravel()
+    grid = pv.UnstructuredGrid(cells, np.full(len(data.cells), pv.CellType.TRIANGLE), points)
+    if center == "Cell":
+        grid.cell_data[label] = values
+    else:
+        grid.point_data[label] = values
+    extent = np.ptp(xy, axis=0)
+    tall = extent[1] > extent[0]  # show the longer side horizontally
+    across, along = (extent[0], extent[1]) if tall else (extent[1], extent[0])
+    margin_top, margin_bottom = 70, 150  # pixels for the title and the colour bar
+    height = int(np.clip(0.9 * width * across / max(along, 1e-300), 200, 900)) \
+        + margin_top + margin_bottom
+    plotter = pv.Plotter(off_screen=True, window_size=(width, height))
+    plotter.set_background("white")
+    plotter.add_mesh(grid, scalars=label, cmap=cmap, clim=clim, lighting=False,
+                     scalar_bar_args={"title": label, "color": "black", "vertical": False,
+                                      "position_x": 0.25, "position_y": 0.04,
+                                      "width": 0.5, "height": 0.08, "fmt": "%.3g"})
+    plotter.add_text(title, position="upper_edge", font_size=11, color="black")
+    axes = "horizontal: z, vertical: r (m)" if tall else "horizontal: r, vertical: z (m)"
+    plotter.add_text(axes, position="lower_left", font_size=8, color="gray")
+    if tall:  # look from -z': z to the right, r up
+        plotter.view_yx()
+    else:
+        plotter.view_xy()
+    plotter.enable_parallel_projection()
+    # world units per pixel so that the model fills the space between title and bar
+    per_px = max(along / (0.92 * width), across / (0.92 * (height - margin_top - margin_bottom)))
+    centre = np.append(0.5 * (xy.min(axis=0) + xy.max(axis=0)), 0.0)
+    up = np.array([1.0, 0.0, 0.0]) if tall else np.array([0.0, 1.0, 0.0])
+    centre -= up * per_px * 0.5 * (margin_bottom - margin_top)  # model above the bar
+    camera = plotter.camera
+    offset = np.array(camera.position) - np.array(camera.focal_point)
+    camera.focal_point = tuple(centre)
+    camera.position = tuple(centre + offset)
+    camera.parallel_scale = 0.5 * height * per_px
+    plotter.screenshot(path)
+    plotter.close()

@@ -1,0 +1,661 @@
+"""Scene files: a run described in TOML, checked in full before anything is built or written.
+
+Units are SI: lengths in m, times in s, masses in kg, densities in kg/m^3,
+moduli, pressures and stresses in Pa, forces in N, velocities in m/s. The keys
+and their units are listed in the README ("Command line and scene files") and
+in ``scenes/*.toml``.
+
+:func:`read_scene` parses the file and checks every value (types, signs,
+ranges, unknown and missing keys, names that refer to other tables) without
+building anything. :func:`build` then makes the mesh and the
+:class:`~impact_fenics.simulation.Simulation` through the library's API,
+prefixing any error the mesh or the API finds (a missing group, surfaces that
+do not pair, dt above the stable limit) with the table it comes from. Every
+rank reads the same file and raises the same :class:`InputError`, so the
+checks are collective.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any, Iterator
+
+from mpi4py import MPI
+
+from .errors import InputError
+
+QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z")
+METHODS = ("penalty", "film", "dme")
+COMPONENTS = {"r": 0, "z": 1}
+_MISSING = object()
+
+# Mesh generators of impact_fenics.meshing: parameter -> (kind, meaning with unit).
+_LENGTH = "length"
+GENERATORS: dict[str, dict[str, tuple[str, str]]] = {
+    "bar": {"radius": (_LENGTH, "bar radius in m"), "length": (_LENGTH, "bar length in m"),
+            "h": (_LENGTH, "element size in m"),
+            "structured": ("bool", "structured grid of alternating diagonals")},
+    "coaxial_bars": {"radius": (_LENGTH, "bar radius in m"),
+                     "striker_length": (_LENGTH, "striker length in m"),
+                     "target_length": (_LENGTH, "target length in m"),
+                     "h": (_LENGTH, "element size in m"),
+                     "structured": ("bool", "structured grids")},
+    "punch_block": {"width": (_LENGTH, "block radius in m"), "depth": (_LENGTH, "block depth in m"),
+                    "h_surface": (_LENGTH, "element size at the surface in m"),
+                    "grading": (_LENGTH, "growth of the element size with depth (m/m)"),
+                    "h_max": (_LENGTH, "largest element size in m"),
+                    "breaks": ("breaks", "surface breaks [[r (m), intervals], ...]")},
+}
+
+
+def _fmt(value: Any) -> str:
+    """A value as TOML spells it."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, list):
+        return "[" + ", ".join(_fmt(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + "}"
+    return repr(value)
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+class _Table:
+    """One TOML table being read: unknown keys, missing keys and bad values name the
+    table and the key."""
+
+    def __init__(self, data: Any, where: str, allowed: tuple[str, ...]):
+        if not isinstance(data, dict):
+            raise InputError(f"{where} must be a table, not {_fmt(data)}")
+        self.data, self.where = data, where
+        for key in data:
+            if key not in allowed:
+                raise InputError(f"{where} unknown key '{key}' (allowed here: "
+                                 f"{', '.join(allowed)})")
+
+    def __contains__(self, key: str) -> bool:
+        return key in self.data
+
+    def error(self, key: str, problem: str) -> InputError:
+        return InputError(f"{self.where} {key} = {_fmt(self.data[key])}: {problem}")
+
+    def _get(self, key: str, what: str, default: Any) -> Any:
+        if key in self.data:
+            return self.data[key]
+        if default is _MISSING:
+            raise InputError(f"{self.where} {key} is missing: {what}")
+        return default
+
+    def number(self, key: str, what: str, default: Any = _MISSING) -> float:
+        """A finite number (int or float)."""
+        v = self._get(key, what, default)
+        if key not in self.data:
+            return v
+        if not _is_number(v):
+            raise self.error(key, f"must be a finite number ({what})")
+        return float(v)
+
+    def positive(self, key: str, what: str, default: Any = _MISSING) -> float:
+        v = self.number(key, what, default)
+        if key in self.data and not v > 0:
+            raise self.error(key, f"must be > 0 ({what})")
+        return v
+
+    def count(self, key: str, what: str, default: Any = _MISSING) -> int:
+        """An integer >= 1."""
+        v = self._get(key, what, default)
+        if key not in self.data:
+            return v
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            raise self.error(key, f"must be an integer >= 1 ({what})")
+        return v
+
+    def flag(self, key: str, what: str, default: bool) -> bool:
+        v = self._get(key, what, default)
+        if not isinstance(v, bool):
+            raise self.error(key, f"must be true or false ({what})")
+        return v
+
+    def text(self, key: str, what: str, default: Any = _MISSING,
+             choices: tuple[str, ...] | None = None) -> str:
+        v = self._get(key, what, default)
+        if key not in self.data:
+            return v
+        if not isinstance(v, str) or not v:
+            raise self.error(key, f"must be a non-empty string ({what})")
+        if choices is not None and v not in choices:
+            raise self.error(key, f"use one of {', '.join(choices)}")
+        return v
+
+    def pair(self, key: str, what: str, default: Any = _MISSING) -> tuple[float, float]:
+        v = self._get(key, what, default)
+        if key not in self.data:
+            return v
+        if not isinstance(v, list) or len(v) != 2 or not all(_is_number(x) for x in v):
+            raise self.error(key, f"must be two finite numbers [a, b] ({what})")
+        return float(v[0]), float(v[1])
+
+
+def _tables_of(parent: _Table, key: str, what: str) -> list[tuple[str, Any]]:
+    """The named sub-tables [key.NAME] of a table (name, data)."""
+    data = parent.data.get(key, {})
+    if not isinstance(data, dict):
+        raise InputError(f"{parent.where} {key} must be a table of [{key}.NAME] tables ({what})")
+    for name, value in data.items():
+        if not isinstance(value, dict):
+            raise InputError(f"[{key}] {name} = {_fmt(value)}: must be a table [{key}.{name}] "
+                             f"({what})")
+    return list(data.items())
+
+
+def _array_of(parent: _Table, key: str) -> list[tuple[str, Any]]:
+    """The entries of an array of tables [[key]], each with its label '[key #k]'."""
+    data = parent.data.get(key, [])
+    if not isinstance(data, list) or not all(isinstance(d, dict) for d in data):
+        raise InputError(f"[{key}] must be an array of tables: write [[{key}]] above each entry")
+    return [(f"[{key} #{k + 1}]", d) for k, d in enumerate(data)]
+
+
+# ----------------------------------------------------------------------------- the scene
+
+@dataclass
+class MeshSpec:
+    generator: str | None
+    params: dict[str, Any]
+    file: str | None
+
+
+@dataclass
+class MaterialSpec:
+    name: str
+    E: float        # Pa
+    nu: float
+    density: float  # kg/m^3
+
+
+@dataclass
+class BodySpec:
+    name: str
+    material: str
+    velocity: tuple[float, float]  # (v_r, v_z), m/s
+
+
+@dataclass
+class RigidSpec:
+    name: str
+    mass: float      # kg
+    velocity: float  # m/s along z
+
+
+@dataclass
+class ContactSpec:
+    where: str
+    method: str
+    lower: str | None = None     # facet group below (node pairs)
+    upper: str | None = None     # facet group above (node pairs)
+    surface: str | None = None   # facet group under a rigid body
+    rigid: str | None = None     # the rigid body's name
+    radius: float | None = None  # m, rigid face radius
+    penalty: float | str = "scaled"
+    restitution: float = 0.0
+    positions: str = "mass_weighted"
+    film_solver: str = "fast"
+
+
+@dataclass
+class LoadSpec:
+    where: str
+    pulse: str                # "trapezoid" or "constant"
+    params: dict[str, float]  # peak, t_rise, t_fall, t_end (s) or value
+    facet: str | None = None
+    rigid: str | None = None
+    traction: tuple[float, float] | None = None
+    area: float | None = None  # m^2
+
+
+@dataclass
+class FixedSpec:
+    where: str
+    facet: str
+    components: list[str]
+
+
+@dataclass
+class ProbeSpec:
+    where: str
+    name: str
+    point: tuple[float, float]  # (r, z) in m
+    quantity: str
+
+
+@dataclass
+class Scene:
+    """A scene file, read and checked; no mesh built yet."""
+
+    path: str
+    title: str
+    mesh: MeshSpec
+    materials: dict[str, MaterialSpec]
+    bodies: list[BodySpec]
+    rigid: dict[str, RigidSpec]
+    contacts: list[ContactSpec]
+    loads: list[LoadSpec]
+    fixed: list[FixedSpec]
+    time: dict[str, Any]
+    output: dict[str, Any]
+    probes: list[ProbeSpec] = field(default_factory=list)
+
+    @property
+    def stem(self) -> str:
+        return os.path.splitext(os.path.basename(self.path))[0]
+
+    def set_method(self, method: str) -> None:
+        """Use ``method`` for every contact (the command line's --method)."""
+        if method not in METHODS:
+            raise InputError(f"--method {method}: use one of {', '.join(METHODS)}")
+        if not self.contacts:
+            raise InputError(f"--method {method}: the scene has no [[contact]]")
+        for c in self.contacts:
+            c.method = method
+
+
+TOP_KEYS = ("title", "mesh", "materials", "bodies", "rigid", "contact", "loads", "fixed",
+            "time", "output", "probes")
+
+
+def read_scene(path: str) -> Scene:
+    """Parse and check a scene file; raises InputError naming the table and the key."""
+    if not os.path.isfile(path):
+        raise InputError(f"scene file '{path}' does not exist")
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"scene file '{path}' cannot be read: {exc}")
+    top = _Table(data, f"[{os.path.basename(path)}, top level]", TOP_KEYS)
+    title = top.text("title", "a title for the run", os.path.basename(path))
+    for key in ("mesh", "time"):
+        if key not in top:
+            raise InputError(f"[{key}] is missing: the scene needs a [{key}] table")
+    mesh = _read_mesh(top.data["mesh"], os.path.dirname(os.path.abspath(path)))
+    materials = {name: _read_material(name, d) for name, d in
+                 _tables_of(top, "materials", "E (Pa), nu, density (kg/m^3)")}
+    bodies = [_read_body(name, d, materials) for name, d in
+              _tables_of(top, "bodies", "a cell group of the mesh and its material")]
+    if not bodies:
+        raise InputError("[bodies] the scene has no deformable body: add a table [bodies.NAME] "
+                         "for each cell group NAME of the mesh")
+    rigid = {name: _read_rigid(name, d) for name, d in
+             _tables_of(top, "rigid", "a rigid body: mass (kg)")}
+    for name in rigid:
+        if any(b.name == name for b in bodies):
+            raise InputError(f"[rigid.{name}] the name '{name}' is also a deformable body")
+    contacts = [_read_contact(where, d, rigid) for where, d in _array_of(top, "contact")]
+    for name in rigid:
+        users = [c.where for c in contacts if c.rigid == name]
+        if len(users) != 1:
+            raise InputError(f"[rigid.{name}] a rigid body must be in exactly one [[contact]] "
+                             f"(it is in {len(users)})")
+    loads = [_read_load(where, d, rigid) for where, d in _array_of(top, "loads")]
+    fixed = [_read_fixed(where, d) for where, d in _array_of(top, "fixed")]
+    time = _read_time(top.data["time"])
+    output = _read_output(top.data.get("output", {}))
+    probes = [_read_probe(where, d, k) for k, (where, d) in enumerate(_array_of(top, "probes"))]
+    names = [p.name for p in probes]
+    for p in probes:
+        if names.count(p.name) > 1 or p.name in ("step", "time"):
+            raise InputError(f"{p.where} name = {_fmt(p.name)}: probe names must be unique "
+                             "and not 'step' or 'time'")
+    return Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
+                 fixed, time, output, probes)
+
+
+def _read_mesh(data: Any, base: str) -> MeshSpec:
+    where = "[mesh]"
+    if not isinstance(data, dict):
+        raise InputError(f"{where} must be a table, not {_fmt(data)}")
+    if "generator" in data and "file" in data:
+        raise InputError(f"{where} give either generator or file, not both")
+    if "file" in data:
+        t = _Table(data, where, ("file",))
+        name = t.text("file", "a 2D .msh file with named physical groups")
+        full = name if os.path.isabs(name) else os.path.join(base, name)
+        if not os.path.isfile(full):
+            raise t.error("file", f"no such mesh file ({full})")
+        return MeshSpec(None, {}, full)
+    if "generator" not in data:
+        raise InputError(f"{where} generator is missing: give generator = one of "
+                         f"{', '.join(GENERATORS)}, or file = \"my_mesh.msh\"")
+    generator = data["generator"]
+    if not isinstance(generator, str) or generator not in GENERATORS:
+        raise InputError(f"{where} generator = {_fmt(generator)}: unknown generator; use one of "
+                         f"{', '.join(GENERATORS)}, or file = \"my_mesh.msh\"")
+    schema = GENERATORS[generator]
+    t = _Table(data, where, ("generator",) + tuple(schema))
+    params: dict[str, Any] = {}
+    for key, (kind, what) in schema.items():
+        if key not in t:
+            continue
+        if kind == _LENGTH:
+            params[key] = t.positive(key, what)
+        elif kind == "bool":
+            params[key] = t.flag(key, what, False)
+        else:
+            params[key] = _breaks(t, key, what)
+    return MeshSpec(generator, params, None)
+
+
+def _breaks(t: _Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
+    v = t.data[key]
+    ok = isinstance(v, list) and len(v) > 0 and all(
+        isinstance(b, list) and len(b) == 2 and _is_number(b[0]) and b[0] > 0
+        and isinstance(b[1], int) and not isinstance(b[1], bool) and b[1] >= 1 for b in v)
+    if not ok or any(v[k + 1][0] <= v[k][0] for k in range(len(v) - 1)):
+        raise t.error(key, f"must be increasing radii with interval counts ({what})")
+    return tuple((float(r), int(n)) for r, n in v)
+
+
+def _read_material(name: str, data: dict) -> MaterialSpec:
+    t = _Table(data, f"[materials.{name}]", ("E", "nu", "density"))
+    E = t.positive("E", "Young's modulus in Pa")
+    nu = t.number("nu", "Poisson's ratio")
+    if not -1.0 < nu < 0.5:
+        raise t.error("nu", "Poisson's ratio must lie in (-1, 0.5); nu >= 0.5 is "
+                            "incompressible and has no explicit stable time step")
+    density = t.positive("density", "mass density in kg/m^3")
+    return MaterialSpec(name, E, nu, density)
+
+
+def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> BodySpec:
+    t = _Table(data, f"[bodies.{name}]", ("material", "velocity"))
+    material = t.text("material", "the name of a [materials.NAME] table")
+    if material not in materials:
+        raise t.error("material", f"no table [materials.{material}] "
+                                  f"(materials: {', '.join(materials) or 'none'})")
+    velocity = t.pair("velocity", "initial (v_r, v_z) in m/s", (0.0, 0.0))
+    return BodySpec(name, material, velocity)
+
+
+def _read_rigid(name: str, data: dict) -> RigidSpec:
+    t = _Table(data, f"[rigid.{name}]", ("mass", "velocity"))
+    mass = t.positive("mass", "mass of the rigid body in kg")
+    return RigidSpec(name, mass, t.number("velocity", "initial z velocity in m/s", 0.0))
+
+
+CONTACT_KEYS = ("method", "penalty", "restitution", "positions", "film_solver")
+
+
+def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpec:
+    is_rigid = isinstance(data, dict) and "rigid" in data
+    shape = ("surface", "rigid", "radius") if is_rigid else ("lower", "upper")
+    t = _Table(data, where, shape + CONTACT_KEYS)
+    method = t.text("method", f"the contact method: {', '.join(METHODS)}", choices=METHODS)
+    c = ContactSpec(where, method)
+    if is_rigid:
+        c.surface = t.text("surface", "the facet group under the rigid body")
+        c.rigid = t.text("rigid", "the name of a [rigid.NAME] body")
+        if c.rigid not in rigid:
+            raise t.error("rigid", f"no table [rigid.{c.rigid}] "
+                                   f"(rigid bodies: {', '.join(rigid) or 'none'})")
+        c.radius = t.positive("radius", "radius of the flat rigid face in m")
+    else:
+        c.lower = t.text("lower", "the facet group of the body below")
+        c.upper = t.text("upper", "the facet group of the body above")
+        if c.lower == c.upper:
+            raise t.error("upper", "the two contact surfaces must differ")
+    if "penalty" in t:
+        p = t.data["penalty"]
+        if isinstance(p, str) and p not in ("auto", "scaled"):
+            raise t.error("penalty", "give a stiffness in N/m, \"auto\" or \"scaled\"")
+        if isinstance(p, str):
+            c.penalty = p
+        else:
+            c.penalty = t.positive("penalty", "penalty stiffness in N/m, or \"auto\" or \"scaled\"")
+    c.restitution = t.number("restitution", "DME restitution coefficient e", 0.0)
+    if not 0.0 <= c.restitution <= 1.0:
+        raise t.error("restitution", "must lie in [0, 1] (0: the pair sticks, 1: elastic)")
+    c.positions = t.text("positions", "DME pair positions", "mass_weighted",
+                         choices=("mass_weighted", "paper"))
+    c.film_solver = t.text("film_solver", "FILM solver", "fast", choices=("fast", "dense"))
+    return c
+
+
+PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
+
+
+def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
+    if not isinstance(data, dict):
+        raise InputError(f"{where} must be a table")
+    pulse = data.get("pulse", "trapezoid")
+    if not isinstance(pulse, str) or pulse not in PULSES:
+        raise InputError(f"{where} pulse = {_fmt(pulse)}: use one of {', '.join(PULSES)}")
+    params = PULSES[pulse]
+    on_rigid = "rigid" in data
+    extra = ("rigid", "area") if on_rigid else ("facet", "traction")
+    t = _Table(data, where, ("pulse",) + extra + params)
+    t.text("pulse", "the time function", "trapezoid", choices=tuple(PULSES))
+    unit = ("Pa" if "area" in t else "N") if on_rigid else "Pa"
+    load = LoadSpec(where, pulse, {})
+    if pulse == "trapezoid":
+        load.params["peak"] = t.number("peak", f"the plateau value in {unit}")
+        t_rise = load.params["t_rise"] = t.number("t_rise", "end of the rise in s")
+        t_fall = load.params["t_fall"] = t.number("t_fall", "start of the fall in s")
+        t_end = load.params["t_end"] = t.number("t_end", "end of the pulse in s")
+        if t_rise < 0:
+            raise t.error("t_rise", "must be >= 0 (s)")
+        if t_fall < t_rise:
+            raise t.error("t_fall", f"must be >= t_rise = {_fmt(t.data['t_rise'])} (s)")
+        if not t_end > 0 or t_end < t_fall:
+            raise t.error("t_end", f"must be > 0 and >= t_fall = {_fmt(t.data['t_fall'])} (s)")
+    else:
+        load.params["value"] = t.number("value", f"the load in {unit}")
+    if on_rigid:
+        load.rigid = t.text("rigid", "the name of a [rigid.NAME] body")
+        if load.rigid not in rigid:
+            raise t.error("rigid", f"no table [rigid.{load.rigid}] "
+                                   f"(rigid bodies: {', '.join(rigid) or 'none'})")
+        if "area" in t:
+            load.area = t.positive("area", "area in m^2 on which the pulse, a pressure in Pa, "
+                                           "pushes the body down (-z)")
+    else:
+        load.facet = t.text("facet", "the facet group loaded")
+        if "traction" in t:
+            load.traction = t.pair("traction", "(t_r, t_z) traction per unit of the pulse")
+            if load.traction == (0.0, 0.0):
+                raise t.error("traction", "must not be zero")
+    return load
+
+
+def _read_fixed(where: str, data: dict) -> FixedSpec:
+    t = _Table(data, where, ("facet", "components"))
+    facet = t.text("facet", "the facet group held fixed")
+    comps = t._get("components", "the fixed displacement components, [\"r\"], [\"z\"] "
+                                 "or [\"r\", \"z\"]", _MISSING)
+    if (not isinstance(comps, list) or not comps or len(set(map(str, comps))) != len(comps)
+            or not all(isinstance(c, str) and c in COMPONENTS for c in comps)):
+        raise t.error("components", "must be a list of distinct components \"r\" and \"z\"")
+    return FixedSpec(where, facet, list(comps))
+
+
+def _read_time(data: Any) -> dict[str, Any]:
+    t = _Table(data, "[time]", ("dt", "cfl", "t_end", "n_steps", "force_dt", "converged_dt"))
+    if ("dt" in t) == ("cfl" in t):
+        raise InputError("[time] give exactly one of dt (the time step in s) or cfl "
+                         "(a fraction of the stable limit)")
+    if ("t_end" in t) == ("n_steps" in t):
+        raise InputError("[time] give exactly one of t_end (the end time in s) or n_steps")
+    return {"dt": t.positive("dt", "the time step in s", None),
+            "cfl": t.positive("cfl", "dt as a fraction of the stable limit", None),
+            "t_end": t.positive("t_end", "the end time in s", None),
+            "n_steps": t.count("n_steps", "the number of steps", None),
+            "force_dt": t.flag("force_dt", "run with a dt above the stable limit", False),
+            "converged_dt": t.flag("converged_dt", "also compute the converged stable dt", False)}
+
+
+def _read_output(data: Any) -> dict[str, Any]:
+    t = _Table(data, "[output]", ("dir", "output_every", "history_every", "fields", "plots"))
+    return {"dir": t.text("dir", "the output directory", None),
+            "output_every": t.count("output_every", "steps between field and energy outputs", 50),
+            "history_every": t.count("history_every", "steps between history rows", 1),
+            "fields": t.flag("fields", "write fields.xdmf", True),
+            "plots": t.flag("plots", "write history.png and energy.png", True)}
+
+
+def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
+    t = _Table(data, where, ("name", "point", "quantity"))
+    quantity = t.text("quantity", f"one of {', '.join(QUANTITIES)}", choices=QUANTITIES)
+    point = t.pair("point", "the (r, z) point in m")
+    if point[0] < 0:
+        raise t.error("point", "r must be >= 0 (m)")
+    name = t.text("name", "the history column", f"{quantity}_{k}")
+    return ProbeSpec(where, name, point, quantity)
+
+
+# ----------------------------------------------------------------------------- output directory
+
+def check_output_dir(path: str, where: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """Fail early, on every rank, if the output directory ``path`` cannot be created.
+
+    Nothing is created here: the run stages its output in ``path.partial``."""
+    error = None
+    if comm.rank == 0:
+        full = os.path.abspath(path)
+        parent = os.path.dirname(full)
+        while not os.path.exists(parent):
+            parent = os.path.dirname(parent)
+        if os.path.exists(full) and not os.path.isdir(full):
+            error = f"'{full}' exists and is not a directory"
+        elif not os.path.isdir(parent):
+            error = f"'{parent}' is a file, not a directory"
+        elif not os.access(parent, os.W_OK | os.X_OK):
+            error = f"no permission to write in '{parent}'"
+    error = comm.bcast(error, root=0)
+    if error:
+        raise InputError(f"{where} {_fmt(path)}: the output directory cannot be written: {error}")
+
+
+# ----------------------------------------------------------------------------- building
+
+@contextmanager
+def _at(where: str) -> Iterator[None]:
+    """Prefix the InputErrors of the library with the table they come from."""
+    try:
+        yield
+    except InputError as exc:
+        raise InputError(f"{where} {exc}") from None
+
+
+def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
+          comm: MPI.Comm = MPI.COMM_WORLD):
+    """The mesh and the :class:`~impact_fenics.simulation.Simulation` of a checked scene.
+
+    ``settings_overrides`` sets fields of the Settings (e.g. out, quiet)."""
+    from . import loads as ld, meshing
+    from .bodies import Body, DeformableModel
+    from .contact import RigidBody, pair_surfaces, rigid_face
+    from .materials import LinearElastic
+    from .probes import locate_cell
+    from .scenes import make_method
+    from .simulation import Settings, Simulation
+
+    with _at("[mesh]"):
+        if scene.mesh.file is not None:
+            tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
+        else:
+            generate = getattr(meshing, scene.mesh.generator)
+            tmesh = generate(comm=comm, **scene.mesh.params)
+    _check_groups(scene, tmesh)
+    materials = {}
+    for m in scene.materials.values():
+        with _at(f"[materials.{m.name}]"):
+            materials[m.name] = LinearElastic(E=m.E, nu=m.nu, density=m.density)
+    with _at("[bodies]"):
+        model = DeformableModel(tmesh, [Body(b.name, materials[b.material]) for b in scene.bodies])
+    fixed = []
+    for f in scene.fixed:
+        with _at(f.where):
+            fixed += [model.facet_dofs(f.facet, COMPONENTS[c]) for c in f.components]
+    surface_loads, rigid_loads = [], {name: [] for name in scene.rigid}
+    for spec in scene.loads:
+        pulse = (ld.Trapezoid(**spec.params) if spec.pulse == "trapezoid"
+                 else ld.Constant(spec.params["value"]))
+        if spec.rigid is not None:
+            rigid_loads[spec.rigid].append((-spec.area if spec.area else 1.0, pulse))
+        else:
+            with _at(spec.where):
+                surface_loads.append(ld.SurfaceLoad(model, spec.facet, pulse, spec.traction))
+    t, o = scene.time, scene.output
+    settings = Settings(dt=t["dt"], cfl=t["cfl"], t_end=t["t_end"], n_steps=t["n_steps"],
+                        force_dt=t["force_dt"], converged_dt=t["converged_dt"], out=o["dir"],
+                        output_every=o["output_every"], history_every=o["history_every"],
+                        fields=o["fields"], plots=o["plots"])
+    for key, value in (settings_overrides or {}).items():
+        setattr(settings, key, value)
+    velocity = {b.name: b.velocity for b in scene.bodies if b.velocity != (0.0, 0.0)}
+    try:
+        sim = Simulation(model, settings, fixed=fixed, loads=surface_loads,
+                         initial_velocity=velocity)
+    except InputError as exc:
+        hint = " with force_dt = true" if "stable limit" in str(exc) else ""
+        raise InputError(f"[time] {exc}{hint}") from None
+    for c in scene.contacts:
+        with _at(c.where):
+            method = make_method(c.method, penalty=c.penalty, restitution=c.restitution,
+                                 positions=c.positions, film_solver=c.film_solver)
+            if c.rigid is None:
+                sim.add_contact(pair_surfaces(model, c.lower, c.upper), method)
+            else:
+                spec = scene.rigid[c.rigid]
+                body = RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]),
+                                 v=spec.velocity)
+                sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name), method,
+                                rigid=body)
+    for p in scene.probes:
+        with _at(p.where):
+            locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()
+        sim.add_probe(p.name, p.point, p.quantity)
+    return sim
+
+
+def _force(terms: list[tuple[float, Any]]):
+    """The z force (N) on a rigid body: the sum of scale * pulse(t)."""
+    if not terms:
+        return lambda t: 0.0
+    if len(terms) == 1:
+        scale, pulse = terms[0]
+        return lambda t: scale * pulse(t)
+    return lambda t: sum(scale * pulse(t) for scale, pulse in terms)
+
+
+def _check_groups(scene: Scene, tmesh) -> None:
+    """Every name of a group the scene uses exists in the mesh, and every cell group is a body."""
+    cells, facets = tmesh.cell_names, tmesh.facet_names
+    have_c = ", ".join(sorted(cells)) or "none"
+    have_f = ", ".join(sorted(facets)) or "none"
+    for b in scene.bodies:
+        if b.name not in cells:
+            raise InputError(f"[bodies.{b.name}] the mesh has no cell group named '{b.name}' "
+                             f"(it has: {have_c})")
+    bodies = {b.name for b in scene.bodies}
+    for name in cells:
+        if name not in bodies:
+            raise InputError(f"[bodies] the mesh cell group '{name}' is not a body: add a table "
+                             f"[bodies.{name}] with its material")
+    refs = [(c.where, k, getattr(c, k)) for c in scene.contacts
+            for k in ("lower", "upper", "surface") if getattr(c, k) is not None]
+    refs += [(ld.where, "facet", ld.facet) for ld in scene.loads if ld.facet is not None]
+    refs += [(f.where, "facet", f.facet) for f in scene.fixed]
+    for where, key, name in refs:
+        if name not in facets:
+            raise InputError(f"{where} {key} = {_fmt(name)}: the mesh has no facet group named "
+                             f"'{name}' (it has: {have_f})")

@@ -1,0 +1,254 @@
+"""The command line and the scene files: the same numbers as the demos, under mpirun too.
+
+Oracles: the demos' own ``run()`` (the scene files in scenes/ must reproduce
+them to 1e-10, here exactly), the library's scene builders, closed forms for a
+hand-written .msh (mass rho pi R^2 L, load p pi R^2), and the progress
+specification (a progress line on a terminal only, never with --quiet).
+"""
+import json
+import math
+import os
+import select
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from conftest import clean_mpi_env, load_demo
+from impact_fenics import cli, scene_file, scenes
+from impact_fenics.simulation import Settings
+from scene_texts import BAR, PAIR, RIGID, ROOT, launch, replace
+
+serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
+REL = 1e-10
+SCENES = os.path.join(ROOT, "scenes")
+
+
+def _close(a, b, scale=None, rel=REL) -> bool:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(np.abs(a).max(), np.abs(b).max(), 1e-300) if scale is None else scale
+    return bool(np.abs(a - b).max() <= rel * scale)
+
+
+def _shared_dir(tmp_path) -> str:
+    """One output path for every rank (rank 0's tmp_path)."""
+    return MPI.COMM_WORLD.bcast(str(tmp_path), root=0)
+
+
+def _cli_run(scene: str, out: str, *args: str) -> dict:
+    assert cli.main(["run", scene, "--out", out, "--quiet", *args]) == 0
+    with open(os.path.join(out, "summary.json")) as f:
+        return json.load(f)
+
+
+def _energies_close(a: dict, b: dict) -> None:
+    scale = abs(b["energy"]["total"])
+    for key in ("kinetic", "strain", "external_work", "contact_work", "total"):
+        assert _close(a["energy"][key], b["energy"][key], scale=scale), key
+
+
+def test_bar_impact_scene_file_matches_the_demo(tmp_path):
+    out = os.path.join(_shared_dir(tmp_path), "bar")
+    s_cli = _cli_run(os.path.join(SCENES, "bar_impact.toml"), out)
+    s_demo, _ = load_demo("bar_impact").run("film", None)
+    assert s_cli["n_steps"] == s_demo["n_steps"] == 500 and s_cli["dt"] == s_demo["dt"]
+    assert s_cli["contact"]["n_constraints"] == s_demo["n_pairs"]
+    assert _close(s_cli["contact_duration"], s_demo["contact_duration"])
+    assert s_cli["contact"]["first_contact_step"] == s_demo["contact"]["first_contact_step"]
+    assert s_cli["contact"]["last_contact_step"] == s_demo["contact"]["last_contact_step"]
+    _energies_close(s_cli, s_demo)
+
+
+def test_elastic_wave_scene_file_matches_the_demo(tmp_path):
+    out = os.path.join(_shared_dir(tmp_path), "wave")
+    s_cli = _cli_run(os.path.join(SCENES, "elastic_wave.toml"), out)
+    s_demo, sim = load_demo("elastic_wave").run(None)
+    assert s_cli["dt"] == s_demo["dt"] and s_cli["n_steps"] == s_demo["n_steps"]  # cfl = 0.9
+    _energies_close(s_cli, s_demo)
+    h_cli = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
+    h_demo = sim.history.data()
+    for col in ("sigma_zz_0", "u_z_0", "sigma_zz_1", "u_z_1"):
+        # history.csv holds 12 significant digits
+        assert _close(h_cli[col], h_demo[col], rel=1e-11), col
+
+
+def test_punch_scene_file_is_the_demo_setup():
+    """scenes/punch_indentation.toml states the demo's constants (its 22,600-cell run is
+    compared on a small block below)."""
+    demo = load_demo("punch_indentation")
+    s = scene_file.read_scene(os.path.join(SCENES, "punch_indentation.toml"))
+    assert s.mesh.generator == "punch_block" and s.mesh.params.get("breaks") is None
+    assert s.time["dt"] == demo.DT and s.time["n_steps"] == demo.N_STEPS
+    (c,) = s.contacts
+    assert (c.surface, c.rigid, c.radius, c.method) == ("surface", "punch", 1.0, "dme")
+    assert s.rigid["punch"].mass == 0.1
+    (load,) = s.loads
+    assert load.params == dict(peak=200e6, t_rise=1e-5, t_fall=9e-5, t_end=1e-4)
+    assert load.area == math.pi * 1.0 ** 2
+    assert [(f.facet, f.components) for f in s.fixed] == [("bottom", ["z"])]
+
+
+def test_rigid_scene_matches_the_scene_builder(tmp_path):
+    """A punch scene file and scenes.punch_indentation on the same small block agree exactly."""
+    block = dict(width=0.3, depth=0.1, h_surface=0.02, grading=0.3, h_max=0.05,
+                 breaks=((0.1, 5),))
+    area = math.pi * 0.1 ** 2
+    text = replace(replace(replace(RIGID, "area = 0.0314", f"area = {area!r}"),
+                           "peak = 1e6", "peak = 2e8"), 'method = "dme"', 'method = "film"')
+    scene = tmp_path / "punch.toml"
+    scene.write_text(text)
+    out = os.path.join(_shared_dir(tmp_path), "punch")
+    s_cli = _cli_run(str(scene), out)
+    settings = Settings(dt=1e-7, n_steps=20, output_every=50, quiet=True)
+    sim = scenes.punch_indentation(settings, scenes.make_method("film"), radius=0.1,
+                                   peak=2e8, t_rise=1e-6, t_fall=2e-6, t_end=3e-6, block=block)
+    s_lib = sim.run()
+    _energies_close(s_cli, s_lib)
+    h_cli = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
+    h_lib = sim.history.data()
+    for col in ("punch_u", "punch_force", "n_active"):
+        assert _close(h_cli[col], h_lib[col], rel=1e-11), col
+    assert s_lib["contact"]["n_constraints"] == 6
+
+
+def test_method_option_overrides_the_file(tmp_path):
+    scene = tmp_path / "pair.toml"
+    scene.write_text(PAIR)
+    out = os.path.join(_shared_dir(tmp_path), "pair")
+    s = _cli_run(str(scene), out, "--method", "dme")
+    assert s["contact"]["method"] == "dme" and s["contact"]["method_info"]["restitution"] == 0.0
+
+
+def _disk_msh(radius: float, length: float, nr: int, nz: int) -> str:
+    """A gmsh 2.2 file: the rectangle [0, radius] x [0, length] in right triangles, with the
+    cell group "disk" and the facet groups "bottom" (z = 0) and "top" (z = length)."""
+    xs = [radius * i / nr for i in range(nr + 1)]
+    zs = [length * j / nz for j in range(nz + 1)]
+
+    def node(i, j):
+        return 1 + j * (nr + 1) + i
+
+    nodes = [f"{node(i, j)} {x!r} {z!r} 0" for j, z in enumerate(zs) for i, x in enumerate(xs)]
+    elems = []  # (type, physical, entity, nodes)
+    for i in range(nr):
+        elems += [(1, 11, 1, (node(i, 0), node(i + 1, 0))), (1, 12, 3, (node(i, nz), node(i + 1, nz)))]
+    for j in range(nz):
+        for i in range(nr):
+            a, b, c, d = node(i, j), node(i + 1, j), node(i + 1, j + 1), node(i, j + 1)
+            elems += [(2, 1, 1, (a, b, c)), (2, 1, 1, (a, c, d))]
+    rows = [f"{k + 1} {t} 2 {p} {e} " + " ".join(map(str, ns)) for k, (t, p, e, ns) in enumerate(elems)]
+    return "\n".join(["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$PhysicalNames", "3",
+                      '1 11 "bottom"', '1 12 "top"', '2 1 "disk"', "$EndPhysicalNames",
+                      "$Nodes", str(len(nodes)), *nodes, "$EndNodes",
+                      "$Elements", str(len(rows)), *rows, "$EndElements", ""])
+
+
+MSH_SCENE = """\
+[mesh]
+file = "disk.msh"
+
+[materials.steel]
+E = 200e9
+nu = 0.3
+density = 7850.0
+
+[bodies.disk]
+material = "steel"
+
+[[loads]]
+facet = "bottom"
+pulse = "constant"
+value = 1e6
+
+[time]
+dt = 1e-7
+n_steps = 5
+"""
+
+
+def test_scene_from_a_msh_file(tmp_path):
+    """Mass and load of a body read from a .msh with named groups match the closed forms."""
+    (tmp_path / "disk.msh").write_text(_disk_msh(0.02, 0.04, 2, 4))
+    (tmp_path / "disk.toml").write_text(MSH_SCENE)
+    sim = scene_file.build(scene_file.read_scene(str(tmp_path / "disk.toml")), {"quiet": True})
+    rho, R, L = 7850.0, 0.02, 0.04
+    assert math.isclose(sim.body_mass["disk"], rho * math.pi * R ** 2 * L, rel_tol=1e-12)
+    (load,) = sim.loads
+    push = MPI.COMM_WORLD.allreduce(float(load.force[load.dofs % 2 == 1].sum()))
+    assert math.isclose(push, math.pi * R ** 2, rel_tol=1e-12)  # N per Pa, toward +z
+
+
+def test_msh_file_without_the_named_group(tmp_path, capsys):
+    (tmp_path / "disk.msh").write_text(_disk_msh(0.02, 0.04, 2, 4))
+    (tmp_path / "disk.toml").write_text(replace(MSH_SCENE, "[bodies.disk]", "[bodies.rod]"))
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", str(tmp_path / "disk.toml"), "--out", str(tmp_path / "o"), "--quiet"])
+    assert exit_.value.code == 2
+    if MPI.COMM_WORLD.rank == 0:
+        assert capsys.readouterr().err.strip() == (
+            "error: [bodies.rod] the mesh has no cell group named 'rod' (it has: disk)")
+
+
+@serial_only
+def test_console_script_under_mpirun(tmp_path):
+    """`impact-fenics` on 2 ranks and `python -m impact_fenics` on 1 give the same run."""
+    script = os.path.join(os.path.dirname(sys.executable), "impact-fenics")
+    assert os.path.isfile(script), "reinstall: pip install --no-build-isolation -e ."
+    (tmp_path / "pair.toml").write_text(replace(PAIR, "n_steps = 20", "n_steps = 200"))
+    summaries = []
+    for n, cmd in ((1, [sys.executable, "-m", "impact_fenics"]), (2, [script])):
+        out = tmp_path / f"n{n}"
+        subprocess.run([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(n), *cmd, "run",
+                        str(tmp_path / "pair.toml"), "--out", str(out)], check=True,
+                       capture_output=True, timeout=300, env=clean_mpi_env(), cwd=ROOT)
+        with open(out / "summary.json") as f:
+            summaries.append(json.load(f))
+    one, two = summaries
+    assert (one["n_ranks"], two["n_ranks"]) == (1, 2)
+    _energies_close(two, one)
+    assert two["contact"]["last_contact_step"] == one["contact"]["last_contact_step"]
+
+
+def _run_in_terminal(args, timeout=120.0) -> tuple[int, str]:
+    """Run the command line with stdout and stderr on a pseudo-terminal; return (code, text)."""
+    import pty
+
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "impact_fenics", *map(str, args)],
+                            stdin=subprocess.DEVNULL, stdout=slave, stderr=slave,
+                            env=clean_mpi_env(), cwd=ROOT)
+    os.close(slave)
+    chunks, deadline = [], time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([master], [], [], 1.0)
+        if ready:
+            try:
+                data = os.read(master, 65536)
+            except OSError:  # the terminal closed with the process
+                break
+            if not data:
+                break
+            chunks.append(data)
+        elif proc.poll() is not None:
+            break
+    if proc.poll() is None:  # out of time: do not leave it running
+        proc.kill()
+    os.close(master)
+    return proc.wait(timeout=10), b"".join(chunks).decode(errors="replace")
+
+
+@serial_only
+def test_progress_only_on_a_terminal(tmp_path):
+    (tmp_path / "bar.toml").write_text(BAR)
+    code, text = _run_in_terminal(["run", tmp_path / "bar.toml", "--out", tmp_path / "a"])
+    assert code == 0, text
+    assert "step 100/100" in text and "steps/s" in text and "ETA" in text
+    code, quiet = _run_in_terminal(["run", tmp_path / "bar.toml", "--out", tmp_path / "b",
+                                    "--quiet"])
+    assert code == 0 and "steps/s" not in quiet and quiet.strip() == ""
+    proc = launch(["run", tmp_path / "bar.toml", "--out", tmp_path / "c"])  # stdout: a pipe
+    assert proc.returncode == 0 and "completed" in proc.stdout
+    assert "steps/s" not in proc.stdout + proc.stderr

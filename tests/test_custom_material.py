@@ -1,0 +1,88 @@
+"""A material added outside the library (demos/custom_material.py) runs with the solver as is.
+
+Oracles: LinearElastic (the isotropic special case assembles the same K to
+round-off), the compliance matrix inverted by numpy (the stress of a linear
+displacement field, evaluated by dolfinx at a cell midpoint), the closed-form
+dilatational speed, and the exact 1D wave of a rod with nu_zp = 0 (speed
+sqrt(E_z / rho), within one element over the probe distance, as in test_wave).
+"""
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from conftest import load_demo
+from impact_fenics import forms, meshing
+from impact_fenics.materials import LinearElastic
+
+cm = load_demo("custom_material")
+CONSTANTS = dict(E_p=10e9, nu_p=0.4, E_z=140e9, nu_zp=0.3, G_z=5e9, density=1600.0)
+
+
+def _compliance_inverse(E_p, nu_p, E_z, nu_zp, G_z, density) -> np.ndarray:
+    """The normal (r, theta, z) stiffness block as the inverse of the compliance."""
+    S = np.array([[1 / E_p, -nu_p / E_p, -nu_zp / E_z],
+                  [-nu_p / E_p, 1 / E_p, -nu_zp / E_z],
+                  [-nu_zp / E_z, -nu_zp / E_z, 1 / E_z]])
+    return np.linalg.inv(S)
+
+
+def test_isotropic_case_is_linear_elastic():
+    assert cm.isotropic_check(comm=MPI.COMM_WORLD) < 1e-13
+    m = cm.isotropic(200e9, 0.3, 7850.0)
+    assert math.isclose(m.wave_speed(), LinearElastic(200e9, 0.3, 7850.0).wave_speed(),
+                        rel_tol=1e-12)
+
+
+def test_stiffness_is_the_inverse_compliance():
+    c = cm.TransverselyIsotropic(**CONSTANTS).stiffness()
+    C = _compliance_inverse(**CONSTANTS)
+    for key, value in (("C11", C[0, 0]), ("C12", C[0, 1]), ("C13", C[0, 2]), ("C33", C[2, 2])):
+        assert math.isclose(c[key], value, rel_tol=1e-12), key
+    assert c["C44"] == CONSTANTS["G_z"]
+
+
+def test_stress_of_a_linear_field(comm):
+    """u = (a r + c z, b z): eps_rr = a, eps_tt = a + c z / r, eps_zz = b, eps_rz = c / 2."""
+    from dolfinx import fem
+    from dolfinx.mesh import compute_midpoints
+
+    a, b, c = 1e-3, -2e-3, 4e-4
+    material = cm.TransverselyIsotropic(**CONSTANTS)
+    tmesh = meshing.bar(radius=0.05, length=0.1, h=0.025, comm=comm)
+    V = fem.VectorFunctionSpace(tmesh.mesh, ("CG", 1))
+    u = fem.Function(V)
+    u.interpolate(lambda x: np.vstack([a * x[0] + c * x[1], b * x[1]]))
+    components = forms.stress_components(u, material)
+    n_cells = tmesh.mesh.topology.index_map(2).size_local
+    cells = np.arange(n_cells, dtype=np.int32)
+    mid = compute_midpoints(tmesh.mesh, 2, cells)
+    C = _compliance_inverse(**CONSTANTS)
+    eps = np.stack([np.full(n_cells, a), a + c * mid[:, 1] / mid[:, 0], np.full(n_cells, b)])
+    expected = {"sigma_rr": C[0] @ eps, "sigma_tt": C[1] @ eps, "sigma_zz": C[2] @ eps,
+                "sigma_rz": np.full(n_cells, CONSTANTS["G_z"] * c)}
+    centroid = np.array([[1.0 / 3.0, 1.0 / 3.0]])
+    for name, want in expected.items():
+        got = fem.Expression(components[name], centroid).eval(cells)[:, 0]
+        assert np.allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(C).max() * np.abs(eps).max()), name
+
+
+def test_wave_speed_along_the_axis():
+    rod = cm.TransverselyIsotropic(**dict(CONSTANTS, nu_zp=0.0))
+    assert math.isclose(rod.stiffness()["C33"], rod.E_z, rel_tol=1e-14)  # no coupling
+    assert rod.wave_speed() >= rod.bar_wave_speed() * (1 - 1e-12)
+
+
+def test_invalid_constants_are_refused():
+    from impact_fenics.errors import InputError
+
+    with pytest.raises(InputError, match="positive definite"):
+        cm.TransverselyIsotropic(**dict(CONSTANTS, nu_zp=3.0))
+
+
+def test_pulse_in_the_rod_travels_at_sqrt_E_z_over_rho():
+    s, _ = cm.run(None, h=0.01)
+    assert s["status"] == "completed"
+    assert s["wave_speed_error_rel"] <= s["h"] / s["probe_distance"]
+    assert s["energy_balance_error_rel"] < 1e-10

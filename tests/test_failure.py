@@ -1,0 +1,136 @@
+"""Failure that loses nothing: a diverging run and a signalled run keep a readable directory.
+
+Oracles: the specification of the command line (exit codes 3 and 128 + signal,
+one line on stderr naming the step and the stable dt) and the output format
+(the XDMF refers to an HDF5 file holding every dataset it names; the CSV and
+XDMF hold exactly the rows and time steps the output schedule gives for the
+step at which the run stopped).
+"""
+import json
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from conftest import clean_mpi_env
+from impact_fenics import cli
+from scene_texts import BAR, ROOT, launch, replace
+
+serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
+
+# dt three times the element bound: the highest mode grows about 30x per step
+DIVERGING = replace(replace(BAR, "cfl = 0.9", "cfl = 3.0\nforce_dt = true"),
+                    "output_every = 10", "output_every = 5")
+
+
+def _xdmf_steps(path) -> dict[str, list[float]]:
+    """Times of every field's temporal collection, checking each dataset exists in the .h5."""
+    import h5py
+
+    domain = ET.parse(path).getroot().find("Domain")
+    out = {}
+    h5_files = set()
+    for coll in domain.findall("Grid"):
+        if coll.get("CollectionType") != "Temporal":
+            continue
+        times = []
+        for grid in coll.findall("Grid"):
+            times.append(float(grid.find("Time").get("Value")))
+            filename, _, dataset = grid.find("Attribute/DataItem").text.strip().partition(":")
+            h5 = os.path.join(os.path.dirname(path), filename)
+            h5_files.add(h5)
+            with h5py.File(h5, "r") as f:
+                assert dataset in f, dataset
+        out[coll.get("Name")] = times
+    assert h5_files and all(os.path.isfile(f) for f in h5_files)
+    return out
+
+
+def _check_diverged_dir(out, message):
+    with open(os.path.join(out, "summary.json")) as f:
+        s = json.load(f)
+    assert s["status"] == "diverged"
+    step = int(re.search(r"diverged at step (\d+)", message).group(1))
+    stable = float(re.search(r"stable dt <= ([0-9.e+-]+) s", message).group(1))
+    assert math.isclose(stable, s["dt_critical"], rel_tol=1e-3)  # printed to 4 digits
+    assert s["dt"] > s["dt_critical"]
+    assert 0 < step < s["n_steps"] and s["stopped_at_step"] == step + 1
+    energy = np.genfromtxt(os.path.join(out, "energy.csv"), delimiter=",", names=True)
+    assert int(energy["step"][-1]) == step  # the row that tripped the check is kept
+    history = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
+    assert int(history["step"][-1]) == step + 1
+    fields = _xdmf_steps(os.path.join(out, "fields.xdmf"))
+    assert len(fields["displacement"]) == step // 5  # outputs 0, 5, ... before the failing one
+    for name in ("history.png", "energy.png"):
+        assert os.path.getsize(os.path.join(out, name)) > 0
+
+
+@serial_only
+def test_diverging_run_exits_3_and_keeps_its_directory(tmp_path):
+    (tmp_path / "scene.toml").write_text(DIVERGING)
+    out = tmp_path / "out"
+    proc = launch(["run", tmp_path / "scene.toml", "--out", out, "--quiet"])
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 3, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("error: run diverged at step "), proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not os.path.exists(str(out) + ".partial")
+    _check_diverged_dir(str(out), lines[0])
+
+
+def test_diverging_run_in_process(tmp_path, capsys):
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "out"), root=0)
+    (tmp_path / "scene.toml").write_text(DIVERGING)
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", str(tmp_path / "scene.toml"), "--out", out, "--quiet"])
+    assert exit_.value.code == 3
+    err = capsys.readouterr().err.strip()
+    message = MPI.COMM_WORLD.bcast(err, root=0)
+    assert message.count("\n") == 0 and message.startswith("error: run diverged")
+    _check_diverged_dir(out, message)
+
+
+LONG = replace(replace(BAR, "n_steps = 100", "n_steps = 5000000"),
+               "output_every = 10", "output_every = 1000\nhistory_every = 10")
+
+
+@serial_only
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signal_stops_cleanly(tmp_path, sig):
+    (tmp_path / "scene.toml").write_text(LONG)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "impact_fenics", "run", str(tmp_path / "scene.toml"),
+           "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=clean_mpi_env(), cwd=ROOT)
+    deadline = time.monotonic() + 60
+    while not os.path.isdir(str(out) + ".partial"):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.01)
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=60)
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 128 + sig.value, stderr
+    assert len(lines) == 1 and f"interrupted by {sig.name}" in lines[0], stderr
+    assert "Traceback" not in stderr
+    assert out.is_dir() and not os.path.exists(str(out) + ".partial")
+    with open(out / "summary.json") as f:
+        s = json.load(f)
+    stopped = s["stopped_at_step"]
+    assert s["status"] == f"interrupted by {sig.name}"
+    assert stopped % 64 == 0 and 0 < stopped < s["n_steps"]
+    assert f"at step {stopped} of {s['n_steps']}" in lines[0]
+    fields = _xdmf_steps(str(out / "fields.xdmf"))
+    n_out = (stopped - 1) // 1000 + 1  # output steps 0, 1000, ... below the stop
+    assert all(len(times) == n_out for times in fields.values())
+    history = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    assert history["step"].size == (stopped - 1) // 10 + 1
+    assert int(history["step"][-1]) == 10 * ((stopped - 1) // 10) + 1

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi clean
+.PHONY: setup demo test test-serial test-mpi study clean
 
 setup:
 	@scripts/setup.sh
@@ -22,6 +22,10 @@ test-serial:
 
 test-mpi:
 	N=$(NP) PY=$(PY) scripts/mpi_pytest.sh tests -q
+
+# the paper's studies: docs/figures/*.png|json and docs/results.md (about 10-20 min on 2 cores)
+study: setup
+	$(MPIRUN) -n $(NP) $(PY) demos/paper_study.py
 
 clean:
 	rm -rf results .pytest_cache

@@ -276,3 +276,91 @@ def punch_block(width: float = 6.9, depth: float = 0.45, h_surface: float = 0.01
 
     return _to_dolfinx(comm, build, {"scene": "punch_block", "width": width, "depth": depth,
                                      "h_surface": h_surface, "grading": grading})
+
+
+def punch_on_block(punch_radius: float = 1.0, punch_height: float = 0.05, width: float = 6.9,
+                   depth: float = 0.45, h_surface: float = 0.01, grading: float = 0.055,
+                   h_max: float = 0.25, breaks: tuple[tuple[float, int], ...] = PUNCH_SURFACE_BREAKS,
+                   comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """(d) A deformable punch cylinder resting on the block of :func:`punch_block`.
+
+    The block is meshed exactly as by :func:`punch_block` with the same arguments
+    (same surface breaks, size field and algorithm); ``punch_radius`` (m) must be
+    one of the break radii. The punch r in [0, punch_radius], z in [0,
+    punch_height] (m) is a structured grid of alternating diagonals whose bottom
+    face has the same intervals as the block surface under it, so the two faces
+    pair node to node (its nodes coincide with the block's but are distinct).
+
+    Groups: cells "block", "punch"; facets "contact" (block surface r <=
+    punch_radius), "surface" (the rest of the block surface), "punch_contact"
+    (punch bottom), "punch_top", "punch_lateral", "axis" (both bodies), "far",
+    "bottom".
+    """
+    radii_b = [b[0] for b in breaks]
+    require(width > radii_b[-1] and depth > 0 and h_surface > 0 and punch_height > 0,
+            f"punch_on_block: need width > {radii_b[-1]} m and depth, h_surface, punch_height > 0")
+    require(any(abs(punch_radius - r) <= 1e-12 * max(1.0, r) for r in radii_b),
+            f"punch_on_block: punch_radius = {punch_radius} m must be one of the break radii "
+            f"{radii_b} (the faces pair node to node)")
+    k_punch = next(k for k, r in enumerate(radii_b) if abs(punch_radius - r) <= 1e-12 * max(1.0, r))
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        radii = [0.0] + radii_b + [width]
+        top = [geo.addPoint(r, 0.0, 0.0, h_surface) for r in radii]
+        corner_far = geo.addPoint(width, -depth, 0.0, h_max)
+        corner_axis = geo.addPoint(0.0, -depth, 0.0, h_max)
+        surface = [geo.addLine(top[k], top[k + 1]) for k in range(len(top) - 1)]
+        far = geo.addLine(top[-1], corner_far)
+        bottom = geo.addLine(corner_far, corner_axis)
+        axis = geo.addLine(corner_axis, top[0])
+        s = geo.addPlaneSurface([geo.addCurveLoop(surface + [far, bottom, axis])])
+        # the punch: its own points on z = 0 (coincident with the block's, not shared)
+        n_r = sum(n for _, n in breaks[:k_punch + 1])
+        n_z = max(1, int(round(punch_height / (punch_radius / n_r))))
+        q = [geo.addPoint(0.0, 0.0, 0.0, h_surface), geo.addPoint(punch_radius, 0.0, 0.0, h_surface),
+             geo.addPoint(punch_radius, punch_height, 0.0, h_surface),
+             geo.addPoint(0.0, punch_height, 0.0, h_surface)]
+        pc = [geo.addLine(q[0], q[1]), geo.addLine(q[1], q[2]), geo.addLine(q[2], q[3]),
+              geo.addLine(q[3], q[0])]
+        sp = geo.addPlaneSurface([geo.addCurveLoop(pc)])
+        geo.synchronize()
+        for curve, (_, n) in zip(surface, breaks):
+            gmsh.model.mesh.setTransfiniteCurve(curve, n + 1)
+        # the punch bottom: equal intervals, as many as the block surface under it has;
+        # pairing needs equal node radii, so the block curves under the punch must have
+        # equal spacing too: one break (or breaks of equal spacing) under the punch
+        spacing = {round((r1 - r0) / n, 14) for (r0, (r1, n)) in
+                   zip([0.0] + radii_b[:k_punch], breaks[:k_punch + 1])}
+        if len(spacing) > 1:
+            raise InputError("punch_on_block: the block surface under the punch must have "
+                             "equal intervals (one break up to punch_radius)")
+        for curve, n in ((pc[0], n_r), (pc[2], n_r), (pc[1], n_z), (pc[3], n_z)):
+            gmsh.model.mesh.setTransfiniteCurve(curve, n + 1)
+        gmsh.model.mesh.setTransfiniteSurface(sp, "Alternate")
+        field = gmsh.model.mesh.field
+        dist = field.add("Distance")
+        field.setNumbers(dist, "CurvesList", surface[:len(breaks)])
+        field.setNumber(dist, "NumPointsPerCurve", 2000)
+        size = field.add("MathEval")
+        field.setString(size, "F", f"Min({h_surface} + {grading} * F{dist}, {h_max})")
+        field.setAsBackgroundMesh(size)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        _group(gmsh, 2, [s], "block", 1)
+        _group(gmsh, 2, [sp], "punch", 2)
+        _group(gmsh, 1, surface[:k_punch + 1], "contact", 11)
+        _group(gmsh, 1, surface[k_punch + 1:], "surface", 12)
+        _group(gmsh, 1, [axis, pc[3]], "axis", 13)
+        _group(gmsh, 1, [far], "far", 14)
+        _group(gmsh, 1, [bottom], "bottom", 15)
+        _group(gmsh, 1, [pc[0]], "punch_contact", 16)
+        _group(gmsh, 1, [pc[1]], "punch_lateral", 17)
+        _group(gmsh, 1, [pc[2]], "punch_top", 18)
+        gmsh.option.setNumber("Mesh.Algorithm", 5)
+        gmsh.model.mesh.generate(2)
+
+    return _to_dolfinx(comm, build, {"scene": "punch_on_block", "width": width, "depth": depth,
+                                     "h_surface": h_surface, "grading": grading,
+                                     "punch_radius": punch_radius, "punch_height": punch_height})

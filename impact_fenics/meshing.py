@@ -67,6 +67,14 @@ def _gmsh():
     return gmsh
 
 
+def _restart_gmsh() -> None:
+    global _GMSH_READY
+    import gmsh
+
+    gmsh.finalize()
+    _GMSH_READY = False
+
+
 def _physical_names(gmsh) -> tuple[dict[str, int], dict[str, int]]:
     cells, facets = {}, {}
     for dim, tag in gmsh.model.getPhysicalGroups():
@@ -105,7 +113,7 @@ def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
     error = comm.bcast(error, root=0)
     if error is not None:
         if comm.rank == 0:
-            gmsh.model.remove()
+            _restart_gmsh()  # a failed read can leave gmsh's model list broken
         raise InputError(error)
     names = comm.bcast(names, root=0)
     msh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)

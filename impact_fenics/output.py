@@ -19,6 +19,9 @@ from dolfinx import fem, io
 
 from .errors import InputError
 
+# beyond this many XDMF snapshots a run warns: each write rewrites the whole .xdmf
+MANY_SNAPSHOTS = 500
+
 
 def prepare_directory(path: str, comm: MPI.Comm) -> str:
     """Create the staging directory ``path.partial`` (empty) and return it.
@@ -55,19 +58,24 @@ def finalize_directory(staging: str, path: str, comm: MPI.Comm) -> None:
 
 
 def write_json(path: str, data: dict, comm: MPI.Comm) -> None:
-    """Write ``data`` as indented JSON from rank 0."""
+    """Write ``data`` as indented, strict JSON from rank 0 (NaN and infinities become null)."""
     if comm.rank == 0:
         with open(path, "w") as f:
-            json.dump(data, f, indent=2, sort_keys=True, default=_json_default)
+            json.dump(_finite(data), f, indent=2, sort_keys=True, allow_nan=False)
             f.write("\n")
 
 
-def _json_default(obj):
+def _finite(obj):
+    """A copy of ``obj`` with numpy values as Python ones and non-finite floats as None."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, np.ndarray)):
+        return [_finite(v) for v in obj]
     if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON serialisable: {type(obj)}")
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
 
 
 class Table:

@@ -315,6 +315,11 @@ class Simulation:
         return pieces
 
     def _field_writer(self, staging: str) -> output.FieldWriter:
+        snapshots = self.n_steps // self.settings.output_every + 1
+        if snapshots > output.MANY_SNAPSHOTS and self.comm.rank == 0:
+            print(f"warning: {snapshots} field snapshots; dolfinx 0.5 rewrites fields.xdmf at "
+                  "each, so their cost grows with the square of their number: raise "
+                  "output_every or set fields off", flush=True)
         names = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
         return output.FieldWriter(os.path.join(staging, "fields.xdmf"), self.model.V,
                                   lambda u: {k: self._stress_pieces(u, k) for k in names})

@@ -71,7 +71,8 @@ def run(cfg: dict, out: str, report_path: str | None, comm=MPI.COMM_WORLD) -> di
     part("modelling", modelling.study, cfg, writer)
 
     total = comm.allreduce(time.perf_counter() - t_start, op=MPI.MAX)
-    meta = {"config": cfg["name"], "ranks": comm.size, "wall_time_total": total, "parts": timings}
+    meta = {"config": cfg["name"], "ranks": comm.size, "wall_time_total": total, "parts": timings,
+            "load_average_end": os.getloadavg()[0], "cpu_count": os.cpu_count()}
     writer.json("study_run", meta)
     log(f"study ({cfg['name']}) done in {total:.0f} s on {comm.size} rank(s); figures in {out}")
     # ## 7. The write-up: docs/results.md, with the claims table, from the JSON files

@@ -78,9 +78,11 @@ def write(folder: str, path: str) -> None:
         parts = ", ".join(f"{k} {v:.0f} s" for k, v in run.get("parts", {}).items())
         w(f"The last regeneration (`{run.get('config')}` sizes, {run.get('ranks')} MPI rank(s) on the "
           f"2-core development machine) took **{run.get('wall_time_total', 0) / 60:.1f} min** ({parts}). "
-          "Every CPU time below was taken on a shared machine while other work ran: read them as "
-          "ratios and orders of magnitude, not as benchmarks. Contact CPU times are per step, the "
-          "minimum over repeated runs where stated, and the largest over the ranks.\n")
+          f"The one-minute load average at its end was {run.get('load_average_end', float('nan')):.2f} "
+          f"on {run.get('cpu_count', 2)} cores (about the rank count when nothing else ran). CPU times "
+          "are taken inside an MPI run that also writes histories: read them as ratios and orders of "
+          "magnitude; `python -m impact_fenics.bench` measures the step itself. Contact CPU times are "
+          "per step, the minimum over repeated runs where stated, and the largest over the ranks.\n")
     w("Conventions (DESIGN.md): axisymmetric CST (P1) elements with the full ring measure 2πr, so "
       "lumped masses are in kg and penalties in N/m; gaps g ≥ 0 open, g < 0 penetration; "
       "E = 200 GPa, ν = 0.3, ρ = 7850 kg/m³; c1 = √((λ+2μ)/ρ) = "

@@ -29,6 +29,7 @@ from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.errors import require, user_errors
 from impact_fenics.materials import LinearElastic
 from impact_fenics.operators import assemble_stiffness
+from impact_fenics.probes import arrival_time
 from impact_fenics.simulation import Settings, Simulation
 
 
@@ -153,20 +154,12 @@ def wave_checks(sim: Simulation) -> dict:
     material = sim.model.bodies["bar"].material
     h = sim.history.data()
     z = sim.probes.midpoints[:, 1]
-    arrivals = [_crossing(h["time"], -h[f"sigma_zz_{k}"], 0.5 * P0) for k in range(2)]
+    arrivals = [arrival_time(h["time"], -h[f"sigma_zz_{k}"], 0.5 * P0) for k in range(2)]
     c_measured = (z[1] - z[0]) / (arrivals[1] - arrivals[0])
     c_exact = material.bar_wave_speed()
     return {"wave_speed_exact": c_exact, "wave_speed_measured": c_measured,
             "wave_speed_error_rel": abs(c_measured - c_exact) / c_exact,
             "probe_distance": float(z[1] - z[0]), "h": sim.model.tmesh.info["h"]}
-
-
-def _crossing(t: np.ndarray, y: np.ndarray, level: float) -> float:
-    """First time (s) at which y reaches ``level``, linearly interpolated."""
-    k = int(np.argmax(y >= level))
-    if k == 0:
-        return float("nan")
-    return float(t[k - 1] + (level - y[k - 1]) * (t[k] - t[k - 1]) / (y[k] - y[k - 1]))
 
 
 @user_errors

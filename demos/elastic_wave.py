@@ -19,6 +19,7 @@ from mpi4py import MPI
 
 from impact_fenics import scenes
 from impact_fenics.errors import user_errors
+from impact_fenics.probes import arrival_time
 from impact_fenics.simulation import Settings
 
 # ## The scene
@@ -58,7 +59,7 @@ def wave_checks(sim) -> dict:
     h = sim.history.data()
     t = h["time"]
     z_probe = sim.probes.midpoints[::2, 1]
-    arrivals = [_crossing(t, -h[f"sigma_zz_{k}"], 0.5 * P0) for k in range(2)]
+    arrivals = [arrival_time(t, -h[f"sigma_zz_{k}"], 0.5 * P0) for k in range(2)]
     c_measured = (z_probe[1] - z_probe[0]) / (arrivals[1] - arrivals[0])
     window = (t > arrivals[0] + 3e-5) & (t < arrivals[0] + 7e-5)
     sigma = float(np.mean(h["sigma_zz_0"][window]))
@@ -75,14 +76,6 @@ def wave_checks(sim) -> dict:
         "plateau_velocity_exact": P0 / (material.density * c0),
         "h": sim.model.tmesh.info["h"],
     }
-
-
-def _crossing(t: np.ndarray, y: np.ndarray, level: float) -> float:
-    """First time (s) at which y reaches ``level``, linearly interpolated."""
-    k = int(np.argmax(y >= level))
-    if k == 0:
-        return float("nan")
-    return float(t[k - 1] + (level - y[k - 1]) * (t[k] - t[k - 1]) / (y[k] - y[k - 1]))
 
 
 @user_errors

@@ -166,6 +166,20 @@ def _group(gmsh, dim: int, entities: list[int], name: str, tag: int) -> None:
     gmsh.model.setPhysicalName(dim, tag, name)
 
 
+def _graded_size(gmsh, curves: list[int], h_surface: float, grading: float,
+                 h_max: float) -> None:
+    """Element size h_surface + grading * (distance to ``curves``), capped at h_max (m)."""
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "CurvesList", curves)
+    field.setNumber(dist, "NumPointsPerCurve", 2000)
+    size = field.add("MathEval")
+    field.setString(size, "F", f"Min({h_surface} + {grading} * F{dist}, {h_max})")
+    field.setAsBackgroundMesh(size)
+    for option in ("ExtendFromBoundary", "FromPoints", "FromCurvature"):
+        gmsh.option.setNumber(f"Mesh.MeshSize{option}", 0)
+
+
 def _generate(gmsh) -> None:
     gmsh.option.setNumber("Mesh.Algorithm", 6)
     gmsh.model.mesh.generate(2)
@@ -264,16 +278,7 @@ def punch_block(width: float = 6.9, depth: float = 0.45, h_surface: float = 0.01
         geo.synchronize()
         for curve, (_, n) in zip(surface, breaks):
             gmsh.model.mesh.setTransfiniteCurve(curve, n + 1)
-        field = gmsh.model.mesh.field
-        dist = field.add("Distance")
-        field.setNumbers(dist, "CurvesList", surface[:len(breaks)])
-        field.setNumber(dist, "NumPointsPerCurve", 2000)
-        size = field.add("MathEval")
-        field.setString(size, "F", f"Min({h_surface} + {grading} * F{dist}, {h_max})")
-        field.setAsBackgroundMesh(size)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        _graded_size(gmsh, surface[:len(breaks)], h_surface, grading, h_max)
         _group(gmsh, 2, [s], "block", 1)
         _group(gmsh, 1, surface, "surface", 11)
         _group(gmsh, 1, [axis], "axis", 12)
@@ -346,16 +351,7 @@ def punch_on_block(punch_radius: float = 1.0, punch_height: float = 0.05, width:
         for curve, n in ((pc[0], n_r), (pc[2], n_r), (pc[1], n_z), (pc[3], n_z)):
             gmsh.model.mesh.setTransfiniteCurve(curve, n + 1)
         gmsh.model.mesh.setTransfiniteSurface(sp, "Alternate")
-        field = gmsh.model.mesh.field
-        dist = field.add("Distance")
-        field.setNumbers(dist, "CurvesList", surface[:len(breaks)])
-        field.setNumber(dist, "NumPointsPerCurve", 2000)
-        size = field.add("MathEval")
-        field.setString(size, "F", f"Min({h_surface} + {grading} * F{dist}, {h_max})")
-        field.setAsBackgroundMesh(size)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        _graded_size(gmsh, surface[:len(breaks)], h_surface, grading, h_max)
         _group(gmsh, 2, [s], "block", 1)
         _group(gmsh, 2, [sp], "punch", 2)
         _group(gmsh, 1, surface[:k_punch + 1], "contact", 11)

@@ -71,3 +71,12 @@ class Probes:
             self._local[k] = expr.eval(cells)[0, 0]
         self.comm.Allreduce(self._local, self._values)
         return self._values
+
+
+def arrival_time(t: np.ndarray, y: np.ndarray, level: float) -> float:
+    """First time (s) at which the history y(t) reaches ``level``, linearly interpolated
+    (NaN if it never does or starts there)."""
+    k = int(np.argmax(y >= level))
+    if k == 0:
+        return float("nan")
+    return float(t[k - 1] + (level - y[k - 1]) * (t[k] - t[k - 1]) / (y[k] - y[k - 1]))

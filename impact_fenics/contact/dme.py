@@ -60,7 +60,8 @@ class DME:
             _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.dt, self.e, self.positions == "mass_weighted",
                    c.u, c.v, c.force, c.active)
         else:
-            _cluster(c.gap, c.b, c.lo, c.up[0], c.mass, c.dt, c.u_now, c.u, c.v, c.force, c.active)
+            _cluster(c.gap, c.b, c.lo, c.up[0], c.mass, c.dt, c.u_now, c.u, c.v, c.force, c.active,
+                     c.work)
 
 
 @njit(cache=True)
@@ -85,22 +86,27 @@ def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
 
 
 @njit(cache=True)
-def _cluster(gap, b, lo, body, mass, dt, u_now, u, v, force, active):
-    """Case 1: the largest consistent set of penetrating nodes moves with the body."""
-    cand = np.flatnonzero(gap < 0.0)
+def _cluster(gap, b, lo, body, mass, dt, u_now, u, v, force, active, work):
+    """Case 1: the largest consistent set of penetrating nodes moves with the body.
+    ``work``: an int64 buffer of length n."""
     momentum = mass[body] * v[body]
     total = mass[body]
     v_min = np.inf
-    for i in cand:
-        node = lo[i]
-        momentum += mass[node] * v[node]
-        total += mass[node]
-        v_min = min(v_min, v[node])
+    n_cand = 0
+    for i in range(gap.size):
+        if gap[i] < 0.0:
+            work[n_cand] = i
+            n_cand += 1
+            node = lo[i]
+            momentum += mass[node] * v[node]
+            total += mass[node]
+            v_min = min(v_min, v[node])
+    cand = work[:n_cand]
     if v_min >= momentum / total:  # no candidate would pull: all join (the usual case)
         order = cand
         k = cand.size
     else:
-        order = cand[np.argsort(-v[lo[cand]], kind="mergesort")]  # fastest upward first
+        order = cand[np.argsort(-v[lo[cand]], kind="mergesort")]  # fastest up first (allocates: rare)
         momentum = mass[body] * v[body]
         total = mass[body]
         k = 0

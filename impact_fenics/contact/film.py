@@ -26,18 +26,23 @@ from .interface import apply_forces
 
 
 @njit(cache=True)
-def solve_fast(gap, d, kappa, out):
+def solve_fast(gap, d, kappa, out, work=None):
     """Exact forces (N) for S = diag(d) + kappa 1 1' (m/N), in O(n log n) (O(n) when
-    every penetrating constraint carries force, the usual case under a punch)."""
+    every penetrating constraint carries force, the usual case under a punch).
+    ``work``: an int64 buffer of length n (allocated if not given)."""
     n = gap.size
+    if work is None:
+        work = np.empty(n, np.int64)
+    k = 0
     for i in range(n):
-        out[i] = -gap[i] / d[i] if gap[i] < 0.0 else 0.0  # the answer for kappa = 0
-    if kappa == 0.0:
+        out[i] = 0.0
+        if gap[i] < 0.0:
+            out[i] = -gap[i] / d[i]  # the answer for kappa = 0
+            work[k] = i
+            k += 1
+    if kappa == 0.0 or k == 0:
         return out
-    cand = np.flatnonzero(gap < 0.0)
-    k = cand.size
-    if k == 0:
-        return out
+    cand = work[:k]
     a = 0.0
     w = 0.0
     g_max = -np.inf
@@ -48,7 +53,7 @@ def solve_fast(gap, d, kappa, out):
     if g_max + kappa * a / (1.0 + kappa * w) <= 0.0:  # all candidates carry force
         return _loaded(gap, d, kappa, cand, out)
     # candidate i carries force while F < -g~_i / kappa: sort by that break point
-    order = cand[np.argsort(gap[cand], kind="mergesort")]
+    order = cand[np.argsort(gap[cand], kind="mergesort")]  # allocates: the rare path
     a = 0.0
     w = 0.0
     m = k
@@ -131,7 +136,8 @@ class FILM:
 
     def correct(self, c) -> None:
         if self.solver == "fast":
-            _film_fast(c.gap, c.d, c.kappa, c.force, c.active, c.lo, c.up, c.mass, c.dt, c.u, c.v)
+            _film_fast(c.gap, c.d, c.kappa, c.force, c.active, c.lo, c.up, c.mass, c.dt, c.u, c.v,
+                       c.work)
         else:
             solve_dense(c.gap, c.d, c.kappa, c.force)
             np.greater(c.force, 0.0, out=c.active)
@@ -139,8 +145,8 @@ class FILM:
 
 
 @njit(cache=True)
-def _film_fast(gap, d, kappa, force, active, lo, up, mass, dt, u, v):
-    solve_fast(gap, d, kappa, force)
+def _film_fast(gap, d, kappa, force, active, lo, up, mass, dt, u, v, work):
+    solve_fast(gap, d, kappa, force, work)
     for i in range(gap.size):
         active[i] = force[i] > 0.0
     apply_forces(force, lo, up, mass, dt, u, v)

@@ -229,6 +229,7 @@ class ContactSet:
         if rigid:
             self.mass[nd] = rigid.mass
         self.gap = np.empty(n)
+        self.work = np.empty(n, dtype=np.int64)  # scratch indices for the methods' kernels
         self.force = np.zeros(n)
         self.active = np.zeros(n, dtype=np.bool_)
         self.was_active = np.zeros(n, dtype=np.bool_)

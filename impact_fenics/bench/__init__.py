@@ -1,0 +1,39 @@
+"""The benchmark harness of issue 5: where the time of a step goes, and how far it is from the floor.
+
+    python -m impact_fenics.bench            # the full run (< 10 min on 2 cores)
+    python -m impact_fenics.bench --quick    # about a minute
+    python -m impact_fenics.bench --smoke    # seconds (the test suite runs this)
+    scripts/mpirun.sh -n 2 .venv/bin/python -m impact_fenics.bench --parts scaling,stream
+
+It prints tables and writes every raw median to ``results/bench.json`` (``--out``).
+Parts (``--parts``, comma separated; all by default), and the module of each:
+
+step      ns per dof per step of the same update done three ways, in one run:   step.py
+          the integrator (predict + advance) and the Simulation loop without
+          outputs; a bare MatMult (and MatMultAdd, VecAXPY) on the same matrix;
+          a SciPy CSR loop (v += A u; u += dt v) on the same matrix.
+contact   contact time per step (detection / solve / update) against the number  contact.py
+          of constraints, for a rigid punch and for node pairs, per method.
+solvers   FILM's solve_fast (numba) and solve_dense (numpy, LAPACK) alone on      contact.py
+          synthetic gaps, against an empty numba call with the same arguments.
+scaling   step and MatMult time per dof from ~20k to ~1M dofs.                    scaling.py
+stream    a STREAM-like bandwidth (VecCopy, VecAXPY, VecWAXPY, VecDot) in GB/s.   scaling.py
+ranks     the scaling and stream parts again on 2 ranks (launched with            scaling.py
+          scripts/mpirun.sh), the speed-up of 2 ranks over 1 and the bandwidth ratio.
+format    AIJ against BAIJ (block size 2) for MatMult and the whole step.         matrix_format.py
+matfree   a compiled matrix-free CST internal force (benchmarks/matfree_cst.py)   peers.py
+          against MatMult.
+akantu    Akantu's explicit lumped-mass plane-strain step in its own venv         peers.py
+          (benchmarks/akantu_peer.py).
+
+The rest: run.py (options, the order of the parts, the JSON), common.py (modes,
+the timer, the run context, child processes), bar.py (the benchmark's bar and
+what a step on it costs), machine.py (the machine), tables.py (printing).
+
+Every timing is the median over repeats of a block of calls (a repeat lasts
+about ``target`` seconds); under MPI the slowest rank's time counts. Times in the
+JSON are in seconds per step (or per call), ``*_ns_per_dof`` in ns per dof per step.
+"""
+from .run import main
+
+__all__ = ["main"]

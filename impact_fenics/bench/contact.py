@@ -1,0 +1,162 @@
+"""Parts 2 and 2b: contact time per step against the number of constraints (rigid punch
+and node pairs, every method), and FILM's solvers alone.
+
+The phases are those ContactSet.step times (impact_fenics/contact/interface.py):
+detection gathers the predicted state of the contact dofs (compiled take, or
+pack + Allgatherv + unpack under MPI) and forms the gaps (one compiled call);
+solve is the method's correction (one compiled call; FILM dense: numpy and
+LAPACK); update writes the corrected state back and books the contact work (two
+compiled calls, the bookkeeping one with twenty arguments). Each phase is the
+compiled work plus the Python and the argument unboxing of its calls: part 2b
+times a solver against an empty compiled call with the same arguments.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .bar import BIG, steel
+from .common import Mode
+
+CONTACT_METHODS = ("penalty", "film_fast", "film_dense", "dme")
+PHASES = ("contact_detection", "contact_solve", "contact_update", "f_int")
+SPLIT = ("   detect: gather the predicted state of the contact dofs, form the gaps; solve: the "
+         "method; update: write back, book the contact work (each: numba calls and their Python)")
+
+
+@njit(cache=True)
+def _empty_call(gap, d, kappa, out):
+    """Nothing, with a solver's arguments: the floor of one compiled call."""
+    return out
+
+
+def _contact_mesh(comm, kind: str, n: int):
+    from .. import meshing
+
+    h = 1.0 / (n - 1)
+    if kind == "rigid":  # n surface nodes with r <= 1 m, coarse below
+        return meshing.punch_block(width=1.5, depth=0.5, h_surface=h, grading=1.0, h_max=0.25,
+                                   breaks=((1.0, n - 1),), comm=comm)
+    # node pairs: two thin structured strips of radius 1 m, n nodes per face;
+    # the striker is pressed against the clamped target, so every pair stays closed
+    return meshing.coaxial_bars(radius=1.0, striker_length=2 * h, target_length=2 * h, h=h,
+                                structured=True, comm=comm)
+
+
+def _contact_sim(kind: str, tmesh, n: int, method: str, steps: int):
+    from .. import loads
+    from ..bodies import Body, DeformableModel
+    from ..contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face
+    from ..simulation import Settings, Simulation
+
+    m = {"penalty": lambda: Penalty("scaled"), "film_fast": lambda: FILM("fast"),
+         "film_dense": lambda: FILM("dense"), "dme": lambda: DME(0.0)}[method]()
+    settings = Settings(cfl=0.9, n_steps=steps, output_every=BIG, history_every=1,
+                        fields=False, out=None, quiet=True)
+    if kind == "rigid":
+        model = DeformableModel(tmesh, [Body("block", steel())])
+        area = math.pi * 1.0 ** 2
+        pulse = loads.Trapezoid(peak=200e6, t_rise=1e-5, t_fall=9e-5, t_end=1e-4)
+        punch = RigidBody("punch", 0.1, force=lambda t: -area * pulse(t))
+        sim = Simulation(model, settings, fixed=[model.facet_dofs("bottom", 1)])
+        c = sim.add_contact(rigid_face(model, "surface", 1.0, "punch"), m, rigid=punch)
+    else:
+        model = DeformableModel(tmesh, [Body("striker", steel()), Body("target", steel())])
+        push = loads.SurfaceLoad(model, "striker_end", loads.Constant(50e6))
+        sim = Simulation(model, settings, fixed=[model.facet_dofs("target_end", 1)],
+                         loads=[push])
+        c = sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"), m)
+    if c.n != n:
+        raise RuntimeError(f"{kind} contact: {c.n} constraints instead of {n}")
+    return sim
+
+
+def _contact_run(sim, n: int, method: str, steps: int) -> dict:
+    """Run one contact scene; medians of the phases (s per step) and the active set."""
+    from ..errors import UnstableRunError
+
+    rec = {"n_constraints": n, "method": method, "n_dofs": int(sim.model.n_global), "steps": steps}
+    try:
+        s = sim.run()
+        rec["status"] = s["status"]
+    except UnstableRunError as exc:
+        rec["status"] = f"diverged: {exc}"
+        s = sim.summary
+    med = s.get("time_per_step_median", {})
+    for ph in PHASES:
+        rec[ph] = med.get(ph, float("nan"))
+    rec["contact"] = s.get("contact_cpu_time_per_step_median", float("nan"))
+    rec["step"] = s.get("step_time_median", float("nan"))
+    na = np.asarray(sim.history.data()["n_active"], dtype=float)
+    rec["n_active_median"] = float(np.median(na)) if na.size else 0.0
+    rec["contact_ns_per_constraint"] = 1e9 * rec["contact"] / n
+    return rec
+
+
+def _methods(mode: Mode, n: int):
+    """(method, steps) run at ``n`` constraints: FILM dense only up to the cap."""
+    for method in CONTACT_METHODS:
+        if method == "film_dense":
+            if n <= mode.dense_cap:
+                yield method, mode.dense_steps
+        else:
+            yield method, mode.contact_steps
+
+
+def part_contact(ctx) -> dict:
+    mode = ctx.mode
+    out = {"dense_cap": mode.dense_cap, "rigid": [], "pairs": []}
+    for kind in ("rigid", "pairs"):
+        rows = []
+        for n in mode.contact_ns:
+            tmesh = _contact_mesh(ctx.comm, kind, n)
+            for method, steps in _methods(mode, n):
+                rec = _contact_run(_contact_sim(kind, tmesh, n, method, steps), n, method, steps)
+                out[kind].append(rec)
+                rows.append([n, method, rec["n_dofs"], f"{rec['n_active_median']:.0f}"]
+                            + [f"{1e6 * rec[k]:.1f}" for k in PHASES[:3] + ("contact",)]
+                            + [f"{rec['contact_ns_per_constraint']:.0f}", f"{1e6 * rec['f_int']:.1f}"])
+            del tmesh
+        title = ("rigid punch (rigid_face on punch_block)" if kind == "rigid"
+                 else "node pairs (pair_surfaces on coaxial_bars)")
+        ctx.table(f"2. Contact per step, {title}; FILM dense only up to {mode.dense_cap} "
+                  "constraints (O(n^3)); medians in us",
+                  ["n", "method", "dofs", "active", "detect", "solve", "update", "contact",
+                   "ns/constr", "f_int"], rows)
+    ctx.log(SPLIT)
+    return out
+
+
+def part_solvers(ctx) -> dict:
+    from ..contact.film import solve_dense, solve_fast
+
+    mode = ctx.mode
+    rng = np.random.default_rng(11)
+    dt = 1e-8
+    out, rows = [], []
+    one = np.ones(1)
+    for fn in (solve_fast, _empty_call):  # load (or compile) before the timer calibrates
+        fn(-one, one, 0.0, np.empty(1))
+    for n in mode.solver_ns:
+        m = rng.uniform(0.5e-4, 1.5e-4, n)
+        d = dt ** 2 / m
+        gap = -1e-9 * rng.uniform(0.0, 1.0, n)
+        gap[rng.uniform(size=n) < 0.1] *= -1.0  # some open constraints
+        f = np.empty(n)
+        for label, kappa in (("pairs", 0.0), ("rigid", dt ** 2 / 0.1)):
+            rec = {"n": n, "case": label,
+                   "fast": ctx.median(lambda: solve_fast(gap, d, kappa, f), mode.target / 4)}
+            if n <= mode.dense_cap:
+                rec["dense"] = ctx.median(lambda: solve_dense(gap, d, kappa, f), mode.target / 4,
+                                          max(3, mode.repeats // 2))
+            rec["numba_call_floor"] = ctx.median(lambda: _empty_call(gap, d, kappa, f), mode.target / 8)
+            out.append(rec)
+            rows.append([n, label, f"{1e6 * rec['fast']:.1f}",
+                         f"{1e6 * rec['dense']:.1f}" if "dense" in rec else "-",
+                         f"{1e6 * rec['numba_call_floor']:.2f}"])
+    ctx.table("2b. FILM solvers alone on synthetic gaps (us per call): solve_fast compiled (numba), "
+              "solve_dense numpy/LAPACK, and an empty compiled call with the same arguments",
+              ["n", "case", "solve_fast", "solve_dense", "empty numba call"], rows)
+    return {"cases": out, "dense_cap": mode.dense_cap}

@@ -135,7 +135,7 @@ P0 = 100e6  # Pa
 STATIONS = (0.3, 0.6)  # m
 
 
-def run(out: str | None = None, h: float = 0.01, nu_zp: float = 0.0, t_end: float = 1.0e-4,
+def run(out: str | None = None, h: float = 0.005, nu_zp: float = 0.0, t_end: float = 1.0e-4,
         quiet: bool = True, comm=MPI.COMM_WORLD) -> tuple[dict, Simulation]:
     """Run the pulse in the transversely isotropic rod; returns the summary and the simulation."""
     material = TransverselyIsotropic(nu_zp=nu_zp, **COMPOSITE)

@@ -25,7 +25,7 @@ from impact_fenics.errors import user_errors
 from impact_fenics.simulation import Settings
 
 DT = 3.64e-7  # s, the paper's step
-N_STEPS = 400  # 1.457e-4 s
+N_STEPS = 400  # 1.456e-4 s
 
 
 def run(method: str, out: str | None, radius: float = 1.0, film_solver: str = "fast",

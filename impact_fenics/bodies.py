@@ -9,7 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from dolfinx import fem, mesh as dmesh
+from mpi4py import MPI
+from dolfinx import fem
 
 from .errors import InputError, require
 from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
@@ -54,8 +55,12 @@ class DeformableModel:
         # coordinates of the local nodes (owned first, then ghosts), (n_nodes, 2)
         self.node_xy = self.V.tabulate_dof_coordinates()[:, :2].copy()
         self.n_local = self.node_xy.shape[0] * self.bs
-        self.length_scale = float(self.comm.allreduce(
-            np.ptp(self.node_xy, axis=0).max() if self.node_xy.size else 0.0, op=_max()))
+        # the model's extent (m), the same on every partition
+        lo = self.node_xy.min(axis=0) if self.node_xy.size else np.full(2, np.inf)
+        hi = self.node_xy.max(axis=0) if self.node_xy.size else np.full(2, -np.inf)
+        self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+        self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+        self.length_scale = float(np.max(hi - lo))
 
     # --------------------------------------------------------------- dof maps
     def _unrolled(self, blocks: np.ndarray, component: int, owned: bool) -> np.ndarray:
@@ -90,9 +95,3 @@ class DeformableModel:
     def to_global(self, dofs: np.ndarray) -> np.ndarray:
         """Global (PETSc) indices of owned unrolled ``dofs``."""
         return (dofs + self.offset).astype(np.int32)
-
-
-def _max():
-    from mpi4py import MPI
-
-    return MPI.MAX

@@ -10,8 +10,9 @@ zero rows in A and stay at rest. The velocity is kept as a state of its own
 (not recovered from differences of displacements), so a body that drifts far
 keeps its velocity to full precision.
 
-Contact methods read the predicted state with :meth:`take_predicted` and
-commit corrected positions and velocities of their dofs with :meth:`put`.
+Between :meth:`predict` and :meth:`advance`, contact sets read the predicted
+state from the views ``u_owned``/``v_owned`` and write the corrected positions
+and velocities of their own dofs back into them.
 """
 from __future__ import annotations
 
@@ -45,14 +46,19 @@ class Integrator:
         self._u = self.K.createVecRight()
         self._v = self.K.createVecRight()
         self._u.set(0.0), self._v.set(0.0)
-        self._ua = self._u.array  # numpy views on the owned entries
-        self._va = self._v.array
+        # numpy views on the owned entries of u and v (m, m/s): contact sets read the
+        # prediction from them and write their corrected dofs back into them
+        self.u_owned = self._u.array
+        self.v_owned = self._v.array
         self._free = np.ones(model.n_owned, dtype=bool)
         self._free[self.fixed] = False
-        # per load: its dofs, dt f / m there, and two buffers
-        self._load_dofs = [ld.dofs.astype(np.intp) for ld in self.loads]
-        self._load_coef = [self.dt * ld.force / self.mass[ld.dofs] for ld in self.loads]
-        self._load_buf = [(np.empty(ld.dofs.size), np.empty(ld.dofs.size)) for ld in self.loads]
+        # per load: its free dofs (a fixed dof stays at rest under any load), dt f / m
+        # there, and two buffers
+        free = [self._free[ld.dofs] for ld in self.loads]
+        self._load_dofs = [ld.dofs[k].astype(np.intp) for ld, k in zip(self.loads, free)]
+        self._load_coef = [self.dt * ld.force[k] / self.mass[ld.dofs[k]]
+                           for ld, k in zip(self.loads, free)]
+        self._load_buf = [(np.empty(d.size), np.empty(d.size)) for d in self._load_dofs]
 
     def _update_matrix(self, A: PETSc.Mat) -> PETSc.Mat:
         """Scale a fresh copy of K into A = -dt M^-1 K with zero rows on the fixed dofs.
@@ -74,18 +80,18 @@ class Integrator:
     def set_initial(self, u0: np.ndarray | None, v0: np.ndarray | None) -> None:
         """Set u^0 (m) and v^0 (m/s) on the owned dofs; fixed dofs are kept at zero."""
         self.n = 0
-        for target, values in ((self._ua, u0), (self._va, v0)):
+        for target, values in ((self.u_owned, u0), (self.v_owned, v0)):
             target[:] = 0.0 if values is None else values
             target[~self._free] = 0.0
 
     def displacement(self, out: np.ndarray) -> np.ndarray:
         """u^n (m) on the owned dofs, copied into ``out``."""
-        out[:] = self._ua
+        out[:] = self.u_owned
         return out
 
     def velocity(self, out: np.ndarray) -> np.ndarray:
         """v^n (m/s) on the owned dofs, copied into ``out``."""
-        out[:] = self._va
+        out[:] = self.v_owned
         return out
 
     @property
@@ -103,25 +109,15 @@ class Integrator:
                                                   self._load_coef, self._load_buf):
                 value = ld.history(t)
                 if value != 0.0:
-                    np.take(self._va, dofs, out=buf)
+                    np.take(self.v_owned, dofs, out=buf)
                     np.multiply(coef, value, out=inc)
                     buf += inc
-                    self._va[dofs] = buf
+                    self.v_owned[dofs] = buf
         self._u.axpy(self.dt, self._v)
-
-    def take_predicted(self, dofs: np.ndarray, u_out: np.ndarray, v_out: np.ndarray) -> None:
-        """Predicted u~^{n+1} (m) and v~^{n+1} (m/s) on owned ``dofs`` (after :meth:`predict`)."""
-        np.take(self._ua, dofs, out=u_out)
-        np.take(self._va, dofs, out=v_out)
 
     def take_velocity(self, dofs: np.ndarray, out: np.ndarray) -> None:
         """v on owned ``dofs`` (m/s): v^n before :meth:`predict`."""
-        np.take(self._va, dofs, out=out)
-
-    def put(self, dofs: np.ndarray, u_new: np.ndarray, v_new: np.ndarray) -> None:
-        """Commit u^{n+1} (m) and v^{n+1} (m/s) on owned ``dofs``."""
-        self._ua[dofs] = u_new
-        self._va[dofs] = v_new
+        np.take(self.v_owned, dofs, out=out)
 
     def advance(self) -> None:
         """Accept the step: the corrected state becomes (u^{n+1}, v^{n+1})."""

@@ -61,16 +61,16 @@ def write_json(path: str, data: dict, comm: MPI.Comm) -> None:
     """Write ``data`` as indented, strict JSON from rank 0 (NaN and infinities become null)."""
     if comm.rank == 0:
         with open(path, "w") as f:
-            json.dump(_finite(data), f, indent=2, sort_keys=True, allow_nan=False)
+            json.dump(json_ready(data), f, indent=2, sort_keys=True, allow_nan=False)
             f.write("\n")
 
 
-def _finite(obj):
-    """A copy of ``obj`` with numpy values as Python ones and non-finite floats as None."""
+def json_ready(obj):
+    """A JSON-ready copy of ``obj`` with numpy values as Python ones and non-finite floats as None."""
     if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
+        return {k: json_ready(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple, np.ndarray)):
-        return [_finite(v) for v in obj]
+        return [json_ready(v) for v in obj]
     if isinstance(obj, np.generic):
         obj = obj.item()
     if isinstance(obj, float) and not np.isfinite(obj):

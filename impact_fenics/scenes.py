@@ -5,26 +5,30 @@ Each builder returns a ready :class:`~impact_fenics.simulation.Simulation`
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 from mpi4py import MPI
 
 from . import loads, meshing
 from .bodies import Body, DeformableModel
 from .contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face
 from .errors import InputError
-from .materials import LinearElastic
+from .materials import STEEL
 from .simulation import Settings, Simulation
 
-STEEL = dict(E=200e9, density=7850.0)
 
 
 def elastic_bar(settings: Settings, h: float = 0.005, nu: float = 0.0, peak: float = 100e6,
                 t_rise: float = 2e-5, t_fall: float = 1e-4, t_end: float = 1.2e-4,
                 radius: float = 0.05, length: float = 1.0, structured: bool = True,
-                clamp_far_end: bool = False, comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+                clamp_far_end: bool = False, tmesh: meshing.TaggedMesh | None = None,
+                comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
     """A steel bar (radius, length in m) loaded on z = 0 by a trapezoid pressure pulse (Pa);
-    with ``clamp_far_end`` its end z = length has u_z = 0."""
-    material = LinearElastic(nu=nu, **STEEL)
-    tmesh = meshing.bar(radius=radius, length=length, h=h, structured=structured, comm=comm)
+    with ``clamp_far_end`` its end z = length has u_z = 0. ``tmesh``: a bar mesh built
+    already (then radius, length, h and structured are its own)."""
+    material = replace(STEEL, nu=nu)
+    if tmesh is None:
+        tmesh = meshing.bar(radius=radius, length=length, h=h, structured=structured, comm=comm)
     model = DeformableModel(tmesh, [Body("bar", material)])
     pulse = loads.Trapezoid(peak=peak, t_rise=t_rise, t_fall=t_fall, t_end=t_end)
     fixed = [model.facet_dofs("free_end", 1)] if clamp_far_end else []
@@ -52,7 +56,7 @@ def bar_impact(settings: Settings, method, h: float = 0.02, nu: float = 0.3, v0:
     """Two coaxial steel bars touching at z = 0; the striker (below) moves at v0 (m/s) in +z.
 
     ``observe`` is the (r, z) point of the target where sigma_zz is recorded."""
-    material = LinearElastic(nu=nu, **STEEL)
+    material = replace(STEEL, nu=nu)
     tmesh = meshing.coaxial_bars(radius=radius, striker_length=striker_length,
                                  target_length=target_length, h=h, structured=structured, comm=comm)
     model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
@@ -70,12 +74,14 @@ PUNCH_RADII = {1: 1.0, 3: 3.0, 6: 6.0}
 def punch_indentation(settings: Settings, method, radius: float = 1.0, punch_mass: float = 0.1,
                       peak: float = 200e6, t_rise: float = 1e-5, t_fall: float = 9e-5,
                       t_end: float = 1e-4, block: dict | None = None,
+                      tmesh: meshing.TaggedMesh | None = None,
                       comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
     """A rigid flat punch (one z dof, mass in kg) of radius R_z (m) pushed into a steel block
-    by -sigma(t) pi R_z^2, sigma a trapezoid pulse (Pa)."""
-    material = LinearElastic(nu=0.3, **STEEL)
-    tmesh = meshing.punch_block(comm=comm, **(block or {}))
-    model = DeformableModel(tmesh, [Body("block", material)])
+    by -sigma(t) pi R_z^2, sigma a trapezoid pulse (Pa). ``tmesh``: a punch_block mesh built
+    already (else one is made from ``block``)."""
+    if tmesh is None:
+        tmesh = meshing.punch_block(comm=comm, **(block or {}))
+    model = DeformableModel(tmesh, [Body("block", STEEL)])
     area = 3.141592653589793 * radius ** 2
     pulse = loads.Trapezoid(peak=peak, t_rise=t_rise, t_fall=t_fall, t_end=t_end)
     punch = RigidBody("punch", punch_mass, force=lambda t: -area * pulse(t))

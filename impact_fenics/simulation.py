@@ -9,7 +9,7 @@ import os
 import signal
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -120,6 +120,13 @@ class Simulation:
     # ------------------------------------------------------------ scene set-up
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:
         """Enforce ``constraints`` with ``method`` (penalty, FILM or DME)."""
+        contact_dofs = constraints.lower if constraints.upper is None else \
+            np.concatenate([constraints.lower, constraints.upper])
+        loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
+        if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), contact_dofs).sum())):
+            raise InputError(f"a surface load acts on nodes of the contact surfaces "
+                             f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
+                             "facet group (the contact bookkeeping assumes no load there)")
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
         self.contacts.append(c)
@@ -156,7 +163,7 @@ class Simulation:
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm)
         times = np.zeros((n_steps, len(PHASES))) if s.timers else None
-        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku", "u_hist")}
+        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
         Ku = integ.K.createVecRight()
         energy_rows, max_bal = [], 0.0
         track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
@@ -177,7 +184,6 @@ class Simulation:
                 t1 = clock()
                 for c in self.contacts:
                     c.step()
-                t2 = clock()
                 self._track_contact(track, n)
                 integ.advance()
                 t3 = clock()
@@ -262,13 +268,15 @@ class Simulation:
         row["activation_loss"] = sum(c.activation_loss for c in self.contacts)
         row["step"] = integ.n - 1
         row["time"] = (integ.n - 1) * self.settings.dt
-        # z momentum (kg m/s) of v^{n+1}, per body and in total
-        v_z = buf["v_next"]
-        local = np.array([float(np.dot(integ.mass[d], v_z[d])) for d in self._body_z.values()])
+        # z momentum (kg m/s) of v^{n+1}: in total (every node once) and per body
+        # (a node that two bonded bodies share counts in both)
+        v = buf["v_next"]
+        local = np.array([float(np.dot(integ.mass[1::2], v[1::2]))] +
+                         [float(np.dot(integ.mass[d], v[d])) for d in self._body_z.values()])
         momenta = np.zeros_like(local)
         self.comm.Allreduce(local, momenta)
-        total = float(momenta.sum())
-        for name, p in zip(self._body_z, momenta):
+        total = float(momenta[0])
+        for name, p in zip(self._body_z, momenta[1:]):
             row[f"momentum_z_{name}"] = float(p)
         for c in self.contacts:
             if c.rigid is not None:
@@ -391,18 +399,17 @@ class Simulation:
         row[0], row[1] = n, t
         k = 2
         if probes is not None:
-            integ.displacement(buf["u_hist"])
-            self._probe_u.x.array[: self.model.n_owned] = buf["u_hist"]
+            integ.displacement(self._probe_u.x.array[: self.model.n_owned])
             self._probe_u.x.scatter_forward()
             vals = probes.evaluate()
             row[k:k + vals.size] = vals
             k += vals.size
         for i, c in enumerate(self.contacts):
-            gap = c.committed_gap()
-            row[k:k + 3] = [int(c.active.sum()), float(c.force.sum()), float(gap.min())]
+            total = float(c.force.sum())
+            row[k:k + 3] = [int(c.active.sum()), total, c.min_gap]
             k += 3
             if c.rigid is not None:
-                row[k:k + 3] = [c.rigid.u, c.rigid.v, float(c.force.sum())]
+                row[k:k + 3] = [c.rigid.u, c.rigid.v, total]
                 k += 3
             row[k:k + 3] = [c.times.detection, c.times.solve, c.times.update]
             k += 3
@@ -410,7 +417,7 @@ class Simulation:
             if tbl is not None:
                 block = tbl.rows(c.n)
                 block[:, 0], block[:, 1], block[:, 2], block[:, 3] = n, t, c.pair_index, c.r
-                block[:, 4], block[:, 5], block[:, 6] = gap, c.force, c.active
+                block[:, 4], block[:, 5], block[:, 6] = c.committed_gap(), c.force, c.active
 
     def _summary(self, times, stopped_at, wall, energy_rows, max_bal, track) -> dict:
         model, s = self.model, self.settings
@@ -441,7 +448,7 @@ class Simulation:
             summary["energy_balance_error_rel"] = max_bal
         if self.contacts:
             c = self.contacts[0]
-            summary["contact"] = {
+            summary["contact"] = {  # the first contact set, or all of them for the figures below
                 "method": c.method.name,
                 "n_constraints": c.n,
                 "max_penetration": track["max_penetration"],
@@ -449,6 +456,11 @@ class Simulation:
                 "first_contact_step": track["first_contact"],
                 "last_contact_step": track["last_contact"],
             }
+            if len(self.contacts) > 1:
+                summary["contacts"] = [{"method": c.method.name, "n_constraints": c.n,
+                                        "surfaces": list(c.constraints.names),
+                                        "method_info": getattr(c.method, "info", {})}
+                                       for c in self.contacts]
             if times is not None and stopped_at > 0:
                 summary["contact_cpu_time_per_step_median"] = float(
                     self.comm.allreduce(np.median(times[:stopped_at, 1:4].sum(axis=1)), op=MPI.MAX))
@@ -472,13 +484,16 @@ class _StopFlag:
                 pass
 
     def _handler(self, signum, frame):
-        self.name = signal.Signals(signum).name
+        self.signum = signum
+
+    signum = 0
 
     def collective(self, comm: MPI.Comm) -> bool:
-        flag = comm.allreduce(1 if self.name else 0, op=MPI.MAX)
-        if flag and self.name is None:
-            self.name = "a signal on another rank"
-        return bool(flag)
+        """True on every rank once any rank has caught a signal; all then name the same one."""
+        self.signum = comm.allreduce(self.signum, op=MPI.MAX)
+        if self.signum:
+            self.name = signal.Signals(self.signum).name
+        return bool(self.signum)
 
     def restore(self) -> None:
         for sig, old in self._old.items():

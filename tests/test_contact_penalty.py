@@ -9,7 +9,6 @@ the stability bound beta_max < 4/3 derived in impact_fenics/contact/penalty.py.
 import math
 
 import numpy as np
-import pytest
 
 from impact_fenics import scenes
 from impact_fenics.contact import Penalty

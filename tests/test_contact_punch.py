@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls
 
-from impact_fenics import loads, meshing, scenes
+from impact_fenics import loads, meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact import DME, FILM, RigidBody, rigid_face
 from impact_fenics.contact.film import solve_dense, solve_fast
@@ -119,9 +119,10 @@ def test_film_and_dme_coincide_while_the_active_set_holds(flat):
         a, b = h_film[key][held], h_dme[key][held]
         assert np.abs(a - b).max() <= 1e-10 * np.abs(a).max(), key
     # while unloading, nodes part and touch again with open gaps: there they differ,
-    # slightly (the paper's "barely noticeable difference during unloading")
-    diff = np.abs(h_film["punch_u"] - h_dme["punch_u"]).max() / np.abs(h_film["punch_u"]).max()
-    assert diff < 1e-3
+    # slightly (the paper's "barely noticeable difference during unloading"): by
+    # less than the punch moves in one step, the scale of a re-contact
+    one_step = np.abs(np.diff(h_film["punch_u"])).max()
+    assert np.abs(h_film["punch_u"] - h_dme["punch_u"]).max() < one_step
 
 
 def test_film_and_dme_differ_at_activations(curved):
@@ -135,5 +136,5 @@ def test_film_and_dme_differ_at_activations(curved):
     assert s_film["energy"]["activation_loss"] > 0
     assert s_dme["energy"]["activation_loss"] < 0
     u_film, u_dme = h_film["punch_u"], h_dme["punch_u"]
-    diff = np.abs(u_film - u_dme).max() / np.abs(u_film).max()
-    assert 1e-6 < diff < 0.2
+    # and their motions differ by far more than round-off
+    assert np.abs(u_film - u_dme).max() > 1e-6 * np.abs(u_film).max()

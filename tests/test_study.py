@@ -7,7 +7,6 @@ dt_crit; the exact equality of FILM and DME while the active set holds; the
 energy ledger of a clamped bar; and the mesh convergence of the reference.
 No timing is asserted.
 """
-import json
 import os
 import shutil
 import tempfile
@@ -125,7 +124,9 @@ def test_film_and_dme_agree_on_the_punch_and_bars(quick):
     for sim in quick[0]["punch"]["radii"].values():
         assert sim["methods"]["dme"]["err_u"] <= 1e-3
         assert sim["methods"]["film_dense"]["err_u"] <= 1e-10
-    assert quick[0]["bars"]["film_vs_dme_e0_sigma"] <= 1e-3
+    # node pairs: with e = 0 and mass-weighted positions DME moves a closed pair exactly as
+    # FILM does (an exact equivalence, round-off only)
+    assert quick[0]["bars"]["film_vs_dme_e0_sigma"] <= 1e-10
 
 
 def test_energy_balance_of_long_runs(quick):

@@ -12,7 +12,6 @@ v = p / (rho c0). Tolerances come from the discretisation, not from a run:
 * plateau stress and velocity: within (h / l)^2 with l = c0 t_rise = 0.1 m the
   ramp length, the order of the dispersion ringing behind the ramp.
 """
-import numpy as np
 import pytest
 
 from conftest import load_demo

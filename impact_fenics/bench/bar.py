@@ -8,6 +8,8 @@ from contextlib import contextmanager
 import numpy as np
 from mpi4py import MPI
 
+from ..materials import STEEL
+
 BIG = 10 ** 9  # output_every / history_every that never comes
 
 
@@ -19,24 +21,14 @@ def bar_mesh(comm: MPI.Comm, dofs: int):
     return meshing.bar(radius=0.5, length=1.0, h=h, structured=True, comm=comm), h
 
 
-def steel():
-    from ..materials import LinearElastic
-    from ..scenes import STEEL
-
-    return LinearElastic(nu=0.3, **STEEL)
-
-
 def bar_simulation(tmesh, n_steps: int, matrix_type: str = "aij", timers: bool = True):
-    """scenes.elastic_bar on a given mesh: a trapezoid pressure on z = 0, no outputs."""
-    from .. import loads
-    from ..bodies import Body, DeformableModel
-    from ..simulation import Settings, Simulation
+    """scenes.elastic_bar (nu = 0.3) on a given mesh, no outputs."""
+    from ..scenes import elastic_bar
+    from ..simulation import Settings
 
-    model = DeformableModel(tmesh, [Body("bar", steel())])
-    pulse = loads.Trapezoid(peak=100e6, t_rise=2e-5, t_fall=1e-4, t_end=1.2e-4)
     settings = Settings(cfl=0.9, n_steps=n_steps, output_every=BIG, history_every=BIG,
                         fields=False, out=None, quiet=True, matrix_type=matrix_type, timers=timers)
-    return Simulation(model, settings, loads=[loads.SurfaceLoad(model, "loaded_end", pulse)])
+    return elastic_bar(settings, nu=0.3, tmesh=tmesh)
 
 
 def bar_integrator(tmesh):
@@ -46,7 +38,7 @@ def bar_integrator(tmesh):
     from ..integrator import Integrator
     from ..stability import critical_dt, element_omega_bound
 
-    model = DeformableModel(tmesh, [Body("bar", steel())])
+    model = DeformableModel(tmesh, [Body("bar", STEEL)])
     dt = 0.9 * critical_dt(element_omega_bound(model, model.axis_dofs(owned=False)))
     integ = Integrator(model, dt, model.axis_dofs())
     random_state(integ)

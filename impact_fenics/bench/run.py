@@ -9,10 +9,10 @@ import os
 import time
 from pathlib import Path
 
-import numpy as np
 from mpi4py import MPI
 
 from . import contact, matrix_format, peers, scaling, step
+from ..output import json_ready
 from .common import MODES, Context
 from .machine import machine_info
 from .tables import summary_lines
@@ -98,21 +98,11 @@ def run(ctx) -> dict:
     return ctx.results
 
 
-def _json_default(o):
-    if isinstance(o, np.integer):
-        return int(o)
-    if isinstance(o, np.floating):
-        return float(o)
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o))
-
-
 def write_json(results: dict, out: Path) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(out.suffix + ".partial")
     with open(tmp, "w") as f:
-        json.dump(results, f, indent=1, default=_json_default)
+        json.dump(json_ready(results), f, indent=1, allow_nan=False)
     os.replace(tmp, out)
 
 

@@ -256,7 +256,7 @@ class ContactSet:
     def initialize(self) -> None:
         """Read u^0 and v^0 of the contact dofs (call after the integrator's set_initial)."""
         integ = self.integrator
-        self._gather(integ._ua, integ._va, self.u_now, self.v_now)
+        self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
         if self.rigid is not None:
             self.u_now[-1], self.v_now[-1] = self.rigid.u, self.rigid.v
 
@@ -275,7 +275,7 @@ class ContactSet:
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
-        self._gather(integ._ua, integ._va, self.u_pred, self.v_pred)
+        self._gather(integ.u_owned, integ.v_owned, self.u_pred, self.v_pred)
         if self.rigid is not None:
             rb = self.rigid
             self._rigid_f = rb.force(integ.t)
@@ -286,7 +286,7 @@ class ContactSet:
         t1 = clock()
         self.method.correct(self)
         t2 = clock()
-        _write_back(self.u, self.v, self._local, self._pos, integ._ua, integ._va)
+        _write_back(self.u, self.v, self._local, self._pos, integ.u_owned, integ.v_owned)
         self._ledger.book(integ.n)
         if self.rigid is not None:
             self.rigid.u, self.rigid.v = float(self.u[-1]), float(self.v[-1])

@@ -25,8 +25,9 @@ beta < (4 - w)/(3 - w) >= 4/3, so 4/3 is the bound that holds for every mode.
 
 With a rigid punch, S = diag(d) + kappa 1 1' with kappa = dt^2 / m_p couples
 every spring through the light punch: with a uniform p, beta_max = p *
-lambda_max(S) >= p (max d + n kappa) grows with the number of constraints, which
-a per-pair choice of p cannot see. The ``scaled`` choice p_i = c / d_i puts every
+lambda_max(S) >= p (mean d + n kappa) (the Rayleigh quotient of the vector of
+ones) grows with the number of constraints, which a per-pair choice of p cannot
+see. The ``scaled`` choice p_i = c / d_i puts every
 pair at the same beta_ii = c and takes c from the coupled operator:
 lambda_max(I + kappa w w') = 1 + kappa sum(1/d) with w_i = d_i^-1/2, so
 beta_max = c (1 + kappa sum 1/d_i) = beta_target exactly.

@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import scenes
 from ..contact import DME, FILM, Penalty
-from .common import (BETA_BOUND, C1, RHO, TWO_PI, Scratch, flips, log, pyplot, read_pairs, rel_l2,
+from .common import (C1, RHO, TWO_PI, Scratch, flips, log, pyplot, read_pairs, rel_l2,
                      run_recorded, settings)
 
 P_PAPER = 1.19e10  # N/m, the paper's "average of the diagonal" (Section 3.2)

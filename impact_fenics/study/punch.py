@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from mpi4py import MPI
 
 from .. import scenes
 from ..contact import DME, FILM, Penalty
@@ -231,7 +230,8 @@ def penalty_sweep(cfg: dict, writer, references: dict | None = None) -> dict:
             rec = run_punch(cfg, method, radius)
             m = metrics(rec, ref, p["pulse"])
             info = rec["info"]
-            pi = np.full(d.size, info["p_min"]) if family == "uniform" else info["p_min"] * d.min() / d
+            # uniform: p_i = p; mass-scaled: p_i = c / d_i with c = p_min * max(d)
+            pi = np.full(d.size, info["p_min"]) if family == "uniform" else info["p_min"] * d.max() / d
             m.update({"family": family, "value": value, "beta_max": info["beta_max"],
                       "p_min": info["p_min"], "p_max": info["p_max"],
                       # the paper's view: the per-pair ratio p_i S_ii, near the axis and at the rim

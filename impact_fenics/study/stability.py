@@ -153,7 +153,6 @@ def beta_sweep(cfg: dict) -> dict:
         e0 = 0.5 * rec["body_mass"]["striker"] * b["v0"] ** 2
         state, m = _unstable_bar(rec, e0, rec["n"])
         h = rec["history"]
-        inside = (h["time"] > 2e-5) & (h["n_active"] > 0)
         m.update(beta_target=beta, beta_max=rec["info"]["beta_max"], state=state,
                  max_penetration=float(np.nanmax(-np.minimum(h["min_gap"], 0.0))))
         bar_rows.append(m)

@@ -129,7 +129,8 @@ def _summary(w, d, sims):
           "punch node couples every spring; wherever the coupled β_max = p λ_max(S) passes the derived bound "
           "(energy gain from just above 1, chatter above 4/3) the contact fails, for every radius, and a p "
           "proportional to the ring masses fails exactly like a uniform one although its per-pair ratios "
-          "p_i S_ii are below 1e-5: the paper's explanation does not contain this. *Accuracy below the bound:* "
+          f"p_i S_ii are at most {_g(_max_pair_ratio(sw))}: the paper's explanation does not contain this. "
+          "*Accuracy below the bound:* "
           "the paper's explanation holds. The contact force per node grows with the ring (∝ r), a uniform spring "
           "does not, so penetrations differ from node to node: a uniform p placed exactly at β_max = 1 still "
           f"misses u_p by {_g(acc[last]['uniform_at_1'])} on R_z = {last} m, while p ∝ ring mass at β_max = 1 is "
@@ -278,6 +279,13 @@ def _part2(w, d, fig):
       "rim is stiff enough is forbidden by the coupled bound through the light punch (p ≤ 4/3 / λ_max(S), "
       "a few 1e9 N/m here), and any p off β_max = 1 suffers the punch's overshoot. A penalty chosen from the "
       "coupled operator with p_i ∝ ring mass (our `scaled`) removes both and works on every radius.\n")
+
+
+def _max_pair_ratio(sw) -> float:
+    """Largest per-pair ratio p_i S_ii among the failing mass-scaled penalties of the sweep."""
+    ratios = [max(r["beta_ii_axis"], r["beta_ii_rim"]) for res in sw["radii"].values()
+              for r in res["rows"] if r["family"] == "mass_scaled" and r["state"] != "stable"]
+    return max(ratios, default=float("nan"))
 
 
 def _sweep_accuracy(sw) -> dict:
@@ -555,7 +563,8 @@ def _claims(w, d, sims):
         accs = _sweep_accuracy(d["punch_penalty_sweep"]) if d["punch_penalty_sweep"] else {}
         last = list(accs)[-1] if accs else None
         rows.append(("the cause: a p good near the axis is far too small away from it",
-                     "instability sets in at the coupled β_max ≈ 1–4/3 for every radius, also for p ∝ ring mass (per-pair ratios < 1e-5); "
+                     "instability sets in at the coupled β_max ≈ 1–4/3 for every radius, also for p ∝ ring mass "
+                     f"(per-pair ratios ≤ {_g(_max_pair_ratio(d['punch_penalty_sweep']))}); "
                      + (f"below it, uniform p at β_max = 1 errs {_g(accs[last]['uniform_at_1'])}, p ∝ ring mass {_g(accs[last]['scaled_at_1'])} (R_z = {last} m)" if last else ""),
                      "agree for accuracy; differ as the cause of failure",
                      "the ring argument explains why a uniform p is inaccurate; the coupled bound through the light punch is why it cannot be raised, and what makes it unstable"))

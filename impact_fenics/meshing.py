@@ -166,6 +166,22 @@ def _group(gmsh, dim: int, entities: list[int], name: str, tag: int) -> None:
     gmsh.model.setPhysicalName(dim, tag, name)
 
 
+def _block_outline(gmsh, breaks_r: list[float], width: float, depth: float, h_surface: float,
+                   h_max: float) -> tuple[int, list[int], int, int, int]:
+    """The block r in [0, width], z in [-depth, 0] (m) with its surface split at ``breaks_r``:
+    returns the plane surface and its curves (surface pieces, far side, bottom, axis)."""
+    geo = gmsh.model.geo
+    top = [geo.addPoint(r, 0.0, 0.0, h_surface) for r in [0.0] + list(breaks_r) + [width]]
+    corner_far = geo.addPoint(width, -depth, 0.0, h_max)
+    corner_axis = geo.addPoint(0.0, -depth, 0.0, h_max)
+    surface = [geo.addLine(top[k], top[k + 1]) for k in range(len(top) - 1)]
+    far = geo.addLine(top[-1], corner_far)
+    bottom = geo.addLine(corner_far, corner_axis)
+    axis = geo.addLine(corner_axis, top[0])
+    s = geo.addPlaneSurface([geo.addCurveLoop(surface + [far, bottom, axis])])
+    return s, surface, far, bottom, axis
+
+
 def _graded_size(gmsh, curves: list[int], h_surface: float, grading: float,
                  h_max: float) -> None:
     """Element size h_surface + grading * (distance to ``curves``), capped at h_max (m)."""
@@ -264,18 +280,9 @@ def punch_block(width: float = 6.9, depth: float = 0.45, h_surface: float = 0.01
             f"punch_block: need width > {r_last} m and depth, h_surface > 0")
 
     def build(gmsh):
-        geo = gmsh.model.geo
-        radii = [0.0] + [b[0] for b in breaks] + [width]
-        top = [geo.addPoint(r, 0.0, 0.0, h_surface) for r in radii]
-        corner_far = geo.addPoint(width, -depth, 0.0, h_max)
-        corner_axis = geo.addPoint(0.0, -depth, 0.0, h_max)
-        surface = [geo.addLine(top[k], top[k + 1]) for k in range(len(top) - 1)]
-        far = geo.addLine(top[-1], corner_far)
-        bottom = geo.addLine(corner_far, corner_axis)
-        axis = geo.addLine(corner_axis, top[0])
-        loop = geo.addCurveLoop(surface + [far, bottom, axis])
-        s = geo.addPlaneSurface([loop])
-        geo.synchronize()
+        s, surface, far, bottom, axis = _block_outline(gmsh, [b[0] for b in breaks], width,
+                                                       depth, h_surface, h_max)
+        gmsh.model.geo.synchronize()
         for curve, (_, n) in zip(surface, breaks):
             gmsh.model.mesh.setTransfiniteCurve(curve, n + 1)
         _graded_size(gmsh, surface[:len(breaks)], h_surface, grading, h_max)
@@ -318,16 +325,9 @@ def punch_on_block(punch_radius: float = 1.0, punch_height: float = 0.05, width:
     k_punch = next(k for k, r in enumerate(radii_b) if abs(punch_radius - r) <= 1e-12 * max(1.0, r))
 
     def build(gmsh):
+        s, surface, far, bottom, axis = _block_outline(gmsh, radii_b, width, depth, h_surface,
+                                                       h_max)
         geo = gmsh.model.geo
-        radii = [0.0] + radii_b + [width]
-        top = [geo.addPoint(r, 0.0, 0.0, h_surface) for r in radii]
-        corner_far = geo.addPoint(width, -depth, 0.0, h_max)
-        corner_axis = geo.addPoint(0.0, -depth, 0.0, h_max)
-        surface = [geo.addLine(top[k], top[k + 1]) for k in range(len(top) - 1)]
-        far = geo.addLine(top[-1], corner_far)
-        bottom = geo.addLine(corner_far, corner_axis)
-        axis = geo.addLine(corner_axis, top[0])
-        s = geo.addPlaneSurface([geo.addCurveLoop(surface + [far, bottom, axis])])
         # the punch: its own points on z = 0 (coincident with the block's, not shared)
         n_r = sum(n for _, n in breaks[:k_punch + 1])
         n_z = max(1, int(round(punch_height / (punch_radius / n_r))))

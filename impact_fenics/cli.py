@@ -12,7 +12,6 @@ or SIGTERM stopped the run (the output directory is complete up to there).
 from __future__ import annotations
 
 import argparse
-import logging
 import os
 import signal
 import sys
@@ -72,7 +71,6 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
 
     from . import scene_file
 
-    _quiet_compiler_logs()
     comm = MPI.COMM_WORLD
     scene = scene_file.read_scene(path)
     if method:
@@ -95,19 +93,6 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
                   file=sys.stderr, flush=True)
         return code
     return 0
-
-
-def _quiet_compiler_logs() -> None:
-    """Show warnings only on the console: the form compiler's C builds log at INFO
-    through the root logger (and lower its level while they run)."""
-    root = logging.getLogger()
-    if not root.handlers:
-        handler = logging.StreamHandler()
-        handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
-        root.addHandler(handler)
-    for handler in root.handlers:
-        if type(handler) is logging.StreamHandler:
-            handler.setLevel(logging.WARNING)
 
 
 def _scene_checks(sim, scene_path: str) -> dict:

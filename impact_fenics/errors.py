@@ -7,6 +7,7 @@ code without a hang. Anything unexpected aborts all ranks.
 from __future__ import annotations
 
 import functools
+import logging
 import sys
 from typing import Callable, TypeVar
 
@@ -41,12 +42,28 @@ def _abort_on_unexpected(exc_type, exc, tb) -> None:
         MPI.COMM_WORLD.Abort(1)
 
 
+def quiet_compiler_logs() -> None:
+    """Show warnings only on the console: the form compiler's C builds (setuptools)
+    log at INFO through the root logger and lower its level while they run, so
+    the console handler itself filters below WARNING."""
+    root = logging.getLogger()
+    if not root.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+        root.addHandler(handler)
+    for handler in root.handlers:
+        if type(handler) is logging.StreamHandler:
+            handler.setLevel(logging.WARNING)
+
+
 def user_errors(func: F) -> F:
-    """Decorate a ``main()``: InputError exits 2 and UnstableRunError exits 3, one line each."""
+    """Decorate a ``main()``: InputError exits 2 and UnstableRunError exits 3, one line
+    each; the form compiler's INFO lines stay off the console."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         sys.excepthook = _abort_on_unexpected
+        quiet_compiler_logs()
         try:
             return func(*args, **kwargs)
         except InputError as exc:

@@ -24,6 +24,7 @@ from .integrator import Integrator
 from .loads import SurfaceLoad
 from .probes import Probes
 from .stability import converged_omega_max, critical_dt, element_omega_bound
+from .timers import PhaseTimers
 
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
 
@@ -162,7 +163,7 @@ class Simulation:
         self.probes = probes
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm)
-        times = np.zeros((n_steps, len(PHASES))) if s.timers else None
+        times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
         Ku = integ.K.createVecRight()
         energy_rows, max_bal = [], 0.0
@@ -203,13 +204,15 @@ class Simulation:
                         tbl.flush()
                 t5 = clock()
                 if times is not None:
-                    times[n, 0] = t1 - t0
-                    if self.contacts:
-                        times[n, 1] = sum(c.times.detection for c in self.contacts)
-                        times[n, 2] = sum(c.times.solve for c in self.contacts)
-                        times[n, 3] = sum(c.times.update for c in self.contacts)
-                    times[n, 4] = t4 - t3
-                    times[n, 5] = t5 - t4
+                    now = times.current
+                    now[0] = t1 - t0
+                    for c in self.contacts:
+                        now[1] += c.times.detection
+                        now[2] += c.times.solve
+                        now[3] += c.times.update
+                    now[4] = t4 - t3
+                    now[5] = t5 - t4
+                    times.record()
                 progress.update(n + 1)
                 if (n + 1) % 64 == 0 and stop.collective(comm):
                     self.status = f"interrupted by {stop.name}"
@@ -436,12 +439,10 @@ class Simulation:
         }
         if self.dt_converged is not None:
             summary["dt_critical_converged"] = self.dt_converged
-        if times is not None and stopped_at > 0:
-            med = np.median(times[:stopped_at], axis=0)
-            self.comm.Allreduce(MPI.IN_PLACE, med, op=MPI.MAX)
-            summary["time_per_step_median"] = {k: float(v) for k, v in zip(PHASES, med)}
-            total = times[:stopped_at].sum(axis=1)
-            summary["step_time_median"] = float(self.comm.allreduce(np.median(total), op=MPI.MAX))
+        if times is not None and times.n_steps > 0:
+            summary["time_per_step_median"] = times.medians(self.comm)
+            summary["time_per_step_total"] = times.total(self.comm)
+            summary["step_time_median"] = times.median_of_sum(comm=self.comm)
         if energy_rows:
             last = energy_rows[-1]
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
@@ -461,9 +462,9 @@ class Simulation:
                                         "surfaces": list(c.constraints.names),
                                         "method_info": getattr(c.method, "info", {})}
                                        for c in self.contacts]
-            if times is not None and stopped_at > 0:
-                summary["contact_cpu_time_per_step_median"] = float(
-                    self.comm.allreduce(np.median(times[:stopped_at, 1:4].sum(axis=1)), op=MPI.MAX))
+            if times is not None and times.n_steps > 0:
+                summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
+                    ("contact_detection", "contact_solve", "contact_update"), self.comm)
         return summary
 
 

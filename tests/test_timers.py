@@ -1,0 +1,32 @@
+"""Step timers: exact totals and a bounded, evenly spaced sample for the medians."""
+import numpy as np
+
+from impact_fenics.timers import PhaseTimers
+
+
+def test_memory_does_not_grow_and_totals_are_exact():
+    t = PhaseTimers(("a", "b"), capacity=64)
+    buffer = t._sample
+    n = 10_000
+    for k in range(n):
+        t.current[0] = 1.0
+        t.current[1] = k
+        t.record()
+    assert t._sample is buffer and buffer.shape == (64, 2)  # no reallocation
+    assert t.total()["a"] == n
+    assert t.total()["b"] == n * (n - 1) / 2  # exact: integers below 2^53
+
+
+def test_sample_is_evenly_spaced_over_the_run():
+    # times equal to the step index: an evenly spaced sample of 0..n-1 has the
+    # median of the whole run to within one stride (n / capacity at most 2 x that)
+    cap, n = 128, 100_003
+    t = PhaseTimers(("x",), capacity=cap)
+    for k in range(n):
+        t.current[0] = k
+        t.record()
+    stride = t._stride
+    assert stride <= 2 * n / cap
+    kept = t._sample[: t._n_sample, 0]
+    assert np.array_equal(kept, np.arange(0, n, stride, dtype=float))
+    assert abs(t.medians()["x"] - np.median(np.arange(n))) <= stride

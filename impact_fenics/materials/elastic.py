@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import ufl
 
-from .errors import require
+from ..errors import require
 
 
 @dataclass(frozen=True)

@@ -191,3 +191,84 @@ def test_same_on_all_partitions():
         assert np.abs(hp[col] - hs[col]).max() <= 1e-10 * scale, col
     for name in ("wave_incident", "wave_reflected", "wave_delivered"):
         assert getattr(bp, name) == pytest.approx(getattr(bs, name), rel=1e-10)
+
+
+SCENE = """\
+title = "tiny bit"
+[mesh]
+generator = "punch_block"
+width = 0.06
+depth = 0.06
+h_surface = 0.002
+grading = 0.2
+h_max = 0.01
+breaks = [[0.01, 5]]
+[materials.granite]
+E = 60e9
+nu = 0.25
+density = 2600.0
+[bodies.block]
+material = "granite"
+[rigid.bit]
+mass = 0.5
+impedance = 31866.9
+[[fixed]]
+facet = "bottom"
+components = ["z"]
+[[contact]]
+surface = "surface"
+rigid = "bit"
+radius = 0.01
+button = 0.02
+method = "film"
+[[loads]]
+rigid = "bit"
+incident = true
+peak = 150e3
+t_rise = 1e-5
+t_fall = 7e-5
+t_end = 8e-5
+[time]
+cfl = 0.9
+n_steps = 150
+[output]
+fields = false
+plots = false
+"""
+
+
+def test_scene_file_keys(tmp_path):
+    """impedance, incident and button build the same run as the Python API (same mesh)."""
+    from impact_fenics import scene_file
+
+    path = tmp_path / "bit.toml"
+    path.write_text(SCENE)
+    scene = scene_file.read_scene(str(path))
+    sim_file = scene_file.build(scene, {"out": None, "quiet": True, "plots": False})
+    sim_file.run()
+    settings = Settings(dt=sim_file.settings.dt, n_steps=150, quiet=True, fields=False,
+                        plots=False)
+    sim_api = scenes.bit_rock(settings, scenes.make_method("film"), bit_radius=0.01,
+                              button_radius=0.02, impedance=31866.9,
+                              incident=loads.Trapezoid(150e3, 1e-5, 7e-5, 8e-5),
+                              tmesh=sim_file.model.tmesh)
+    sim_api.run()
+    np.testing.assert_array_equal(sim_file.history.data()["bit_u"], sim_api.history.data()["bit_u"])
+    assert sim_api.contacts[0].b[-1] == pytest.approx(0.02 - math.sqrt(0.02 ** 2 - 0.01 ** 2))
+    assert sim_file.summary["rod_waves"]["bit"]["incident"] == sim_api.contacts[0].rigid.wave_incident
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ("impedance = 31866.9", "impedance = -1.0", "impedance"),
+    ("impedance = 31866.9", "", "impedance"),
+    ("button = 0.02", "button = 0.005", "button"),
+    ("incident = true", "incident = true\narea = 1.0", "area"),
+])
+def test_scene_file_bad_keys(tmp_path, old, new, words):
+    from impact_fenics import scene_file
+    from impact_fenics.errors import InputError
+
+    path = tmp_path / "bit.toml"
+    path.write_text(SCENE.replace(old, new))
+    with pytest.raises(InputError, match=words):
+        scene_file.read_scene(str(path))

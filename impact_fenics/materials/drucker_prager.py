@@ -89,6 +89,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
@@ -108,6 +109,119 @@ def alpha_of_angle(angle_deg: float) -> float:
     s = math.sin(math.radians(angle_deg))
     return 6.0 * s / (3.0 - s)
 
+
+# ----------------------------------------------------------------------------- the update
+
+@njit(cache=True)
+def _cohesion(params, kappa) -> float:
+    """k(kappa) = max(k_0 + h kappa, k_res) (Pa)."""
+    return max(params[K0] + params[H] * kappa, params[K_RES])
+
+
+@njit(cache=True)
+def _multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
+    """(d gamma, d lambda) of the active set ``mode`` (1 cone, 2 cut-off, 3 both)."""
+    if mode == 1:
+        return f_tr / (a + vis), 0.0
+    if mode == 2:
+        return 0.0, t_tr / (d + vis)
+    aa, dd = a + vis, d + vis
+    det = aa * dd - b * c
+    return (f_tr * dd - b * t_tr) / det, (aa * t_tr - c * f_tr) / det
+
+
+@njit(cache=True)
+def _try(mode, params, kappa_n, q_tr, p_tr, dt):
+    """Multipliers of an active set, with the softening floor; returns
+    (d gamma, d lambda, q, p, admissible)."""
+    bulk, mu = params[BULK], params[MU]
+    af, ag, p_t = params[ALPHA_F], params[ALPHA_G], params[P_T]
+    vis = params[ETA] / dt if params[ETA] > 0.0 else 0.0
+    k_n = _cohesion(params, kappa_n)
+    h = params[H] if params[K0] + params[H] * kappa_n > params[K_RES] else 0.0
+    for _ in range(2):
+        f_tr = q_tr - af * p_tr - k_n
+        t_tr = -p_tr - p_t
+        a = 3.0 * mu + bulk * af * ag + h
+        dg, dl = _multipliers(mode, f_tr, t_tr, a, bulk * af, bulk * ag, bulk, vis)
+        if h < 0.0 and params[K0] + params[H] * (kappa_n + dg) < params[K_RES]:
+            # softening passes the residual within the step: the intercept at the end is
+            # k_res whatever the path, so the branch k = k_res, h = 0 is the solution
+            k_n = params[K_RES]
+            h = 0.0
+            continue
+        break
+    q = q_tr - 3.0 * mu * dg
+    p = p_tr + bulk * (ag * dg + dl)
+    k_new = _cohesion(params, kappa_n + dg)
+    tol = 1e-12 * (abs(q_tr) + abs(p_tr) + params[K0])
+    ok = dg >= -tol and dl >= -tol and q >= -tol
+    # the other condition must hold at the result (for Perzyna: no overstress there)
+    if mode == 1:
+        ok = ok and -p - p_t <= tol
+    elif mode == 2:
+        ok = ok and q - af * p - k_new <= tol
+    return dg, dl, q, p, ok
+
+
+@njit(cache=True)
+def update(eps, eps_p, state, params, dt, sigma) -> None:
+    """Drucker-Prager point update (signature and notation of :mod:`.axisym`).
+
+    eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
+    equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
+    """
+    lmbda, mu, K = params[LMBDA], params[MU], params[BULK]
+    af, p_t = params[ALPHA_F], params[P_T]
+    elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
+    s0 = sigma[0]
+    s1 = sigma[1]
+    s2 = sigma[2]
+    s3 = sigma[3]
+    m_tr = (s0 + s1 + s2) / 3.0
+    d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
+    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    p_tr = -m_tr
+    kappa_n = state[KAPPA]
+    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    t_tr = -p_tr - p_t
+    scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
+    if f_tr <= scale_tol and t_tr <= scale_tol:
+        return  # elastic
+    dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
+    if f_tr > scale_tol:
+        dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
+    if not ok and t_tr > scale_tol:
+        dg, dl, q, p, ok = _try(2, params, kappa_n, q_tr, p_tr, dt)
+    if not ok:
+        dg, dl, q, p, ok = _try(3, params, kappa_n, q_tr, p_tr, dt)
+    dg = max(dg, 0.0)
+    dl = max(dl, 0.0)
+    q = max(q, 0.0)
+    # stress at n+1: the deviator scaled radially, the mean stress from p
+    ratio = q / q_tr if q_tr > 0.0 else 0.0
+    m = -p
+    sigma[0] = m + ratio * d0
+    sigma[1] = m + ratio * d1
+    sigma[2] = m + ratio * d2
+    sigma[3] = ratio * s3
+    # plastic strain increment: d gamma (3/2 s/q + alpha_g/3 I) + d lambda I/3, written as
+    # the elastic strain change that gives the stress change (exact for the linear return)
+    dvol = (params[ALPHA_G] * dg + dl) / 3.0
+    c_dev = 1.5 * dg / q_tr if q_tr > 0.0 else 0.0
+    e0 = c_dev * d0 + dvol
+    e1 = c_dev * d1 + dvol
+    e2 = c_dev * d2 + dvol
+    e3 = c_dev * s3
+    eps_p[0] += e0
+    eps_p[1] += e1
+    eps_p[2] += e2
+    eps_p[3] += e3
+    state[EPS_BAR_P] += SQRT_2_3 * math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + 2.0 * e3 * e3)
+    state[KAPPA] = kappa_n + dg
+
+
+# ----------------------------------------------------------------------------- the material
 
 @dataclass(frozen=True)
 class DruckerPrager:
@@ -131,8 +245,9 @@ class DruckerPrager:
     hardening: float = 0.0
     residual: float | None = None
     viscosity: float = 0.0
-    linear: bool = False
-    n_state: int = N_STATE
+    linear: ClassVar[bool] = False
+    n_state: ClassVar[int] = N_STATE
+    update = staticmethod(update)  # the compiled point update (numba), signature of axisym
 
     def __post_init__(self) -> None:
         require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
@@ -204,122 +319,6 @@ class DruckerPrager:
         p[P_T], p[ETA] = self.tensile_strength, self.viscosity
         return p
 
-    @property
-    def update(self):
-        """The compiled point update (numba)."""
-        return update
-
     def wave_speed(self) -> float:
         """Dilatational wave speed sqrt((lambda + 2 mu)/rho) (m/s)."""
         return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)
-
-
-# ----------------------------------------------------------------------------- the update
-
-@njit(cache=True)
-def _cohesion(params, kappa) -> float:
-    """k(kappa) = max(k_0 + h kappa, k_res) (Pa)."""
-    return max(params[K0] + params[H] * kappa, params[K_RES])
-
-
-@njit(cache=True)
-def _multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
-    """(d gamma, d lambda) of the active set ``mode`` (1 cone, 2 cut-off, 3 both)."""
-    if mode == 1:
-        return f_tr / (a + vis), 0.0
-    if mode == 2:
-        return 0.0, t_tr / (d + vis)
-    aa, dd = a + vis, d + vis
-    det = aa * dd - b * c
-    return (f_tr * dd - b * t_tr) / det, (aa * t_tr - c * f_tr) / det
-
-
-@njit(cache=True)
-def _try(mode, params, kappa_n, q_tr, p_tr, dt):
-    """Multipliers of an active set, with the softening floor; returns
-    (d gamma, d lambda, q, p, admissible)."""
-    lam_bulk, mu = params[BULK], params[MU]
-    af, ag, p_t = params[ALPHA_F], params[ALPHA_G], params[P_T]
-    vis = params[ETA] / dt if params[ETA] > 0.0 else 0.0
-    k_n = _cohesion(params, kappa_n)
-    h = params[H] if params[K0] + params[H] * kappa_n > params[K_RES] else 0.0
-    for _ in range(2):
-        f_tr = q_tr - af * p_tr - k_n
-        t_tr = -p_tr - p_t
-        a = 3.0 * mu + lam_bulk * af * ag + h
-        dg, dl = _multipliers(mode, f_tr, t_tr, a, lam_bulk * af, lam_bulk * ag, lam_bulk, vis)
-        if h < 0.0 and params[K0] + params[H] * (kappa_n + dg) < params[K_RES]:
-            # softening passes the residual within the step: the intercept at the end is
-            # k_res whatever the path, so the branch k = k_res, h = 0 is the solution
-            k_n = params[K_RES]
-            h = 0.0
-            continue
-        break
-    q = q_tr - 3.0 * mu * dg
-    p = p_tr + lam_bulk * (ag * dg + dl)
-    k_new = _cohesion(params, kappa_n + dg)
-    tol = 1e-12 * (abs(q_tr) + abs(p_tr) + params[K0])
-    ok = dg >= -tol and dl >= -tol and q >= -tol
-    # the other condition must hold at the result (for Perzyna: no overstress there)
-    if mode == 1:
-        ok = ok and -p - p_t <= tol
-    elif mode == 2:
-        ok = ok and q - af * p - k_new <= tol
-    return dg, dl, q, p, ok
-
-
-@njit(cache=True)
-def update(eps, eps_p, state, params, dt, sigma) -> None:
-    """Drucker-Prager point update (signature and notation of :mod:`.axisym`).
-
-    eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
-    equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
-    """
-    lmbda, mu, K = params[LMBDA], params[MU], params[BULK]
-    af, p_t = params[ALPHA_F], params[P_T]
-    elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
-    s0 = sigma[0]
-    s1 = sigma[1]
-    s2 = sigma[2]
-    s3 = sigma[3]
-    m_tr = (s0 + s1 + s2) / 3.0
-    d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
-    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
-    p_tr = -m_tr
-    kappa_n = state[KAPPA]
-    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
-    t_tr = -p_tr - p_t
-    scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
-    if f_tr <= scale_tol and t_tr <= scale_tol:
-        return  # elastic
-    dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
-    if f_tr > scale_tol:
-        dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
-    if not ok and t_tr > scale_tol:
-        dg, dl, q, p, ok = _try(2, params, kappa_n, q_tr, p_tr, dt)
-    if not ok:
-        dg, dl, q, p, ok = _try(3, params, kappa_n, q_tr, p_tr, dt)
-    dg = max(dg, 0.0)
-    dl = max(dl, 0.0)
-    q = max(q, 0.0)
-    # stress at n+1: the deviator scaled radially, the mean stress from p
-    ratio = q / q_tr if q_tr > 0.0 else 0.0
-    m = -p
-    sigma[0] = m + ratio * d0
-    sigma[1] = m + ratio * d1
-    sigma[2] = m + ratio * d2
-    sigma[3] = ratio * s3
-    # plastic strain increment: d gamma (3/2 s/q + alpha_g/3 I) + d lambda I/3, written as
-    # the elastic strain change that gives the stress change (exact for the linear return)
-    dvol = (params[ALPHA_G] * dg + dl) / 3.0
-    c_dev = 1.5 * dg / q_tr if q_tr > 0.0 else 0.0
-    e0 = c_dev * d0 + dvol
-    e1 = c_dev * d1 + dvol
-    e2 = c_dev * d2 + dvol
-    e3 = c_dev * s3
-    eps_p[0] += e0
-    eps_p[1] += e1
-    eps_p[2] += e2
-    eps_p[3] += e3
-    state[EPS_BAR_P] += SQRT_2_3 * math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + 2.0 * e3 * e3)
-    state[KAPPA] = kappa_n + dg

@@ -23,7 +23,7 @@ import os
 import numpy as np
 from mpi4py import MPI
 
-from impact_fenics import loads, scenes, statics
+from impact_fenics import loads, scenes
 from impact_fenics.errors import InputError, user_errors
 from impact_fenics.simulation import Settings
 
@@ -132,13 +132,8 @@ def blow_checks(sim) -> dict:
 # penetration, where the bit stops, the dynamic F/delta is close to it
 # (tests/test_bit_rock.py shows it tends to it as the blow slows down).
 def static_stiffness(sim) -> float:
-    model, c = sim.model, sim.contacts[0]
-    fixed = model.to_global(np.concatenate([model.axis_dofs(), model.facet_dofs("bottom", 1)]))
-    lo, hi = model.offset, model.offset + model.n_owned
-    face = c.constraints.lower[(c.constraints.lower >= lo) & (c.constraints.lower < hi)]
-    if c.b.any():  # a button: the stiffness of its flat-face limit is no reference
-        return float("nan")
-    return statics.rigid_indentation(model, sim.integrator.K, fixed, face, 1e-4) / 1e-4
+    """K_h (N/m) of a flat face; NaN for a button (its flat limit is no reference)."""
+    return float("nan") if sim.contacts[0].b.any() else scenes.static_stiffness(sim)
 
 
 def plot(sim, path: str, k_static: float) -> None:

@@ -10,7 +10,9 @@ from dataclasses import replace
 
 from mpi4py import MPI
 
-from . import loads, meshing
+import numpy as np
+
+from . import loads, meshing, statics
 from .bodies import Body, DeformableModel
 from .contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face, spherical_button
 from .errors import InputError, require
@@ -135,3 +137,18 @@ def bit_rock(settings: Settings, method, rock=GRANITE, bit_radius: float = 0.01,
     profile = None if button_radius is None else spherical_button(button_radius)
     sim.add_contact(rigid_face(model, "surface", bit_radius, "bit", profile), method, rigid=bit)
     return sim
+
+
+def held_dofs(model: DeformableModel) -> np.ndarray:
+    """Global indices of the owned dofs the bit-rock (and punch) block holds: u_r on the
+    axis, u_z on the bottom."""
+    return model.to_global(np.concatenate([model.axis_dofs(), model.facet_dofs("bottom", 1)]))
+
+
+def static_stiffness(sim: Simulation, delta: float = 1e-4) -> float:
+    """Static indentation stiffness K_h (N/m) of a rigid flat face on the scene's mesh: the
+    constrained surface nodes held at u_z = -delta (m), one direct solve with K."""
+    model, c = sim.model, sim.contacts[0]
+    face = statics.owned(model, c.constraints.lower)
+    force = statics.rigid_indentation(model, sim.integrator.K, held_dofs(model), face, delta)
+    return force / delta

@@ -15,6 +15,12 @@ from petsc4py import PETSc
 from .bodies import DeformableModel
 
 
+def owned(model: DeformableModel, dofs: np.ndarray) -> np.ndarray:
+    """The global indices among ``dofs`` that this rank owns."""
+    lo, hi = model.offset, model.offset + model.n_owned
+    return dofs[(dofs >= lo) & (dofs < hi)]
+
+
 def _factor(A: PETSc.Mat) -> PETSc.KSP:
     ksp = PETSc.KSP().create(A.getComm())
     ksp.setOperators(A)

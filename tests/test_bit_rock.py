@@ -40,23 +40,6 @@ A = 0.01  # bit radius (m)
 E_STAR = scenes.GRANITE.E / (1.0 - scenes.GRANITE.nu ** 2)
 
 
-def _owned(model, dofs):
-    lo, hi = model.offset, model.offset + model.n_owned
-    return dofs[(dofs >= lo) & (dofs < hi)]
-
-
-def _fixed(model):
-    return model.to_global(np.concatenate([model.axis_dofs(), model.facet_dofs("bottom", 1)]))
-
-
-def static_stiffness(sim) -> float:
-    """K_h (N/m) of the scene's mesh: the face nodes held at a rigid u_z = -delta."""
-    model, c = sim.model, sim.contacts[0]
-    delta = 1e-4
-    face = _owned(model, c.constraints.lower)
-    return statics.rigid_indentation(model, sim.integrator.K, _fixed(model), face, delta) / delta
-
-
 def _scene(method, s, comm=MPI.COMM_WORLD, t_end=9e-5, h=A / 5):
     """The bit-rock scene slowed down by s (the same static problem)."""
     settings = Settings(cfl=0.9, t_end=t_end * s, fields=False, quiet=True, plots=False,
@@ -86,8 +69,9 @@ def test_static_stiffness_tends_to_boussinesq():
                                  breaks=((1.0, int(round(1 / h))),))
         model = DeformableModel(tm, [Body("block", scenes.GRANITE)])
         c = rigid_face(model, "surface", 1.0, "bit")
-        force = statics.rigid_indentation(model, assemble_stiffness(model), _fixed(model),
-                                          _owned(model, c.lower), 1e-3)
+        force = statics.rigid_indentation(model, assemble_stiffness(model),
+                                          scenes.held_dofs(model), statics.owned(model, c.lower),
+                                          1e-3)
         ratios.append(force / 1e-3 / (2 * E_STAR * 1.0))
     e = np.array(ratios) - 1.0
     assert np.all(e > 0) and e[1] < e[0] / math.sqrt(2) and e[2] < e[1] / math.sqrt(2)
@@ -104,7 +88,7 @@ def test_flat_bit_force_over_penetration_tends_to_static_stiffness():
         sim = _scene(scenes.make_method("dme"), s)
         sim.run()
         force, delta = _at_max_penetration(sim)
-        errors.append(force / delta / static_stiffness(sim) - 1.0)
+        errors.append(force / delta / scenes.static_stiffness(sim) - 1.0)
     e = np.array(errors)
     ratios = e[1:] / e[:-1]
     assert np.all((ratios > 0.4) & (ratios < 0.6)), ratios  # first order in omega a / c
@@ -122,10 +106,11 @@ def test_penalty_bit_adds_a_series_spring():
         force, delta = _at_max_penetration(sim)
         c, model = sim.contacts[0], sim.model
         assert method.info["beta_max"] < 4.0 / 3.0
-        phi = statics.flexibility(model, sim.integrator.K, _fixed(model), c.constraints.lower)
+        phi = statics.flexibility(model, sim.integrator.K, scenes.held_dofs(model),
+                                  c.constraints.lower)
         compliance = np.diag(1.0 / method.p - c.d) - c.kappa + phi
         k_series = np.linalg.solve(compliance, np.ones(c.n)).sum()
-        assert k_series < 0.5 * static_stiffness(sim)  # the spring is felt
+        assert k_series < 0.5 * scenes.static_stiffness(sim)  # the spring is felt
         errors.append(force / delta / k_series - 1.0)
     assert 0.4 < errors[1] / errors[0] < 0.6
     assert abs(2 * errors[1] - errors[0]) < 1e-3

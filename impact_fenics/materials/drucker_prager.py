@@ -96,6 +96,7 @@ from numba import njit
 
 from ..errors import require
 from .axisym import SQRT_2_3, elastic_stress
+from .elastic import IsotropicModuli
 
 # params layout (float64 array)
 LMBDA, MU, BULK, ALPHA_F, ALPHA_G, K0, H, K_RES, P_T, ETA = range(10)
@@ -224,7 +225,7 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
 # ----------------------------------------------------------------------------- the material
 
 @dataclass(frozen=True)
-class DruckerPrager:
+class DruckerPrager(IsotropicModuli):
     """Drucker-Prager rock (see the module docstring for every formula).
 
     E (Pa), nu, density (kg/m^3); ``ucs`` the uniaxial compressive strength (Pa);
@@ -274,19 +275,6 @@ class DruckerPrager:
         require(self.hardening > -3.0 * self.mu,
                 f"material.hardening = {self.hardening} Pa: must be > -3 mu = {-3 * self.mu:.4g} Pa")
 
-    # elastic constants (Pa)
-    @property
-    def mu(self) -> float:
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
-
-    @property
-    def bulk(self) -> float:
-        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
-
     # the cone
     @property
     def alpha_f(self) -> float:
@@ -318,7 +306,3 @@ class DruckerPrager:
         p[K_RES] = self.alpha_f * self.tensile_strength if self.residual is None else self.residual
         p[P_T], p[ETA] = self.tensile_strength, self.viscosity
         return p
-
-    def wave_speed(self) -> float:
-        """Dilatational wave speed sqrt((lambda + 2 mu)/rho) (m/s)."""
-        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)

@@ -193,6 +193,7 @@ class RigidSpec:
     name: str
     mass: float      # kg
     velocity: float  # m/s along z
+    impedance: float = 0.0  # kg/s, of a rod driving the body (percussive drilling)
 
 
 @dataclass
@@ -204,6 +205,7 @@ class ContactSpec:
     surface: str | None = None   # facet group under a rigid body
     rigid: str | None = None     # the rigid body's name
     radius: float | None = None  # m, rigid face radius
+    button: float | None = None  # m, spherical button radius (else a flat face)
     penalty: float | str = "scaled"
     restitution: float = 0.0
     positions: str = "mass_weighted"
@@ -219,6 +221,7 @@ class LoadSpec:
     rigid: str | None = None
     traction: tuple[float, float] | None = None
     area: float | None = None  # m^2
+    incident: bool = False     # the pulse (N) is the incident wave in the body's rod
 
 
 @dataclass
@@ -387,9 +390,12 @@ def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> Bod
 
 
 def _read_rigid(name: str, data: dict) -> RigidSpec:
-    t = _Table(data, f"[rigid.{name}]", ("mass", "velocity"))
+    t = _Table(data, f"[rigid.{name}]", ("mass", "velocity", "impedance"))
     mass = t.positive("mass", "mass of the rigid body in kg")
-    return RigidSpec(name, mass, t.number("velocity", "initial z velocity in m/s", 0.0))
+    spec = RigidSpec(name, mass, t.number("velocity", "initial z velocity in m/s", 0.0))
+    if "impedance" in t:
+        spec.impedance = t.positive("impedance", "impedance rho c A of the driving rod in kg/s")
+    return spec
 
 
 CONTACT_KEYS = ("method", "penalty", "restitution", "positions", "film_solver")
@@ -397,7 +403,7 @@ CONTACT_KEYS = ("method", "penalty", "restitution", "positions", "film_solver")
 
 def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpec:
     is_rigid = isinstance(data, dict) and "rigid" in data
-    shape = ("surface", "rigid", "radius") if is_rigid else ("lower", "upper")
+    shape = ("surface", "rigid", "radius", "button") if is_rigid else ("lower", "upper")
     t = _Table(data, where, shape + CONTACT_KEYS)
     method = t.text("method", f"the contact method: {', '.join(METHODS)}", choices=METHODS)
     c = ContactSpec(where, method)
@@ -408,6 +414,10 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
             raise t.error("rigid", f"no table [rigid.{c.rigid}] "
                                    f"(rigid bodies: {', '.join(rigid) or 'none'})")
         c.radius = t.positive("radius", "radius of the flat rigid face in m")
+        if "button" in t:
+            c.button = t.positive("button", "radius of the spherical button in m")
+            if c.button < c.radius:
+                raise t.error("button", f"must be >= the face radius {_fmt(t.data['radius'])} m")
     else:
         c.lower = t.text("lower", "the facet group of the body below")
         c.upper = t.text("upper", "the facet group of the body above")
@@ -441,7 +451,7 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
         raise InputError(f"{where} pulse = {_fmt(pulse)}: use one of {', '.join(PULSES)}")
     params = PULSES[pulse]
     on_rigid = "rigid" in data
-    extra = ("rigid", "area") if on_rigid else ("facet", "traction")
+    extra = ("rigid", "area", "incident") if on_rigid else ("facet", "traction")
     t = _Table(data, where, ("pulse",) + extra + params)
     t.text("pulse", "the time function", "trapezoid", choices=tuple(PULSES))
     unit = ("Pa" if "area" in t else "N") if on_rigid else "Pa"
@@ -467,6 +477,12 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
         if "area" in t:
             load.area = t.positive("area", "area in m^2 on which the pulse, a pressure in Pa, "
                                            "pushes the body down (-z)")
+        load.incident = t.flag("incident", "the pulse is the incident compressive force wave "
+                                           "(N) of the body's rod", False)
+        if load.incident and load.area is not None:
+            raise t.error("area", "an incident wave is a force in N: give no area")
+        if load.incident and not rigid[load.rigid].impedance > 0:
+            raise t.error("incident", f"[rigid.{load.rigid}] needs impedance (kg/s) > 0")
     else:
         load.facet = t.text("facet", "the facet group loaded")
         if "traction" in t:
@@ -562,7 +578,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     ``settings_overrides`` sets fields of the Settings (e.g. out, quiet)."""
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
-    from .contact import RigidBody, pair_surfaces, rigid_face
+    from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
     from .materials import LinearElastic
     from .probes import locate_cell
     from .scenes import make_method
@@ -586,10 +602,13 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         with _at(f.where):
             fixed += [model.facet_dofs(f.facet, COMPONENTS[c]) for c in f.components]
     surface_loads, rigid_loads = [], {name: [] for name in scene.rigid}
+    incident = {name: [] for name in scene.rigid}
     for spec in scene.loads:
         pulse = (ld.Trapezoid(**spec.params) if spec.pulse == "trapezoid"
                  else ld.Constant(spec.params["value"]))
-        if spec.rigid is not None:
+        if spec.rigid is not None and spec.incident:
+            incident[spec.rigid].append((1.0, pulse))
+        elif spec.rigid is not None:
             rigid_loads[spec.rigid].append((-spec.area if spec.area else 1.0, pulse))
         else:
             with _at(spec.where):
@@ -617,9 +636,12 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             else:
                 spec = scene.rigid[c.rigid]
                 body = RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]),
-                                 v=spec.velocity)
-                sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name), method,
-                                rigid=body)
+                                 v=spec.velocity, impedance=spec.impedance,
+                                 incident=_force(incident[spec.name]) if incident[spec.name]
+                                 else None)
+                profile = None if c.button is None else spherical_button(c.button)
+                sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
+                                method, rigid=body)
     for p in scene.probes:
         with _at(p.where):
             locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()

@@ -5,15 +5,18 @@ Each builder returns a ready :class:`~impact_fenics.simulation.Simulation`
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 from mpi4py import MPI
 
-from . import loads, meshing
+import numpy as np
+
+from . import loads, meshing, statics
 from .bodies import Body, DeformableModel
-from .contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face
-from .errors import InputError
-from .materials import STEEL
+from .contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face, spherical_button
+from .errors import InputError, require
+from .materials import STEEL, LinearElastic
 from .simulation import Settings, Simulation
 
 
@@ -89,3 +92,63 @@ def punch_indentation(settings: Settings, method, radius: float = 1.0, punch_mas
     sim = Simulation(model, settings, fixed=[bottom])
     sim.add_contact(rigid_face(model, "surface", radius, "punch"), method, rigid=punch)
     return sim
+
+
+# The bit-rock scene of percussive drilling (issue 10). Granite-like rock (E, nu, rho of
+# the issue) and a steel rod of 32 mm diameter: Z = rho c0 A (kg/s).
+GRANITE = LinearElastic(E=60e9, nu=0.25, density=2600.0)
+ROD_IMPEDANCE = 7850.0 * math.sqrt(200e9 / 7850.0) * math.pi * 0.016 ** 2
+
+
+def rock_extent(rock, t_end: float, bit_radius: float) -> float:
+    """Radius and depth (m) of the rock block: a wave from the bit's edge that reaches the
+    boundary comes back to the bit after 2 L / c_L, so L = bit_radius + c_L t_end / 2 keeps
+    every echo away from the bit until t_end (5 % margin)."""
+    return bit_radius + 1.05 * rock.wave_speed() * t_end / 2.0
+
+
+def bit_rock(settings: Settings, method, rock=GRANITE, bit_radius: float = 0.01,
+             button_radius: float | None = None, bit_mass: float = 0.5,
+             impedance: float = ROD_IMPEDANCE,
+             incident: loads.TimeFunction = loads.Trapezoid(150e3, 1e-5, 7e-5, 8e-5),
+             h_surface: float | None = None, grading: float = 0.05,
+             tmesh: meshing.TaggedMesh | None = None,
+             comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """A rigid bit (mass in kg, one z dof) on a rock block, driven by a rod of impedance Z
+    (kg/s) carrying the incident compressive force wave ``incident(t)`` (N).
+
+    The bit's face has radius ``bit_radius`` (m): flat, or a spherical button of radius
+    ``button_radius`` (m) touching at r = 0. The block (punch_block mesh, bottom held in
+    z) is :func:`rock_extent` wide and deep for the run's t_end; the element size is
+    ``h_surface`` (default bit_radius / 10) under the face, growing by ``grading`` (m/m)
+    with the distance from it. Needs ``settings.t_end``."""
+    require(bit_radius > 0, f"bit radius = {bit_radius} m: must be > 0")
+    if tmesh is None:
+        require(settings.t_end is not None and settings.t_end > 0,
+                "bit_rock: give t_end (s); it sizes the rock block")
+        h = bit_radius / 10.0 if h_surface is None else h_surface
+        size = rock_extent(rock, settings.t_end, bit_radius)
+        n = max(1, int(round(bit_radius / h)))
+        tmesh = meshing.punch_block(width=size, depth=size, h_surface=h, grading=grading,
+                                    h_max=size / 8.0, breaks=((bit_radius, n),), comm=comm)
+    model = DeformableModel(tmesh, [Body("block", rock)])
+    bit = RigidBody("bit", bit_mass, impedance=impedance, incident=incident)
+    sim = Simulation(model, settings, fixed=[model.facet_dofs("bottom", 1)])
+    profile = None if button_radius is None else spherical_button(button_radius)
+    sim.add_contact(rigid_face(model, "surface", bit_radius, "bit", profile), method, rigid=bit)
+    return sim
+
+
+def held_dofs(model: DeformableModel) -> np.ndarray:
+    """Global indices of the owned dofs the bit-rock (and punch) block holds: u_r on the
+    axis, u_z on the bottom."""
+    return model.to_global(np.concatenate([model.axis_dofs(), model.facet_dofs("bottom", 1)]))
+
+
+def static_stiffness(sim: Simulation, delta: float = 1e-4) -> float:
+    """Static indentation stiffness K_h (N/m) of a rigid flat face on the scene's mesh: the
+    constrained surface nodes held at u_z = -delta (m), one direct solve with K."""
+    model, c = sim.model, sim.contacts[0]
+    face = statics.owned(model, c.constraints.lower)
+    force = statics.rigid_indentation(model, sim.integrator.K, held_dofs(model), face, delta)
+    return force / delta

@@ -462,6 +462,11 @@ class Simulation:
                                         "surfaces": list(c.constraints.names),
                                         "method_info": getattr(c.method, "info", {})}
                                        for c in self.contacts]
+            for c in self.contacts:  # a rigid body driven by a rod: its wave energies (J)
+                if c.rigid is not None and c.rigid.impedance > 0:
+                    summary.setdefault("rod_waves", {})[c.rigid.name] = {
+                        "incident": c.rigid.wave_incident, "reflected": c.rigid.wave_reflected,
+                        "delivered": c.rigid.wave_delivered}
             if times is not None and times.n_steps > 0:
                 summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                     ("contact_detection", "contact_solve", "contact_update"), self.comm)

@@ -40,6 +40,25 @@ class RigidBody:
     """A rigid body with one z dof, its state replicated on every rank.
 
     mass in kg; ``force(t)`` the external z force (N); u, v in m and m/s.
+
+    Optionally driven by a rod above it (percussive drilling): a rod of
+    impedance Z = rho c A (``impedance``, kg/s) carrying an incident
+    compressive force wave F_i(t) (``incident``, N, compressive > 0) down onto
+    the body. The rod's force on the body is F = 2 F_i - Z w, w = -v the
+    downward velocity (Lundberg 1982), with w the step average
+    (v^n + v^{n+1})/2: in z, F_z^n = -2 F_i(t^n) - Z (v^n + v^{n+1})/2. The
+    implicit half of it is an added mass Z dt/2:
+
+        (m + Z dt/2) v^{n+1} = (m - Z dt/2) v^n + dt (f(t^n) - 2 F_i(t^n) + F_contact),
+
+    so the contact methods see the effective mass m + Z dt/2. The reflected
+    wave is F_r = F_i - Z w (w the same step average). Then
+    F_i^2 - F_r^2 = Z w F exactly, so the wave energies (J)
+
+        incident  sum dt F_i^2 / Z,  reflected  sum dt F_r^2 / Z,
+        delivered sum dt F w   (the rod's work on the body)
+
+    balance to round-off: incident = reflected + delivered.
     """
 
     name: str
@@ -47,10 +66,54 @@ class RigidBody:
     force: Callable[[float], float] = lambda t: 0.0
     u: float = 0.0
     v: float = 0.0
+    impedance: float = 0.0
+    incident: Callable[[float], float] | None = None
+    wave_incident: float = 0.0
+    wave_reflected: float = 0.0
+    wave_delivered: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.mass > 0:
             raise InputError(f"rigid body '{self.name}': mass = {self.mass} kg must be > 0")
+        if not self.impedance >= 0:
+            raise InputError(f"rigid body '{self.name}': impedance = {self.impedance} kg/s "
+                             "must be >= 0")
+        if (self.incident is not None) and not self.impedance > 0:
+            raise InputError(f"rigid body '{self.name}': an incident wave needs a rod "
+                             "impedance > 0 (kg/s)")
+
+    def effective_mass(self, dt: float) -> float:
+        """m + Z dt/2 (kg): the mass a contact force accelerates within a step."""
+        return self.mass + 0.5 * self.impedance * dt
+
+    def _drive(self, t: float) -> float:
+        """External z force of step n without the rod's damping: f(t) - 2 F_i(t) (N)."""
+        return self.force(t) - (2.0 * self.incident(t) if self.incident is not None else 0.0)
+
+    def predict(self, t: float, dt: float) -> tuple[float, float]:
+        """(u~, v~) at t + dt without contact (m, m/s)."""
+        if self.impedance == 0.0:
+            v_tilde = self.v + dt * self._drive(t) / self.mass
+        else:
+            half = 0.5 * self.impedance * dt
+            v_tilde = ((self.mass - half) * self.v + dt * self._drive(t)) / (self.mass + half)
+        return self.u + dt * v_tilde, v_tilde
+
+    def advance(self, t: float, dt: float, u_next: float, v_next: float) -> float:
+        """Commit (u^{n+1}, v^{n+1}); book the rod's waves of the step; return the
+        external z force F^n of the step (N), the rod's included."""
+        force = self._drive(t)
+        if self.impedance > 0:
+            w = -0.5 * (self.v + v_next)  # downward, step-averaged
+            f_i = self.incident(t) if self.incident is not None else 0.0
+            rod = 2.0 * f_i - self.impedance * w  # the rod's push on the body (N, down)
+            f_r = f_i - self.impedance * w
+            self.wave_incident += dt * f_i * f_i / self.impedance
+            self.wave_reflected += dt * f_r * f_r / self.impedance
+            self.wave_delivered += dt * rod * w
+            force = self.force(t) - rod
+        self.u, self.v = float(u_next), float(v_next)
+        return force
 
 
 class ContactMethod(Protocol):
@@ -227,13 +290,13 @@ class ContactSet:
         self.mass = np.empty(ns)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
         if rigid:
-            self.mass[nd] = rigid.mass
+            self.mass[nd] = rigid.effective_mass(self.dt)
         self.gap = np.empty(n)
         self.work = np.empty(n, dtype=np.int64)  # scratch indices for the methods' kernels
         self.force = np.zeros(n)
         self.active = np.zeros(n, dtype=np.bool_)
         self.was_active = np.zeros(n, dtype=np.bool_)
-        self.kappa = 0.0 if rigid is None else self.dt ** 2 / rigid.mass
+        self.kappa = 0.0 if rigid is None else self.dt ** 2 / rigid.effective_mass(self.dt)
         self.d = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
         self.times = PhaseTimes()
         self.any_active = False  # after each step: is any constraint active,
@@ -277,19 +340,16 @@ class ContactSet:
         t0 = clock()
         self._gather(integ.u_owned, integ.v_owned, self.u_pred, self.v_pred)
         if self.rigid is not None:
-            rb = self.rigid
-            self._rigid_f = rb.force(integ.t)
-            v_tilde = rb.v + self.dt * self._rigid_f / rb.mass
-            self.u_pred[-1], self.v_pred[-1] = rb.u + self.dt * v_tilde, v_tilde
+            self.u_pred[-1], self.v_pred[-1] = self.rigid.predict(integ.t, self.dt)
         _predicted_gaps(self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up,
                         self.gap, self.active, self.was_active)
         t1 = clock()
         self.method.correct(self)
         t2 = clock()
         _write_back(self.u, self.v, self._local, self._pos, integ.u_owned, integ.v_owned)
-        self._ledger.book(integ.n)
         if self.rigid is not None:
-            self.rigid.u, self.rigid.v = float(self.u[-1]), float(self.v[-1])
+            self._rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
+        self._ledger.book(integ.n)
         t3 = clock()
         self.times.detection, self.times.solve, self.times.update = t1 - t0, t2 - t1, t3 - t2
 

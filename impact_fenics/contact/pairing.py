@@ -112,3 +112,19 @@ def rigid_face(model: DeformableModel, surface: str, radius: float, body_name: s
         raise InputError("rigid face profile must give a finite gap b(r) >= 0 (m) at every node")
     return Constraints(r=r.copy(), b=b.copy(), lower=dofs[keep].copy(), upper=None,
                        names=(surface, body_name))
+
+
+def spherical_button(sphere_radius: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Initial gaps b(r) = R_s - sqrt(R_s^2 - r^2) (m) under a spherical button of radius
+    R_s (m) touching the surface at r = 0: a ``profile`` for :func:`rigid_face`, whose
+    face radius must not exceed R_s."""
+    if not sphere_radius > 0:
+        raise InputError(f"button radius = {sphere_radius} m: must be > 0")
+
+    def profile(r: np.ndarray) -> np.ndarray:
+        if np.any(r > sphere_radius):
+            raise InputError(f"rigid face reaches r = {float(np.max(r)):.6g} m beyond the "
+                             f"button radius {sphere_radius} m")
+        return sphere_radius - np.sqrt(sphere_radius ** 2 - r * r)
+
+    return profile

@@ -19,8 +19,36 @@ import ufl
 from ..errors import require
 
 
+class IsotropicModuli:
+    """Moduli (Pa) and the dilatational wave speed (m/s) of an isotropic material with
+    Young's modulus ``E`` (Pa), Poisson's ratio ``nu`` and ``density`` (kg/m^3)."""
+
+    E: float
+    nu: float
+    density: float
+
+    @property
+    def mu(self) -> float:
+        """Shear modulus (Pa)."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def lmbda(self) -> float:
+        """Lame's first parameter (Pa)."""
+        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+
+    @property
+    def bulk(self) -> float:
+        """Bulk modulus K = E / (3 (1 - 2 nu)) (Pa)."""
+        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
+
+    def wave_speed(self) -> float:
+        """Dilatational wave speed c1 = sqrt((lambda + 2 mu)/rho) in m/s."""
+        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)
+
+
 @dataclass(frozen=True)
-class LinearElastic:
+class LinearElastic(IsotropicModuli):
     """Isotropic linear elasticity. E in Pa, nu dimensionless, density in kg/m^3."""
 
     E: float = 200e9
@@ -35,23 +63,9 @@ class LinearElastic:
                 f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5); "
                 "nu >= 0.5 is incompressible and has no explicit stable time step")
 
-    @property
-    def mu(self) -> float:
-        """Shear modulus (Pa)."""
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        """Lame's first parameter (Pa)."""
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
-
     def stress(self, eps: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """Cauchy stress (Pa) of the 3x3 strain tensor."""
         return self.lmbda * ufl.tr(eps) * ufl.Identity(3) + 2.0 * self.mu * eps
-
-    def wave_speed(self) -> float:
-        """Dilatational wave speed c1 = sqrt((lambda + 2 mu)/rho) in m/s."""
-        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)
 
     def bar_wave_speed(self) -> float:
         """One-dimensional bar speed c0 = sqrt(E/rho) in m/s."""

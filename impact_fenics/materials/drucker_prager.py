@@ -1,0 +1,308 @@
+"""Drucker-Prager plasticity for rock: a cone matched to Mohr-Coulomb, a tension
+cut-off, non-associated flow, linear cohesion hardening or softening, optional
+Perzyna viscosity. Small strain, the point update of :mod:`.axisym`.
+
+Signs (DESIGN section 9): tension positive; the pressure p = -tr(sigma)/3 is
+positive in compression; q = sqrt(3/2 s : s) with s = dev sigma (Pa).
+
+Yield surfaces (Pa) and plastic potential, de Souza Neto, Peric & Owen (2008),
+*Computational Methods for Plasticity*, section 8.2 (written here with q
+instead of sqrt(J2): q = sqrt(3 J2)):
+
+    cone      f(sigma, kappa) = q - alpha_f p - k(kappa) <= 0
+    cut-off   t(sigma)        = -p - p_t             <= 0   (mean stress <= p_t)
+    potential g(sigma)        = q - alpha_g p
+
+Flow on the cone, d eps_p = d gamma dg/dsigma = d gamma (3/2 s/q + alpha_g/3 I):
+its deviatoric part has the norm sqrt(2/3 de_p : de_p) = d gamma, its volume
+change is alpha_g d gamma (dilatant for alpha_g > 0). Flow on the cut-off is
+associated and volumetric only, d eps_p = d lambda I/3.
+
+Matching to Mohr-Coulomb on the compression meridian (the cone's outer edges,
+de Souza Neto et al. eq. 8.85): in triaxial compression (axial stress
+sigma_a, confinement sigma_c, both compressive) Mohr-Coulomb reads
+sigma_a = UCS + N sigma_c with N = (1 + sin phi)/(1 - sin phi), and on that
+meridian q = sigma_a - sigma_c, p = (sigma_a + 2 sigma_c)/3. The cone holds it
+for every confinement when
+
+    alpha_f = 6 sin phi / (3 - sin phi),    k = UCS (1 - alpha_f/3) = 6 c cos phi / (3 - sin phi),
+
+with the cohesion c = UCS (1 - sin phi) / (2 cos phi). The uniaxial compressive
+strength (q = UCS, p = UCS/3 on the cone) and the friction angle phi fix the
+cone; the dilatancy angle psi (0 <= psi <= phi) gives alpha_g in the same way.
+The tensile strength p_t fixes the cut-off (a mean-stress cut-off: hydrostatic
+tension at most p_t; it is also the uniaxial tensile strength whenever the cone
+allows that state, UT = 3 p_t).
+
+Hardening: k(kappa) = max(k_0 + h kappa, k_res), kappa = sum d gamma (the
+deviatoric equivalent plastic strain), h = dk/dkappa (Pa) > 0 hardening, < 0
+softening down to the residual k_res >= alpha_f p_t. That bound keeps the
+cone's apex (p = -k/alpha_f) outside the cut-off, so the admissible region is
+a truncated cone with one corner circle (p = -p_t, q = k - alpha_f p_t >= 0),
+no apex return is ever needed and the plastic dissipation is non-negative:
+sigma : d eps_p = d gamma (q - alpha_g p) = d gamma (k + (alpha_f - alpha_g) p) >= 0
+on the cone (p >= -p_t, alpha_g <= alpha_f), and d lambda p_t >= 0 on the cut-off.
+
+Return mapping (backward Euler, closed form; K bulk, mu shear modulus). From the
+trial state (p*, q*, sigma_m* = -p*) the multipliers d gamma (cone) and
+d lambda (cut-off) give
+
+    q = q* - 3 mu d gamma,   sigma_m = sigma_m* - K (alpha_g d gamma + d lambda),   s = s* q / q*,
+
+and the conditions (Perzyna viscosity eta, Pa s; eta = 0 rate-independent)
+
+    cone:    f* - A d gamma - B d lambda = eta d gamma / dt
+    cut-off: t* - C d gamma - D d lambda = eta d lambda / dt
+
+with A = 3 mu + K alpha_f alpha_g + h, B = K alpha_f, C = K alpha_g, D = K. The
+Perzyna law is gamma' = <f>/eta, lambda' = <t>/eta (overstress in Pa over a
+viscosity in Pa s), integrated by backward Euler; eta/dt adds to A and D, and
+eta -> 0 recovers the rate-independent update (de Souza Neto et al. 11.3).
+The active set is found in order:
+
+1. cone alone (d lambda = 0): d gamma = f*/(A + eta/dt), accepted if the
+   result satisfies the cut-off and q >= 0;
+2. cut-off alone (d gamma = 0): d lambda = t*/(D + eta/dt), accepted if the
+   result lies inside the cone;
+3. the corner: both, from the 2x2 system above.
+
+The corner region. In the (p, q) plane the cone's return moves a trial point
+along (K alpha_g, -3 mu) per unit d gamma, the cut-off's along (K, 0) per unit
+d lambda. The trial states that return to the corner point (-p_t, k - alpha_f
+p_t) are the wedge spanned at that point by the reversed directions
+(-K alpha_g, 3 mu) and (-K, 0): above the cut-off's return line q = k -
+alpha_f p_t and left of the line through the corner along the cone's flow.
+Left of the wedge's lower edge the cut-off alone applies, right of its upper
+edge the cone alone. With linear hardening the corner's position moves with
+kappa, which the closed form of step 3 includes (rate-independent:
+d gamma = (q* - k_n + alpha_f p_t) / (3 mu + h), then d lambda from the
+cut-off's consistency).
+
+Softening that reaches k_res within a step is exact too: the step is redone
+with k = k_res and h = 0, which is the solution on that branch.
+
+Point update (the seam of :mod:`.axisym`): ``update(eps, eps_p, state, params,
+dt, sigma)``; state[0] the equivalent plastic strain int sqrt(2/3 deps_p :
+deps_p) (DESIGN section 9, volumetric flow included), state[1] kappa.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numba import njit
+
+from ..errors import require
+from .axisym import SQRT_2_3, elastic_stress
+from .elastic import IsotropicModuli
+
+# params layout (float64 array)
+LMBDA, MU, BULK, ALPHA_F, ALPHA_G, K0, H, K_RES, P_T, ETA = range(10)
+N_PARAMS = 10
+N_STATE = 2
+EPS_BAR_P, KAPPA = 0, 1
+
+
+def alpha_of_angle(angle_deg: float) -> float:
+    """Slope 6 sin(angle) / (3 - sin(angle)) of the compression-meridian match (dimensionless)."""
+    s = math.sin(math.radians(angle_deg))
+    return 6.0 * s / (3.0 - s)
+
+
+# ----------------------------------------------------------------------------- the update
+
+@njit(cache=True)
+def _cohesion(params, kappa) -> float:
+    """k(kappa) = max(k_0 + h kappa, k_res) (Pa)."""
+    return max(params[K0] + params[H] * kappa, params[K_RES])
+
+
+@njit(cache=True)
+def _multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
+    """(d gamma, d lambda) of the active set ``mode`` (1 cone, 2 cut-off, 3 both)."""
+    if mode == 1:
+        return f_tr / (a + vis), 0.0
+    if mode == 2:
+        return 0.0, t_tr / (d + vis)
+    aa, dd = a + vis, d + vis
+    det = aa * dd - b * c
+    return (f_tr * dd - b * t_tr) / det, (aa * t_tr - c * f_tr) / det
+
+
+@njit(cache=True)
+def _try(mode, params, kappa_n, q_tr, p_tr, dt):
+    """Multipliers of an active set, with the softening floor; returns
+    (d gamma, d lambda, q, p, admissible)."""
+    bulk, mu = params[BULK], params[MU]
+    af, ag, p_t = params[ALPHA_F], params[ALPHA_G], params[P_T]
+    vis = params[ETA] / dt if params[ETA] > 0.0 else 0.0
+    k_n = _cohesion(params, kappa_n)
+    h = params[H] if params[K0] + params[H] * kappa_n > params[K_RES] else 0.0
+    for _ in range(2):
+        f_tr = q_tr - af * p_tr - k_n
+        t_tr = -p_tr - p_t
+        a = 3.0 * mu + bulk * af * ag + h
+        dg, dl = _multipliers(mode, f_tr, t_tr, a, bulk * af, bulk * ag, bulk, vis)
+        if h < 0.0 and params[K0] + params[H] * (kappa_n + dg) < params[K_RES]:
+            # softening passes the residual within the step: the intercept at the end is
+            # k_res whatever the path, so the branch k = k_res, h = 0 is the solution
+            k_n = params[K_RES]
+            h = 0.0
+            continue
+        break
+    q = q_tr - 3.0 * mu * dg
+    p = p_tr + bulk * (ag * dg + dl)
+    k_new = _cohesion(params, kappa_n + dg)
+    tol = 1e-12 * (abs(q_tr) + abs(p_tr) + params[K0])
+    ok = dg >= -tol and dl >= -tol and q >= -tol
+    # the other condition must hold at the result (for Perzyna: no overstress there)
+    if mode == 1:
+        ok = ok and -p - p_t <= tol
+    elif mode == 2:
+        ok = ok and q - af * p - k_new <= tol
+    return dg, dl, q, p, ok
+
+
+@njit(cache=True)
+def update(eps, eps_p, state, params, dt, sigma) -> None:
+    """Drucker-Prager point update (signature and notation of :mod:`.axisym`).
+
+    eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
+    equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
+    """
+    lmbda, mu, K = params[LMBDA], params[MU], params[BULK]
+    af, p_t = params[ALPHA_F], params[P_T]
+    elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
+    s0 = sigma[0]
+    s1 = sigma[1]
+    s2 = sigma[2]
+    s3 = sigma[3]
+    m_tr = (s0 + s1 + s2) / 3.0
+    d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
+    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    p_tr = -m_tr
+    kappa_n = state[KAPPA]
+    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    t_tr = -p_tr - p_t
+    scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
+    if f_tr <= scale_tol and t_tr <= scale_tol:
+        return  # elastic
+    dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
+    if f_tr > scale_tol:
+        dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
+    if not ok and t_tr > scale_tol:
+        dg, dl, q, p, ok = _try(2, params, kappa_n, q_tr, p_tr, dt)
+    if not ok:
+        dg, dl, q, p, ok = _try(3, params, kappa_n, q_tr, p_tr, dt)
+    dg = max(dg, 0.0)
+    dl = max(dl, 0.0)
+    q = max(q, 0.0)
+    # stress at n+1: the deviator scaled radially, the mean stress from p
+    ratio = q / q_tr if q_tr > 0.0 else 0.0
+    m = -p
+    sigma[0] = m + ratio * d0
+    sigma[1] = m + ratio * d1
+    sigma[2] = m + ratio * d2
+    sigma[3] = ratio * s3
+    # plastic strain increment: d gamma (3/2 s/q + alpha_g/3 I) + d lambda I/3, written as
+    # the elastic strain change that gives the stress change (exact for the linear return)
+    dvol = (params[ALPHA_G] * dg + dl) / 3.0
+    c_dev = 1.5 * dg / q_tr if q_tr > 0.0 else 0.0
+    e0 = c_dev * d0 + dvol
+    e1 = c_dev * d1 + dvol
+    e2 = c_dev * d2 + dvol
+    e3 = c_dev * s3
+    eps_p[0] += e0
+    eps_p[1] += e1
+    eps_p[2] += e2
+    eps_p[3] += e3
+    state[EPS_BAR_P] += SQRT_2_3 * math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + 2.0 * e3 * e3)
+    state[KAPPA] = kappa_n + dg
+
+
+# ----------------------------------------------------------------------------- the material
+
+@dataclass(frozen=True)
+class DruckerPrager(IsotropicModuli):
+    """Drucker-Prager rock (see the module docstring for every formula).
+
+    E (Pa), nu, density (kg/m^3); ``ucs`` the uniaxial compressive strength (Pa);
+    ``friction_angle`` phi and ``dilatancy_angle`` psi in degrees, 0 <= psi <= phi < 90;
+    ``tensile_strength`` p_t (Pa), the largest hydrostatic tension (mean-stress cut-off);
+    ``hardening`` h = dk/dkappa (Pa; < 0 softens); ``residual`` k_res (Pa), the
+    smallest cone intercept under softening (default and minimum alpha_f p_t);
+    ``viscosity`` eta (Pa s) of the Perzyna law, 0 for rate independence.
+    """
+
+    E: float = 60e9
+    nu: float = 0.25
+    density: float = 2600.0
+    ucs: float = 200e6
+    friction_angle: float = 50.0
+    dilatancy_angle: float = 10.0
+    tensile_strength: float = 10e6
+    hardening: float = 0.0
+    residual: float | None = None
+    viscosity: float = 0.0
+    linear: ClassVar[bool] = False
+    n_state: ClassVar[int] = N_STATE
+    update = staticmethod(update)  # the compiled point update (numba), signature of axisym
+
+    def __post_init__(self) -> None:
+        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
+        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
+        require(-1.0 < self.nu < 0.5,
+                f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
+        require(0.0 <= self.friction_angle < 90.0,
+                f"material.friction_angle = {self.friction_angle} deg: must lie in [0, 90)")
+        require(0.0 <= self.dilatancy_angle <= self.friction_angle,
+                f"material.dilatancy_angle = {self.dilatancy_angle} deg: must lie in "
+                f"[0, friction_angle = {self.friction_angle}] (psi > phi or psi < 0 "
+                "allows negative plastic work)")
+        require(self.ucs > 0, f"material.ucs = {self.ucs} Pa: the compressive strength must be > 0")
+        require(self.tensile_strength > 0,
+                f"material.tensile_strength = {self.tensile_strength} Pa: must be > 0")
+        require(self.viscosity >= 0, f"material.viscosity = {self.viscosity} Pa s: must be >= 0")
+        require(self.alpha_f * self.tensile_strength <= self.k,
+                f"material.tensile_strength = {self.tensile_strength} Pa: must be <= "
+                f"k/alpha_f = {self.k / max(self.alpha_f, 1e-300):.4g} Pa (the cone's apex)")
+        require(self.residual is None or self.alpha_f * self.tensile_strength <= self.residual
+                <= self.k, f"material.residual = {self.residual} Pa: must lie in "
+                           f"[alpha_f p_t = {self.alpha_f * self.tensile_strength:.4g}, "
+                           f"k = {self.k:.4g}] Pa")
+        require(self.hardening > -3.0 * self.mu,
+                f"material.hardening = {self.hardening} Pa: must be > -3 mu = {-3 * self.mu:.4g} Pa")
+
+    # the cone
+    @property
+    def alpha_f(self) -> float:
+        """Friction slope of the cone, dq/dp (dimensionless)."""
+        return alpha_of_angle(self.friction_angle)
+
+    @property
+    def alpha_g(self) -> float:
+        """Dilatancy slope of the plastic potential (dimensionless)."""
+        return alpha_of_angle(self.dilatancy_angle)
+
+    @property
+    def k(self) -> float:
+        """Initial cone intercept k_0 = UCS (1 - alpha_f/3) (Pa)."""
+        return self.ucs * (1.0 - self.alpha_f / 3.0)
+
+    @property
+    def cohesion(self) -> float:
+        """Mohr-Coulomb cohesion c = UCS (1 - sin phi) / (2 cos phi) (Pa)."""
+        phi = math.radians(self.friction_angle)
+        return self.ucs * (1.0 - math.sin(phi)) / (2.0 * math.cos(phi))
+
+    def params(self) -> np.ndarray:
+        """The float64 parameter array of :func:`update`."""
+        p = np.zeros(N_PARAMS)
+        p[LMBDA], p[MU], p[BULK] = self.lmbda, self.mu, self.bulk
+        p[ALPHA_F], p[ALPHA_G] = self.alpha_f, self.alpha_g
+        p[K0], p[H] = self.k, self.hardening
+        p[K_RES] = self.alpha_f * self.tensile_strength if self.residual is None else self.residual
+        p[P_T], p[ETA] = self.tensile_strength, self.viscosity
+        return p

@@ -57,9 +57,15 @@ class Ledger:
         self.scale = 0.0  # largest |term| seen, the reference for the relative error
 
     def record(self, kinetic: float, strain: float, external_work: float,
-               contact_work: float) -> dict[str, float]:
-        """Balance at one output step; all energies in J, already summed over ranks."""
-        E = kinetic + strain
+               contact_work: float, plastic_work: float = 0.0,
+               deformation_work: float = 0.0) -> dict[str, float]:
+        """Balance at one output step; all energies in J, already summed over ranks.
+
+        ``strain`` is the stored elastic energy of every body (1/2 u'Ku of the linear
+        ones, psi_e of the path-dependent ones), ``plastic_work`` the work dissipated
+        at their points; ``deformation_work`` sum 1/2 (f_int^{n-1} + f_int^n) . du of
+        the path-dependent bodies, reported beside (it equals d psi_e + W_p)."""
+        E = kinetic + strain + plastic_work
         if self.E0 is None:
             self.E0 = E
         balance = E - self.E0 - external_work - contact_work
@@ -67,6 +73,7 @@ class Ledger:
         rel = abs(balance) / self.scale if self.scale > 0 else 0.0
         return {"kinetic": kinetic, "strain": strain, "total": E,
                 "external_work": external_work, "contact_work": contact_work,
+                "plastic_work": plastic_work, "deformation_work": deformation_work,
                 "balance_error": balance, "balance_error_rel": rel}
 
 

@@ -113,11 +113,15 @@ def kernels(update):
     if update in _KERNELS:
         return _KERNELS[update]
 
-    @njit(fastmath=False)
+    @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, r, w, u, f, eps_p, state, sigma, work):
         """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
         sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
-        eps = work[:4]
+        # the point's variables go through small scratch arrays: a view into the big
+        # arrays per point would cost two reference-count updates each
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :state.shape[2]]
+        ns = state.shape[2]
         wp = 0.0
         for c in range(dofs.shape[0]):
             a0, a1, a2 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2]
@@ -136,15 +140,22 @@ def kernels(update):
                 eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) / rq
                 eps[2] = e_zz
                 eps[3] = e_rz
-                ep = eps_p[c, q]
-                s = sigma[c, q]
-                o0, o1, o2, o3 = s[0], s[1], s[2], s[3]
-                p0, p1, p2, p3 = ep[0], ep[1], ep[2], ep[3]
-                update(eps, ep, state[c, q], params, dt, s)
+                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
+                o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                for k in range(ns):
+                    st[k] = state[c, q, k]
+                update(eps, ep, st, params, dt, s)
+                for k in range(ns):
+                    state[c, q, k] = st[k]
+                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
+                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = ep[0], ep[1], ep[2], ep[3]
                 wq = w[c, q]
-                wp += 0.5 * wq * ((o0 + s[0]) * (ep[0] - p0) + (o1 + s[1]) * (ep[1] - p1)
-                                  + (o2 + s[2]) * (ep[2] - p2) + 2.0 * (o3 + s[3]) * (ep[3] - p3))
-                s_rr, s_tt, s_zz, s_rz = wq * s[0], wq * s[1] / rq, wq * s[2], wq * s[3]
+                wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                  + 2.0 * (o3 + s3) * d3)
+                s_rr, s_tt, s_zz, s_rz = wq * s0, wq * s1 / rq, wq * s2, wq * s3
                 fr0 += s_rr * gr0 + s_tt * n0 + s_rz * gz0
                 fr1 += s_rr * gr1 + s_tt * n1 + s_rz * gz1
                 fr2 += s_rr * gr2 + s_tt * n2 + s_rz * gz2
@@ -159,26 +170,35 @@ def kernels(update):
             f[a2 + 1] += fz2
         return wp
 
-    @njit(fastmath=False)
-    def points(params, dt, eps_all, w, eps_p, state, sigma, qdofs, sigma_q):
+    @njit
+    def points(params, dt, eps_all, w, eps_p, state, sigma, qdofs, sigma_q, work):
         """Point updates from the strains ``eps_all`` (n, 3 * 4) evaluated by dolfinx;
         the stresses also go to ``sigma_q`` (the quadrature Function's array) at
         ``qdofs`` (n, 3). Returns the plastic work increment (J), as :func:`fused`."""
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :state.shape[2]]
+        ns = state.shape[2]
         wp = 0.0
         for c in range(eps_all.shape[0]):
             for q in range(3):
-                eps = eps_all[c, 4 * q:4 * q + 4]
-                ep = eps_p[c, q]
-                s = sigma[c, q]
-                o0, o1, o2, o3 = s[0], s[1], s[2], s[3]
-                p0, p1, p2, p3 = ep[0], ep[1], ep[2], ep[3]
-                update(eps, ep, state[c, q], params, dt, s)
+                for i in range(4):
+                    eps[i] = eps_all[c, 4 * q + i]
+                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
+                o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                for k in range(ns):
+                    st[k] = state[c, q, k]
+                update(eps, ep, st, params, dt, s)
+                for k in range(ns):
+                    state[c, q, k] = st[k]
+                k4 = 4 * qdofs[c, q]
+                for i in range(4):
+                    sigma[c, q, i] = s[i]
+                    eps_p[c, q, i] = ep[i]
+                    sigma_q[k4 + i] = s[i]
                 wp += 0.5 * w[c, q] * ((o0 + s[0]) * (ep[0] - p0) + (o1 + s[1]) * (ep[1] - p1)
                                        + (o2 + s[2]) * (ep[2] - p2)
                                        + 2.0 * (o3 + s[3]) * (ep[3] - p3))
-                k = 4 * qdofs[c, q]
-                for i in range(4):
-                    sigma_q[k + i] = s[i]
         return wp
 
     _KERNELS[update] = (fused, points)
@@ -250,7 +270,7 @@ class QuadratureForce:
         self.f_owned = self.f.x.array[:n]
         self._f_prev = np.zeros(n)
         self._u_prev = np.zeros(n)
-        self._work = np.zeros(8)
+        self._work = np.zeros((4, max(N_COMP, self.material.n_state)))
         self.deformation_work_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
@@ -298,7 +318,7 @@ class QuadratureForce:
         else:
             self._eps_expr.eval(self.cells, values=self._eps_buf)
             wp = self._points(self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
-                              qs.sigma, self._qdofs, self._sigma_q.x.array)
+                              qs.sigma, self._qdofs, self._sigma_q.x.array, self._work)
             vec = self.f.vector
             with vec.localForm() as local:
                 local.set(0.0)

@@ -33,7 +33,6 @@ import numpy as np
 from numba import njit
 
 from ..errors import require
-from .axisym import SQRT_3_2
 
 # layout of the parameter array given to :func:`update`
 LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
@@ -51,11 +50,13 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
     s0, s1, s2, s3 = lt + 2.0 * mu * e0, lt + 2.0 * mu * e1, lt + 2.0 * mu * e2, 2.0 * mu * e3
     m = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m, s1 - m, s2 - m
-    q_tr = SQRT_3_2 * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
-    f_tr = q_tr - (params[YIELD_STRESS] + params[HARDENING] * state[0])
-    if f_tr <= 0.0:
+    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)  # sigma_eq,tr^2
+    sy = params[YIELD_STRESS] + params[HARDENING] * state[0]
+    if q2_tr <= sy * sy:  # f_tr <= 0 (sigma_y > 0): elastic, no square root needed
         sigma[0], sigma[1], sigma[2], sigma[3] = s0, s1, s2, s3
         return
+    q_tr = math.sqrt(q2_tr)
+    f_tr = q_tr - sy
     viscous = params[VISCOSITY] / dt if params[VISCOSITY] > 0.0 else 0.0
     dg = f_tr / (3.0 * mu + params[HARDENING] + viscous)  # Delta eps_bar_p
     k = 1.5 * dg / q_tr  # Delta eps_p = k s_tr
@@ -92,8 +93,9 @@ class J2:
         require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
         require(-1.0 < self.nu < 0.5, f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
         require(self.yield_stress > 0, f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
-        require(self.hardening > -3.0 * self.mu,
-                f"material.hardening = {self.hardening} Pa: must be > -3 mu (the return needs 3 mu + H > 0)")
+        require(self.hardening >= 0,
+                f"material.hardening = {self.hardening} Pa: must be >= 0 (softening makes the "
+                "solution mesh-dependent and is not offered)")
         require(self.viscosity >= 0, f"material.viscosity = {self.viscosity} Pa s: must be >= 0")
 
     @property

@@ -41,7 +41,7 @@ def _split(ctx, integ) -> dict:
     if force.path == "fast":
         out["zero_f"] = ctx.median(lambda: f.fill(0.0))
         out["fused_kernel"] = ctx.median(lambda: force._fused(
-            force.params, force.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.r, g.w, integ._u_fn.x.array,
+            force.params, force.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, integ._u_fn.x.array,
             f, qs.eps_p, qs.state, qs.sigma, force._work))
         out["ghost_reverse"] = ctx.median(lambda: force.f.x.scatter_reverse(_add()))
         # the return mappings alone, on the same strains (the generic path's point loop)

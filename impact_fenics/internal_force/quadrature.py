@@ -66,7 +66,8 @@ class CellGeometry:
     """Fixed (small strain) geometry of P1 triangles at the rule's points.
 
     ``dofs`` (n, 3) node (block) indices; ``dNdr``, ``dNdz`` (n, 3) P1 gradients
-    (1/m); ``N`` (3 points, 3 nodes) shape values; ``r`` (n, 3) point radii (m);
+    (1/m); ``N`` (3 points, 3 nodes) shape values; ``r`` (n, 3) point radii (m) and
+    ``inv_r`` their inverses (1/m);
     ``w`` (n, 3) weights w_q |J| 2 pi r_q (m^3)."""
 
     def __init__(self, model: DeformableModel, cells: np.ndarray):
@@ -88,6 +89,7 @@ class CellGeometry:
         self.dNdr = np.ascontiguousarray(grad[:, :, 0])
         self.dNdz = np.ascontiguousarray(grad[:, :, 1])
         self.r = np.ascontiguousarray(np.einsum("qi,ni->nq", self.N, xy[:, :, 0]))
+        self.inv_r = 1.0 / self.r  # the kernel multiplies (a division per point costs more)
         self.w = np.ascontiguousarray(ref_weights[None, :] * np.abs(det)[:, None]
                                       * 2.0 * math.pi * self.r)
 
@@ -114,7 +116,7 @@ def kernels(update):
         return _KERNELS[update]
 
     @njit
-    def fused(params, dt, dofs, dNdr, dNdz, N, r, w, u, f, eps_p, state, sigma, work):
+    def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
         """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
         sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
         # the point's variables go through small scratch arrays: a view into the big
@@ -134,10 +136,10 @@ def kernels(update):
             e_rz = 0.5 * ((gz0 * ur0 + gz1 * ur1 + gz2 * ur2) + (gr0 * uz0 + gr1 * uz1 + gr2 * uz2))
             fr0 = fr1 = fr2 = fz0 = fz1 = fz2 = 0.0
             for q in range(3):
-                rq = r[c, q]
+                ir = inv_r[c, q]
                 n0, n1, n2 = N[q, 0], N[q, 1], N[q, 2]
                 eps[0] = e_rr
-                eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) / rq
+                eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
                 eps[2] = e_zz
                 eps[3] = e_rz
                 p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
@@ -155,7 +157,7 @@ def kernels(update):
                 wq = w[c, q]
                 wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
                                   + 2.0 * (o3 + s3) * d3)
-                s_rr, s_tt, s_zz, s_rz = wq * s0, wq * s1 / rq, wq * s2, wq * s3
+                s_rr, s_tt, s_zz, s_rz = wq * s0, wq * s1 * ir, wq * s2, wq * s3
                 fr0 += s_rr * gr0 + s_tt * n0 + s_rz * gz0
                 fr1 += s_rr * gr1 + s_tt * n1 + s_rz * gz1
                 fr2 += s_rr * gr2 + s_tt * n2 + s_rz * gz2
@@ -312,7 +314,7 @@ class QuadratureForce:
         if self.path == "fast":
             arr = self.f.x.array
             arr[:] = 0.0
-            wp = self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.r, g.w,
+            wp = self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
                              self.u.x.array, arr, qs.eps_p, qs.state, qs.sigma, self._work)
             self.f.x.scatter_reverse(_ADD)
         else:

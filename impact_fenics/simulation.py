@@ -12,7 +12,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import ufl
 from mpi4py import MPI
 
 from . import forms, output, plotting
@@ -346,8 +345,8 @@ class Simulation:
         pf = self.plastic_fields
         if material.linear:
             comps = forms.stress_components(u, material)
-            if pf is not None:
-                comps.update({k: ufl.as_ufl(0.0) for k in PLASTIC_FIELDS})
+            if pf is not None:  # the cell fields hold 0 in the cells of linear bodies
+                comps.update({k: pf.expression(k) for k in PLASTIC_FIELDS})
             return comps
         comps = forms.stress_components(u, material, pf.eps_p)
         comps.update({k: pf.expression(k) for k in PLASTIC_FIELDS})

@@ -134,7 +134,10 @@ def kernels(update):
             e_rr = gr0 * ur0 + gr1 * ur1 + gr2 * ur2
             e_zz = gz0 * uz0 + gz1 * uz1 + gz2 * uz2
             e_rz = 0.5 * ((gz0 * ur0 + gz1 * ur1 + gz2 * ur2) + (gr0 * uz0 + gr1 * uz1 + gr2 * uz2))
-            fr0 = fr1 = fr2 = fz0 = fz1 = fz2 = 0.0
+            # P1 gradients are constant in the cell: f_i = B_i' sum_q w_q sigma_q needs the
+            # weighted sums of sigma_rr, sigma_zz, sigma_rz and, for the hoop term, of
+            # w_q sigma_tt,q / r_q N_i(x_q)
+            S_rr = S_zz = S_rz = h0 = h1 = h2 = 0.0
             for q in range(3):
                 ir = inv_r[c, q]
                 n0, n1, n2 = N[q, 0], N[q, 1], N[q, 2]
@@ -143,7 +146,6 @@ def kernels(update):
                 eps[2] = e_zz
                 eps[3] = e_rz
                 p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
-                o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
                 ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
                 for k in range(ns):
                     st[k] = state[c, q, k]
@@ -151,25 +153,28 @@ def kernels(update):
                 for k in range(ns):
                     state[c, q, k] = st[k]
                 s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
-                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
-                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
-                eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = ep[0], ep[1], ep[2], ep[3]
                 wq = w[c, q]
-                wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
-                                  + 2.0 * (o3 + s3) * d3)
-                s_rr, s_tt, s_zz, s_rz = wq * s0, wq * s1 * ir, wq * s2, wq * s3
-                fr0 += s_rr * gr0 + s_tt * n0 + s_rz * gz0
-                fr1 += s_rr * gr1 + s_tt * n1 + s_rz * gz1
-                fr2 += s_rr * gr2 + s_tt * n2 + s_rz * gz2
-                fz0 += s_zz * gz0 + s_rz * gr0
-                fz1 += s_zz * gz1 + s_rz * gr1
-                fz2 += s_zz * gz2 + s_rz * gr2
-            f[a0] += fr0
-            f[a1] += fr1
-            f[a2] += fr2
-            f[a0 + 1] += fz0
-            f[a1 + 1] += fz1
-            f[a2 + 1] += fz2
+                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
+                    o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                    wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                      + 2.0 * (o3 + s3) * d3)
+                    eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = \
+                        ep[0], ep[1], ep[2], ep[3]
+                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
+                S_rr += wq * s0
+                S_zz += wq * s2
+                S_rz += wq * s3
+                t = wq * s1 * ir
+                h0 += t * n0
+                h1 += t * n1
+                h2 += t * n2
+            f[a0] += gr0 * S_rr + gz0 * S_rz + h0
+            f[a1] += gr1 * S_rr + gz1 * S_rz + h1
+            f[a2] += gr2 * S_rr + gz2 * S_rz + h2
+            f[a0 + 1] += gz0 * S_zz + gr0 * S_rz
+            f[a1 + 1] += gz1 * S_zz + gr1 * S_rz
+            f[a2 + 1] += gz2 * S_zz + gr2 * S_rz
         return wp
 
     @njit

@@ -7,5 +7,6 @@ four-component notation of :mod:`.axisym`; the internal force evaluates it at
 the quadrature points of the stiffness rule every step.
 """
 from .elastic import STEEL, LinearElastic
+from .j2 import J2
 
-__all__ = ["LinearElastic", "STEEL"]
+__all__ = ["J2", "LinearElastic", "STEEL"]

@@ -35,7 +35,7 @@ from numba import njit
 from impact_fenics import loads, meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.errors import require, user_errors
-from impact_fenics.materials.j2 import J2
+from impact_fenics.materials import J2, IsotropicConstants
 from impact_fenics.simulation import Settings, Simulation
 
 
@@ -81,8 +81,10 @@ def voce_update(eps, eps_p, state, params, dt, sigma):
 
 
 # ## The material around it
+# (IsotropicConstants gives mu, lmbda, bulk, wave_speed() and the checks of E, nu
+# and density.)
 @dataclass(frozen=True)
-class VoceJ2:
+class VoceJ2(IsotropicConstants):
     """J2 with Voce hardening. E, sigma_0, sigma_inf in Pa; delta (-); density kg/m^3."""
 
     E: float
@@ -95,17 +97,9 @@ class VoceJ2:
     n_state: int = 1
 
     def __post_init__(self) -> None:
-        require(self.E > 0 and self.density > 0 and -1 < self.nu < 0.5, "E, density > 0, -1 < nu < 0.5")
+        self.check_elastic()
         require(0 < self.sigma_0 <= self.sigma_inf and self.delta >= 0,
                 "need 0 < sigma_0 <= sigma_inf (Pa) and delta >= 0")
-
-    @property
-    def mu(self) -> float:
-        return self.E / (2 * (1 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        return self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
 
     def params(self) -> np.ndarray:
         return np.array([self.lmbda, self.mu, self.sigma_0, self.sigma_inf, self.delta])
@@ -113,9 +107,6 @@ class VoceJ2:
     @property
     def update(self):
         return voce_update
-
-    def wave_speed(self) -> float:
-        return math.sqrt((self.lmbda + 2 * self.mu) / self.density)
 
 
 # ## The scene: a bar in uniaxial strain under a pressure step
@@ -163,7 +154,7 @@ def precursor_check(sim: Simulation, h: float) -> dict:
     g = force.geometry
     zq = np.einsum("qi,ni->nq", g.N, sim.model.node_xy[g.dofs][:, :, 1])
     c_L = mat.wave_speed()
-    K = mat.lmbda + 2 * mat.mu / 3
+    K = mat.bulk
     c_fast_plastic = math.sqrt((K + 4 / 3 * mat.mu * (mat.sigma_inf - mat.sigma_0) * mat.delta
                                 / ((mat.sigma_inf - mat.sigma_0) * mat.delta + 3 * mat.mu))
                                / mat.density)  # the fan's leading edge (largest hardening slope)

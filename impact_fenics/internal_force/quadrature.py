@@ -120,7 +120,9 @@ def kernels(update):
         """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
         sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
         # the point's variables go through small scratch arrays: a view into the big
-        # arrays per point would cost two reference-count updates each
+        # arrays per point would cost two reference-count updates each. (The generic
+        # path's loop below repeats this point block: a compiled helper for it, called
+        # or inlined by numba, made this kernel 2-5x slower.)
         eps, ep, s = work[0], work[1], work[2]
         st = work[3, :state.shape[2]]
         ns = state.shape[2]

@@ -6,7 +6,7 @@ material (``linear = False``) gives a compiled point update in the
 four-component notation of :mod:`.axisym`; the internal force evaluates it at
 the quadrature points of the stiffness rule every step.
 """
-from .elastic import STEEL, LinearElastic
+from .elastic import STEEL, IsotropicConstants, LinearElastic
 from .j2 import J2
 
-__all__ = ["J2", "LinearElastic", "STEEL"]
+__all__ = ["IsotropicConstants", "J2", "LinearElastic", "STEEL"]

@@ -19,16 +19,15 @@ import ufl
 from ..errors import require
 
 
-@dataclass(frozen=True)
-class LinearElastic:
-    """Isotropic linear elasticity. E in Pa, nu dimensionless, density in kg/m^3."""
+class IsotropicConstants:
+    """Isotropic elastic constants of a material with ``E`` (Pa), ``nu`` and ``density``
+    (kg/m^3): their checks, the Lame constants and the dilatational wave speed."""
 
-    E: float = 200e9
-    nu: float = 0.3
-    density: float = 7850.0
-    linear: bool = True
+    E: float
+    nu: float
+    density: float
 
-    def __post_init__(self) -> None:
+    def check_elastic(self) -> None:
         require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
         require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
         require(-1.0 < self.nu < 0.5,
@@ -45,13 +44,31 @@ class LinearElastic:
         """Lame's first parameter (Pa)."""
         return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
 
-    def stress(self, eps: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-        """Cauchy stress (Pa) of the 3x3 strain tensor."""
-        return self.lmbda * ufl.tr(eps) * ufl.Identity(3) + 2.0 * self.mu * eps
+    @property
+    def bulk(self) -> float:
+        """Bulk modulus K = lambda + 2 mu / 3 (Pa)."""
+        return self.lmbda + 2.0 * self.mu / 3.0
 
     def wave_speed(self) -> float:
         """Dilatational wave speed c1 = sqrt((lambda + 2 mu)/rho) in m/s."""
         return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)
+
+
+@dataclass(frozen=True)
+class LinearElastic(IsotropicConstants):
+    """Isotropic linear elasticity. E in Pa, nu dimensionless, density in kg/m^3."""
+
+    E: float = 200e9
+    nu: float = 0.3
+    density: float = 7850.0
+    linear: bool = True
+
+    def __post_init__(self) -> None:
+        self.check_elastic()
+
+    def stress(self, eps: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """Cauchy stress (Pa) of the 3x3 strain tensor."""
+        return self.lmbda * ufl.tr(eps) * ufl.Identity(3) + 2.0 * self.mu * eps
 
     def bar_wave_speed(self) -> float:
         """One-dimensional bar speed c0 = sqrt(E/rho) in m/s."""

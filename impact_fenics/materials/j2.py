@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import require
+from .elastic import IsotropicConstants
 
 # layout of the parameter array given to :func:`update`
 LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
@@ -73,7 +74,7 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
 
 
 @dataclass(frozen=True)
-class J2:
+class J2(IsotropicConstants):
     """Von Mises plasticity, linear isotropic hardening, optional overstress viscosity.
 
     E, yield_stress (initial sigma_y0), hardening (H = d sigma_y / d eps_bar_p) in Pa;
@@ -89,29 +90,12 @@ class J2:
     n_state: int = 1
 
     def __post_init__(self) -> None:
-        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
-        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
-        require(-1.0 < self.nu < 0.5, f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
+        self.check_elastic()
         require(self.yield_stress > 0, f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
         require(self.hardening >= 0,
                 f"material.hardening = {self.hardening} Pa: must be >= 0 (softening makes the "
                 "solution mesh-dependent and is not offered)")
         require(self.viscosity >= 0, f"material.viscosity = {self.viscosity} Pa s: must be >= 0")
-
-    @property
-    def mu(self) -> float:
-        """Shear modulus (Pa)."""
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        """Lame's first parameter (Pa)."""
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
-
-    @property
-    def bulk(self) -> float:
-        """Bulk modulus K = lambda + 2 mu / 3 (Pa)."""
-        return self.lmbda + 2.0 * self.mu / 3.0
 
     def params(self) -> np.ndarray:
         """The float64 parameter array of :func:`update`."""
@@ -124,7 +108,3 @@ class J2:
     def update(self):
         """The compiled point update (radial return)."""
         return update
-
-    def wave_speed(self) -> float:
-        """Elastic dilatational wave speed c_L = sqrt((lambda + 2 mu)/rho) (m/s)."""
-        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)

@@ -49,7 +49,11 @@ from impact_fenics.simulation import Settings, Simulation
 #
 # is no longer linear in the increment x: a few Newton steps solve it (g is
 # decreasing and convex in x, so Newton from x = 0 converges monotonically).
-@njit(cache=True)
+#
+# (Compiled once per run, about a second: numba's on-disk cache depends on how a
+# script is imported, so a demo does not rely on it; a material in the package
+# uses ``cache=True``.)
+@njit
 def voce_update(eps, eps_p, state, params, dt, sigma):
     lmbda, mu, s0, s_inf, delta = params[0], params[1], params[2], params[3], params[4]
     e0, e1, e2, e3 = eps[0] - eps_p[0], eps[1] - eps_p[1], eps[2] - eps_p[2], eps[3] - eps_p[3]

@@ -339,6 +339,12 @@ class Simulation:
             track["last_contact"] = n
 
     # ------------------------------------------------------------ outputs
+    def cell_fields(self) -> dict[str, np.ndarray]:
+        """The plastic cell fields now, {name: values over this rank's owned cells}:
+        ``eps_p_eq`` (mean equivalent plastic strain of the cell's points) and ``yielded``
+        (1 if a point has yielded); empty without path-dependent bodies."""
+        return {} if self.plastic_fields is None else self.plastic_fields.arrays()
+
     def _quantities(self, u, material) -> dict:
         """Cell quantities of a body made of ``material`` as UFL expressions of u: the stress
         components, and with path-dependent bodies in the run also eps_p_eq and yielded."""

@@ -289,6 +289,12 @@ def test_mixed_plastic_impact_ledger_and_outputs(tmp_path):
     assert s["plastic_dissipation"] > 0.01 * s["energy"]["total"]
     h = sim.history.data()
     assert h["ep"][-1] > 0 and h["y_target"][-1] == 1.0 and h["y_striker"][-1] == 0.0
+    cells = sim.cell_fields()  # for a field writer: per owned cell
+    n_owned = model.mesh.topology.index_map(2).size_local
+    assert all(v.shape == (n_owned,) for v in cells.values())
+    striker = model.tmesh.cells("striker")
+    assert not cells["yielded"][striker[striker < n_owned]].any()
+    assert comm.allreduce(int(cells["yielded"].sum())) > 0
     if comm.rank == 0:
         with open(f"{out}/fields.xdmf") as f:
             text = f.read()

@@ -71,8 +71,3 @@ class PlasticCellFields:
         self.refresh()
         return {"eps_p_eq": self.eps_p_eq.x.array[self._owned_dofs],
                 "yielded": self.yielded.x.array[self._owned_dofs]}
-
-
-def plastic_cell_fields(fields: PlasticCellFields) -> dict[str, np.ndarray]:
-    """The plastic cell fields as {name: per-owned-cell array} (for a field writer)."""
-    return fields.arrays()

@@ -50,16 +50,17 @@ def _split(ctx, integ) -> dict:
             force.params, force.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, integ._u_fn.x.array,
             f, qs.eps_p, qs.state, qs.sigma, force._work))
         out["ghost_reverse"] = ctx.median(lambda: force.f.x.scatter_reverse(_add()))
-        # the return mappings alone, on the same strains (the generic path's point loop)
+        # the point updates alone (state in and out, the update) on the same strains: the
+        # generic path's point loop
         eps = _point_strains(force)
         sq = np.zeros(4 * 3 * max(force.cells.size, 1))
         qd = np.arange(3 * force.cells.size, dtype=np.int32).reshape(-1, 3)
-        out["return_mapping"] = ctx.median(lambda: force._points(
+        out["point_updates"] = ctx.median(lambda: force._points(
             force.params, force.dt, eps, g.w, qs.eps_p, qs.state, qs.sigma, qd, sq, force._work))
     else:
         out["strain_expression"] = ctx.median(lambda: force._eps_expr.eval(force.cells,
                                                                           values=force._eps_buf))
-        out["return_mapping"] = ctx.median(lambda: force._points(
+        out["point_updates"] = ctx.median(lambda: force._points(
             force.params, force.dt, force._eps_buf, g.w, qs.eps_p, qs.state, qs.sigma,
             force._qdofs, force._sigma_q.x.array, force._work))
 
@@ -115,7 +116,7 @@ def part_j2(ctx) -> dict:
         t[f"j2_{path}"] = ctx.median(step)
         force = integ.nonlinear[0]
         splits[path] = _split(ctx, integ)
-        inside = ("return_mapping",) if path == "fast" else ()  # fast: inside the fused kernel
+        inside = ("point_updates",) if path == "fast" else ()  # fast: inside the fused kernel
         splits[path]["rest"] = t[f"j2_{path}"] - sum(
             v for k, v in splits[path].items() if k not in inside)
         yielded = comm.allreduce(int((force.qs.state[..., 0] > 0).sum()))
@@ -140,6 +141,6 @@ def part_j2(ctx) -> dict:
     for path in ("fast", "generic"):
         parts = ", ".join(f"{k} {1e3 * v:.3f}" for k, v in splits[path].items())
         ctx.log(f"   {path} step (ms): {parts}"
-                + ("  (return_mapping is inside fused_kernel)" if path == "fast" else "")
+                + ("  (point_updates: the state in and out and the update at every point, timed alone on the same strains; inside fused_kernel)" if path == "fast" else "")
                 + "; rest = step - pieces: Python and noise")
     return res

@@ -140,7 +140,7 @@ def part_j2(ctx) -> dict:
               ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step"], rows)
     for path in ("fast", "generic"):
         parts = ", ".join(f"{k} {1e3 * v:.3f}" for k, v in splits[path].items())
-        ctx.log(f"   {path} step (ms): {parts}"
-                + ("  (point_updates: the state in and out and the update at every point, timed alone on the same strains; inside fused_kernel)" if path == "fast" else "")
-                + "; rest = step - pieces: Python and noise")
+        inside = ("; point_updates (state in and out and the update at every point, timed "
+                  "alone on the same strains) is inside fused_kernel") if path == "fast" else ""
+        ctx.log(f"   {path} step (ms): {parts}{inside}; rest = step - pieces: Python and noise")
     return res

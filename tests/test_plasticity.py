@@ -85,7 +85,8 @@ def test_generic_and_fast_f_int_agree_to_round_off():
     from dolfinx import fem
 
     u = fem.Function(model.V)
-    u.interpolate(lambda x: np.stack([2e-3 * x[0] * np.sin(20 * x[1]), 3e-3 * x[1] ** 2 + 1e-3 * x[0]]))
+    u.interpolate(lambda x: np.stack([2e-3 * x[0] * np.sin(20 * x[1]),
+                                      3e-3 * x[1] ** 2 + 1e-3 * x[0]]))
     coef = np.zeros(model.n_owned)
     forces = {p: QuadratureForce(model, "bar", u, 1e-6, coef, p) for p in ("fast", "generic")}
     for scale in (1.0, 0.6, 1.3):  # three steps: load, unload, reload
@@ -196,7 +197,8 @@ def test_uniaxial_strain_plastic_wave_two_meshes():
         t = sim.integrator.n * sim.integrator.dt
         zr, vz, zc, szz = _profiles(sim, h, L)
         szz = -szz  # compression
-        lam, mu, K, rho, H, sy = mat.lmbda, mat.mu, mat.bulk, mat.density, mat.hardening, mat.yield_stress
+        lam, mu, K, rho = mat.lmbda, mat.mu, mat.bulk, mat.density
+        H, sy = mat.hardening, mat.yield_stress
         cL = math.sqrt((lam + 2 * mu) / rho)
         cp = math.sqrt((K + 4 / 3 * mu * H / (H + 3 * mu)) / rho)
         s_hel = sy * (1 - mat.nu) / (1 - 2 * mat.nu)

@@ -62,7 +62,8 @@ def test_pure_shear_closed_form():
     m = STEEL_J2
     erz = np.linspace(0.0, 0.01, 41)[1:]
     sigma, ebar, _ = _path(m, [(0, 0, 0, x) for x in erz])
-    ebar_exact = np.maximum(2 * math.sqrt(3) * m.mu * erz - m.yield_stress, 0) / (3 * m.mu + m.hardening)
+    ebar_exact = (np.maximum(2 * math.sqrt(3) * m.mu * erz - m.yield_stress, 0)
+                  / (3 * m.mu + m.hardening))
     tau = 2 * m.mu * (erz - math.sqrt(3) / 2 * ebar_exact)
     assert np.abs(sigma[:, 3] - tau).max() <= ROUND * tau.max()
     assert np.abs(sigma[:, :3]).max() <= ROUND * tau.max()  # no normal stress in pure shear

@@ -24,7 +24,8 @@ class PlasticCellFields:
         mesh = model.mesh
         self.forces = forces
         self.n_cells = mesh.topology.index_map(2).size_local
-        self.eps_p = fem.Function(fem.VectorFunctionSpace(mesh, ("DG", 0), dim=N_COMP), name="eps_p")
+        V4 = fem.VectorFunctionSpace(mesh, ("DG", 0), dim=N_COMP)
+        self.eps_p = fem.Function(V4, name="eps_p")
         Q0 = fem.FunctionSpace(mesh, ("DG", 0))
         self.eps_p_eq = fem.Function(Q0, name="eps_p_eq")
         self.yielded = fem.Function(Q0, name="yielded")

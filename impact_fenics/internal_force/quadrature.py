@@ -359,7 +359,8 @@ class QuadratureForce:
         self._cell_eps_bar = np.zeros(n)
         self._cell_yielded = np.zeros(n)
 
-    def cell_values(self, which: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def cell_values(self, which: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per owned cell of the body: mean eps_p (n, 4), mean eps_bar_p (n,) and the
         yielded flag (n,) (1 if any point has eps_bar_p > 0); only the positions
         ``which`` (into ``cells``) are brought up to date when given."""

@@ -5,7 +5,7 @@ sigma = C : (eps - eps_p). Yield function and flow rule (associative):
 
     f(sigma, eps_bar_p) = sigma_eq - sigma_y(eps_bar_p),   sigma_eq = sqrt(3/2 s : s),
     sigma_y(eps_bar_p) = sigma_y0 + H eps_bar_p,            (H = d sigma_y / d eps_bar_p, Pa)
-    d eps_p = d eps_bar_p * 3/2 s / sigma_eq,               (so d eps_bar_p = sqrt(2/3 d eps_p : d eps_p))
+    d eps_p = d eps_bar_p * 3/2 s / sigma_eq,    (so d eps_bar_p = sqrt(2/3 d eps_p : d eps_p))
 
 Rate-independent (eta = 0): f <= 0. Viscoplastic (eta > 0, Pa s): the linear
 overstress law of Perzyna type
@@ -91,7 +91,8 @@ class J2(IsotropicConstants):
 
     def __post_init__(self) -> None:
         self.check_elastic()
-        require(self.yield_stress > 0, f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
+        require(self.yield_stress > 0,
+                f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
         require(self.hardening >= 0,
                 f"material.hardening = {self.hardening} Pa: must be >= 0 (softening makes the "
                 "solution mesh-dependent and is not offered)")

@@ -301,3 +301,35 @@ def test_mixed_plastic_impact_ledger_and_outputs(tmp_path):
         with open(f"{out}/fields.xdmf") as f:
             text = f.read()
         assert 'Name="eps_p_eq"' in text and 'Name="yielded"' in text
+
+
+def test_kinetic_identity_with_the_plastic_internal_force():
+    """1/2 v'Mv changes by exactly 1/2 dt (v^n + v^{n+1}) . f^n each step, f^n every force in
+    the velocity update: here -f_int(u^n) of a yielding J2 bar (as the quadrature force
+    reports it) plus the pressure on its end. Summed over 2000 steps, to round-off."""
+    mat = J2(E=200e9, nu=0.3, density=7850.0, yield_stress=200e6, hardening=5e9)
+    tm = meshing.bar(radius=0.02, length=0.1, h=0.01, structured=True)
+    model = DeformableModel(tm, [Body("bar", mat)])
+    load = loads.SurfaceLoad(model, "loaded_end", loads.Trapezoid(700e6, 2e-5, 4e-4, 6e-4))
+    sim = Simulation(model, Settings(cfl=0.5, n_steps=1, quiet=True, fields=False),
+                     fixed=[model.facet_dofs("free_end", 1)], loads=[load])
+    integ, comm = sim.integrator, sim.comm
+    force = integ.nonlinear[0]
+    m, dt = integ.mass, integ.dt
+    free = np.ones(model.n_owned, dtype=bool)
+    free[integ.fixed] = False
+    f_ext = np.zeros(model.n_owned)
+    work = kinetic0 = 0.0
+    v_now = np.empty(model.n_owned)
+    for n in range(2000):
+        integ.velocity(v_now)
+        f_ext[:] = 0.0
+        f_ext[load.dofs] = load.force * load.history(integ.t)
+        integ.predict()
+        integ.advance()
+        f = np.where(free, f_ext - force.f_owned, 0.0)  # fixed dofs: no force acts
+        work += 0.5 * dt * float(np.dot(v_now + integ.v_owned, f))
+    kinetic = 0.5 * float(np.dot(m * integ.v_owned, integ.v_owned))
+    work, kinetic = comm.allreduce(work), comm.allreduce(kinetic)
+    assert abs(kinetic - kinetic0 - work) <= REL * max(abs(kinetic), abs(work))
+    assert comm.allreduce(force.plastic_work_local) > 0.1 * kinetic > 0

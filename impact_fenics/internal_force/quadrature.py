@@ -38,12 +38,13 @@ import math
 import basix
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from numba import njit
 from petsc4py import PETSc
 
 from .. import forms
 from ..bodies import DeformableModel
+from ..operators import compile_form
 
 N_POINTS = 3  # points of the degree-2 triangle rule
 N_COMP = 4    # (rr, tt, zz, rz)
@@ -308,22 +309,20 @@ class QuadratureForce:
         w = ufl.TestFunction(model.V)
         dx = forms.cell_measure(mesh, model.tmesh.cell_tags, model.tmesh.cell_tag(self.body),
                                 forms.STIFFNESS_DEGREE)
-        from ..operators import compile_form
-
         self._form = compile_form(ufl.inner(sigma, forms.strain(w, r)) * 2 * math.pi * r * dx)
 
     # ------------------------------------------------------------ the step
     def compute(self) -> np.ndarray:
-        """f_int(u^n) (N) into ``self.f`` (owned entries summed over ranks); updates the
-        state to t_{n+1} = the current one and books its plastic work. Returns the
-        owned view."""
+        """f_int(u) (N) into ``self.f`` (owned entries summed over ranks): the point
+        updates bring the state to the time of u and book their plastic work. Returns
+        the owned view."""
         g, qs = self.geometry, self.qs
         if self.path == "fast":
             arr = self.f.x.array
             arr[:] = 0.0
             wp = self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
                              self.u.x.array, arr, qs.eps_p, qs.state, qs.sigma, self._work)
-            self.f.x.scatter_reverse(_ADD)
+            self.f.x.scatter_reverse(la.ScatterMode.add)
         else:
             self._eps_expr.eval(self.cells, values=self._eps_buf)
             wp = self._points(self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
@@ -367,8 +366,3 @@ class QuadratureForce:
         cell_means(self._all if which is None else which, self.qs.eps_p, self.qs.state,
                    self._cell_eps_p, self._cell_eps_bar, self._cell_yielded)
         return self._cell_eps_p, self._cell_eps_bar, self._cell_yielded
-
-
-from dolfinx import la as _la  # noqa: E402
-
-_ADD = _la.ScatterMode.add

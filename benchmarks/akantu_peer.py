@@ -24,7 +24,8 @@ import json
 import os
 import time
 
-MATERIAL = """model solid_mechanics_model [
+MATERIALS = {
+    "elastic": """model solid_mechanics_model [
   material elastic [
     name = steel
     rho = 7850
@@ -33,7 +34,21 @@ MATERIAL = """model solid_mechanics_model [
     Plane_Stress = false
   ]
 ]
-"""
+""",
+    # J2 with linear isotropic hardening (radial return); sigma_y and h (Pa) filled in
+    "j2": """model solid_mechanics_model [
+  material plastic_linear_isotropic_hardening [
+    name = steel
+    rho = 7850
+    E = 2e11
+    nu = 0.3
+    sigma_y = {sigma_y}
+    h = {hardening}
+    Plane_Stress = false
+  ]
+]
+""",
+}
 
 
 def write_mesh(path: str, radius: float = 0.5, length: float = 1.0, h: float = 0.01) -> None:
@@ -72,6 +87,9 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=30)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--out", required=True)
+    p.add_argument("--material", choices=sorted(MATERIALS), default="elastic")
+    p.add_argument("--yield-stress", type=float, default=250e6, help="j2: sigma_y (Pa)")
+    p.add_argument("--hardening", type=float, default=2e9, help="j2: h (Pa)")
     args = p.parse_args()
 
     import numpy as np
@@ -80,7 +98,8 @@ def main() -> None:
     here = os.path.dirname(os.path.abspath(args.out))
     material = os.path.join(here, "material.dat")
     with open(material, "w") as f:
-        f.write(MATERIAL)
+        f.write(MATERIALS[args.material].format(sigma_y=args.yield_stress,
+                                                hardening=args.hardening))
     t0 = time.perf_counter()
     aka.parseInput(material)
     mesh = aka.Mesh(2)
@@ -107,6 +126,7 @@ def main() -> None:
            "samples": samples, "setup_seconds": setup,
            "ns_per_dof_per_step": 1e9 * step / n_dofs,
            "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
+           "material": args.material,
            "model": "plane strain, P1 triangles, explicit lumped mass (central differences)"}
     with open(args.out, "w") as f:
         json.dump(rec, f, indent=1)

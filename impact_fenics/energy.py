@@ -10,6 +10,15 @@ work of a force, W_n = sum over m = 1..n of 1/2 dt (v^m)' (F^{m-1} + F^m),
 closes the balance  E_n - E_0 - W_n = 0  to round-off. A position set apart
 from the velocity (a jump j^m = u^m - u^{m-1} - dt v^m, as in DME) adds
 1/2 (j^m)' K (u^{m-1} + u^m); contact methods that jump report it as work.
+
+A path-dependent body (internal force f_int(u, state), :mod:`.internal_force`)
+enters the same identity as a force: its deformation work, booked each step as
+1/2 (f_int^{m-1} + f_int^m) . (u^m - u^{m-1}), takes the place of the change
+of 1/2 u'Ku, and at its quadrature points it splits exactly into the change of
+the stored elastic energy psi_e = sum 1/2 sigma : C^-1 : sigma w and the
+plastic work W_p = sum 1/2 (sigma^{m-1} + sigma^m) : (eps_p^m - eps_p^{m-1}) w.
+The ledger's energy is then  1/2 (v^n)' M v^{n+1} + 1/2 (u^n)' K u^n + psi_e + W_p
+(K over the linear bodies), balanced by the same work terms to round-off.
 """
 from __future__ import annotations
 
@@ -57,9 +66,15 @@ class Ledger:
         self.scale = 0.0  # largest |term| seen, the reference for the relative error
 
     def record(self, kinetic: float, strain: float, external_work: float,
-               contact_work: float) -> dict[str, float]:
-        """Balance at one output step; all energies in J, already summed over ranks."""
-        E = kinetic + strain
+               contact_work: float, plastic_work: float = 0.0,
+               deformation_work: float = 0.0) -> dict[str, float]:
+        """Balance at one output step; all energies in J, already summed over ranks.
+
+        ``strain`` is the stored elastic energy of every body (1/2 u'Ku of the linear
+        ones, psi_e of the path-dependent ones), ``plastic_work`` the work dissipated
+        at their points; ``deformation_work`` sum 1/2 (f_int^{n-1} + f_int^n) . du of
+        the path-dependent bodies, reported beside (it equals d psi_e + W_p)."""
+        E = kinetic + strain + plastic_work
         if self.E0 is None:
             self.E0 = E
         balance = E - self.E0 - external_work - contact_work
@@ -67,6 +82,7 @@ class Ledger:
         rel = abs(balance) / self.scale if self.scale > 0 else 0.0
         return {"kinetic": kinetic, "strain": strain, "total": E,
                 "external_work": external_work, "contact_work": contact_work,
+                "plastic_work": plastic_work, "deformation_work": deformation_work,
                 "balance_error": balance, "balance_error_rel": rel}
 
 

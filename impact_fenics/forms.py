@@ -56,9 +56,18 @@ def strain(u: ufl.core.expr.Expr, r: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
                           [e_rz, 0, g[1, 1]]])
 
 
+def elastic_stress(material, eps: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """Stress (Pa) of a linear material, or the elastic stress lambda tr(eps) I + 2 mu eps
+    of a path-dependent one (``linear = False``: its initial stiffness, for the stable dt,
+    and its stress outputs with eps the elastic strain)."""
+    if material.linear:
+        return material.stress(eps)
+    return material.lmbda * ufl.tr(eps) * ufl.Identity(3) + 2.0 * material.mu * eps
+
+
 def _virtual_work(u: ufl.core.expr.Expr, w: ufl.core.expr.Expr, parts: Sequence[Part]):
     r = radius(w.ufl_function_space().mesh)
-    return sum(ufl.inner(mat.stress(strain(u, r)), strain(w, r)) * 2 * math.pi * r * dx
+    return sum(ufl.inner(elastic_stress(mat, strain(u, r)), strain(w, r)) * 2 * math.pi * r * dx
                for mat, dx in parts)
 
 
@@ -99,10 +108,20 @@ def traction_form(V: fem.FunctionSpace, facet_tags: dmesh.MeshTags, tag: int,
     return ufl.inner(t, w) * 2 * math.pi * r * ds(tag)
 
 
-def stress_components(u: fem.Function, material: Material) -> dict[str, ufl.core.expr.Expr]:
-    """Named stress components (Pa) for output: rr, zz, hoop (tt), rz and von Mises."""
+def tensor_of(a: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """The 3x3 tensor in (r, theta, z) order of a four-component (rr, tt, zz, rz) vector."""
+    return ufl.as_tensor([[a[0], 0, a[3]], [0, a[1], 0], [a[3], 0, a[2]]])
+
+
+def stress_components(u: fem.Function, material: Material,
+                      eps_p: ufl.core.expr.Expr | None = None) -> dict[str, ufl.core.expr.Expr]:
+    """Named stress components (Pa) for output: rr, zz, hoop (tt), rz and von Mises.
+
+    A path-dependent material gives C : (eps(u) - eps_p), ``eps_p`` its plastic
+    strain as a four-component (rr, tt, zz, rz) field (per cell for output)."""
     r = radius(u.function_space.mesh)
-    s = material.stress(strain(u, r))
+    eps = strain(u, r)
+    s = elastic_stress(material, eps if eps_p is None else eps - tensor_of(eps_p))
     dev = s - ufl.tr(s) / 3.0 * ufl.Identity(3)
     return {
         "sigma_rr": s[0, 0],

@@ -2,11 +2,14 @@
 
 The modified Euler scheme
 
-    a^n = M^-1 (f^n - K u^n),  v^{n+1} = v^n + dt a^n,  u^{n+1} = u^n + dt v^{n+1}
+    a^n = M^-1 (f^n - f_int(u^n)),  v^{n+1} = v^n + dt a^n,  u^{n+1} = u^n + dt v^{n+1}
 
-runs as  v <- A u + v  (MatMultAdd with A = -dt M^-1 K, scaled once), the few
+runs as: each internal force adds -dt M^-1 f_int(u^n) into v (the linear
+bodies by  v <- A u + v, one MatMultAdd with A = -dt M^-1 K scaled once; a
+path-dependent body by its quadrature force, :mod:`.internal_force`), the few
 loaded dofs get dt M^-1 f^n, then  u <- u + dt v  (VecAXPY). Fixed dofs have
-zero rows in A and stay at rest. The velocity is kept as a state of its own
+zero rows in A (zero coefficients in the quadrature forces) and stay at rest.
+When every body is linear the step is the MatMultAdd and the AXPY, nothing else. The velocity is kept as a state of its own
 (not recovered from differences of displacements), so a body that drifts far
 keeps its velocity to full precision.
 
@@ -21,8 +24,9 @@ from petsc4py import PETSc
 
 from .bodies import DeformableModel
 from .errors import InputError
+from .internal_force import LinearForce, QuadratureForce
 from .loads import SurfaceLoad
-from .operators import assemble_stiffness, lumped_mass
+from .operators import lumped_mass
 
 
 class Integrator:
@@ -32,7 +36,8 @@ class Integrator:
     """
 
     def __init__(self, model: DeformableModel, dt: float, fixed_dofs: np.ndarray,
-                 loads: list[SurfaceLoad] | None = None, matrix_type: str = "aij"):
+                 loads: list[SurfaceLoad] | None = None, matrix_type: str = "aij",
+                 f_int_path: str = "fast"):
         if not dt > 0.0:
             raise InputError(f"dt = {dt} s: the time step must be > 0")
         self.model = model
@@ -40,18 +45,39 @@ class Integrator:
         self.n = 0
         self.loads = loads or []
         self.fixed = np.unique(np.asarray(fixed_dofs, dtype=np.int32))
-        self.K = assemble_stiffness(model, matrix_type)
         self.mass = lumped_mass(model)
-        self.A = self._update_matrix(assemble_stiffness(model, matrix_type))
-        self._u = self.K.createVecRight()
-        self._v = self.K.createVecRight()
+        self._free = np.ones(model.n_owned, dtype=bool)
+        self._free[self.fixed] = False
+        # the internal forces: K over the linear bodies (K, A None without any), a
+        # quadrature force per path-dependent body
+        linear_parts = [p for p in model.parts if p[0].linear]
+        self.linear = None
+        self.K = self.A = None
+        if linear_parts:
+            self.linear = LinearForce(model, linear_parts, self.dt, self.mass,
+                                      model.to_global(self.fixed), matrix_type)
+            self.K, self.A = self.linear.K, self.linear.A
+        nonlinear = [b.name for b in model.bodies.values() if not b.material.linear]
+        self.nonlinear: list[QuadratureForce] = []
+        self._u_fn = None
+        if nonlinear:
+            # u with ghost entries (the cell kernels read them); v needs none
+            from dolfinx import fem
+
+            self._u_fn = fem.Function(model.V)
+            self._u = self._u_fn.vector
+            self._v = self._u.duplicate()
+            coef = np.where(self._free, -self.dt / self.mass, 0.0)
+            self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path)
+                              for name in nonlinear]
+        else:
+            self._u = self.K.createVecRight()
+            self._v = self.K.createVecRight()
         self._u.set(0.0), self._v.set(0.0)
         # numpy views on the owned entries of u and v (m, m/s): contact sets read the
         # prediction from them and write their corrected dofs back into them
-        self.u_owned = self._u.array
+        self.u_owned = self._u.array if self._u_fn is None else self._u_fn.x.array[:model.n_owned]
         self.v_owned = self._v.array
-        self._free = np.ones(model.n_owned, dtype=bool)
-        self._free[self.fixed] = False
         # per load: its free dofs (a fixed dof stays at rest under any load), dt f / m
         # there, and two buffers
         free = [self._free[ld.dofs] for ld in self.loads]
@@ -59,17 +85,6 @@ class Integrator:
         self._load_coef = [self.dt * ld.force[k] / self.mass[ld.dofs[k]]
                            for ld, k in zip(self.loads, free)]
         self._load_buf = [(np.empty(d.size), np.empty(d.size)) for d in self._load_dofs]
-
-    def _update_matrix(self, A: PETSc.Mat) -> PETSc.Mat:
-        """Scale a fresh copy of K into A = -dt M^-1 K with zero rows on the fixed dofs.
-
-        (A second assembly, not K.copy(): a copied BAIJ matrix multiplies slower.)"""
-        scale = self.K.createVecRight()
-        scale.array[:] = -self.dt / self.mass
-        A.diagonalScale(L=scale)
-        A.zeroRows(self.model.to_global(self.fixed).astype(PETSc.IntType), diag=0.0)
-        scale.destroy()
-        return A
 
     # ------------------------------------------------------------ state
     @property
@@ -102,7 +117,12 @@ class Integrator:
     # ------------------------------------------------------------ the step
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
-        self.A.multAdd(self._u, self._v, self._v)
+        if self.A is not None:
+            self.A.multAdd(self._u, self._v, self._v)
+        if self.nonlinear:
+            self._u_fn.x.scatter_forward()
+            for force in self.nonlinear:
+                force.add_velocity_increment(self.u_owned, self.v_owned)
         if self.loads:
             t = self.t
             for ld, dofs, coef, (buf, inc) in zip(self.loads, self._load_dofs,

@@ -16,14 +16,18 @@ def compile_form(form):
     return fem.form(form, form_compiler_params={}, jit_params={})
 
 
-def assemble_stiffness(model: DeformableModel, matrix_type: str = "aij") -> PETSc.Mat:
+def assemble_stiffness(model: DeformableModel, matrix_type: str = "aij",
+                       parts: list | None = None) -> PETSc.Mat:
     """Assemble K (N/m) as a PETSc matrix; ``matrix_type`` 'aij' or 'baij' (block size 2).
+
+    ``parts``: the (material, measure) parts to include (default: every body; a
+    path-dependent material contributes its elastic stiffness).
 
     The matrix is created in its final format (converting, or copying, a BAIJ
     matrix costs seconds and leaves a slower MatMult)."""
     if matrix_type not in ("aij", "baij"):
         raise InputError(f"matrix_type = '{matrix_type}': use 'aij' or 'baij'")
-    form = compile_form(stiffness_form(model.V, model.parts))
+    form = compile_form(stiffness_form(model.V, model.parts if parts is None else parts))
     K = fem.petsc.create_matrix(form, matrix_type)
     K.zeroEntries()
     fem.petsc.assemble_matrix(K, form)

@@ -27,7 +27,8 @@ from mpi4py import MPI
 
 from .errors import InputError
 
-QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z")
+QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
+              "eps_p_eq", "yielded")
 METHODS = ("penalty", "film", "dme")
 COMPONENTS = {"r": 0, "z": 1}
 _MISSING = object()
@@ -179,6 +180,10 @@ class MaterialSpec:
     E: float        # Pa
     nu: float
     density: float  # kg/m^3
+    model: str = "elastic"     # "elastic" or "j2"
+    yield_stress: float = 0.0  # Pa (j2)
+    hardening: float = 0.0     # Pa, d sigma_y / d eps_bar_p (j2)
+    viscosity: float = 0.0     # Pa s, overstress viscosity (j2; 0: rate-independent)
 
 
 @dataclass
@@ -319,6 +324,10 @@ def read_scene(path: str) -> Scene:
         if names.count(p.name) > 1 or p.name in ("step", "time"):
             raise InputError(f"{p.where} name = {_fmt(p.name)}: probe names must be unique "
                              "and not 'step' or 'time'")
+        if p.quantity in ("eps_p_eq", "yielded") and not any(
+                materials[b.material].model != "elastic" for b in bodies):
+            raise InputError(f"{p.where} quantity = {_fmt(p.quantity)}: needs a body of a "
+                             'plastic material ([materials.NAME] model = "j2")')
     return Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
                  fixed, time, output, probes)
 
@@ -368,15 +377,31 @@ def _breaks(t: _Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
     return tuple((float(r), int(n)) for r, n in v)
 
 
+PLASTIC_KEYS = ("yield_stress", "hardening", "viscosity")
+
+
 def _read_material(name: str, data: dict) -> MaterialSpec:
-    t = _Table(data, f"[materials.{name}]", ("E", "nu", "density"))
+    t = _Table(data, f"[materials.{name}]", ("model", "E", "nu", "density") + PLASTIC_KEYS)
+    model = t.text("model", "the material model", "elastic", choices=("elastic", "j2"))
     E = t.positive("E", "Young's modulus in Pa")
     nu = t.number("nu", "Poisson's ratio")
     if not -1.0 < nu < 0.5:
         raise t.error("nu", "Poisson's ratio must lie in (-1, 0.5); nu >= 0.5 is "
                             "incompressible and has no explicit stable time step")
     density = t.positive("density", "mass density in kg/m^3")
-    return MaterialSpec(name, E, nu, density)
+    if model == "elastic":
+        for key in PLASTIC_KEYS:
+            if key in t:
+                raise t.error(key, 'only for model = "j2"')
+        return MaterialSpec(name, E, nu, density)
+    yield_stress = t.positive("yield_stress", "initial yield stress in Pa")
+    hardening = t.number("hardening", "hardening modulus d sigma_y / d eps_bar_p in Pa", 0.0)
+    if hardening < 0:
+        raise t.error("hardening", "must be >= 0 (softening makes the solution mesh-dependent)")
+    viscosity = t.number("viscosity", "overstress viscosity in Pa s", 0.0)
+    if viscosity < 0:
+        raise t.error("viscosity", "must be >= 0 (0: rate-independent)")
+    return MaterialSpec(name, E, nu, density, model, yield_stress, hardening, viscosity)
 
 
 def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> BodySpec:
@@ -580,6 +605,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from .bodies import Body, DeformableModel
     from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
     from .materials import LinearElastic
+    from .materials.j2 import J2
     from .probes import locate_cell
     from .scenes import make_method
     from .simulation import Settings, Simulation
@@ -594,7 +620,12 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     materials = {}
     for m in scene.materials.values():
         with _at(f"[materials.{m.name}]"):
-            materials[m.name] = LinearElastic(E=m.E, nu=m.nu, density=m.density)
+            if m.model == "j2":
+                materials[m.name] = J2(E=m.E, nu=m.nu, density=m.density,
+                                       yield_stress=m.yield_stress, hardening=m.hardening,
+                                       viscosity=m.viscosity)
+            else:
+                materials[m.name] = LinearElastic(E=m.E, nu=m.nu, density=m.density)
     with _at("[bodies]"):
         model = DeformableModel(tmesh, [Body(b.name, materials[b.material]) for b in scene.bodies])
     fixed = []

@@ -25,11 +25,12 @@ def elastic_bar(settings: Settings, h: float = 0.005, nu: float = 0.0, peak: flo
                 t_rise: float = 2e-5, t_fall: float = 1e-4, t_end: float = 1.2e-4,
                 radius: float = 0.05, length: float = 1.0, structured: bool = True,
                 clamp_far_end: bool = False, tmesh: meshing.TaggedMesh | None = None,
-                comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+                material=None, comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
     """A steel bar (radius, length in m) loaded on z = 0 by a trapezoid pressure pulse (Pa);
     with ``clamp_far_end`` its end z = length has u_z = 0. ``tmesh``: a bar mesh built
-    already (then radius, length, h and structured are its own)."""
-    material = replace(STEEL, nu=nu)
+    already (then radius, length, h and structured are its own); ``material``: another
+    material than steel with Poisson's ratio ``nu``."""
+    material = replace(STEEL, nu=nu) if material is None else material
     if tmesh is None:
         tmesh = meshing.bar(radius=radius, length=length, h=h, structured=structured, comm=comm)
     model = DeformableModel(tmesh, [Body("bar", material)])

@@ -21,7 +21,9 @@ from .contact.pairing import Constraints
 from .energy import Ledger, LoadWork, deformable_energy
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
+from .internal_force.cell_fields import NAMES as PLASTIC_FIELDS, PlasticCellFields
 from .loads import SurfaceLoad
+from .operators import assemble_stiffness
 from .probes import Probes
 from .stability import converged_omega_max, critical_dt, element_omega_bound
 from .timers import PhaseTimers
@@ -52,6 +54,7 @@ class Settings:
     quiet: bool = False
     timers: bool = True
     plots: bool = True  # history.png and energy.png in the output directory (rank 0)
+    f_int_path: str = "fast"  # path-dependent bodies: "fast" (fused cell kernel) or "generic"
 
     def steps(self) -> int:
         """Number of steps to run."""
@@ -91,11 +94,15 @@ class Simulation:
                              f"{self.dt_critical:.4g} s (element bound on 2/omega_max); "
                              "lower dt or force it")
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
-                                     settings.matrix_type)
+                                     settings.matrix_type, settings.f_int_path)
         self.dt_converged = None
         if settings.converged_dt:
+            # the elastic K of every body (a path-dependent one is stiffest elastically)
+            K = self.integrator.K if not self.integrator.nonlinear else assemble_stiffness(model)
             self.dt_converged = critical_dt(converged_omega_max(
-                self.integrator.K, self.integrator.mass, model.to_global(fixed_owned)))
+                K, self.integrator.mass, model.to_global(fixed_owned)))
+        self.plastic_fields = (PlasticCellFields(model, self.integrator.nonlinear)
+                               if self.integrator.nonlinear else None)
         v0 = np.zeros(model.n_owned)
         for body, (vr, vz) in (initial_velocity or {}).items():
             v0[model.body_dofs(body, 0)] = vr
@@ -165,7 +172,7 @@ class Simulation:
         load_work = LoadWork(self.loads, s.dt, comm)
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
-        Ku = integ.K.createVecRight()
+        Ku = integ.u_vec.duplicate()
         energy_rows, max_bal = [], 0.0
         track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
@@ -198,6 +205,8 @@ class Simulation:
                     tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                     self._check_stability(row, ledger, n)
                     if writer is not None:
+                        if self.plastic_fields is not None:
+                            self.plastic_fields.refresh()
                         writer.set_state(buf["u"], buf["v"])
                         writer.write((integ.n - 1) * s.dt)
                     for tbl in tables.values():
@@ -251,8 +260,11 @@ class Simulation:
         integ = self.integrator
         integ.displacement(buf["u"])
         integ.velocity(buf["v"])
-        integ.K.mult(integ.u_vec, Ku)
-        buf["ku"][:] = Ku.array
+        if integ.K is not None:
+            integ.K.mult(integ.u_vec, Ku)
+            buf["ku"][:] = Ku.array
+        else:
+            buf["ku"][:] = 0.0
         return {"rigid_v": [c.rigid.v if c.rigid else 0.0 for c in self.contacts]}
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
@@ -267,7 +279,16 @@ class Simulation:
                 kinetic += c.kinetic_energy_rigid(v_now, c.rigid.v)
                 ext += c.rigid_external_work
             work_c += c.contact_work
-        row = ledger.record(kinetic, strain, ext, work_c)
+        plastic = deformation = 0.0
+        if integ.nonlinear:  # stored elastic energy, plastic and deformation work (J)
+            local = np.array([sum(f.elastic_energy_local() for f in integ.nonlinear),
+                              sum(f.plastic_work_local for f in integ.nonlinear),
+                              sum(f.deformation_work_local for f in integ.nonlinear)])
+            total = np.zeros(3)
+            self.comm.Allreduce(local, total)
+            strain += float(total[0])
+            plastic, deformation = float(total[1]), float(total[2])
+        row = ledger.record(kinetic, strain, ext, work_c, plastic, deformation)
         row["activation_loss"] = sum(c.activation_loss for c in self.contacts)
         row["step"] = integ.n - 1
         row["time"] = (integ.n - 1) * self.settings.dt
@@ -318,10 +339,29 @@ class Simulation:
             track["last_contact"] = n
 
     # ------------------------------------------------------------ outputs
+    def cell_fields(self) -> dict[str, np.ndarray]:
+        """The plastic cell fields now, {name: values over this rank's owned cells}:
+        ``eps_p_eq`` (mean equivalent plastic strain of the cell's points) and ``yielded``
+        (1 if a point has yielded); empty without path-dependent bodies."""
+        return {} if self.plastic_fields is None else self.plastic_fields.arrays()
+
+    def _quantities(self, u, material) -> dict:
+        """Cell quantities of a body made of ``material`` as UFL expressions of u: the stress
+        components, and with path-dependent bodies in the run also eps_p_eq and yielded."""
+        pf = self.plastic_fields
+        if material.linear:
+            comps = forms.stress_components(u, material)
+            if pf is not None:  # the cell fields hold 0 in the cells of linear bodies
+                comps.update({k: pf.expression(k) for k in PLASTIC_FIELDS})
+            return comps
+        comps = forms.stress_components(u, material, pf.eps_p)
+        comps.update({k: pf.expression(k) for k in PLASTIC_FIELDS})
+        return comps
+
     def _stress_pieces(self, u, name: str):
         pieces = []
         for body in self.model.bodies.values():
-            expr = forms.stress_components(u, body.material)[name]
+            expr = self._quantities(u, body.material)[name]
             pieces.append((expr, self.model.tmesh.cells(body.name)))
         return pieces
 
@@ -332,6 +372,8 @@ class Simulation:
                   "each, so their cost grows with the square of their number: raise "
                   "output_every or set fields off", flush=True)
         names = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
+        if self.plastic_fields is not None:
+            names += PLASTIC_FIELDS
         return output.FieldWriter(os.path.join(staging, "fields.xdmf"), self.model.V,
                                   lambda u: {k: self._stress_pieces(u, k) for k in names})
 
@@ -347,7 +389,13 @@ class Simulation:
                 expr = u_fn[0 if quantity == "u_r" else 1]
             else:
                 body = self._body_at(point)
-                comps = forms.stress_components(u_fn, body.material)
+                comps = self._quantities(u_fn, body.material)
+                if not body.material.linear:
+                    from .probes import locate_cell
+
+                    cell, mine = locate_cell(self.model.mesh, point)
+                    if mine:
+                        self.plastic_fields.watch(cell)
                 require(quantity in comps, f"probe '{name}': unknown quantity '{quantity}' "
                                            f"(use u_r, u_z or {', '.join(comps)})")
                 expr = comps[quantity]
@@ -404,6 +452,8 @@ class Simulation:
         if probes is not None:
             integ.displacement(self._probe_u.x.array[: self.model.n_owned])
             self._probe_u.x.scatter_forward()
+            if self.plastic_fields is not None:
+                self.plastic_fields.refresh_watched()
             vals = probes.evaluate()
             row[k:k + vals.size] = vals
             k += vals.size
@@ -447,6 +497,8 @@ class Simulation:
             last = energy_rows[-1]
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
             summary["energy_balance_error_rel"] = max_bal
+            if self.integrator.nonlinear:
+                summary["plastic_dissipation"] = last["plastic_work"]
         if self.contacts:
             c = self.contacts[0]
             summary["contact"] = {  # the first contact set, or all of them for the figures below
@@ -474,7 +526,8 @@ class Simulation:
 
 
 _ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
-                   "activation_loss", "balance_error", "balance_error_rel")
+                   "activation_loss", "plastic_work", "deformation_work", "balance_error",
+                   "balance_error_rel")
 
 
 class _StopFlag:

@@ -97,8 +97,9 @@ def _akantu_missing(ctx, py: str) -> str | None:
     return None
 
 
-def _run_akantu(ctx, py: str) -> dict:
-    """benchmarks/akantu_peer.py on the bar of ``akantu_dofs`` dofs, in a scratch folder."""
+def _run_akantu(ctx, py: str, material: str = "elastic", yield_stress: float = 0.0) -> dict:
+    """benchmarks/akantu_peer.py on the bar of ``akantu_dofs`` dofs, in a scratch folder;
+    ``material`` 'elastic' or 'j2' (plastic_linear_isotropic_hardening, sigma_y in Pa)."""
     mode = ctx.mode
     work = tempfile.mkdtemp(prefix="bench_akantu_")
     mesh = os.path.join(work, "bar.msh")
@@ -106,7 +107,10 @@ def _run_akantu(ctx, py: str) -> dict:
                                              h=1.0 / math.sqrt(mode.akantu_dofs))
     out = os.path.join(work, "akantu.json")
     cmd = [py, str(BENCHMARKS / "akantu_peer.py"), "--mesh", mesh, "--steps",
-           str(mode.akantu_steps), "--repeats", str(max(3, mode.repeats // 2)), "--out", out]
+           str(mode.akantu_steps), "--repeats", str(max(3, mode.repeats // 2)), "--out", out,
+           "--material", material]
+    if material == "j2":
+        cmd += ["--yield-stress", repr(yield_stress), "--hardening", "2e9"]
     return run_json(cmd, out, child_env("PYTHON", OMP_NUM_THREADS="1"), work, timeout=300)
 
 
@@ -121,17 +125,36 @@ def part_akantu(ctx) -> dict:
         ctx.log(f"   akantu: the run failed: {exc}")
         return {"skipped": f"akantu run failed: {exc}"}
     # ours on the same size, the same kind of measurement (integrator step)
-    tmesh, _ = bar_mesh(ctx.comm, ctx.mode.akantu_dofs)
+    from .plastic import j2_integrator, yielding_steel
+
+    tmesh, h = bar_mesh(ctx.comm, ctx.mode.akantu_dofs)
     sim = bar_simulation(tmesh, n_steps=10)
     random_state(sim.integrator)
     N = int(sim.model.n_global)
     rec["ours_step_ns_per_dof"] = ns_per_dof(ctx.median(step_fn(sim.integrator)), N)
     rec["ours_n_dofs"] = N
     rec["akantu_over_ours"] = rec["ns_per_dof_per_step"] / rec["ours_step_ns_per_dof"]
+    rows = [[f"akantu {rec.get('version', '')}", "elastic", f"{rec['n_dofs']:,}",
+             f"{rec['ns_per_dof_per_step']:.1f}"],
+            ["impact_fenics", "elastic", f"{N:,}", f"{rec['ours_step_ns_per_dof']:.2f}"]]
+    # J2 (linear isotropic hardening) on both, yield stress scaled to the random state
+    steel = yielding_steel(h)
+    try:
+        rec["j2"] = _run_akantu(ctx, py, "j2", steel.yield_stress)
+    except (subprocess.SubprocessError, OSError, ValueError, RuntimeError) as exc:
+        rec["j2"] = {"skipped": f"akantu J2 run failed: {exc}"}
+    _, integ = j2_integrator(tmesh, "fast", sim.integrator.dt, steel)
+    step = step_fn(integ)
+    step()
+    rec["ours_j2_step_ns_per_dof"] = ns_per_dof(ctx.median(step), N)
+    if "ns_per_dof_per_step" in rec["j2"]:
+        rec["akantu_over_ours_j2"] = (rec["j2"]["ns_per_dof_per_step"]
+                                      / rec["ours_j2_step_ns_per_dof"])
+        rows.append([f"akantu {rec.get('version', '')}", "J2 (plastic_linear_isotropic_hardening)",
+                     f"{rec['j2']['n_dofs']:,}", f"{rec['j2']['ns_per_dof_per_step']:.1f}"])
+    rows.append(["impact_fenics", "J2 (fused cell kernel)", f"{N:,}",
+                 f"{rec['ours_j2_step_ns_per_dof']:.2f}"])
     ctx.table("7. Peer: Akantu explicit lumped-mass step (plane strain CST, OMP_NUM_THREADS=1) "
               "against ours (axisymmetric CST)",
-              ["code", "dofs", "ns/dof/step"],
-              [[f"akantu {rec.get('version', '')}", f"{rec['n_dofs']:,}",
-                f"{rec['ns_per_dof_per_step']:.1f}"],
-               ["impact_fenics", f"{N:,}", f"{rec['ours_step_ns_per_dof']:.2f}"]])
+              ["code", "material", "dofs", "ns/dof/step"], rows)
     return rec

@@ -6,6 +6,8 @@ material (``linear = False``) gives a compiled point update in the
 four-component notation of :mod:`.axisym`; the internal force evaluates it at
 the quadrature points of the stiffness rule every step.
 """
-from .elastic import STEEL, LinearElastic
+from .elastic import STEEL, IsotropicConstants, LinearElastic
+from .drucker_prager import DruckerPrager
+from .j2 import J2
 
-__all__ = ["LinearElastic", "STEEL"]
+__all__ = ["DruckerPrager", "IsotropicConstants", "J2", "LinearElastic", "STEEL"]

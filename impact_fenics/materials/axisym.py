@@ -18,6 +18,11 @@ t_n and on exit at t_{n+1}; ``state`` the material's other internal variables
 ``params`` the material's float64 parameter array; ``dt`` the step (s);
 ``sigma`` receives the Cauchy stress at t_{n+1} (Pa). Stresses are
 sigma = C : (eps - eps_p) with the isotropic elastic C (Lame lambda, mu).
+
+The internal force (:mod:`impact_fenics.internal_force.quadrature`) calls the
+update once per quadrature point and step from a compiled cell kernel, with
+small scratch arrays for ``eps``, ``eps_p``, ``state`` and ``sigma``: an
+update must not allocate, and may read ``sigma`` only as output.
 """
 from __future__ import annotations
 

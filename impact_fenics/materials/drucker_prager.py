@@ -96,7 +96,7 @@ from numba import njit
 
 from ..errors import require
 from .axisym import SQRT_2_3, elastic_stress
-from .elastic import IsotropicModuli
+from .elastic import IsotropicConstants
 
 # params layout (float64 array)
 LMBDA, MU, BULK, ALPHA_F, ALPHA_G, K0, H, K_RES, P_T, ETA = range(10)
@@ -225,7 +225,7 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
 # ----------------------------------------------------------------------------- the material
 
 @dataclass(frozen=True)
-class DruckerPrager(IsotropicModuli):
+class DruckerPrager(IsotropicConstants):
     """Drucker-Prager rock (see the module docstring for every formula).
 
     E (Pa), nu, density (kg/m^3); ``ucs`` the uniaxial compressive strength (Pa);
@@ -251,10 +251,7 @@ class DruckerPrager(IsotropicModuli):
     update = staticmethod(update)  # the compiled point update (numba), signature of axisym
 
     def __post_init__(self) -> None:
-        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
-        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
-        require(-1.0 < self.nu < 0.5,
-                f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
+        self.check_elastic()
         require(0.0 <= self.friction_angle < 90.0,
                 f"material.friction_angle = {self.friction_angle} deg: must lie in [0, 90)")
         require(0.0 <= self.dilatancy_angle <= self.friction_angle,

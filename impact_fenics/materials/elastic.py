@@ -19,13 +19,20 @@ import ufl
 from ..errors import require
 
 
-class IsotropicModuli:
-    """Moduli (Pa) and the dilatational wave speed (m/s) of an isotropic material with
-    Young's modulus ``E`` (Pa), Poisson's ratio ``nu`` and ``density`` (kg/m^3)."""
+class IsotropicConstants:
+    """Isotropic elastic constants of a material with ``E`` (Pa), ``nu`` and ``density``
+    (kg/m^3): their checks, the Lame constants and the dilatational wave speed."""
 
     E: float
     nu: float
     density: float
+
+    def check_elastic(self) -> None:
+        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
+        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
+        require(-1.0 < self.nu < 0.5,
+                f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5); "
+                "nu >= 0.5 is incompressible and has no explicit stable time step")
 
     @property
     def mu(self) -> float:
@@ -39,8 +46,8 @@ class IsotropicModuli:
 
     @property
     def bulk(self) -> float:
-        """Bulk modulus K = E / (3 (1 - 2 nu)) (Pa)."""
-        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
+        """Bulk modulus K = lambda + 2 mu / 3 (Pa)."""
+        return self.lmbda + 2.0 * self.mu / 3.0
 
     def wave_speed(self) -> float:
         """Dilatational wave speed c1 = sqrt((lambda + 2 mu)/rho) in m/s."""
@@ -48,7 +55,7 @@ class IsotropicModuli:
 
 
 @dataclass(frozen=True)
-class LinearElastic(IsotropicModuli):
+class LinearElastic(IsotropicConstants):
     """Isotropic linear elasticity. E in Pa, nu dimensionless, density in kg/m^3."""
 
     E: float = 200e9
@@ -57,11 +64,7 @@ class LinearElastic(IsotropicModuli):
     linear: bool = True
 
     def __post_init__(self) -> None:
-        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
-        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
-        require(-1.0 < self.nu < 0.5,
-                f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5); "
-                "nu >= 0.5 is incompressible and has no explicit stable time step")
+        self.check_elastic()
 
     def stress(self, eps: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """Cauchy stress (Pa) of the 3x3 strain tensor."""

@@ -1,0 +1,368 @@
+"""Internal force of a path-dependent body: state at the quadrature points, f_int(u, state).
+
+The state lives at the points of the stiffness rule (forms.STIFFNESS_DEGREE = 2:
+three points per triangle), one array per variable over (owned cells x points):
+the plastic strain ``eps_p`` (n, 3, 4) in the (rr, tt, zz, rz) notation of
+:mod:`..materials.axisym`, the material's other variables ``state`` (n, 3,
+n_state; ``state[..., 0]`` the equivalent plastic strain) and the stress
+``sigma`` (n, 3, 4) in Pa. Each step, from u^n (m):
+
+    eps_q = B_q u_e  (eps_tt = u_r / r at the point),   point update -> sigma_q,
+    f_int = sum over cells and points of  w_q |J| 2 pi r_q  B_q' sigma_q   (N),
+
+the assembled vector of  int sigma : eps(w) 2 pi r dx  with the same rule.
+
+Two implementations give the same f_int to round-off:
+
+* ``"fast"``: one fused compiled pass over the cells (strain at the three
+  points from the cell's dofs, the point update, the element force, a
+  scatter-add into the local owned + ghost array), then one reverse scatter;
+  the geometry (dofs, P1 gradients, point radii and weights) is precomputed;
+* ``"generic"``: dolfinx does the finite-element work: the strain by a
+  ``fem.Expression`` at the points, the point update, the stress into a
+  quadrature-element Function and ``assemble_vector`` of the residual form.
+
+Under MPI each rank updates the points of the cells it owns (dolfinx
+integrates owned cells only), so every point belongs to exactly one rank; the
+ghost entries of f_int are summed into their owners by the reverse scatter.
+The displacement's ghost entries must be current on entry.
+
+The kernels are specialised on the material's compiled ``update`` and built
+once per process and material (numba cannot cache a function that calls
+another compiled function given at run time).
+"""
+from __future__ import annotations
+
+import math
+
+import basix
+import numpy as np
+import ufl
+from dolfinx import fem, la
+from numba import njit
+from petsc4py import PETSc
+
+from .. import forms
+from ..bodies import DeformableModel
+from ..operators import compile_form
+
+N_POINTS = 3  # points of the degree-2 triangle rule
+N_COMP = 4    # (rr, tt, zz, rz)
+
+
+def reference_rule(degree: int = forms.STIFFNESS_DEGREE) -> tuple[np.ndarray, np.ndarray]:
+    """Points (reference triangle) and weights of the rule dolfinx uses for ``degree``."""
+    points, weights = basix.make_quadrature(basix.CellType.triangle, degree)
+    return np.asarray(points, dtype=np.float64), np.asarray(weights, dtype=np.float64)
+
+
+def owned_cells(model: DeformableModel, body: str) -> np.ndarray:
+    """Local indices of the cells of ``body`` owned by this rank (sorted)."""
+    n_owned = model.mesh.topology.index_map(2).size_local
+    cells = model.tmesh.cells(body)
+    return np.sort(cells[cells < n_owned]).astype(np.int32)
+
+
+class CellGeometry:
+    """Fixed (small strain) geometry of P1 triangles at the rule's points.
+
+    ``dofs`` (n, 3) node (block) indices; ``dNdr``, ``dNdz`` (n, 3) P1 gradients
+    (1/m); ``N`` (3 points, 3 nodes) shape values; ``r`` (n, 3) point radii (m) and
+    ``inv_r`` their inverses (1/m);
+    ``w`` (n, 3) weights w_q |J| 2 pi r_q (m^3)."""
+
+    def __init__(self, model: DeformableModel, cells: np.ndarray):
+        ref_points, ref_weights = reference_rule()
+        assert ref_points.shape[0] == N_POINTS
+        self.cells = cells
+        self.dofs = model.V.dofmap.list.array.reshape(-1, 3)[cells].astype(np.int32)
+        xy = model.node_xy[self.dofs]  # (n, 3, 2)
+        xi, eta = ref_points[:, 0], ref_points[:, 1]
+        self.N = np.ascontiguousarray(np.stack([1.0 - xi - eta, xi, eta], axis=1))
+        d = xy[:, 1:, :] - xy[:, :1, :]  # J = [[r1-r0, r2-r0], [z1-z0, z2-z0]]
+        det = d[:, 0, 0] * d[:, 1, 1] - d[:, 1, 0] * d[:, 0, 1]
+        # reference gradients (-1,-1), (1,0), (0,1) mapped by J^-T
+        g_ref = np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]])
+        inv = np.empty((cells.size, 2, 2))  # J^-1
+        inv[:, 0, 0], inv[:, 0, 1] = d[:, 1, 1] / det, -d[:, 1, 0] / det
+        inv[:, 1, 0], inv[:, 1, 1] = -d[:, 0, 1] / det, d[:, 0, 0] / det
+        grad = np.einsum("ia,nab->nib", g_ref, inv)  # dN_i/dx_b = dN_i/dX_a (J^-1)_ab
+        self.dNdr = np.ascontiguousarray(grad[:, :, 0])
+        self.dNdz = np.ascontiguousarray(grad[:, :, 1])
+        self.r = np.ascontiguousarray(np.einsum("qi,ni->nq", self.N, xy[:, :, 0]))
+        self.inv_r = 1.0 / self.r  # the kernel multiplies (a division per point costs more)
+        self.w = np.ascontiguousarray(ref_weights[None, :] * np.abs(det)[:, None]
+                                      * 2.0 * math.pi * self.r)
+
+
+class QuadratureState:
+    """Internal variables at the points of owned cells: eps_p, state, sigma (see module)."""
+
+    def __init__(self, n_cells: int, n_state: int):
+        self.eps_p = np.zeros((n_cells, N_POINTS, N_COMP))
+        self.state = np.zeros((n_cells, N_POINTS, max(n_state, 1)))
+        self.sigma = np.zeros((n_cells, N_POINTS, N_COMP))
+
+    def copy_from(self, other: "QuadratureState") -> None:
+        self.eps_p[:], self.state[:], self.sigma[:] = other.eps_p, other.state, other.sigma
+
+
+# ---------------------------------------------------------------- compiled kernels
+_KERNELS: dict = {}
+
+
+def kernels(update):
+    """The fused cell kernel and the point loop of the generic path for ``update``."""
+    if update in _KERNELS:
+        return _KERNELS[update]
+
+    @njit
+    def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
+        """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
+        sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
+        # the point's variables go through small scratch arrays: a view into the big
+        # arrays per point would cost two reference-count updates each. (The generic
+        # path's loop below repeats this point block: a compiled helper for it, called
+        # or inlined by numba, made this kernel 2-5x slower.)
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :state.shape[2]]
+        ns = state.shape[2]
+        wp = 0.0
+        for c in range(dofs.shape[0]):
+            a0, a1, a2 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2]
+            ur0, ur1, ur2 = u[a0], u[a1], u[a2]
+            uz0, uz1, uz2 = u[a0 + 1], u[a1 + 1], u[a2 + 1]
+            gr0, gr1, gr2 = dNdr[c, 0], dNdr[c, 1], dNdr[c, 2]
+            gz0, gz1, gz2 = dNdz[c, 0], dNdz[c, 1], dNdz[c, 2]
+            e_rr = gr0 * ur0 + gr1 * ur1 + gr2 * ur2
+            e_zz = gz0 * uz0 + gz1 * uz1 + gz2 * uz2
+            e_rz = 0.5 * ((gz0 * ur0 + gz1 * ur1 + gz2 * ur2) + (gr0 * uz0 + gr1 * uz1 + gr2 * uz2))
+            # P1 gradients are constant in the cell: f_i = B_i' sum_q w_q sigma_q needs the
+            # weighted sums of sigma_rr, sigma_zz, sigma_rz and, for the hoop term, of
+            # w_q sigma_tt,q / r_q N_i(x_q)
+            S_rr = S_zz = S_rz = h0 = h1 = h2 = 0.0
+            for q in range(3):
+                ir = inv_r[c, q]
+                n0, n1, n2 = N[q, 0], N[q, 1], N[q, 2]
+                eps[0] = e_rr
+                eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
+                eps[2] = e_zz
+                eps[3] = e_rz
+                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
+                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                for k in range(ns):
+                    st[k] = state[c, q, k]
+                update(eps, ep, st, params, dt, s)
+                for k in range(ns):
+                    state[c, q, k] = st[k]
+                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                wq = w[c, q]
+                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
+                    o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                    wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                      + 2.0 * (o3 + s3) * d3)
+                    eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = \
+                        ep[0], ep[1], ep[2], ep[3]
+                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
+                S_rr += wq * s0
+                S_zz += wq * s2
+                S_rz += wq * s3
+                t = wq * s1 * ir
+                h0 += t * n0
+                h1 += t * n1
+                h2 += t * n2
+            f[a0] += gr0 * S_rr + gz0 * S_rz + h0
+            f[a1] += gr1 * S_rr + gz1 * S_rz + h1
+            f[a2] += gr2 * S_rr + gz2 * S_rz + h2
+            f[a0 + 1] += gz0 * S_zz + gr0 * S_rz
+            f[a1 + 1] += gz1 * S_zz + gr1 * S_rz
+            f[a2 + 1] += gz2 * S_zz + gr2 * S_rz
+        return wp
+
+    @njit
+    def points(params, dt, eps_all, w, eps_p, state, sigma, qdofs, sigma_q, work):
+        """Point updates from the strains ``eps_all`` (n, 3 * 4) evaluated by dolfinx;
+        the stresses also go to ``sigma_q`` (the quadrature Function's array) at
+        ``qdofs`` (n, 3). Returns the plastic work increment (J), as :func:`fused`."""
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :state.shape[2]]
+        ns = state.shape[2]
+        wp = 0.0
+        for c in range(eps_all.shape[0]):
+            for q in range(3):
+                for i in range(4):
+                    eps[i] = eps_all[c, 4 * q + i]
+                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
+                o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                for k in range(ns):
+                    st[k] = state[c, q, k]
+                update(eps, ep, st, params, dt, s)
+                for k in range(ns):
+                    state[c, q, k] = st[k]
+                k4 = 4 * qdofs[c, q]
+                for i in range(4):
+                    sigma[c, q, i] = s[i]
+                    eps_p[c, q, i] = ep[i]
+                    sigma_q[k4 + i] = s[i]
+                wp += 0.5 * w[c, q] * ((o0 + s[0]) * (ep[0] - p0) + (o1 + s[1]) * (ep[1] - p1)
+                                       + (o2 + s[2]) * (ep[2] - p2)
+                                       + 2.0 * (o3 + s[3]) * (ep[3] - p3))
+        return wp
+
+    _KERNELS[update] = (fused, points)
+    return fused, points
+
+
+@njit(cache=True)
+def velocity_update(coef, f, u, v, f_prev, u_prev) -> float:
+    """v += coef * f (coef = -dt / m, 0 on fixed dofs) on the owned dofs; returns the
+    deformation work 1/2 (f_prev + f) . (u - u_prev) (J) and stores f, u as the previous."""
+    work = 0.0
+    for i in range(coef.size):
+        fi = f[i]
+        ui = u[i]
+        v[i] += coef[i] * fi
+        work += 0.5 * (f_prev[i] + fi) * (ui - u_prev[i])
+        f_prev[i] = fi
+        u_prev[i] = ui
+    return work
+
+
+@njit(cache=True)
+def elastic_energy(lmbda, mu, sigma, w) -> float:
+    """psi_e = sum_q w_q 1/2 sigma : C^-1 : sigma (J) over the points."""
+    total = 0.0
+    c = lmbda / (3.0 * lmbda + 2.0 * mu)
+    for k in range(sigma.shape[0]):
+        for q in range(sigma.shape[1]):
+            s = sigma[k, q]
+            tr = s[0] + s[1] + s[2]
+            ss = s[0] * s[0] + s[1] * s[1] + s[2] * s[2] + 2.0 * s[3] * s[3]
+            total += w[k, q] * (ss - c * tr * tr) / (4.0 * mu)
+    return total
+
+
+@njit(cache=True)
+def cell_means(which, eps_p, state, out_eps_p, out_eps_bar, out_yielded) -> None:
+    """Per cell in ``which`` (positions): the mean plastic strain and equivalent plastic
+    strain of its points, and 1 if any point has yielded (eps_bar_p > 0), else 0."""
+    for c in which:
+        for i in range(4):
+            out_eps_p[c, i] = (eps_p[c, 0, i] + eps_p[c, 1, i] + eps_p[c, 2, i]) / 3.0
+        out_eps_bar[c] = (state[c, 0, 0] + state[c, 1, 0] + state[c, 2, 0]) / 3.0
+        out_yielded[c] = 1.0 if (state[c, 0, 0] > 0.0 or state[c, 1, 0] > 0.0
+                                 or state[c, 2, 0] > 0.0) else 0.0
+
+
+# ---------------------------------------------------------------- the force
+class QuadratureForce:
+    """f_int of one path-dependent body (cells of group ``body``) and its energy terms.
+
+    ``u`` is the displacement Function (m) whose array the integrator steps (ghosts
+    forward-scattered before :meth:`add_velocity_increment`); ``coef`` the owned
+    -dt / m (s/kg), 0 on fixed dofs; ``path`` 'fast' or 'generic'."""
+
+    def __init__(self, model: DeformableModel, body: str, u: fem.Function, dt: float,
+                 coef: np.ndarray, path: str = "fast"):
+        if path not in ("fast", "generic"):
+            raise ValueError(f"path = '{path}': use 'fast' or 'generic'")
+        self.model, self.body, self.u, self.dt, self.path = model, body, u, float(dt), path
+        self.material = model.bodies[body].material
+        self.params = self.material.params()
+        self.cells = owned_cells(model, body)
+        self.geometry = CellGeometry(model, self.cells)
+        self.qs = QuadratureState(self.cells.size, self.material.n_state)
+        self.coef = coef
+        self.f = fem.Function(model.V)  # f_int (N), owned + ghost entries
+        n = model.n_owned
+        self.f_owned = self.f.x.array[:n]
+        self._f_prev = np.zeros(n)
+        self._u_prev = np.zeros(n)
+        self._work = np.zeros((4, max(N_COMP, self.material.n_state)))
+        self.deformation_work_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
+        self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
+        self._started = False
+        self._fused, self._points = kernels(self.material.update)
+        if path == "generic":
+            self._setup_generic()
+        self._setup_cell_fields()
+
+    # ------------------------------------------------------------ generic path
+    def _setup_generic(self) -> None:
+        model = self.model
+        mesh = model.mesh
+        points, _ = reference_rule()
+        r = forms.radius(mesh)
+        e = forms.strain(self.u, r)
+        self._eps_expr = fem.Expression(ufl.as_vector([e[0, 0], e[1, 1], e[2, 2], e[0, 2]]), points)
+        self._eps_buf = np.zeros((self.cells.size, N_POINTS * N_COMP))
+        element = ufl.VectorElement("Quadrature", mesh.ufl_cell(), degree=forms.STIFFNESS_DEGREE,
+                                    dim=N_COMP, quad_scheme="default")
+        Q = fem.FunctionSpace(mesh, element)
+        self._sigma_q = fem.Function(Q)
+        qdofs = Q.dofmap.list.array.reshape(-1, N_POINTS)[self.cells]
+        self._qdofs = np.ascontiguousarray(qdofs.astype(np.int32))
+        s = self._sigma_q
+        sigma = ufl.as_tensor([[s[0], 0, s[3]], [0, s[1], 0], [s[3], 0, s[2]]])
+        w = ufl.TestFunction(model.V)
+        dx = forms.cell_measure(mesh, model.tmesh.cell_tags, model.tmesh.cell_tag(self.body),
+                                forms.STIFFNESS_DEGREE)
+        self._form = compile_form(ufl.inner(sigma, forms.strain(w, r)) * 2 * math.pi * r * dx)
+
+    # ------------------------------------------------------------ the step
+    def compute(self) -> np.ndarray:
+        """f_int(u) (N) into ``self.f`` (owned entries summed over ranks): the point
+        updates bring the state to the time of u and book their plastic work. Returns
+        the owned view."""
+        g, qs = self.geometry, self.qs
+        if self.path == "fast":
+            arr = self.f.x.array
+            arr[:] = 0.0
+            wp = self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
+                             self.u.x.array, arr, qs.eps_p, qs.state, qs.sigma, self._work)
+            self.f.x.scatter_reverse(la.ScatterMode.add)
+        else:
+            self._eps_expr.eval(self.cells, values=self._eps_buf)
+            wp = self._points(self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
+                              qs.sigma, self._qdofs, self._sigma_q.x.array, self._work)
+            vec = self.f.vector
+            with vec.localForm() as local:
+                local.set(0.0)
+            fem.petsc.assemble_vector(vec, self._form)
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.plastic_work_local += wp
+        return self.f_owned
+
+    def add_velocity_increment(self, u_owned: np.ndarray, v_owned: np.ndarray) -> None:
+        """v += -dt M^-1 f_int(u^n) on the free owned dofs, and book the deformation work."""
+        self.compute()
+        if not self._started:  # step 0: f^{-1} := f^0, u^{-1} := u^0 (no work yet)
+            self._f_prev[:] = self.f_owned
+            self._u_prev[:] = u_owned
+            self._started = True
+        self.deformation_work_local += velocity_update(self.coef, self.f_owned, u_owned, v_owned,
+                                                       self._f_prev, self._u_prev)
+
+    # ------------------------------------------------------------ energy (J), local to this rank
+    def elastic_energy_local(self) -> float:
+        """psi_e of the current stresses: sum over points of 1/2 sigma : C^-1 : sigma w (J)."""
+        return elastic_energy(self.material.lmbda, self.material.mu, self.qs.sigma, self.geometry.w)
+
+    # ------------------------------------------------------------ cell fields
+    def _setup_cell_fields(self) -> None:
+        n = self.cells.size
+        self._all = np.arange(n, dtype=np.intp)
+        self._cell_eps_p = np.zeros((n, N_COMP))
+        self._cell_eps_bar = np.zeros(n)
+        self._cell_yielded = np.zeros(n)
+
+    def cell_values(self, which: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per owned cell of the body: mean eps_p (n, 4), mean eps_bar_p (n,) and the
+        yielded flag (n,) (1 if any point has eps_bar_p > 0); only the positions
+        ``which`` (into ``cells``) are brought up to date when given."""
+        cell_means(self._all if which is None else which, self.qs.eps_p, self.qs.state,
+                   self._cell_eps_p, self._cell_eps_bar, self._cell_yielded)
+        return self._cell_eps_p, self._cell_eps_bar, self._cell_yielded

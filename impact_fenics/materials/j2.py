@@ -1,0 +1,111 @@
+"""J2 (von Mises) plasticity with linear isotropic hardening and optional overstress viscosity.
+
+Small strain, additive split eps = eps_e + eps_p, isotropic elasticity
+sigma = C : (eps - eps_p). Yield function and flow rule (associative):
+
+    f(sigma, eps_bar_p) = sigma_eq - sigma_y(eps_bar_p),   sigma_eq = sqrt(3/2 s : s),
+    sigma_y(eps_bar_p) = sigma_y0 + H eps_bar_p,            (H = d sigma_y / d eps_bar_p, Pa)
+    d eps_p = d eps_bar_p * 3/2 s / sigma_eq,    (so d eps_bar_p = sqrt(2/3 d eps_p : d eps_p))
+
+Rate-independent (eta = 0): f <= 0. Viscoplastic (eta > 0, Pa s): the linear
+overstress law of Perzyna type
+
+    d eps_bar_p / dt = <f> / eta       (<x> = max(x, 0)).
+
+Radial return (Simo & Hughes 1998, box 3.1; de Souza Neto et al. 2008, box 7.3):
+with the trial state sigma_tr = C : (eps_{n+1} - eps_p,n), f_tr = f(sigma_tr,
+eps_bar_p,n), backward Euler on the flow rule gives, in closed form,
+
+    Delta eps_bar_p = f_tr / (3 mu + H + eta / dt),
+    s_{n+1} = (1 - 3 mu Delta eps_bar_p / sigma_eq,tr) s_tr,
+    eps_p,{n+1} = eps_p,n + Delta eps_bar_p * 3/2 s_tr / sigma_eq,tr,
+
+and then sigma_eq,{n+1} = sigma_y(eps_bar_p,{n+1}) + eta Delta eps_bar_p / dt:
+the rate-independent return (eta = 0) is consistent exactly, and the
+viscoplastic one tends to it as eta / dt -> 0.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import require
+from .elastic import IsotropicConstants
+
+# layout of the parameter array given to :func:`update`
+LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
+
+
+@njit(cache=True)
+def update(eps, eps_p, state, params, dt, sigma) -> None:
+    """Radial return for J2 at one point (the seam of :mod:`.axisym`).
+
+    ``state[0]`` is the equivalent plastic strain eps_bar_p. Units: Pa, Pa s, s."""
+    lmbda, mu = params[LAMBDA], params[MU]
+    # trial stress sigma_tr = C : (eps - eps_p,n), its deviator and sigma_eq
+    e0, e1, e2, e3 = eps[0] - eps_p[0], eps[1] - eps_p[1], eps[2] - eps_p[2], eps[3] - eps_p[3]
+    lt = lmbda * (e0 + e1 + e2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * e0, lt + 2.0 * mu * e1, lt + 2.0 * mu * e2, 2.0 * mu * e3
+    m = (s0 + s1 + s2) / 3.0
+    d0, d1, d2 = s0 - m, s1 - m, s2 - m
+    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)  # sigma_eq,tr^2
+    sy = params[YIELD_STRESS] + params[HARDENING] * state[0]
+    if q2_tr <= sy * sy:  # f_tr <= 0 (sigma_y > 0): elastic, no square root needed
+        sigma[0], sigma[1], sigma[2], sigma[3] = s0, s1, s2, s3
+        return
+    q_tr = math.sqrt(q2_tr)
+    f_tr = q_tr - sy
+    viscous = params[VISCOSITY] / dt if params[VISCOSITY] > 0.0 else 0.0
+    dg = f_tr / (3.0 * mu + params[HARDENING] + viscous)  # Delta eps_bar_p
+    k = 1.5 * dg / q_tr  # Delta eps_p = k s_tr
+    eps_p[0] += k * d0
+    eps_p[1] += k * d1
+    eps_p[2] += k * d2
+    eps_p[3] += k * s3
+    state[0] += dg
+    c = 2.0 * mu * k  # sigma = sigma_tr - 2 mu Delta eps_p
+    sigma[0] = s0 - c * d0
+    sigma[1] = s1 - c * d1
+    sigma[2] = s2 - c * d2
+    sigma[3] = s3 - c * s3
+
+
+@dataclass(frozen=True)
+class J2(IsotropicConstants):
+    """Von Mises plasticity, linear isotropic hardening, optional overstress viscosity.
+
+    E, yield_stress (initial sigma_y0), hardening (H = d sigma_y / d eps_bar_p) in Pa;
+    nu dimensionless; density kg/m^3; viscosity eta in Pa s (0: rate-independent)."""
+
+    E: float = 200e9
+    nu: float = 0.3
+    density: float = 7850.0
+    yield_stress: float = 250e6
+    hardening: float = 0.0
+    viscosity: float = 0.0
+    linear: bool = False
+    n_state: int = 1
+
+    def __post_init__(self) -> None:
+        self.check_elastic()
+        require(self.yield_stress > 0,
+                f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
+        require(self.hardening >= 0,
+                f"material.hardening = {self.hardening} Pa: must be >= 0 (softening makes the "
+                "solution mesh-dependent and is not offered)")
+        require(self.viscosity >= 0, f"material.viscosity = {self.viscosity} Pa s: must be >= 0")
+
+    def params(self) -> np.ndarray:
+        """The float64 parameter array of :func:`update`."""
+        p = np.zeros(5)
+        p[LAMBDA], p[MU], p[YIELD_STRESS] = self.lmbda, self.mu, self.yield_stress
+        p[HARDENING], p[VISCOSITY] = self.hardening, self.viscosity
+        return p
+
+    @property
+    def update(self):
+        """The compiled point update (radial return)."""
+        return update

@@ -16,7 +16,6 @@
 # the rock, and the efficiency: work done on the rock / incident energy.
 
 import argparse
-import importlib.util
 import math
 import os
 
@@ -25,6 +24,7 @@ from mpi4py import MPI
 
 from impact_fenics import loads, scenes
 from impact_fenics.errors import InputError, user_errors
+from impact_fenics.materials import DruckerPrager
 from impact_fenics.simulation import Settings
 
 # ## The scene
@@ -56,16 +56,10 @@ INCIDENT = loads.Trapezoid(peak=150e3, t_rise=1e-5, t_fall=7e-5, t_end=8e-5)  # 
 
 
 def rock_material(kind: str):
-    """The rock: 'elastic' (LinearElastic) or 'drucker_prager' (needs the nonlinear
-    internal force of issue 10)."""
+    """The rock: 'elastic' (LinearElastic) or 'drucker_prager' (path-dependent, its state
+    at the quadrature points of the stiffness rule)."""
     if kind == "elastic":
         return scenes.GRANITE
-    if importlib.util.find_spec("impact_fenics.internal_force") is None:
-        raise InputError("--rock drucker_prager needs the nonlinear internal force "
-                         "(impact_fenics.internal_force), not in this build yet: use "
-                         "--rock elastic")
-    from impact_fenics.materials.drucker_prager import DruckerPrager
-
     return DruckerPrager(**GRANITE_DP)
 
 
@@ -132,8 +126,12 @@ def blow_checks(sim) -> dict:
 # penetration, where the bit stops, the dynamic F/delta is close to it
 # (tests/test_bit_rock.py shows it tends to it as the blow slows down).
 def static_stiffness(sim) -> float:
-    """K_h (N/m) of a flat face; NaN for a button (its flat limit is no reference)."""
-    return float("nan") if sim.contacts[0].b.any() else scenes.static_stiffness(sim)
+    """K_h (N/m) of a flat face on elastic rock; NaN for a button (its flat limit is no
+    reference) and for a plastic rock (no stiffness is assembled; its elastic K_h would
+    be the curve's initial slope only)."""
+    if sim.contacts[0].b.any() or sim.integrator.K is None:
+        return float("nan")
+    return scenes.static_stiffness(sim)
 
 
 def plot(sim, path: str, k_static: float) -> None:

@@ -130,8 +130,9 @@ def test_energy_split_over_ten_thousand_plastic_steps():
 
 
 # ---------------------------------------------------------------- the plastic wave
-def _wave(h, comm=MPI.COMM_WORLD, P=600e6, L=2.0, t_end=3e-4, probes=()):
-    mat = J2(E=200e9, nu=0.3, density=7850.0, yield_stress=200e6, hardening=10e9)
+def _wave(h, comm=MPI.COMM_WORLD, P=600e6, L=2.0, t_end=3e-4, probes=(), mat=None):
+    if mat is None:
+        mat = J2(E=200e9, nu=0.3, density=7850.0, yield_stress=200e6, hardening=10e9)
     tm = meshing.bar(radius=2 * h, length=L, h=h, structured=True, comm=comm)
     model = DeformableModel(tm, [Body("bar", mat)])
     sim = Simulation(model, Settings(cfl=0.5, t_end=t_end, output_every=50, quiet=True,
@@ -226,6 +227,58 @@ def test_uniaxial_strain_plastic_wave_two_meshes():
         # z = 0.5 m, i.e. after travelling z: the same bound with c t -> z
         assert abs(hist["ep"][-1] / ebar - 1) <= (h / 0.5) ** (2 / 3)
         assert hist["yl"][-1] == 1.0 and hist["yl_ahead"][-1] == 0.0
+        assert sim.summary["plastic_dissipation"] > 0.0
+
+
+def test_drucker_prager_uniaxial_strain_plastic_wave_two_meshes():
+    """Pressure step P on a Drucker-Prager bar held at u_r = 0 everywhere.
+
+    Closed form (tests/uniaxial_strain.py derives it; rate-independent, linear cohesion
+    hardening h per unit of the deviatoric plastic strain): an elastic precursor of
+    amplitude sigma_HEL = (K + 4 mu/3) k / (2 mu - K alpha_f) at c_L, a plastic front at
+    c_p = sqrt(M_p / rho), M_p = K + 4 mu/3 - (2 mu - K alpha_f)(2 mu - K alpha_g) /
+    (3 mu + K alpha_f alpha_g + h), carrying the axial stress to P; particle velocities
+    v1 = sigma_HEL/(rho c_L) and v2 = v1 + (P - sigma_HEL)/(rho c_p). It exists only for
+    alpha_f, alpha_g < 2 mu/K (= 1.5 at nu = 0.2): a cone matched to Mohr-Coulomb needs
+    sin(phi) < 1 - 2 nu, and friction brings c_p close to c_L (the plateau between the
+    fronts must be several front widths long), hence nu = 0.2, phi = 5 deg
+    (alpha_f = 0.180), psi = 2 deg here (c_p = 0.77 c_L), not the granite of the
+    bit-rock scene.
+
+    Tolerances as in the J2 wave test, from the Airy width of a dispersed step front
+    w = (h^2 c t)^(1/3): fronts within w / 2, plateau means within (h / c_L t)^(2/3); both
+    shrink as h^(2/3) when h halves."""
+    from impact_fenics.materials import DruckerPrager
+    from uniaxial_strain import uniaxial_strain
+
+    P, L, t_end = 600e6, 2.0, 3e-4
+    mat = DruckerPrager(E=200e9, nu=0.2, density=7850.0, ucs=175e6, friction_angle=5.0,
+                        dilatancy_angle=2.0, tensile_strength=50e6, hardening=10e9)
+    cf = uniaxial_strain(mat)
+    assert 0.1 * P < cf.sigma_hel < 0.7 * P and cf.c_plastic < 0.8 * cf.c_elastic
+    rho = mat.density
+    v1 = cf.sigma_hel / (rho * cf.c_elastic)
+    v2 = v1 + (P - cf.sigma_hel) / (rho * cf.c_plastic)
+    for h in (0.01, 0.005):
+        sim, _ = _wave(h, P=P, L=L, t_end=t_end, mat=mat)
+        sim.run()
+        t = sim.integrator.n * sim.integrator.dt
+        zr, vz, zc, szz = _profiles(sim, h, L)
+        szz = -szz  # compression
+        zL, zp = cf.c_elastic * t, cf.c_plastic * t
+        w = (h * h * cf.c_elastic * t) ** (1 / 3)
+        tol = (h / (cf.c_elastic * t)) ** (2 / 3)
+        m = 1.5 * w
+        behind = lambda z: (z > m) & (z < zp - m)  # noqa: E731
+        between = lambda z: (z > zp + m) & (z < zL - m)  # noqa: E731
+        assert abs(vz[behind(zr)].mean() / v2 - 1) <= tol
+        assert abs(vz[between(zr)].mean() / v1 - 1) <= tol
+        assert abs(szz[behind(zc)].mean() / P - 1) <= tol
+        assert abs(szz[between(zc)].mean() / cf.sigma_hel - 1) <= tol
+        assert abs(_front(zr, vz, v1 / 2) - zL) <= w / 2
+        assert abs(_front(zr, vz, (v1 + v2) / 2) - zp) <= w / 2
+        assert abs(_front(zc, szz, cf.sigma_hel / 2) - zL) <= w / 2
+        assert abs(_front(zc, szz, (cf.sigma_hel + P) / 2) - zp) <= w / 2
         assert sim.summary["plastic_dissipation"] > 0.0
 
 

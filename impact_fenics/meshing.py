@@ -258,6 +258,39 @@ def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length
                                      "target_length": target_length})
 
 
+def coaxial_bars_sized(radius: float = 0.05, striker_length: float = 0.2,
+                       target_length: float = 0.2, h_striker: float = 0.01,
+                       h_target: float = 0.01 * 2 / 3, structured: bool = True,
+                       comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """Two coaxial bars touching at z = 0 with their own element sizes (m): the striker
+    in z in [-striker_length, 0] (size h_striker), the target in [0, target_length]
+    (size h_target). Each face has round(radius/h) equal intervals, so with unequal
+    sizes (e.g. 3:2) the contact faces do not match node to node (node-to-segment
+    contact). Groups as :func:`coaxial_bars`.
+    """
+    require(radius > 0 and striker_length > 0 and target_length > 0 and h_striker > 0
+            and h_target > 0, "coaxial_bars_sized: radius, lengths and sizes must be > 0 (m)")
+
+    def build(gmsh):
+        s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h_striker,
+                            n_r=max(1, int(round(radius / h_striker))), structured=structured)
+        s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h_target,
+                            n_r=max(1, int(round(radius / h_target))), structured=structured)
+        _group(gmsh, 2, [s1], "striker", 1)
+        _group(gmsh, 2, [s2], "target", 2)
+        for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
+                                  ("striker_contact", [c1[2]], 13), ("target_contact", [c2[0]], 14),
+                                  ("target_lateral", [c2[1]], 15), ("target_end", [c2[2]], 16),
+                                  ("axis", [c1[3], c2[3]], 17)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "coaxial_bars_sized", "radius": radius,
+                                     "h_striker": h_striker, "h_target": h_target,
+                                     "striker_length": striker_length,
+                                     "target_length": target_length})
+
+
 # Surface intervals of the punch block: breaks at r = 1, 3, 6 m with 106, 201 and
 # 302 intervals give 107, 308 and 610 surface nodes with r <= 1, 3 and 6 m.
 PUNCH_SURFACE_BREAKS = ((1.0, 106), (3.0, 201), (6.0, 302))

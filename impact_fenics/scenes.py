@@ -89,3 +89,30 @@ def punch_indentation(settings: Settings, method, radius: float = 1.0, punch_mas
     sim = Simulation(model, settings, fixed=[bottom])
     sim.add_contact(rigid_face(model, "surface", radius, "punch"), method, rigid=punch)
     return sim
+
+
+def bar_impact_sized(settings: Settings, method, n_striker: int = 6, n_target: int = 9,
+                     nu: float = 0.0, v0: float = 5.0, radius: float = 0.05,
+                     striker_length: float = 0.2, target_length: float = 0.2,
+                     structured: bool = True, node_to_node: bool = False,
+                     comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """Two coaxial steel bars touching at z = 0 whose contact faces have ``n_striker`` and
+    ``n_target`` intervals (element sizes radius/n, m); the striker (below) moves at v0
+    (m/s) in +z. Node-to-segment contact with the finer face as slave (the target when
+    n_target >= n_striker); ``node_to_node`` pairs matching faces instead (the reduction)."""
+    from .contact.segments import node_to_segment
+
+    material = replace(STEEL, nu=nu)
+    tmesh = meshing.coaxial_bars_sized(radius=radius, striker_length=striker_length,
+                                       target_length=target_length, h_striker=radius / n_striker,
+                                       h_target=radius / n_target, structured=structured,
+                                       comm=comm)
+    model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
+    sim = Simulation(model, settings, initial_velocity={"striker": (0.0, v0)})
+    if node_to_node:
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"), method)
+    elif n_target >= n_striker:
+        sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"), method)
+    else:
+        sim.add_contact(node_to_segment(model, "striker_contact", "target_contact"), method)
+    return sim

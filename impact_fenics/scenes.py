@@ -13,7 +13,7 @@ from . import loads, meshing
 from .bodies import Body, DeformableModel
 from .contact import DME, FILM, Penalty, RigidBody, pair_surfaces, rigid_face
 from .errors import InputError
-from .materials import STEEL
+from .materials import STEEL, LinearElastic
 from .simulation import Settings, Simulation
 
 
@@ -115,4 +115,28 @@ def bar_impact_sized(settings: Settings, method, n_striker: int = 6, n_target: i
         sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"), method)
     else:
         sim.add_contact(node_to_segment(model, "striker_contact", "target_contact"), method)
+    return sim
+
+
+ALUMINIUM = LinearElastic(E=70e9, nu=0.33, density=2700.0)
+
+
+def nosed_striker(settings: Settings, method, v0: float = 5.0, nose_radius: float = 0.02,
+                  h_striker: float = 0.02 / 8, h_block: float = 0.02 / 12,
+                  block_material: LinearElastic = ALUMINIUM, hold_block: bool = True,
+                  comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """A steel striker with a hemispherical nose (radius m) hitting an aluminium block at
+    v0 (m/s, -z), node to segment: the block's top under the nose (finer) is the slave,
+    the nose's segments the master, so the normals are inclined (u_r and u_z both
+    enter). The block bottom is held in z (unless not ``hold_block``). Block nodes up to
+    the nose radius below the nose are in reach (most stay open)."""
+    from .contact.segments import node_to_segment
+
+    tmesh = meshing.nosed_striker_on_block(nose_radius=nose_radius, h_striker=h_striker,
+                                           h_block=h_block, comm=comm)
+    model = DeformableModel(tmesh, [Body("striker", STEEL), Body("block", block_material)])
+    fixed = [model.facet_dofs("block_bottom", 1)] if hold_block else []
+    sim = Simulation(model, settings, fixed=fixed, initial_velocity={"striker": (0.0, -v0)})
+    sim.add_contact(node_to_segment(model, "block_contact", "nose", reach=1.01 * nose_radius),
+                    method)
     return sim

@@ -100,6 +100,13 @@ def test_axis_slave_over_a_tilted_tip_gets_an_axial_normal():
     assert c.g0[0] == pytest.approx(0.002, rel=1e-12)
 
 
+def test_axis_slave_on_a_tilted_tip_gets_an_axial_normal():
+    nose = [(0.0, 0.0), (0.05, 0.01), (0.1, 0.04)]
+    c = _constraints([(0.0, 0.0), (0.03, -0.001)], nose, (0.01, 0.05))
+    assert c.normal[0].tolist() == [0.0, -1.0] and c.g0[0] == 0.0 and c.xi[0] == 0.0
+    assert c.kind[1] == FACE and c.normal[1, 0] > 0  # off the axis: the segment's tilt
+
+
 def test_initial_gaps_reach_and_penetration():
     c = _constraints([(0.15, -1e-9)], FLAT, (0.1, -1.0), gap_tol=1e-8)
     assert c.g0[0] == 0.0  # within the tolerance: zero

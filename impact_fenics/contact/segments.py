@@ -24,9 +24,10 @@ Edge cases (each tested):
   to the slave, g0 = |x_s - x_v|;
 * a concave vertex (the slave projects inside two segments): the closest
   projection, ties as above;
-* the axis r = 0: a slave on the axis directly over a master vertex on the
-  axis gets n = (0, +-1) exactly (its u_r is fixed there: the methods never move
-  a fixed dof).
+* the axis r = 0: a slave on the axis whose contact point is a master node
+  on the axis (a tip, or a face starting there) gets n = (0, +-1) exactly,
+  whatever the tilt of the segment chosen (by symmetry; both u_r are fixed there
+  and the methods never move a fixed dof).
 
 Initial gaps below -``gap_tol`` are refused (one line naming the node); gaps
 within +-``gap_tol`` are set to zero. A slave farther than ``reach`` from every
@@ -181,6 +182,15 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
     normal = np.empty((n, 2))
     tie_tol = 1e-9 * float(lengths.min())
     project(slave_xy, segments, master_xy, normals, xi_tol, tie_tol, seg, xi, normal, g0, kind, dist)
+    # the axis: a slave on r = 0 whose contact point is a master node on r = 0 (a tip)
+    # takes the axial normal, whatever the tilt of the segment chosen
+    axis_tol = 1e-9 * float(lengths.min())
+    point = (1.0 - xi)[:, None] * master_xy[segments[seg, 0]] + xi[:, None] * master_xy[segments[seg, 1]]
+    on_axis = (np.abs(slave_xy[:, 0]) <= axis_tol) & (np.abs(point[:, 0]) <= axis_tol)
+    if np.any(on_axis):
+        sign = np.where(normal[on_axis, 1] >= 0.0, 1.0, -1.0)
+        normal[on_axis] = np.stack([np.zeros_like(sign), sign], axis=1)
+        g0[on_axis] = sign * (slave_xy[on_axis, 1] - point[on_axis, 1])
     far = dist > reach
     if np.any(far):
         p = slave_xy[np.flatnonzero(far)[0]]

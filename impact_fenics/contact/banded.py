@@ -126,12 +126,15 @@ def band_matvec(band, bw, x, out):
 
 
 @njit(cache=True)
-def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter):
+def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored):
     """Block principal pivoting for w = gap + S lam >= 0, lam >= 0, lam . w = 0.
 
     ``free`` (bool, n) holds the starting set of loaded constraints on entry
     (gap < 0 is the usual start) and the loaded set on exit. Writes lam (N) and
-    w (m). Returns the number of iterations (linear solves), -1 if none converged."""
+    w (m). ``factored`` (bool, n + 1): the set whose factor L holds, its last entry
+    True when L is valid; a set equal to it is not factored again (S is fixed in
+    small strain, so a persistent contact factors once). Returns the number of
+    iterations (linear solves), -1 if none converged."""
     n = gap.size
     scale = 0.0
     for i in range(n):
@@ -147,8 +150,19 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter):
                 rhs[m] = -gap[i]
                 m += 1
         if m > 0:
-            if not band_factor(band, bw, idx, m, L):
-                return -1
+            same = factored[n]
+            if same:
+                for i in range(n):
+                    if factored[i] != free[i]:
+                        same = False
+                        break
+            if not same:
+                if not band_factor(band, bw, idx, m, L):
+                    factored[n] = False
+                    return -1
+                for i in range(n):
+                    factored[i] = free[i]
+                factored[n] = True
             band_solve(L, bw, m, rhs, sol)
         for i in range(n):
             lam[i] = 0.0

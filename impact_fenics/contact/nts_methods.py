@@ -48,6 +48,7 @@ class _Workspace:
         self.rhs = np.zeros(n)
         self.sol = np.zeros(n)
         self.L = np.zeros((n, bw + 1))
+        self.factored = np.zeros(n + 1, dtype=np.bool_)  # the set L factors, valid flag
 
 
 class _Pivoting:
@@ -70,7 +71,7 @@ class _Pivoting:
         else:
             np.less(c.gap, 0.0, out=ws.free)
             it = lcp_bpp(c.band, c.bw, c.gap, ws.lam, ws.w, ws.free, ws.idx, ws.rhs, ws.sol, ws.L,
-                         self.max_iter)
+                         self.max_iter, ws.factored)
             if it < 0:
                 raise RuntimeError(f"{self.name}: complementarity pivoting did not converge in "
                                    f"{self.max_iter} iterations ({c.n} constraints)")

@@ -269,3 +269,15 @@ def test_nosed_striker_on_a_block_of_another_material(method):
     (xp, up), (xs, us) = _final_u(par), _final_u(ser)
     assert _rel(up, us) <= 1e-10
     assert _rel(hist["contact_force"], ser.history.data()["contact_force"]) <= 1e-10
+
+
+def test_demo_runs_both_scenes():
+    """The demo's checks: momentum 1e-10 and, for the bars, the plateau within 1 %."""
+    from conftest import load_demo
+
+    demo = load_demo("node_to_segment")
+    for scene in ("bars", "nose"):
+        summary, _ = demo.run(scene, "film")
+        assert summary["momentum_error_rel"] <= 1e-10
+        if scene == "bars":
+            assert abs(summary["stress_over_rho_c0_v0_half"] - 1) <= 0.01

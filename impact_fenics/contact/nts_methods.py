@@ -11,7 +11,9 @@ off-diagonal entries where slaves share a master node, not an M-matrix.
   Gershgorin bound exceeds the stability limit 4/3 (contact.penalty) unless forced.
 * **FILM**: the complementarity problem w = g~ + S lam >= 0, lam >= 0, lam . w = 0
   by block principal pivoting on the band of S (``solver="bpp"``, O(n) per
-  iteration) or with dense factors (``solver="dense"``, for comparison); then
+  iteration; started from the last step's loaded set joined with g~ < 0, whose
+  band factor is kept) or with dense factors (``solver="dense"``, for
+  comparison, started from g~ < 0); then
   v += dt M^-1 G' lam, u += dt^2 M^-1 G' lam. Iterations are counted.
 * **DME**: the normal relative displacement is eliminated. Positions: the
   M-orthogonal projection of u~ onto the active manifold g = 0 (the mass-weighted
@@ -44,6 +46,7 @@ class _Workspace:
         self.lam = np.zeros(n)
         self.w = np.zeros(n)
         self.free = np.zeros(n, dtype=np.bool_)
+        self.start = np.zeros(n, dtype=np.bool_)
         self.idx = np.zeros(n, dtype=np.int64)
         self.rhs = np.zeros(n)
         self.sol = np.zeros(n)
@@ -69,7 +72,9 @@ class _Pivoting:
             it = lcp_dense(self.S, c.gap, ws.lam, self.max_iter)
             np.greater(ws.lam, 0.0, out=ws.free)
         else:
-            np.less(c.gap, 0.0, out=ws.free)
+            # warm start: last step's loaded set and every predicted penetration
+            np.less(c.gap, 0.0, out=ws.start)
+            np.logical_or(ws.free, ws.start, out=ws.free)
             it = lcp_bpp(c.band, c.bw, c.gap, ws.lam, ws.w, ws.free, ws.idx, ws.rhs, ws.sol, ws.L,
                          self.max_iter, ws.factored)
             if it < 0:

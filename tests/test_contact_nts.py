@@ -338,3 +338,39 @@ def test_patch_wave_crosses_non_matching_interface(patch):
     for k, coarse in (((6, 9), (6, 6)), ((9, 6), (6, 6)), ((12, 18), (12, 12))):
         assert patch[k]["stress_error"] <= 1.05 * patch[coarse]["stress_error"], k
     assert patch[(12, 18)]["stress_error"] < patch[(6, 9)]["stress_error"]
+
+
+@pytest.mark.parametrize("scene", ["bars", "nose"])
+def test_scene_files_match_the_demo(scene, tmp_path):
+    """scenes/nts_<scene>.toml builds the demo's run: the same steps and energies (1e-10)."""
+    import os
+
+    from conftest import load_demo
+    from impact_fenics import scene_file
+
+    root = os.path.join(os.path.dirname(__file__), "..", "scenes")
+    spec = scene_file.read_scene(os.path.join(root, f"nts_{scene}.toml"))
+    sim = scene_file.build(spec, {"out": None, "quiet": True})
+    s_file = sim.run()
+    s_demo, _ = load_demo("node_to_segment").run(scene, "dme")
+    assert s_file["n_steps"] == s_demo["n_steps"] and s_file["dt"] == s_demo["dt"]
+    assert s_file["contact"]["n_constraints"] == s_demo["n_slaves"]
+    scale = abs(s_demo["energy"]["total"])
+    for key in ("kinetic", "strain", "contact_work", "total"):
+        assert abs(s_file["energy"][key] - s_demo["energy"][key]) <= 1e-10 * scale, key
+
+
+def test_scene_file_contact_needs_both_slave_and_master(tmp_path):
+    import os
+
+    from impact_fenics import scene_file
+
+    root = os.path.join(os.path.dirname(__file__), "..", "scenes")
+    text = open(os.path.join(root, "nts_bars.toml")).read()
+    path = os.path.join(MPI.COMM_WORLD.bcast(str(tmp_path)), "no_master.toml")
+    if MPI.COMM_WORLD.rank == 0:
+        with open(path, "w") as f:
+            f.write(text.replace('master = "striker_contact"', ""))
+    MPI.COMM_WORLD.barrier()
+    with pytest.raises(InputError, match=r"\[contact #1\] master"):
+        scene_file.read_scene(path)

@@ -260,7 +260,8 @@ def test_nosed_striker_on_a_block_of_another_material(method):
     assert hist["n_active"].max() >= 3  # the contact spreads over the nose
     # the slaves off the axis carry inclined normals (u_r enters), the one on it n = (0, 1)
     normal = c.constraints.normal
-    assert np.all(np.abs(normal[c.constraints.r > 0, 0]) > 1e-3) and normal[0].tolist() == [0, -1]
+    off_axis = c.constraints.r > 1e-12  # dof coordinates carry round-off (~1e-18 m)
+    assert np.all(np.abs(normal[off_axis, 0]) > 1e-3) and normal[0].tolist() == [0, -1]
     assert np.abs(energy["momentum_z"] - energy["momentum_z"][0]).max() \
         <= 1e-10 * abs(energy["momentum_z"][0])
     assert summary["energy_balance_error_rel"] <= 1e-10

@@ -159,15 +159,25 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
     master body behind each segment. ``reach`` (m) defaults to the longest master
     segment, ``gap_tol`` (m) to 1e-6 of the shortest; ``xi_tol`` is relative."""
     slave_xy = np.asarray(slave_xy, dtype=float)
-    order_s = np.lexsort((slave_xy[:, 1], slave_xy[:, 0]))
+    master_xy = np.asarray(master_xy, dtype=float)
+    # sort keys rounded to 1e-9 of the extent: dof coordinates differ by round-off
+    # between partitions, the order must not
+    extent = float(np.ptp(np.concatenate([slave_xy, master_xy]), axis=0).max()) or 1.0
+
+    def key(xy):
+        return np.round(xy / (1e-9 * extent))
+
+    ks = key(slave_xy)
+    order_s = np.lexsort((ks[:, 1], ks[:, 0]))
     slave_xy, slave_dofs = slave_xy[order_s], np.asarray(slave_dofs)[order_s]
-    order_m = np.lexsort((master_xy[:, 1], master_xy[:, 0]))
+    km = key(master_xy)
+    order_m = np.lexsort((km[:, 1], km[:, 0]))
     rank_m = np.empty_like(order_m)
     rank_m[order_m] = np.arange(order_m.size)
     master_xy, master_dofs = master_xy[order_m], np.asarray(master_dofs)[order_m]
     segments = rank_m[np.asarray(segments)]
     segments = np.sort(segments, axis=1)  # (lower, upper) node of each segment in node order
-    mid = 0.5 * (master_xy[segments[:, 0]] + master_xy[segments[:, 1]])
+    mid = key(0.5 * (master_xy[segments[:, 0]] + master_xy[segments[:, 1]]))
     order_k = np.lexsort((mid[:, 1], mid[:, 0]))
     segments, inside = segments[order_k], np.asarray(inside)[order_k]
     lengths = np.linalg.norm(master_xy[segments[:, 1]] - master_xy[segments[:, 0]], axis=1)

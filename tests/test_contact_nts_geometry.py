@@ -156,7 +156,7 @@ def test_block_pivoting_meets_the_complementarity_conditions(seed):
     lam, w = np.zeros(n), np.zeros(n)
     free = gap < 0
     it = lcp_bpp(band, bw, gap, lam, w, free, np.zeros(n, np.int64), np.zeros(n), np.zeros(n),
-                 np.zeros((n, bw + 1)), 500, np.zeros(n + 1, bool))
+                 np.zeros((n, bw + 1)), 500, np.zeros(n + 1, bool), np.ones(n, bool))
     assert it > 0
     scale = np.abs(gap).max()
     w_check = gap + S @ lam

@@ -126,8 +126,9 @@ def band_matvec(band, bw, x, out):
 
 
 @njit(cache=True)
-def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored):
-    """Block principal pivoting for w = gap + S lam >= 0, lam >= 0, lam . w = 0.
+def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, allowed):
+    """Block principal pivoting for w = gap + S lam >= 0, lam >= 0, lam . w = 0 on the
+    constraints ``allowed`` (bool, n; the others keep lam = 0 and are not checked).
 
     ``free`` (bool, n) holds the starting set of loaded constraints on entry
     (gap < 0 is the usual start) and the loaded set on exit. Writes lam (N) and
@@ -177,7 +178,7 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored):
         count = 0
         last = -1
         for i in range(n):
-            if (free[i] and lam[i] < -tol_lam) or (not free[i] and w[i] < -tol_w):
+            if (free[i] and lam[i] < -tol_lam) or (not free[i] and allowed[i] and w[i] < -tol_w):
                 count += 1
                 last = i
         if count == 0:
@@ -195,7 +196,7 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored):
             free[last] = not free[last]
             continue
         for i in range(n):
-            if (free[i] and lam[i] < -tol_lam) or (not free[i] and w[i] < -tol_w):
+            if (free[i] and lam[i] < -tol_lam) or (not free[i] and allowed[i] and w[i] < -tol_w):
                 free[i] = not free[i]
     return -1
 

@@ -22,8 +22,11 @@ off-diagonal entries where slaves share a master node, not an M-matrix.
   set that can hold is found by the same pivoting; uncoupled it is g~ < 0, the
   paper's eq. 7). Velocities: the M-orthogonal projection of v~ onto
   G v = -e G v~ on that set (Newton's restitution on the normal relative
-  velocity), v = v~ + dt M^-1 G' phi with S phi = -(1 + e) dt G v~; for one slave
-  over one master node this is m_eff = (1/m_s + sum N_i^2 / m_i)^-1. The
+  velocity), v = v~ + dt M^-1 G' phi with S phi = -(1 + e) dt G v~ where phi
+  pushes; where coupling would make some phi pull, the same pivoting solves
+  S phi + (1 + e) dt G v~ >= 0, phi >= 0 on the set instead (it reuses the band
+  factor, so the usual case costs one band solve). For one slave over a
+  segment this is m_eff = (1/m_s + sum N_i^2 / m_i)^-1. The
   reported force is phi (N, the momentum change over dt). At an activation the
   position jump (u != u^n + dt v) is booked by the set's ledger. With e = 0 and
   a constraint closed at step n, nu = phi and DME equals FILM exactly.
@@ -34,7 +37,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .banded import band_solve, dense_s, gershgorin_beta, lcp_bpp, lcp_dense
+from .banded import dense_s, gershgorin_beta, lcp_bpp, lcp_dense
 from .nts_interface import apply_multipliers
 from .penalty import STABILITY_BOUND
 
@@ -47,6 +50,7 @@ class _Workspace:
         self.w = np.zeros(n)
         self.free = np.zeros(n, dtype=np.bool_)
         self.start = np.zeros(n, dtype=np.bool_)
+        self.everywhere = np.ones(n, dtype=np.bool_)
         self.idx = np.zeros(n, dtype=np.int64)
         self.rhs = np.zeros(n)
         self.sol = np.zeros(n)
@@ -76,7 +80,7 @@ class _Pivoting:
             np.less(c.gap, 0.0, out=ws.start)
             np.logical_or(ws.free, ws.start, out=ws.free)
             it = lcp_bpp(c.band, c.bw, c.gap, ws.lam, ws.w, ws.free, ws.idx, ws.rhs, ws.sol, ws.L,
-                         self.max_iter, ws.factored)
+                         self.max_iter, ws.factored, ws.everywhere)
             if it < 0:
                 raise RuntimeError(f"{self.name}: complementarity pivoting did not converge in "
                                    f"{self.max_iter} iterations ({c.n} constraints)")
@@ -123,44 +127,49 @@ class DME(_Pivoting):
     def setup(self, c) -> None:
         super().setup(c)
         self.phi = np.zeros(c.n)
+        self.vgap = np.zeros(c.n)
+        self.vfree = np.zeros(c.n, dtype=np.bool_)
+        self.vw = np.zeros(c.n)
 
     def correct(self, c) -> None:
         nu = self._solve(c)
         ws = self.ws
-        _dme_update(nu, ws.free, ws.idx, ws.L, c.bw, ws.rhs, ws.sol, self.e, c.cs, c.cc, c.mass,
-                    c.free, c.dt, c.u, c.v, c.u_pred, c.v_pred, self.phi, c.force, c.active)
+        _velocity_gaps(ws.free, c.cs, c.cc, c.v_pred, self.e, c.dt, self.vgap, self.vfree)
+        it = lcp_bpp(c.band, c.bw, self.vgap, self.phi, self.vw, self.vfree, ws.idx, ws.rhs,
+                     ws.sol, ws.L, self.max_iter, ws.factored, ws.free)
+        if it < 0:
+            raise RuntimeError(f"dme: velocity pivoting did not converge ({c.n} constraints)")
+        _dme_update(nu, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v,
+                    c.force, c.active)
 
 
 @njit(cache=True)
-def _dme_update(nu, free, idx, L, bw, rhs, sol, e, cs, cc, mass, slot_free, dt, u, v, u_pred,
-                v_pred, phi, force, active):
-    """Positions u~ + dt^2 M^-1 G' nu; velocities v~ + dt M^-1 G' phi with
-    S_AA phi_A = -(1 + e) dt (G v~)_A on the loaded set A (the factor L of S_AA
-    is the one the pivoting ended with)."""
-    n = nu.size
-    m = 0
-    for i in range(n):
-        active[i] = free[i]
-        phi[i] = 0.0
-        if free[i]:
+def _velocity_gaps(held, cs, cc, v_pred, e, dt, vgap, vfree):
+    """The velocity problem on the held set: w = (1 + e) dt G v~ + S phi >= 0, phi >= 0,
+    phi . w = 0 (G v >= -e G v~: Newton's law where the constraint pushes). Zero off
+    the held set; the held set is the start."""
+    for i in range(held.size):
+        vgap[i] = 0.0
+        vfree[i] = held[i]
+        if held[i]:
             gv = 0.0
             for k in range(cs.shape[1]):
                 gv += cc[i, k] * v_pred[cs[i, k]]
-            rhs[m] = -(1.0 + e) * dt * gv
-            m += 1
-    if m > 0:
-        band_solve(L, bw, m, rhs, sol)
-        for p in range(m):
-            phi[idx[p]] = sol[p]
-    for i in range(n):
+            vgap[i] = (1.0 + e) * dt * gv
+
+
+@njit(cache=True)
+def _dme_update(nu, phi, held, cs, cc, mass, slot_free, dt, u, v, force, active):
+    """Positions u~ + dt^2 M^-1 G' nu, velocities v~ + dt M^-1 G' phi; force = phi (N)."""
+    for i in range(nu.size):
+        active[i] = held[i]
         force[i] = phi[i]
-        if not free[i]:
+        if not held[i]:
             continue
         for k in range(cs.shape[1]):
             s = cs[i, k]
             if slot_free[s] and cc[i, k] != 0.0:
-                dv = dt * (cc[i, k] * phi[i]) / mass[s]
-                v[s] += dv
+                v[s] += dt * (cc[i, k] * phi[i]) / mass[s]
                 u[s] += dt * dt * (cc[i, k] * nu[i]) / mass[s]
 
 

@@ -242,3 +242,22 @@ def test_film_holds_the_gap_and_keeps_momentum():
     assert m.iterations == 1
     assert np.allclose([np.sum(c.mass[k::2] * c.v[k::2]) for k in (0, 1)],
                        [np.sum(c.mass[k::2] * v0[k::2]) for k in (0, 1)], rtol=1e-13, atol=1e-13)
+
+
+def test_penalty_above_the_stability_bound_is_refused_unless_forced():
+    """beta = p S_ii for one constraint (Gershgorin is exact there): 2 > 4/3 is refused,
+    'scaled' puts beta at 1."""
+    from impact_fenics.contact.nts_methods import Penalty
+
+    c, _ = _one_slave_set(0.3, (0.3, 1.0), v_slave=(0.0, -1.0), v_master=(0, 0, 0, 0))
+    p = 2.0 / c.band[0, 0]
+    with pytest.raises(InputError, match="exceeds the stability limit 4/3"):
+        Penalty(p).setup(c)
+    forced = Penalty(p, force=True)
+    forced.setup(c)
+    assert forced.info["beta_max"] == pytest.approx(2.0, rel=1e-12)
+    scaled = Penalty("scaled")
+    scaled.setup(c)
+    assert scaled.info["beta_max"] == pytest.approx(1.0, rel=1e-12)
+    with pytest.raises(InputError, match="must be > 0"):
+        Penalty(-1.0)

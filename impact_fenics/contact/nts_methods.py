@@ -40,6 +40,7 @@ from ..errors import InputError
 from .banded import dense_s, gershgorin_beta, lcp_bpp, lcp_dense
 from .nts_interface import apply_multipliers
 from .penalty import STABILITY_BOUND
+from .penalty import Penalty as NodePenalty
 
 
 class _Workspace:
@@ -182,16 +183,8 @@ class Penalty:
     jumps = False
 
     def __init__(self, p: float | str = "scaled", beta_target: float = 1.0, force: bool = False):
-        if isinstance(p, str) and p not in ("auto", "scaled"):
-            try:
-                p = float(p)
-            except ValueError:
-                raise InputError(f"penalty = '{p}': give a stiffness in N/m, 'auto' or 'scaled'")
-        if not isinstance(p, str) and not p > 0:
-            raise InputError(f"penalty = {p} N/m: must be > 0")
-        if not beta_target > 0:
-            raise InputError(f"beta_target = {beta_target}: must be > 0")
-        self.choice, self.beta_target, self.forced = p, float(beta_target), force
+        node = NodePenalty(p, beta_target=beta_target)  # the same checks of p and beta_target
+        self.choice, self.beta_target, self.forced = node.choice, node.beta_target, force
         self.info: dict = {}
 
     def setup(self, c) -> None:

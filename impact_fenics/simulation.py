@@ -124,27 +124,20 @@ class Simulation:
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:
         """Enforce ``constraints`` with ``method`` (penalty, FILM or DME); node-to-segment
         constraints (contact.segments) get a NodeToSegmentSet."""
-        if isinstance(constraints, SegmentConstraints):
-            return self._add_node_to_segment(constraints, method)
-        contact_dofs = constraints.lower if constraints.upper is None else \
-            np.concatenate([constraints.lower, constraints.upper])
+        segments = isinstance(constraints, SegmentConstraints)
+        if segments:
+            require(rigid is None, "node-to-segment contact takes no rigid body")
+            contact_dofs = constraints.dofs
+        else:
+            contact_dofs = constraints.lower if constraints.upper is None else \
+                np.concatenate([constraints.lower, constraints.upper])
         loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
         if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), contact_dofs).sum())):
             raise InputError(f"a surface load acts on nodes of the contact surfaces "
                              f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
                              "facet group (the contact bookkeeping assumes no load there)")
-        c = ContactSet(constraints, self.integrator, method, rigid)
-        c.initialize()
-        self.contacts.append(c)
-        return c
-
-    def _add_node_to_segment(self, constraints: SegmentConstraints, method) -> NodeToSegmentSet:
-        loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
-        if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), constraints.dofs).sum())):
-            raise InputError(f"a surface load acts on nodes of the contact surfaces "
-                             f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
-                             "facet group (the contact bookkeeping assumes no load there)")
-        c = NodeToSegmentSet(constraints, self.integrator, method)
+        c = (NodeToSegmentSet(constraints, self.integrator, method) if segments
+             else ContactSet(constraints, self.integrator, method, rigid))
         c.initialize()
         self.contacts.append(c)
         return c

@@ -132,7 +132,8 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, a
 
     ``free`` (bool, n) holds the starting set of loaded constraints on entry
     (gap < 0 is the usual start) and the loaded set on exit. Writes lam (N) and
-    w (m). ``factored`` (bool, n + 1): the set whose factor L holds, its last entry
+    w (m; zero on the loaded set, computed only when some allowed constraint is
+    unloaded). ``factored`` (bool, n + 1): the set whose factor L holds, its last entry
     True when L is valid; a set equal to it is not factored again (S is fixed in
     small strain, so a persistent contact factors once). Returns the number of
     iterations (linear solves), -1 if none converged."""
@@ -171,9 +172,15 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, a
         for p in range(m):
             lam[idx[p]] = sol[p]
             lam_max = max(lam_max, abs(sol[p]))
-        band_matvec(band, bw, lam, w)
+        checked = False  # w is needed only where lam = 0 is allowed to be checked
         for i in range(n):
-            w[i] += gap[i]
+            if allowed[i] and not free[i]:
+                checked = True
+                break
+        if checked:
+            band_matvec(band, bw, lam, w)
+            for i in range(n):
+                w[i] += gap[i]
         tol_lam = 1e-13 * lam_max
         count = 0
         last = -1

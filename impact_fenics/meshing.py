@@ -258,6 +258,90 @@ def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length
                                      "target_length": target_length})
 
 
+def coaxial_bars_sized(radius: float = 0.05, striker_length: float = 0.2,
+                       target_length: float = 0.2, h_striker: float = 0.01,
+                       h_target: float = 0.01 * 2 / 3, structured: bool = True,
+                       comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """Two coaxial bars touching at z = 0 with their own element sizes (m): the striker
+    in z in [-striker_length, 0] (size h_striker), the target in [0, target_length]
+    (size h_target). Each face has round(radius/h) equal intervals, so with unequal
+    sizes (e.g. 3:2) the contact faces do not match node to node (node-to-segment
+    contact). Groups as :func:`coaxial_bars`.
+    """
+    require(radius > 0 and striker_length > 0 and target_length > 0 and h_striker > 0
+            and h_target > 0, "coaxial_bars_sized: radius, lengths and sizes must be > 0 (m)")
+
+    def build(gmsh):
+        s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h_striker,
+                            n_r=max(1, int(round(radius / h_striker))), structured=structured)
+        s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h_target,
+                            n_r=max(1, int(round(radius / h_target))), structured=structured)
+        _group(gmsh, 2, [s1], "striker", 1)
+        _group(gmsh, 2, [s2], "target", 2)
+        for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
+                                  ("striker_contact", [c1[2]], 13), ("target_contact", [c2[0]], 14),
+                                  ("target_lateral", [c2[1]], 15), ("target_end", [c2[2]], 16),
+                                  ("axis", [c1[3], c2[3]], 17)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "coaxial_bars_sized", "radius": radius,
+                                     "h_striker": h_striker, "h_target": h_target,
+                                     "striker_length": striker_length,
+                                     "target_length": target_length})
+
+
+def nosed_striker_on_block(nose_radius: float = 0.02, shank_length: float = 0.03,
+                           block_width: float = 0.06, block_depth: float = 0.04,
+                           h_striker: float = 0.02 / 8, h_block: float = 0.02 / 12,
+                           comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """(c) A striker of radius ``nose_radius`` (m) with a hemispherical nose touching a flat
+    block at the axis: the nose centre at (0, nose_radius), the shank above it up to
+    z = nose_radius + shank_length; the block r in [0, block_width], z in [-block_depth, 0],
+    its top split at r = nose_radius. Element sizes h_striker and h_block (m) differ, so
+    the faces do not match.
+
+    Groups: cells "striker", "block"; facets "nose", "striker_lateral", "striker_end",
+    "block_contact" (the top under the nose, r <= nose_radius), "block_top" (the rest),
+    "block_lateral", "block_bottom", "axis".
+    """
+    require(nose_radius > 0 and shank_length > 0 and block_depth > 0 and h_striker > 0
+            and h_block > 0, "nosed_striker_on_block: lengths and sizes must be > 0 (m)")
+    require(block_width > nose_radius, "nosed_striker_on_block: the block must be wider "
+                                       "than the striker")
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        R, top = nose_radius, nose_radius + shank_length
+        tip, centre = geo.addPoint(0, 0, 0, h_striker), geo.addPoint(0, R, 0, h_striker)
+        rim, shoulder = geo.addPoint(R, R, 0, h_striker), geo.addPoint(R, top, 0, h_striker)
+        crown = geo.addPoint(0, top, 0, h_striker)
+        nose = geo.addCircleArc(tip, centre, rim)
+        lateral, end = geo.addLine(rim, shoulder), geo.addLine(shoulder, crown)
+        axis_s = geo.addLine(crown, tip)
+        striker = geo.addPlaneSurface([geo.addCurveLoop([nose, lateral, end, axis_s])])
+        b = [geo.addPoint(0, 0, 0, h_block), geo.addPoint(R, 0, 0, h_block),
+             geo.addPoint(block_width, 0, 0, h_block),
+             geo.addPoint(block_width, -block_depth, 0, h_block),
+             geo.addPoint(0, -block_depth, 0, h_block)]
+        lines = [geo.addLine(b[k], b[(k + 1) % 5]) for k in range(5)]
+        block = geo.addPlaneSurface([geo.addCurveLoop(lines)])
+        geo.synchronize()
+        _group(gmsh, 2, [striker], "striker", 1)
+        _group(gmsh, 2, [block], "block", 2)
+        for name, curves, tag in (("nose", [nose], 11), ("striker_lateral", [lateral], 12),
+                                  ("striker_end", [end], 13), ("block_contact", [lines[0]], 14),
+                                  ("block_top", [lines[1]], 15), ("block_lateral", [lines[2]], 16),
+                                  ("block_bottom", [lines[3]], 17),
+                                  ("axis", [axis_s, lines[4]], 18)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "nosed_striker_on_block",
+                                     "nose_radius": nose_radius, "h_striker": h_striker,
+                                     "h_block": h_block})
+
+
 # Surface intervals of the punch block: breaks at r = 1, 3, 6 m with 106, 201 and
 # 302 intervals give 107, 308 and 610 surface nodes with r <= 1, 3 and 6 m.
 PUNCH_SURFACE_BREAKS = ((1.0, 106), (3.0, 201), (6.0, 302))

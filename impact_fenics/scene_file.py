@@ -49,6 +49,18 @@ GENERATORS: dict[str, dict[str, tuple[str, str]]] = {
                     "grading": (_LENGTH, "growth of the element size with depth (m/m)"),
                     "h_max": (_LENGTH, "largest element size in m"),
                     "breaks": ("breaks", "surface breaks [[r (m), intervals], ...]")},
+    "coaxial_bars_sized": {"radius": (_LENGTH, "bar radius in m"),
+                           "striker_length": (_LENGTH, "striker length in m"),
+                           "target_length": (_LENGTH, "target length in m"),
+                           "h_striker": (_LENGTH, "striker element size in m"),
+                           "h_target": (_LENGTH, "target element size in m"),
+                           "structured": ("bool", "structured grids")},
+    "nosed_striker_on_block": {"nose_radius": (_LENGTH, "striker (and nose) radius in m"),
+                               "shank_length": (_LENGTH, "striker length above the nose in m"),
+                               "block_width": (_LENGTH, "block radius in m"),
+                               "block_depth": (_LENGTH, "block depth in m"),
+                               "h_striker": (_LENGTH, "striker element size in m"),
+                               "h_block": (_LENGTH, "block element size in m")},
 }
 
 
@@ -215,6 +227,9 @@ class ContactSpec:
     restitution: float = 0.0
     positions: str = "mass_weighted"
     film_solver: str = "fast"
+    slave: str | None = None     # facet group of the slave nodes (node to segment)
+    master: str | None = None    # facet group of the master segments (node to segment)
+    reach: float | None = None   # m, node to segment: farthest master segment of a slave
 
 
 @dataclass
@@ -428,7 +443,10 @@ CONTACT_KEYS = ("method", "penalty", "restitution", "positions", "film_solver")
 
 def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpec:
     is_rigid = isinstance(data, dict) and "rigid" in data
+    is_segment = isinstance(data, dict) and not is_rigid and ("slave" in data or "master" in data)
     shape = ("surface", "rigid", "radius", "button") if is_rigid else ("lower", "upper")
+    if is_segment:
+        shape = ("slave", "master", "reach")
     t = _Table(data, where, shape + CONTACT_KEYS)
     method = t.text("method", f"the contact method: {', '.join(METHODS)}", choices=METHODS)
     c = ContactSpec(where, method)
@@ -443,6 +461,13 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
             c.button = t.positive("button", "radius of the spherical button in m")
             if c.button < c.radius:
                 raise t.error("button", f"must be >= the face radius {_fmt(t.data['radius'])} m")
+    elif is_segment:
+        c.slave = t.text("slave", "the facet group of the slave nodes (the finer face)")
+        c.master = t.text("master", "the facet group of the master segments")
+        if c.slave == c.master:
+            raise t.error("master", "the two contact surfaces must differ")
+        if "reach" in t:
+            c.reach = t.positive("reach", "farthest master segment of a slave node in m")
     else:
         c.lower = t.text("lower", "the facet group of the body below")
         c.upper = t.text("upper", "the facet group of the body above")
@@ -662,7 +687,11 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         with _at(c.where):
             method = make_method(c.method, penalty=c.penalty, restitution=c.restitution,
                                  positions=c.positions, film_solver=c.film_solver)
-            if c.rigid is None:
+            if c.slave is not None:
+                from .contact.segments import node_to_segment
+
+                sim.add_contact(node_to_segment(model, c.slave, c.master, reach=c.reach), method)
+            elif c.rigid is None:
                 sim.add_contact(pair_surfaces(model, c.lower, c.upper), method)
             else:
                 spec = scene.rigid[c.rigid]
@@ -705,7 +734,7 @@ def _check_groups(scene: Scene, tmesh) -> None:
             raise InputError(f"[bodies] the mesh cell group '{name}' is not a body: add a table "
                              f"[bodies.{name}] with its material")
     refs = [(c.where, k, getattr(c, k)) for c in scene.contacts
-            for k in ("lower", "upper", "surface") if getattr(c, k) is not None]
+            for k in ("lower", "upper", "surface", "slave", "master") if getattr(c, k) is not None]
     refs += [(ld.where, "facet", ld.facet) for ld in scene.loads if ld.facet is not None]
     refs += [(f.where, "facet", f.facet) for f in scene.fixed]
     for where, key, name in refs:

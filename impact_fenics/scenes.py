@@ -153,3 +153,52 @@ def static_stiffness(sim: Simulation, delta: float = 1e-4) -> float:
     face = statics.owned(model, c.constraints.lower)
     force = statics.rigid_indentation(model, sim.integrator.K, held_dofs(model), face, delta)
     return force / delta
+def bar_impact_sized(settings: Settings, method, n_striker: int = 6, n_target: int = 9,
+                     nu: float = 0.0, v0: float = 5.0, radius: float = 0.05,
+                     striker_length: float = 0.2, target_length: float = 0.2,
+                     structured: bool = True, node_to_node: bool = False,
+                     comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """Two coaxial steel bars touching at z = 0 whose contact faces have ``n_striker`` and
+    ``n_target`` intervals (element sizes radius/n, m); the striker (below) moves at v0
+    (m/s) in +z. Node-to-segment contact with the finer face as slave (the target when
+    n_target >= n_striker); ``node_to_node`` pairs matching faces instead (the reduction)."""
+    from .contact.segments import node_to_segment
+
+    material = replace(STEEL, nu=nu)
+    tmesh = meshing.coaxial_bars_sized(radius=radius, striker_length=striker_length,
+                                       target_length=target_length, h_striker=radius / n_striker,
+                                       h_target=radius / n_target, structured=structured,
+                                       comm=comm)
+    model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
+    sim = Simulation(model, settings, initial_velocity={"striker": (0.0, v0)})
+    if node_to_node:
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"), method)
+    elif n_target >= n_striker:
+        sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"), method)
+    else:
+        sim.add_contact(node_to_segment(model, "striker_contact", "target_contact"), method)
+    return sim
+
+
+ALUMINIUM = LinearElastic(E=70e9, nu=0.33, density=2700.0)
+
+
+def nosed_striker(settings: Settings, method, v0: float = 5.0, nose_radius: float = 0.02,
+                  h_striker: float = 0.02 / 8, h_block: float = 0.02 / 12,
+                  block_material: LinearElastic = ALUMINIUM, hold_block: bool = True,
+                  comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """A steel striker with a hemispherical nose (radius m) hitting an aluminium block at
+    v0 (m/s, -z), node to segment: the block's top under the nose (finer) is the slave,
+    the nose's segments the master, so the normals are inclined (u_r and u_z both
+    enter). The block bottom is held in z (unless not ``hold_block``). Block nodes up to
+    the nose radius below the nose are in reach (most stay open)."""
+    from .contact.segments import node_to_segment
+
+    tmesh = meshing.nosed_striker_on_block(nose_radius=nose_radius, h_striker=h_striker,
+                                           h_block=h_block, comm=comm)
+    model = DeformableModel(tmesh, [Body("striker", STEEL), Body("block", block_material)])
+    fixed = [model.facet_dofs("block_bottom", 1)] if hold_block else []
+    sim = Simulation(model, settings, fixed=fixed, initial_velocity={"striker": (0.0, -v0)})
+    sim.add_contact(node_to_segment(model, "block_contact", "nose", reach=1.01 * nose_radius),
+                    method)
+    return sim

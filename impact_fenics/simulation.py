@@ -17,7 +17,9 @@ from mpi4py import MPI
 from . import forms, output, plotting
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
+from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
+from .contact.segments import SegmentConstraints
 from .energy import Ledger, LoadWork, deformable_energy
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
@@ -127,15 +129,22 @@ class Simulation:
 
     # ------------------------------------------------------------ scene set-up
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:
-        """Enforce ``constraints`` with ``method`` (penalty, FILM or DME)."""
-        contact_dofs = constraints.lower if constraints.upper is None else \
-            np.concatenate([constraints.lower, constraints.upper])
+        """Enforce ``constraints`` with ``method`` (penalty, FILM or DME); node-to-segment
+        constraints (contact.segments) get a NodeToSegmentSet."""
+        segments = isinstance(constraints, SegmentConstraints)
+        if segments:
+            require(rigid is None, "node-to-segment contact takes no rigid body")
+            contact_dofs = constraints.dofs
+        else:
+            contact_dofs = constraints.lower if constraints.upper is None else \
+                np.concatenate([constraints.lower, constraints.upper])
         loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
         if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), contact_dofs).sum())):
             raise InputError(f"a surface load acts on nodes of the contact surfaces "
                              f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
                              "facet group (the contact bookkeeping assumes no load there)")
-        c = ContactSet(constraints, self.integrator, method, rigid)
+        c = (NodeToSegmentSet(constraints, self.integrator, method) if segments
+             else ContactSet(constraints, self.integrator, method, rigid))
         c.initialize()
         self.contacts.append(c)
         return c

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import contact, matrix_format, peers, plastic, scaling, step
+from . import contact, matrix_format, nts, peers, plastic, scaling, step
 from ..output import json_ready
 from .common import MODES, Context
 from .machine import machine_info
@@ -19,6 +19,7 @@ from .tables import summary_lines
 
 PART_FUNCTIONS = {
     "step": step.part_step, "contact": contact.part_contact, "solvers": contact.part_solvers,
+    "nts": nts.part_nts,
     "scaling": scaling.part_scaling, "stream": scaling.part_stream, "ranks": scaling.part_ranks,
     "format": matrix_format.part_format, "matfree": peers.part_matfree, "akantu": peers.part_akantu,
     "j2": plastic.part_j2,

@@ -1,0 +1,263 @@
+"""S = dt^2 G M^-1 G' of node-to-segment constraints as a band, and the complementarity solver.
+
+G has one row per constraint with six entries: the slave's (r, z) dofs with
+the normal n, the two master nodes' (r, z) dofs with -N_a n and -N_b n. Two
+constraints couple only through a shared master node, so in the global order
+(segments along the surface, then xi) S is banded with a bandwidth of about
+the number of slaves on two neighbouring segments. Every solve on a set of
+constraints is a band Cholesky factorisation of the principal submatrix (the
+band of a principal submatrix in the same order is no wider): O(n w^2) for n
+constraints and bandwidth w, i.e. O(n) at a fixed mesh ratio.
+
+The linear complementarity problem of FILM (and of DME's positions),
+
+    w = g~ + S lam >= 0,   lam >= 0,   lam . w = 0,
+
+is solved by block principal pivoting (Judice & Pires 1994, Kostreva's
+scheme): exchange every infeasible index while their number falls, with a
+budget of three non-improving exchanges, then single pivots on the largest
+infeasible index (Murty 1974), which is finite for a positive definite S.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def gap_of(g0, cs, cc, u, out):
+    """Linearised gaps g_i = g0_i + sum_k cc[i, k] u[cs[i, k]] (m)."""
+    for i in range(g0.size):
+        s = g0[i]
+        for k in range(cs.shape[1]):
+            s += cc[i, k] * u[cs[i, k]]
+        out[i] = s
+    return out
+
+
+@njit(cache=True)
+def band_of_s(cs, cc, minv, dt, bw, band):
+    """band[i, k] = S[i, i - k] for k = 0..bw (m/N), S = dt^2 G M^-1 G'."""
+    n = cs.shape[0]
+    for i in range(n):
+        for k in range(bw + 1):
+            band[i, k] = 0.0
+        for k in range(bw + 1):
+            j = i - k
+            if j < 0:
+                break
+            s = 0.0
+            for p in range(cs.shape[1]):
+                w = minv[cs[i, p]]
+                if w == 0.0 or cc[i, p] == 0.0:
+                    continue
+                for q in range(cs.shape[1]):
+                    if cs[j, q] == cs[i, p]:
+                        s += cc[i, p] * cc[j, q] * w
+            band[i, k] = dt * dt * s
+
+
+def bandwidth(cs: np.ndarray, cc: np.ndarray, minv: np.ndarray) -> int:
+    """Largest |i - j| over constraints sharing a free dof with non-zero coefficients."""
+    owner: dict[int, int] = {}
+    bw = 0
+    for i in range(cs.shape[0]):
+        for p in range(cs.shape[1]):
+            s = int(cs[i, p])
+            if cc[i, p] == 0.0 or minv[s] == 0.0:
+                continue
+            if s in owner:
+                bw = max(bw, i - owner[s])
+            else:
+                owner[s] = i
+    return bw
+
+
+@njit(cache=True)
+def band_factor(band, bw, idx, m, L):
+    """Cholesky S_AA = L L' of the principal submatrix on idx[:m] (sorted), in band
+    form L[p, k] = L_(p, p-k). Returns False if S_AA is not positive definite."""
+    for p in range(m):
+        i = idx[p]
+        q0 = max(0, p - bw)
+        for q in range(q0, p + 1):
+            dist = i - idx[q]
+            s = band[i, dist] if dist <= bw else 0.0
+            r0 = max(q0, q - bw)
+            for r in range(r0, q):
+                s -= L[p, p - r] * L[q, q - r]
+            if q < p:
+                L[p, p - q] = s / L[q, q - q]
+            else:
+                if s <= 0.0:
+                    return False
+                L[p, 0] = np.sqrt(s)
+        for k in range(p - q0 + 1, bw + 1):
+            L[p, k] = 0.0
+    return True
+
+
+@njit(cache=True)
+def band_solve(L, bw, m, rhs, x):
+    """x = (L L')^-1 rhs on the first m entries (rhs, x in subset order)."""
+    for p in range(m):
+        s = rhs[p]
+        for r in range(max(0, p - bw), p):
+            s -= L[p, p - r] * x[r]
+        x[p] = s / L[p, 0]
+    for p in range(m - 1, -1, -1):
+        s = x[p]
+        for r in range(p + 1, min(m, p + bw + 1)):
+            s -= L[r, r - p] * x[r]
+        x[p] = s / L[p, 0]
+
+
+@njit(cache=True)
+def band_matvec(band, bw, x, out):
+    """out = S x (S symmetric, stored as its lower band)."""
+    n = x.size
+    for i in range(n):
+        out[i] = band[i, 0] * x[i]
+    for i in range(n):
+        for k in range(1, min(bw, i) + 1):
+            j = i - k
+            out[i] += band[i, k] * x[j]
+            out[j] += band[i, k] * x[i]
+
+
+@njit(cache=True)
+def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, allowed):
+    """Block principal pivoting for w = gap + S lam >= 0, lam >= 0, lam . w = 0 on the
+    constraints ``allowed`` (bool, n; the others keep lam = 0 and are not checked).
+
+    ``free`` (bool, n) holds the starting set of loaded constraints on entry
+    (gap < 0 is the usual start) and the loaded set on exit. Writes lam (N) and
+    w (m; zero on the loaded set, computed only when some allowed constraint is
+    unloaded). ``factored`` (bool, n + 1): the set whose factor L holds, its last entry
+    True when L is valid; a set equal to it is not factored again (S is fixed in
+    small strain, so a persistent contact factors once). Returns the number of
+    iterations (linear solves), -1 if none converged."""
+    n = gap.size
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, abs(gap[i]))
+    tol_w = 1e-13 * scale
+    best = n + 1
+    budget = 3
+    for it in range(1, max_iter + 1):
+        m = 0
+        for i in range(n):
+            if free[i]:
+                idx[m] = i
+                rhs[m] = -gap[i]
+                m += 1
+        if m > 0:
+            same = factored[n]
+            if same:
+                for i in range(n):
+                    if factored[i] != free[i]:
+                        same = False
+                        break
+            if not same:
+                if not band_factor(band, bw, idx, m, L):
+                    factored[n] = False
+                    return -1
+                for i in range(n):
+                    factored[i] = free[i]
+                factored[n] = True
+            band_solve(L, bw, m, rhs, sol)
+        for i in range(n):
+            lam[i] = 0.0
+        lam_max = 0.0
+        for p in range(m):
+            lam[idx[p]] = sol[p]
+            lam_max = max(lam_max, abs(sol[p]))
+        checked = False  # w is needed only where lam = 0 is allowed to be checked
+        for i in range(n):
+            if allowed[i] and not free[i]:
+                checked = True
+                break
+        if checked:
+            band_matvec(band, bw, lam, w)
+            for i in range(n):
+                w[i] += gap[i]
+        tol_lam = 1e-13 * lam_max
+        count = 0
+        last = -1
+        for i in range(n):
+            if (free[i] and lam[i] < -tol_lam) or (not free[i] and allowed[i] and w[i] < -tol_w):
+                count += 1
+                last = i
+        if count == 0:
+            for i in range(n):
+                if free[i]:
+                    w[i] = 0.0
+                    lam[i] = max(lam[i], 0.0)
+            return it
+        if count < best:
+            best = count
+            budget = 3
+        elif budget > 0:
+            budget -= 1
+        else:  # single pivot on the largest infeasible index (finite for S > 0)
+            free[last] = not free[last]
+            continue
+        for i in range(n):
+            if (free[i] and lam[i] < -tol_lam) or (not free[i] and allowed[i] and w[i] < -tol_w):
+                free[i] = not free[i]
+    return -1
+
+
+def dense_s(band: np.ndarray, bw: int) -> np.ndarray:
+    """The full S (m/N) from its band (for the dense solver and the tests)."""
+    n = band.shape[0]
+    S = np.zeros((n, n))
+    for k in range(bw + 1):
+        i = np.arange(k, n)
+        S[i, i - k] = band[i, k]
+        S[i - k, i] = band[i, k]
+    return S
+
+
+def lcp_dense(S: np.ndarray, gap: np.ndarray, lam: np.ndarray, max_iter: int = 200) -> int:
+    """The same pivoting with a dense factorisation of S_AA (what the paper timed).
+    Returns the iterations."""
+    n = gap.size
+    free = gap < 0.0
+    tol_w = 1e-13 * float(np.abs(gap).max(initial=0.0))
+    best, budget = n + 1, 3
+    for it in range(1, max_iter + 1):
+        lam[:] = 0.0
+        A = np.flatnonzero(free)
+        if A.size:
+            lam[A] = np.linalg.solve(S[np.ix_(A, A)], -gap[A])
+        w = gap + S @ lam
+        tol_lam = 1e-13 * float(np.abs(lam).max(initial=0.0))
+        bad = (free & (lam < -tol_lam)) | (~free & (w < -tol_w))
+        if not bad.any():
+            np.maximum(lam, 0.0, out=lam)
+            return it
+        count = int(bad.sum())
+        if count < best:
+            best, budget = count, 3
+        elif budget > 0:
+            budget -= 1
+        else:
+            k = np.flatnonzero(bad)[-1]
+            free[k] = ~free[k]
+            continue
+        free ^= bad
+    raise RuntimeError(f"dense LCP: no solution after {max_iter} pivots ({n} constraints)")
+
+
+def gershgorin_beta(band: np.ndarray, bw: int, p: np.ndarray) -> float:
+    """Upper bound on lambda_max(P^1/2 S P^1/2) (Gershgorin's row sums)."""
+    n = band.shape[0]
+    sp = np.sqrt(p)
+    rows = band[:, 0] * p
+    for k in range(1, bw + 1):
+        i = np.arange(k, n)
+        off = np.abs(band[i, k]) * sp[i] * sp[i - k]
+        rows[i] += off
+        rows[i - k] += off
+    return float(rows.max(initial=0.0))

@@ -1,0 +1,294 @@
+"""Node-to-segment geometry: slave nodes against the two-node boundary facets of a master body.
+
+One-pass (the finer side as slave), frictionless, small strain: the search runs
+once in the reference geometry and each slave node s gets one master segment
+(nodes a, b), its parameter xi in [0, 1], the shape values N_a = 1 - xi,
+N_b = xi, the unit normal n (pointing out of the master body) and the initial
+gap g0 = n . (x_s - x_p) >= 0 (m), x_p = N_a x_a + N_b x_b. The linearised gap is
+
+    g = g0 + n . (u_s - N_a u_a - N_b u_b)      (m; g >= 0 open, today's sign)
+
+so both components (u_r, u_z) of the slave and master nodes enter.
+
+Edge cases (each tested):
+
+* xi within ``xi_tol`` of 0 or 1 is snapped to 0 or 1 (exact node-to-node
+  weights when nodes match);
+* one segment per slave: the closest one; distances equal within ``tie_tol``
+  (a slave over a master node projects onto both neighbours) go to the face
+  projection before a vertex one, then to the segment first in the global order
+  (segments sorted by midpoint r, then z: the same order on every partition).
+  Counting both would make S = dt^2 G M^-1 G' singular and double a penalty;
+* a convex master vertex (the slave lies beyond both neighbouring segments'
+  ends): the contact point is the vertex and the normal runs from the vertex
+  to the slave, g0 = |x_s - x_v|;
+* a concave vertex (the slave projects inside two segments): the closest
+  projection, ties as above;
+* the axis r = 0: a slave on the axis whose contact point is a master node
+  on the axis (a tip, or a face starting there) gets n = (0, +-1) exactly,
+  whatever the tilt of the segment chosen (by symmetry; both u_r are fixed there
+  and the methods never move a fixed dof).
+
+Initial gaps below -``gap_tol`` are refused (one line naming the node); gaps
+within +-``gap_tol`` are set to zero. A slave farther than ``reach`` from every
+master segment is refused.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..bodies import R, Z, DeformableModel
+from ..errors import InputError
+
+FACE, VERTEX = 0, 1
+
+
+@dataclass
+class SegmentConstraints:
+    """Replicated node-to-segment constraints in one global order (one per slave node).
+
+    Node arrays: ``slave_xy`` (n, 2) and ``slave_dofs`` (n, 2) global (r, z) dofs;
+    ``master_xy`` (m, 2), ``master_dofs`` (m, 2). Per constraint i (slave i):
+    ``seg`` its segment, ``a``, ``b`` master node indices, ``xi``, ``normal``
+    (n, 2), ``g0`` (m), ``kind`` FACE or VERTEX. ``segments`` (k, 2): master node
+    indices of every segment.
+    """
+
+    slave_xy: np.ndarray
+    slave_dofs: np.ndarray
+    master_xy: np.ndarray
+    master_dofs: np.ndarray
+    segments: np.ndarray
+    seg: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    xi: np.ndarray
+    normal: np.ndarray
+    g0: np.ndarray
+    kind: np.ndarray
+    names: tuple[str, str]  # (slave group, master group)
+
+    @property
+    def n(self) -> int:
+        return int(self.seg.size)
+
+    @property
+    def r(self) -> np.ndarray:
+        """Radius (m) of each slave node."""
+        return self.slave_xy[:, 0]
+
+    @property
+    def dofs(self) -> np.ndarray:
+        """Every global contact dof: the slaves' (r, z), then the masters' (r, z)."""
+        return np.concatenate([self.slave_dofs.ravel(), self.master_dofs.ravel()])
+
+
+# ----------------------------------------------------------------------------- the projection
+
+@njit(cache=True)
+def project(x, seg_nodes, node_xy, seg_normal, xi_tol, tie_tol, out_seg, out_xi, out_n, out_g,
+            out_kind, out_dist):
+    """Closest master segment of every slave point ``x`` (n, 2) (brute force, O(n m)).
+
+    ``seg_nodes`` (k, 2) node indices into ``node_xy``; ``seg_normal`` (k, 2) unit
+    outward normals. Writes the chosen segment, xi, normal, signed gap g0 (m),
+    kind (FACE/VERTEX) and the distance (m) of each slave."""
+    for i in range(x.shape[0]):
+        best = -1
+        best_d = np.inf
+        best_kind = 2
+        for j in range(seg_nodes.shape[0]):
+            pa = seg_nodes[j, 0]
+            pb = seg_nodes[j, 1]
+            tr = node_xy[pb, 0] - node_xy[pa, 0]
+            tz = node_xy[pb, 1] - node_xy[pa, 1]
+            length2 = tr * tr + tz * tz
+            dr = x[i, 0] - node_xy[pa, 0]
+            dz = x[i, 1] - node_xy[pa, 1]
+            xi = (dr * tr + dz * tz) / length2
+            kind = FACE
+            if xi < -xi_tol or xi > 1.0 + xi_tol:
+                kind = VERTEX
+            if xi < xi_tol:
+                xi = 0.0
+            elif xi > 1.0 - xi_tol:
+                xi = 1.0
+            pr = dr - xi * tr
+            pz = dz - xi * tz
+            d = np.sqrt(pr * pr + pz * pz)
+            # strictly closer, or tied and a face before a vertex (lower index wins
+            # the remaining ties: segments come in the global order)
+            if d < best_d - tie_tol or (d <= best_d + tie_tol and kind < best_kind):
+                best, best_d, best_kind = j, d, kind
+                out_xi[i] = xi
+                if kind == FACE:
+                    out_n[i, 0] = seg_normal[j, 0]
+                    out_n[i, 1] = seg_normal[j, 1]
+                    out_g[i] = pr * seg_normal[j, 0] + pz * seg_normal[j, 1]
+                else:
+                    out_n[i, 0] = pr / d
+                    out_n[i, 1] = pz / d
+                    out_g[i] = d
+        out_seg[i] = best
+        out_kind[i] = best_kind
+        out_dist[i] = best_d
+
+
+def segment_normals(node_xy: np.ndarray, segments: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """Unit normals (k, 2) of segments, pointing away from the points ``inside`` (k, 2)
+    (the centroid of each segment's cell)."""
+    t = node_xy[segments[:, 1]] - node_xy[segments[:, 0]]
+    length = np.sqrt(np.sum(t * t, axis=1))
+    n = np.stack([t[:, 1], -t[:, 0]], axis=1) / length[:, None]
+    mid = 0.5 * (node_xy[segments[:, 1]] + node_xy[segments[:, 0]])
+    flip = np.sum((mid - inside) * n, axis=1) < 0.0
+    n[flip] *= -1.0
+    return n
+
+
+def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
+          master_dofs: np.ndarray, segments: np.ndarray, inside: np.ndarray,
+          names: tuple[str, str] = ("slave", "master"), reach: float | None = None,
+          gap_tol: float | None = None, xi_tol: float = 1e-6) -> SegmentConstraints:
+    """Constraints from replicated arrays (any order: sorted here into the global order).
+
+    ``segments`` (k, 2) index ``master_xy``; ``inside`` (k, 2) a point inside the
+    master body behind each segment. ``reach`` (m) defaults to the longest master
+    segment, ``gap_tol`` (m) to 1e-6 of the shortest; ``xi_tol`` is relative."""
+    slave_xy = np.asarray(slave_xy, dtype=float)
+    master_xy = np.asarray(master_xy, dtype=float)
+    # sort keys rounded to 1e-9 of the extent: dof coordinates differ by round-off
+    # between partitions, the order must not
+    extent = float(np.ptp(np.concatenate([slave_xy, master_xy]), axis=0).max()) or 1.0
+
+    def key(xy):
+        return np.round(xy / (1e-9 * extent))
+
+    ks = key(slave_xy)
+    order_s = np.lexsort((ks[:, 1], ks[:, 0]))
+    slave_xy, slave_dofs = slave_xy[order_s], np.asarray(slave_dofs)[order_s]
+    km = key(master_xy)
+    order_m = np.lexsort((km[:, 1], km[:, 0]))
+    rank_m = np.empty_like(order_m)
+    rank_m[order_m] = np.arange(order_m.size)
+    master_xy, master_dofs = master_xy[order_m], np.asarray(master_dofs)[order_m]
+    segments = rank_m[np.asarray(segments)]
+    segments = np.sort(segments, axis=1)  # (lower, upper) node of each segment in node order
+    mid = key(0.5 * (master_xy[segments[:, 0]] + master_xy[segments[:, 1]]))
+    order_k = np.lexsort((mid[:, 1], mid[:, 0]))
+    segments, inside = segments[order_k], np.asarray(inside)[order_k]
+    lengths = np.linalg.norm(master_xy[segments[:, 1]] - master_xy[segments[:, 0]], axis=1)
+    if np.any(lengths <= 0):
+        raise InputError(f"master surface '{names[1]}' has a segment of zero length")
+    reach = float(lengths.max()) if reach is None else float(reach)
+    gap_tol = 1e-6 * float(lengths.min()) if gap_tol is None else float(gap_tol)
+    normals = segment_normals(master_xy, segments, inside)
+    n = slave_xy.shape[0]
+    seg, kind = np.empty(n, np.int64), np.empty(n, np.int64)
+    xi, g0, dist = np.empty(n), np.empty(n), np.empty(n)
+    normal = np.empty((n, 2))
+    tie_tol = 1e-9 * float(lengths.min())
+    project(slave_xy, segments, master_xy, normals, xi_tol, tie_tol, seg, xi, normal, g0, kind, dist)
+    # the axis: a slave on r = 0 whose contact point is a master node on r = 0 (a tip)
+    # takes the axial normal, whatever the tilt of the segment chosen
+    axis_tol = 1e-9 * float(lengths.min())
+    point = (1.0 - xi)[:, None] * master_xy[segments[seg, 0]] + xi[:, None] * master_xy[segments[seg, 1]]
+    on_axis = (np.abs(slave_xy[:, 0]) <= axis_tol) & (np.abs(point[:, 0]) <= axis_tol)
+    if np.any(on_axis):
+        sign = np.where(normal[on_axis, 1] >= 0.0, 1.0, -1.0)
+        normal[on_axis] = np.stack([np.zeros_like(sign), sign], axis=1)
+        g0[on_axis] = sign * (slave_xy[on_axis, 1] - point[on_axis, 1])
+    far = dist > reach
+    if np.any(far):
+        p = slave_xy[np.flatnonzero(far)[0]]
+        raise InputError(f"contact: {int(far.sum())} node(s) of '{names[0]}' have no segment of "
+                         f"'{names[1]}' within reach {reach:.4g} m, first at "
+                         f"(r={p[0]:.6g}, z={p[1]:.6g})")
+    deep = g0 < -gap_tol
+    if np.any(deep):
+        k = np.flatnonzero(deep)[0]
+        raise InputError(f"contact: '{names[0]}' penetrates '{names[1]}' initially by "
+                         f"{-g0[k]:.4g} m (tolerance {gap_tol:.3g} m) at "
+                         f"(r={slave_xy[k, 0]:.6g}, z={slave_xy[k, 1]:.6g})")
+    g0[np.abs(g0) <= gap_tol] = 0.0
+    return SegmentConstraints(slave_xy=slave_xy, slave_dofs=slave_dofs, master_xy=master_xy,
+                              master_dofs=master_dofs, segments=segments, seg=seg,
+                              a=segments[seg, 0].copy(), b=segments[seg, 1].copy(), xi=xi,
+                              normal=normal, g0=g0, kind=kind, names=names)
+
+
+# ----------------------------------------------------------------------------- from a model
+
+def _slave_nodes(model: DeformableModel, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(r, z) and global (r, z) dofs of the owned nodes of a facet group, on every rank."""
+    dz = model.facet_dofs(name, Z)
+    xy = model.dof_coordinates(dz)
+    dofs = np.stack([model.to_global(dz - 1 + R), model.to_global(dz)], axis=1)
+    xy = np.concatenate(model.comm.allgather(xy))
+    dofs = np.concatenate(model.comm.allgather(dofs))
+    return xy, dofs
+
+
+def _master_segments(model: DeformableModel, name: str):
+    """Every facet of group ``name`` as (xy of its two nodes, their global (r, z) dofs,
+    the centroid of its cell), deduplicated, on every rank. Refuses facets that are
+    not on the boundary of the mesh."""
+    mesh = model.mesh
+    top = mesh.topology
+    top.create_connectivity(1, 2)
+    top.create_connectivity(1, 0)
+    top.create_connectivity(2, 0)
+    f2c, f2v, c2v = top.connectivity(1, 2), top.connectivity(1, 0), top.connectivity(2, 0)
+    facets = model.tmesh.facets(name)
+    if model.comm.allreduce(facets.size) == 0:
+        raise InputError(f"facet group '{name}' is empty")
+    imap = model.V.dofmap.index_map
+    xy, dofs, inside, interior = [], [], [], 0
+    for f in facets:
+        cells = f2c.links(f)
+        if cells.size != 1:
+            interior += 1
+            continue
+        cell = cells[0]
+        cv = c2v.links(cell)
+        cdofs = model.V.dofmap.cell_dofs(cell)
+        blocks = np.array([cdofs[np.flatnonzero(cv == v)[0]] for v in f2v.links(f)])
+        glob = imap.local_to_global(blocks.astype(np.int32))
+        xy.append(model.node_xy[blocks])
+        dofs.append(np.stack([2 * glob + R, 2 * glob + Z], axis=1))
+        inside.append(model.node_xy[cdofs].mean(axis=0))
+    interior = model.comm.allreduce(interior)
+    if interior:
+        raise InputError(f"facet group '{name}': {interior} facet(s) lie inside the mesh, "
+                         "not on a boundary (contact needs boundary facets)")
+    xy = np.concatenate(model.comm.allgather(np.array(xy).reshape(-1, 2, 2)))
+    dofs = np.concatenate(model.comm.allgather(np.array(dofs, dtype=np.int64).reshape(-1, 2, 2)))
+    inside = np.concatenate(model.comm.allgather(np.array(inside).reshape(-1, 2)))
+    # a facet shared with a ghost cell appears on two ranks: keep one copy
+    key = np.sort(dofs[:, :, 1], axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    xy, dofs, inside = xy[first], dofs[first], inside[first]
+    node_dofs, inverse = np.unique(dofs[:, :, 1].ravel(), return_inverse=True)
+    node_xy = np.empty((node_dofs.size, 2))
+    node_xy[inverse] = xy.reshape(-1, 2)
+    master_dofs = np.stack([node_dofs - 1, node_dofs], axis=1)
+    return node_xy, master_dofs, inverse.reshape(-1, 2), inside
+
+
+def node_to_segment(model: DeformableModel, slave: str, master: str, reach: float | None = None,
+                    gap_tol: float | None = None, xi_tol: float = 1e-6) -> SegmentConstraints:
+    """Node-to-segment constraints: nodes of facet group ``slave`` (put the finer side
+    here) against the segments of facet group ``master`` (see the module docstring for
+    ``reach``, ``gap_tol`` in m and ``xi_tol``)."""
+    slave_xy, slave_dofs = _slave_nodes(model, slave)
+    master_xy, master_dofs, segments, inside = _master_segments(model, master)
+    if np.intersect1d(slave_dofs[:, 1], master_dofs[:, 1]).size:
+        raise InputError(f"contact: facet groups '{slave}' and '{master}' share nodes "
+                         "(slave and master must belong to different bodies)")
+    if slave_xy.shape[0] == 0:
+        raise InputError(f"facet group '{slave}' has no node")
+    return build(slave_xy, slave_dofs, master_xy, master_dofs, segments, inside,
+                 (slave, master), reach, gap_tol, xi_tol)

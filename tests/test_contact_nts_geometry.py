@@ -1,0 +1,263 @@
+"""Node-to-segment geometry, the complementarity solver and one DME collision (no mesh).
+
+Oracles: closed-form projections of points on segments (the edge cases of
+contact/segments.py: snapping, one segment per slave, convex and concave
+vertices, the axis, initial gaps, reach), invariance of the result under any
+order of the input (what a partition changes), the Karush-Kuhn-Tucker
+conditions of the complementarity problem, and Newton's law with momentum and
+energy for one slave striking a segment.
+"""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from impact_fenics.contact.banded import (band_of_s, bandwidth, dense_s, gershgorin_beta, lcp_bpp,
+                                          lcp_dense)
+from impact_fenics.contact.nts_methods import DME, FILM
+from impact_fenics.contact.segments import FACE, VERTEX, build
+from impact_fenics.errors import InputError
+
+
+def _surface(points, inside):
+    """Master polyline through ``points`` with the body on the side of ``inside`` (a point)."""
+    xy = np.asarray(points, float)
+    segs = np.stack([np.arange(len(xy) - 1), np.arange(1, len(xy))], axis=1)
+    dofs = np.stack([100 + 2 * np.arange(len(xy)), 101 + 2 * np.arange(len(xy))], axis=1)
+    return xy, dofs, segs, np.tile(np.asarray(inside, float), (len(segs), 1))
+
+
+def _constraints(slaves, points, inside, **kw):
+    xy, dofs, segs, ins = _surface(points, inside)
+    s = np.asarray(slaves, float)
+    sd = np.stack([2 * np.arange(len(s)), 2 * np.arange(len(s)) + 1], axis=1)
+    return build(s, sd, xy, dofs, segs, ins, **kw)
+
+
+FLAT = [(0.0, 0.0), (0.1, 0.0), (0.2, 0.0), (0.3, 0.0)]
+
+
+def test_face_projection_and_snapping():
+    c = _constraints([(0.125, 0.01), (0.1 + 1e-9, 0.0)], FLAT, (0.1, -1.0))
+    assert c.kind.tolist() == [FACE, FACE]
+    assert np.allclose(c.normal, [[0, 1], [0, 1]], atol=0)
+    j, k = int(np.argmax(c.slave_xy[:, 0])), int(np.argmin(c.slave_xy[:, 0]))
+    assert c.xi[j] == pytest.approx(0.25, rel=1e-12) and c.g0[j] == pytest.approx(0.01, rel=1e-12)
+    # 1e-8 of a segment from a node: snapped to the node, exactly one weight
+    assert c.xi[k] in (0.0, 1.0)
+    node = c.a[k] if c.xi[k] == 0.0 else c.b[k]
+    assert np.array_equal(c.master_xy[node], [0.1, 0.0]) and c.g0[k] == 0.0
+
+
+def test_one_segment_per_slave_over_a_master_node_whatever_the_order():
+    """A slave over a master node projects onto both neighbours: one is taken, the same
+    for every order of the input (partition independence)."""
+    slaves = [(0.1, 0.0), (0.2, 0.02), (0.05, 0.0)]
+    ref = _constraints(slaves, FLAT, (0.1, -1.0))
+    assert ref.n == 3  # one constraint per slave, not two
+    rng = np.random.default_rng(3)
+    xy, dofs, segs, ins = _surface(FLAT, (0.1, -1.0))
+    for _ in range(5):
+        pm, ps, pl = rng.permutation(len(xy)), rng.permutation(len(segs)), rng.permutation(3)
+        inv = np.argsort(pm)
+        s = np.asarray(slaves)[pl]
+        c = build(s, np.stack([2 * pl, 2 * pl + 1], 1), xy[pm], dofs[pm],
+                  inv[segs[ps]][:, ::-1], ins[ps])
+        for f in ("slave_xy", "xi", "normal", "g0", "kind"):
+            assert np.array_equal(getattr(c, f), getattr(ref, f)), f
+        assert np.array_equal(c.master_dofs[c.a], ref.master_dofs[ref.a])
+        assert np.array_equal(c.master_dofs[c.b], ref.master_dofs[ref.b])
+    # the node at r = 0.1 is the end of the first segment (global order by midpoint r)
+    k = int(np.flatnonzero(ref.slave_xy[:, 0] == 0.1)[0])
+    assert ref.seg[k] == 0 and ref.xi[k] == 1.0
+
+
+def test_convex_vertex_uses_the_vertex_and_the_direction_to_the_slave():
+    corner = [(0.0, 0.0), (0.1, 0.0), (0.1, -0.1)]  # top and side of a block, body below-left
+    c = _constraints([(0.13, 0.04)], corner, (0.05, -0.05))
+    assert c.kind[0] == VERTEX
+    assert np.allclose(c.normal[0], [0.6, 0.8], rtol=1e-12)
+    assert c.g0[0] == pytest.approx(0.05, rel=1e-12)
+    node = c.a[0] if c.xi[0] == 0.0 else c.b[0]
+    assert np.array_equal(c.master_xy[node], [0.1, 0.0])
+
+
+def test_concave_vertex_takes_the_closest_segment_and_breaks_ties_by_order():
+    valley = [(1.0, 1.0), (2.0, 0.0), (3.0, 1.0)]  # body below the V
+    c = _constraints([(2.1, 0.5), (2.0, 0.5)], valley, (2.0, -1.0))
+    k_off = int(np.flatnonzero(c.slave_xy[:, 0] == 2.1)[0])
+    # distances 0.4/sqrt2 (right) and 0.6/sqrt2 (left): the right segment
+    assert c.seg[k_off] == 1 and c.g0[k_off] == pytest.approx(0.4 / np.sqrt(2), rel=1e-12)
+    k_mid = 1 - k_off
+    assert c.seg[k_mid] == 0  # tie: the first segment in the global order
+    assert np.allclose(c.normal[k_mid], [1 / np.sqrt(2), 1 / np.sqrt(2)], rtol=1e-12)
+
+
+def test_axis_slave_over_a_tilted_tip_gets_an_axial_normal():
+    nose = [(0.0, 0.0), (0.05, 0.01), (0.1, 0.04)]  # a convex tip on the axis, body above
+    c = _constraints([(0.0, -0.002)], nose, (0.01, 0.05))
+    assert c.kind[0] == VERTEX and c.normal[0].tolist() == [0.0, -1.0]
+    assert c.g0[0] == pytest.approx(0.002, rel=1e-12)
+
+
+def test_axis_slave_on_a_tilted_tip_gets_an_axial_normal():
+    nose = [(0.0, 0.0), (0.05, 0.01), (0.1, 0.04)]
+    c = _constraints([(0.0, 0.0), (0.03, -0.001)], nose, (0.01, 0.05))
+    assert c.normal[0].tolist() == [0.0, -1.0] and c.g0[0] == 0.0 and c.xi[0] == 0.0
+    assert c.kind[1] == FACE and c.normal[1, 0] > 0  # off the axis: the segment's tilt
+
+
+def test_initial_gaps_reach_and_penetration():
+    c = _constraints([(0.15, -1e-9)], FLAT, (0.1, -1.0), gap_tol=1e-8)
+    assert c.g0[0] == 0.0  # within the tolerance: zero
+    with pytest.raises(InputError, match="penetrates .* initially by 1e-05 m"):
+        _constraints([(0.15, -1e-5)], FLAT, (0.1, -1.0), gap_tol=1e-8)
+    with pytest.raises(InputError, match="no segment of 'master' within reach"):
+        _constraints([(0.15, 0.5)], FLAT, (0.1, -1.0))
+
+
+# ----------------------------------------------------------------------------- the solver
+
+def _random_interface(n_slave, ratio, seed):
+    """A flat interface: n_slave slaves over a master face of about n_slave/ratio segments,
+    random masses; returns the G entries in the global order."""
+    rng = np.random.default_rng(seed)
+    n_seg = max(1, int(n_slave / ratio))
+    master = np.stack([np.linspace(0, 1, n_seg + 1), np.zeros(n_seg + 1)], 1)
+    slaves = np.stack([np.sort(rng.uniform(0, 1, n_slave)), rng.uniform(0, 1e-3, n_slave)], 1)
+    xy, dofs, segs, ins = _surface(master, (0.5, -1))
+    c = build(slaves, np.zeros((n_slave, 2), int), xy, dofs, segs, ins)
+    ns = n_slave
+    s = np.arange(ns)
+    cs = np.stack([2 * s, 2 * s + 1, 2 * (ns + c.a), 2 * (ns + c.a) + 1, 2 * (ns + c.b),
+                   2 * (ns + c.b) + 1], 1)
+    na, nb, nr, nz = 1 - c.xi, c.xi, c.normal[:, 0], c.normal[:, 1]
+    cc = np.stack([nr, nz, -na * nr, -na * nz, -nb * nr, -nb * nz], 1)
+    mass = rng.uniform(0.5, 2.0, 2 * (ns + len(xy)))
+    return c, cs, cc, mass
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_block_pivoting_meets_the_complementarity_conditions(seed):
+    _, cs, cc, mass = _random_interface(60, 0.4, seed)  # several slaves per segment
+    minv = 1.0 / mass
+    dt = 1e-3
+    bw = bandwidth(cs, cc, minv)
+    band = np.empty((cs.shape[0], bw + 1))
+    band_of_s(cs, cc, minv, dt, bw, band)
+    S = dense_s(band, bw)
+    G = np.zeros((cs.shape[0], mass.size))
+    np.add.at(G, (np.repeat(np.arange(cs.shape[0]), 6), cs.ravel()), cc.ravel())
+    assert np.allclose(S, dt ** 2 * (G / mass) @ G.T, rtol=1e-14, atol=1e-20)
+    assert (S - np.diag(np.diag(S))).max() > 0  # positive off-diagonals: not an M-matrix
+    rng = np.random.default_rng(seed)
+    gap = rng.normal(0, 1e-6, cs.shape[0])
+    n = gap.size
+    lam, w = np.zeros(n), np.zeros(n)
+    free = gap < 0
+    it = lcp_bpp(band, bw, gap, lam, w, free, np.zeros(n, np.int64), np.zeros(n), np.zeros(n),
+                 np.zeros((n, bw + 1)), 500, np.zeros(n + 1, bool), np.ones(n, bool))
+    assert it > 0
+    scale = np.abs(gap).max()
+    w_check = gap + S @ lam
+    assert lam.min() >= 0 and w_check.min() >= -1e-12 * scale
+    assert np.abs(lam * w_check).max() <= 1e-12 * scale * np.abs(lam).max()
+    lam_d = np.zeros(n)
+    lcp_dense(S, gap, lam_d)
+    assert np.allclose(lam, lam_d, rtol=0, atol=1e-10 * np.abs(lam).max())
+
+
+def test_gershgorin_bounds_the_largest_eigenvalue():
+    _, cs, cc, mass = _random_interface(40, 0.5, 4)
+    minv = 1.0 / mass
+    bw = bandwidth(cs, cc, minv)
+    band = np.empty((cs.shape[0], bw + 1))
+    band_of_s(cs, cc, minv, 1e-3, bw, band)
+    p = 1.0 / band[:, 0]
+    S = dense_s(band, bw)
+    lam_max = np.linalg.eigvalsh(np.sqrt(p)[:, None] * S * np.sqrt(p)[None, :]).max()
+    assert lam_max <= gershgorin_beta(band, bw, p) * (1 + 1e-14)
+
+
+# ----------------------------------------------------------------------------- one collision
+
+def _one_slave_set(xi, e_normal, v_slave, v_master):
+    """One slave (slots 0, 1) over a segment (nodes at slots 2..5), inclined normal."""
+    n = np.asarray(e_normal, float) / np.linalg.norm(e_normal)
+    mass = np.array([2.0, 2.0, 1.0, 1.0, 3.0, 3.0])
+    cs = np.array([[0, 1, 2, 3, 4, 5]])
+    cc = np.array([[n[0], n[1], -(1 - xi) * n[0], -(1 - xi) * n[1], -xi * n[0], -xi * n[1]]])
+    dt = 1e-6
+    minv = 1.0 / mass
+    band = np.empty((1, 1))
+    band_of_s(cs, cc, minv, dt, 0, band)
+    v = np.concatenate([v_slave, v_master]).astype(float)
+    u = np.zeros(6)
+    u_pred = u + dt * v
+    c = SimpleNamespace(n=1, bw=0, band=band, cs=cs, cc=cc, mass=mass, free=np.ones(6, bool),
+                        dt=dt, u=u_pred.copy(), v=v.copy(), u_pred=u_pred, v_pred=v.copy(),
+                        force=np.zeros(1), active=np.zeros(1, bool), g0=np.zeros(1))
+    c.gap = np.array([float(cc[0] @ u_pred[cs[0]])])
+    c.apply_forces = None
+    return c, n
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
+def test_dme_collision_obeys_newton_momentum_and_energy(e):
+    c, n = _one_slave_set(0.3, (0.3, 1.0), v_slave=(0.2, -1.0), v_master=(0.0, 0.5, 0.1, 0.4))
+    v0 = c.v.copy()
+    rel = lambda v: float(c.cc[0] @ v)  # noqa: E731  normal relative velocity
+    assert rel(v0) < 0 and c.gap[0] < 0
+    m = DME(restitution=e)
+    m.setup(c)
+    m.correct(c)
+    assert c.active[0]
+    assert rel(c.v) == pytest.approx(-e * rel(v0), rel=1e-12)
+    p0 = [np.sum(c.mass[k::2] * v0[k::2]) for k in (0, 1)]
+    p1 = [np.sum(c.mass[k::2] * c.v[k::2]) for k in (0, 1)]
+    assert np.allclose(p1, p0, rtol=1e-13, atol=1e-13)
+    # the impulse with m_eff = (1/m_s + sum N_i^2/m_i)^-1, and kinetic energy: lost
+    # (1 - e^2)/2 m_eff rel^2 (none at e = 1)
+    m_eff = 1.0 / (1 / 2.0 + 0.7 ** 2 / 1.0 + 0.3 ** 2 / 3.0)
+    assert c.force[0] * c.dt == pytest.approx(-(1 + e) * m_eff * rel(v0), rel=1e-12)
+    ke = lambda v: 0.5 * np.sum(c.mass * v * v)  # noqa: E731
+    assert ke(v0) - ke(c.v) == pytest.approx(0.5 * (1 - e * e) * m_eff * rel(v0) ** 2,
+                                             rel=1e-10, abs=1e-14 * ke(v0))
+    # positions: on the manifold g = 0, the centre of mass unchanged
+    assert abs(float(c.cc[0] @ c.u)) <= 1e-14 * np.abs(c.u).max()
+    assert np.allclose([np.sum(c.mass[k::2] * c.u[k::2]) for k in (0, 1)],
+                       [np.sum(c.mass[k::2] * c.u_pred[k::2]) for k in (0, 1)], rtol=1e-12)
+
+
+def test_film_holds_the_gap_and_keeps_momentum():
+    c, n = _one_slave_set(0.6, (-0.2, 1.0), v_slave=(0.0, -2.0), v_master=(0.1, 0.0, 0.0, 0.3))
+    c.apply_forces = lambda lam: __import__(
+        "impact_fenics.contact.nts_interface", fromlist=["x"]).apply_multipliers(
+        lam, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v)
+    v0 = c.v.copy()
+    m = FILM()
+    m.setup(c)
+    m.correct(c)
+    assert abs(float(c.cc[0] @ c.u)) <= 1e-14 * np.abs(c.u).max()
+    assert m.iterations == 1
+    assert np.allclose([np.sum(c.mass[k::2] * c.v[k::2]) for k in (0, 1)],
+                       [np.sum(c.mass[k::2] * v0[k::2]) for k in (0, 1)], rtol=1e-13, atol=1e-13)
+
+
+def test_penalty_above_the_stability_bound_is_refused_unless_forced():
+    """beta = p S_ii for one constraint (Gershgorin is exact there): 2 > 4/3 is refused,
+    'scaled' puts beta at 1."""
+    from impact_fenics.contact.nts_methods import Penalty
+
+    c, _ = _one_slave_set(0.3, (0.3, 1.0), v_slave=(0.0, -1.0), v_master=(0, 0, 0, 0))
+    p = 2.0 / c.band[0, 0]
+    with pytest.raises(InputError, match="exceeds the stability limit 4/3"):
+        Penalty(p).setup(c)
+    forced = Penalty(p, force=True)
+    forced.setup(c)
+    assert forced.info["beta_max"] == pytest.approx(2.0, rel=1e-12)
+    scaled = Penalty("scaled")
+    scaled.setup(c)
+    assert scaled.info["beta_max"] == pytest.approx(1.0, rel=1e-12)
+    with pytest.raises(InputError, match="must be > 0"):
+        Penalty(-1.0)

@@ -114,11 +114,12 @@ def geometry_dofs(mesh) -> np.ndarray:
     """The geometry dofmap as a (num_local_cells, nodes per cell) array: rows index
     ``mesh.geometry.x``.
 
-    0.5: ``mesh.geometry.dofmap`` is an AdjacencyList.  0.11: a 2D array."""
-    dofs = mesh.geometry.dofmap
-    if isinstance(dofs, np.ndarray):
-        return dofs
-    return dofs.array.reshape(dofs.num_nodes, -1)
+    0.5: ``mesh.geometry.dofmap`` is an AdjacencyList.
+    0.11: ``mesh.geometry.dofmaps[0]``, a 2D array (``dofmap`` is deprecated)."""
+    geo = mesh.geometry
+    if LEGACY:
+        return geo.dofmap.array.reshape(geo.dofmap.num_nodes, -1)
+    return geo.dofmaps[0] if hasattr(geo, "dofmaps") else geo.dofmap
 
 
 def interpolation_points(V) -> np.ndarray:

@@ -17,11 +17,16 @@ find_python() {
         p="$(command -v "$c" 2>/dev/null)" || continue
         is_modern "$p" && { echo "$p"; return 0; }
     done
-    for p in $(ls -d "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.* 2>/dev/null | sort -V); do
+    for p in $(ls -d "${PYENV_ROOT:-${HOME:-}/.pyenv}"/versions/3.* 2>/dev/null | sort -V); do
         is_modern "$p/bin/python3" && { echo "$p/bin/python3"; return 0; }
     done
     return 1
 }
+
+if [ "${1:-}" = "--find-python" ]; then  # only say which Python would be used
+    find_python || { echo "error: no Python >= 3.12 on PATH or under pyenv" >&2; exit 1; }
+    exit 0
+fi
 
 if [ ! -x "$VENV/bin/python" ]; then
     PY="$(find_python)" || {

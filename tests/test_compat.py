@@ -137,9 +137,9 @@ def test_petsc_vec_views_the_function_array(comm):
 def test_launcher_and_rank_variable():
     """The launcher of this stack starts 2 ranks of this interpreter; its rank variable
     is each process's MPI rank."""
-    code = ("import os; from mpi4py import MPI; "
-            f"print(MPI.COMM_WORLD.rank, os.environ[{compat.launcher_rank_variable()!r}], "
-            "MPI.COMM_WORLD.size)")
+    code = ("import os; from mpi4py import MPI; c = MPI.COMM_WORLD; "
+            f"rows = c.gather((c.rank, os.environ[{compat.launcher_rank_variable()!r}], c.size)); "
+            "c.rank == 0 and print('\\n'.join(' '.join(map(str, r)) for r in rows))")
     proc = subprocess.run(compat.mpi_launcher(ROOT) + ["-n", "2", sys.executable, "-c", code],
                           capture_output=True, text=True, timeout=120, env=clean_mpi_env(),
                           cwd=ROOT)

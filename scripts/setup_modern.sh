@@ -33,7 +33,7 @@ if [ ! -x "$VENV/bin/python" ]; then
         echo "error: the modern stack needs Python >= 3.12 (none on PATH or under pyenv; set PYTHON_MODERN)" >&2
         exit 1; }
     echo "setup-modern: creating $VENV from $PY"
-    "$PY" -m venv "$VENV"
+    "$PY" -m venv --clear "$VENV"
 fi
 
 # reinstall only when the pins or the package metadata changed

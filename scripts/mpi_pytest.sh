@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 N="${N:-2}"
 PY="${PY:-.venv/bin/python}"
 LOGDIR="$(mktemp -d)"
-if [ -z "${MPIEXEC:-}" ] && [ -x "$(dirname "$PY")/mpiexec" ]; then
+if [ -z "${MPIEXEC:-}" ] && [ -x "$(dirname "$PY")/mpiexec" ] && [ -x "$(dirname "$PY")/mpichversion" ]; then
     export MPIEXEC="$(dirname "$PY")/mpiexec"
 fi
 # the rank: OpenMPI sets OMPI_COMM_WORLD_RANK, MPICH's Hydra PMI_RANK

@@ -20,9 +20,10 @@ FROM python:3.12-slim-bookworm AS modern
 
 ENV DEBIAN_FRONTEND=noninteractive
 # make; gcc for the form compiler's JIT (the image has Python's headers); the
-# libraries that VTK (pyvista) loads for off-screen rendering
+# libraries that VTK (pyvista) loads for off-screen rendering (with their
+# recommended Mesa drivers, as in the debian stage)
 RUN apt-get update \
- && apt-get install -y --no-install-recommends make gcc libc6-dev libgl1 libegl1 \
+ && apt-get install -y make gcc libc6-dev libgl1 libegl1 \
     libx11-6 libxrender1 \
  && rm -rf /var/lib/apt/lists/*
 

@@ -23,6 +23,7 @@ from mpi4py import MPI  # before dolfinx/petsc4py: see above
 
 import numpy as np
 import dolfinx
+import dolfinx.fem.petsc  # noqa: F401  (fem.petsc is a submodule: load it for every user)
 from dolfinx import fem, geometry
 from dolfinx import io as _io
 
@@ -43,7 +44,7 @@ def versions() -> dict[str, str]:
     return {"dolfinx": dolfinx.__version__,
             "petsc": ".".join(str(v) for v in PETSc.Sys.getVersion()),
             "petsc4py": petsc4py.__version__,
-            "mpi": MPI.Get_library_version().splitlines()[0].strip()}
+            "mpi": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip()}
 
 
 # ------------------------------------------------------------------------ mesh

@@ -54,7 +54,7 @@ def machine_info(comm: MPI.Comm) -> dict:
         "petsc": stack["petsc"],
         "petsc4py": stack["petsc4py"],
         "petsc_int_bytes": np.dtype(PETSc.IntType).itemsize,
-        "mpi": MPI.Get_library_version().splitlines()[0].strip(),
+        "mpi": stack["mpi"],
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "blas": blas,

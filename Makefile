@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study clean
+.PHONY: setup demo test test-serial test-mpi study clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -26,6 +26,20 @@ test-mpi:
 # the paper's studies: docs/figures/*.png|json and docs/results.md (about 10-20 min on 2 cores)
 study: setup
 	$(MPIRUN) -n $(NP) $(PY) demos/paper_study.py
+
+# the same on the current FEniCSx (dolfinx 0.11, PETSc 3.25, MPICH: PyPI wheels on
+# Python >= 3.12, in .venv-modern); the launcher is the MPICH mpiexec of that venv
+MODERN_PY := .venv-modern/bin/python
+
+setup-modern:
+	@scripts/setup_modern.sh
+
+demo-modern: setup-modern
+	$(MPIRUN) -n $(NP) $(MODERN_PY) demos/elastic_wave.py --out results/modern/elastic_wave
+	$(MPIRUN) -n $(NP) $(MODERN_PY) demos/bar_impact.py --method film --out results/modern/bar_impact
+
+test-modern: setup-modern
+	$(MAKE) --no-print-directory test-serial test-mpi PY=$(MODERN_PY)
 
 clean:
 	rm -rf results .pytest_cache

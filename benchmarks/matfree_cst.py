@@ -174,6 +174,8 @@ class MatrixFreeCST:
     def __init__(self, model):
         import basix
 
+        from impact_fenics.compat import cell_dofs
+
         if model.comm.size != 1:
             raise RuntimeError("the matrix-free prototype is serial")
         if len(model.parts) != 1:
@@ -183,7 +185,7 @@ class MatrixFreeCST:
         self.ffi, self.lib = build()
         n_cells = model.mesh.topology.index_map(2).size_local
         self.cells = np.ascontiguousarray(
-            model.V.dofmap.list.array.reshape(-1, 3)[:n_cells], dtype=np.int32)
+            cell_dofs(model.V)[:n_cells], dtype=np.int32)
         self.xy = np.ascontiguousarray(model.node_xy, dtype=np.float64)
         pts, wts = basix.make_quadrature(basix.CellType.triangle, 2)
         self.qN = np.ascontiguousarray(

@@ -12,6 +12,7 @@ import numpy as np
 from mpi4py import MPI
 from dolfinx import fem
 
+from .compat import cell_dofs, vector_space
 from .errors import InputError, require
 from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
 from .meshing import TaggedMesh
@@ -36,7 +37,7 @@ class DeformableModel:
         self.mesh = tmesh.mesh
         self.comm = self.mesh.comm
         self.bodies = {b.name: b for b in bodies}
-        self.V = fem.VectorFunctionSpace(self.mesh, ("CG", 1))
+        self.V = vector_space(self.mesh, "Lagrange", 1)
         imap = self.V.dofmap.index_map
         self.bs = self.V.dofmap.index_map_bs
         self.n_owned = imap.size_local * self.bs
@@ -80,7 +81,7 @@ class DeformableModel:
         """Owned unrolled dofs of ``component`` of the nodes of body ``body``."""
         require(body in self.bodies, f"no body named '{body}' (bodies: {', '.join(self.bodies)})")
         cells = self.tmesh.cells(body)
-        blocks = np.unique(self.V.dofmap.list.array.reshape(-1, 3)[cells].ravel())
+        blocks = np.unique(cell_dofs(self.V)[cells].ravel())
         return self._unrolled(blocks, component, owned=True)
 
     def axis_dofs(self, owned: bool = True) -> np.ndarray:

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 from dolfinx import mesh as dmesh
-from dolfinx.io import gmshio
 
+from .compat import model_to_mesh
 from .errors import InputError, require
 
 
@@ -116,7 +116,7 @@ def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
             _restart_gmsh()  # a failed read can leave gmsh's model list broken
         raise InputError(error)
     names = comm.bcast(names, root=0)
-    msh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
+    msh, cell_tags, facet_tags = model_to_mesh(gmsh.model, comm, 0, gdim=2)
     if comm.rank == 0:
         gmsh.model.remove()
     msh.topology.create_connectivity(1, 2)

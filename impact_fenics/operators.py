@@ -7,13 +7,9 @@ from dolfinx import fem
 import dolfinx.fem.petsc  # noqa: F401  (registers fem.petsc)
 
 from .bodies import DeformableModel
+from .compat import compile_form
 from .errors import InputError
 from .forms import lumped_mass_form, stiffness_form
-
-
-def compile_form(form):
-    """Compile a UFL form with our own (fresh) parameter dicts: fem.form's defaults are shared."""
-    return fem.form(form, form_compiler_params={}, jit_params={})
 
 
 def assemble_stiffness(model: DeformableModel, matrix_type: str = "aij",

@@ -17,6 +17,7 @@ import numpy as np
 from mpi4py import MPI
 from dolfinx import fem, io
 
+from .compat import interpolation_points, scalar_space
 from .errors import InputError
 
 # beyond this many XDMF snapshots a run warns: each write rewrites the whole .xdmf
@@ -151,8 +152,8 @@ class FieldWriter:
         self.xdmf.write_mesh(mesh)
         self.u = fem.Function(V, name="displacement")
         self.v = fem.Function(V, name="velocity")
-        Q = fem.FunctionSpace(mesh, ("DG", 0))
-        points = Q.element.interpolation_points()
+        Q = scalar_space(mesh, "DG", 0)
+        points = interpolation_points(Q)
         self._stress = []
         for name, pieces in stresses(self.u).items():
             f = fem.Function(Q, name=name)

@@ -292,8 +292,9 @@ def _render_in_fresh_process(run_dir: str, field: str, times: list[float] | None
 
     code = ("import json, sys; from impact_fenics.plotting import render_fields; "
             "print(json.dumps(render_fields(*json.loads(sys.argv[1]))))")
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith(("OMPI_", "PMIX_", "OPAL_", "ORTE_", "PMI_", "HYDRA_"))}
+    from .compat import clean_launcher_env  # dolfinx is loaded already here
+
+    env = clean_launcher_env()
     proc = subprocess.run([sys.executable, "-c", code,
                            json.dumps([run_dir, field, times, scale, width])],
                           capture_output=True, text=True, env=env)

@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
-from dolfinx import fem, geometry
+from dolfinx import fem
 
+from .compat import colliding_cells, eval_expression
 from .errors import InputError
 
 
@@ -14,11 +15,8 @@ def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
     A point on a cell boundary belongs to the touching cell whose midpoint is
     smallest in (r, z): the same choice for every partition."""
     x = np.array([[point[0], point[1], 0.0]])
-    tdim = mesh.topology.dim
-    n_owned = mesh.topology.index_map(tdim).size_local
-    tree = geometry.BoundingBoxTree(mesh, tdim)
-    candidates = geometry.compute_collisions(tree, x)
-    cells = geometry.compute_colliding_cells(mesh, candidates, x).links(0)
+    n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
+    cells = colliding_cells(mesh, x).links(0)
     cells = np.asarray([c for c in cells if c < n_owned], dtype=np.int32)
     best = (np.inf, np.inf)
     if cells.size:
@@ -50,7 +48,7 @@ class Probes:
         self.names = [name for name, _, _ in probes]
         self.points = [pt for _, pt, _ in probes]
         self.u = u
-        mesh = u.function_space.mesh
+        mesh = self.mesh = u.function_space.mesh
         self.comm = mesh.comm
         self._local = np.zeros(len(probes))
         self._values = np.zeros(len(probes))
@@ -68,7 +66,7 @@ class Probes:
         """Probe values (shared by all ranks); u must be current, ghosts included."""
         self._local[:] = 0.0
         for k, expr, cells in self._evals:
-            self._local[k] = expr.eval(cells)[0, 0]
+            self._local[k] = eval_expression(expr, self.mesh, cells)[0, 0]
         self.comm.Allreduce(self._local, self._values)
         return self._values
 

@@ -19,7 +19,7 @@ from dolfinx import fem
 
 from .bodies import DeformableModel
 from .forms import lumped_mass_form, stiffness_form
-from .operators import compile_form
+from .compat import cell_dofs, compile_form, vector_space
 
 _CHUNK = 65536  # cells per batched eigenvalue call
 
@@ -33,7 +33,7 @@ def element_omega_bound(model: DeformableModel, fixed_local: np.ndarray) -> floa
     each element problem: the bound then holds on the constrained space, and
     the tiny radial masses of axis nodes no longer dominate it.
     """
-    V_dg = fem.VectorFunctionSpace(model.mesh, ("DG", 1))
+    V_dg = vector_space(model.mesh, "DG", 1)
     K = fem.petsc.assemble_matrix(compile_form(stiffness_form(V_dg, model.parts)))
     K.assemble()
     m_vec = fem.petsc.assemble_vector(compile_form(lumped_mass_form(V_dg, model.parts)))
@@ -45,9 +45,9 @@ def element_omega_bound(model: DeformableModel, fixed_local: np.ndarray) -> floa
     m_vec.destroy()
     n_cells = model.mesh.topology.index_map(2).size_local
     bs = 2
-    dofs = V_dg.dofmap.list.array.reshape(-1, 3)[:n_cells]
+    dofs = cell_dofs(V_dg)[:n_cells]
     dofs = (dofs[:, :, None] * bs + np.arange(bs)).reshape(n_cells, 6)
-    cg = model.V.dofmap.list.array.reshape(-1, 3)[:n_cells]
+    cg = cell_dofs(model.V)[:n_cells]
     cg = (cg[:, :, None] * bs + np.arange(bs)).reshape(n_cells, 6)
     is_fixed = np.zeros(model.n_local, dtype=bool)
     is_fixed[fixed_local] = True

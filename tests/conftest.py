@@ -57,7 +57,6 @@ def gather_field(model, values):
 
 def clean_mpi_env() -> dict:
     """The environment without this process's MPI variables, for launching mpirun anew."""
-    import os
+    from impact_fenics.compat import clean_launcher_env
 
-    return {k: v for k, v in os.environ.items()
-            if not k.startswith(("OMPI_", "PMIX_", "OPAL_", "ORTE_", "HYDRA_", "PMI_"))}
+    return clean_launcher_env()

@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from ..compat import LAUNCHER_ENV_PREFIXES
 from .bar import bar_mesh
 from .tables import format_table
 
 ROOT = Path(__file__).resolve().parents[2]
-MPI_ENV = ("OMPI_", "PMIX_", "OPAL_", "ORTE_", "HYDRA_", "PMI_")  # a launcher's variables
+MPI_ENV = LAUNCHER_ENV_PREFIXES  # a launcher's variables
 
 
 @dataclass(frozen=True)

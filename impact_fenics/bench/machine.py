@@ -21,10 +21,12 @@ def _first_field(path: str, prefix: str) -> str | None:
 
 
 def machine_info(comm: MPI.Comm) -> dict:
-    import dolfinx
-    import petsc4py
     import scipy
     from petsc4py import PETSc
+
+    from ..compat import versions
+
+    stack = versions()
 
     cpu = _first_field("/proc/cpuinfo", "model name") or "unknown"
     mem = _first_field("/proc/meminfo", "MemTotal")
@@ -48,11 +50,11 @@ def machine_info(comm: MPI.Comm) -> dict:
         "hostname": platform.node(),
         "ranks": comm.size,
         "python": platform.python_version(),
-        "dolfinx": dolfinx.__version__,
-        "petsc": ".".join(str(v) for v in PETSc.Sys.getVersion()),
-        "petsc4py": petsc4py.__version__,
+        "dolfinx": stack["dolfinx"],
+        "petsc": stack["petsc"],
+        "petsc4py": stack["petsc4py"],
         "petsc_int_bytes": np.dtype(PETSc.IntType).itemsize,
-        "mpi": MPI.Get_library_version().splitlines()[0].strip(),
+        "mpi": stack["mpi"],
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "blas": blas,

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import tempfile
 
+from ..compat import mpi_launcher
 from .bar import bar_integrator, matrix_bytes, measure_step_variants
 from .common import ROOT, child_env, per_dof, run_json
 from .peers import MATFREE, matfree_record
@@ -81,8 +82,7 @@ def part_stream(ctx) -> dict:
 
 def launch(ctx, n_ranks: int, parts: list[str], sizes) -> dict:
     """This harness on ``n_ranks`` ranks in a fresh mpirun (MPI variables scrubbed)."""
-    launcher = ROOT / "scripts" / "mpirun.sh"
-    runner = [str(launcher)] if launcher.exists() else ["mpirun", "--oversubscribe"]
+    runner = mpi_launcher(ROOT)
     fd, path = tempfile.mkstemp(prefix="bench_child_", suffix=".json")
     os.close(fd)
     cmd = runner + ["-n", str(n_ranks), sys.executable, "-m", "impact_fenics.bench",

@@ -18,6 +18,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from ..compat import trapezoid
 from ..errors import UnstableRunError
 from ..simulation import Settings
 
@@ -89,8 +90,8 @@ def rel_l2(t: np.ndarray, y: np.ndarray, t_ref: np.ndarray, y_ref: np.ndarray,
     grid = np.union1d(t[(t >= lo) & (t <= hi)], t_ref[(t_ref >= lo) & (t_ref <= hi)])
     a = np.interp(grid, t, y)
     b = np.interp(grid, t_ref, y_ref)
-    den = math.sqrt(np.trapz(b * b, grid))
-    return float(math.sqrt(np.trapz((a - b) ** 2, grid)) / den) if den > 0 else float("inf")
+    den = math.sqrt(trapezoid(b * b, grid))
+    return float(math.sqrt(trapezoid((a - b) ** 2, grid)) / den) if den > 0 else float("inf")
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:

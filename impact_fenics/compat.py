@@ -150,6 +150,40 @@ def compile_form(form):
     return fem.form(form, form_compiler_params={}, jit_params={})
 
 
+def eval_expression_into(expr, mesh, cells: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Values of a compiled ``fem.Expression`` on ``cells`` written into ``out``, a
+    C-contiguous (n_cells, n_points * value_size) array (no allocation in a loop).
+
+    0.5: ``expr.eval(cells, values=out)``.
+    0.11: ``expr.eval(mesh, cells, values=...)`` with ``out`` viewed as
+    (n_cells, n_points, value_size)."""
+    if LEGACY:
+        expr.eval(cells, values=out)
+    else:
+        n_points = expr.X().shape[0]
+        expr.eval(mesh, cells, values=out.reshape(out.shape[0], n_points, -1))
+    return out
+
+
+def quadrature_vector_space(mesh, degree: int, dim: int):
+    """A ``dim``-component quadrature space of the default rule of ``degree`` (one value
+    set per quadrature point; state and stresses at the points).
+
+    0.5: ``ufl.VectorElement("Quadrature", cell, degree=, dim=, quad_scheme="default")``.
+    0.11: ``basix.ufl.quadrature_element(cell, value_shape=(dim,), degree=)``."""
+    if LEGACY:
+        import ufl
+
+        element = ufl.VectorElement("Quadrature", mesh.ufl_cell(), degree=degree, dim=dim,
+                                    quad_scheme="default")
+        return fem.FunctionSpace(mesh, element)
+    import basix.ufl
+
+    element = basix.ufl.quadrature_element(mesh.basix_cell(), value_shape=(dim,),
+                                           degree=degree)
+    return fem.functionspace(mesh, element)
+
+
 def eval_expression(expr, mesh, cells: np.ndarray) -> np.ndarray:
     """Values of a compiled ``fem.Expression`` on ``cells``: (n_cells, n_points * value_size).
 

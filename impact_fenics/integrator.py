@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from . import compat
 from .bodies import DeformableModel
 from .errors import InputError
 from .internal_force import LinearForce, QuadratureForce
@@ -65,7 +66,7 @@ class Integrator:
             from dolfinx import fem
 
             self._u_fn = fem.Function(model.V)
-            self._u = self._u_fn.vector
+            self._u = compat.petsc_vec(self._u_fn)
             self._v = self._u.duplicate()
             coef = np.where(self._free, -self.dt / self.mass, 0.0)
             self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path)

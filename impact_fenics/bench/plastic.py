@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import compat
 from ..materials.j2 import J2
 from .bar import bar_integrator, random_state, step_fn, time_matmult
 from .common import per_dof
@@ -58,8 +59,8 @@ def _split(ctx, integ) -> dict:
         out["point_updates"] = ctx.median(lambda: force._points(
             force.params, force.dt, eps, g.w, qs.eps_p, qs.state, qs.sigma, qd, sq, force._work))
     else:
-        out["strain_expression"] = ctx.median(lambda: force._eps_expr.eval(force.cells,
-                                                                          values=force._eps_buf))
+        out["strain_expression"] = ctx.median(lambda: compat.eval_expression_into(
+            force._eps_expr, force.model.mesh, force.cells, force._eps_buf))
         out["point_updates"] = ctx.median(lambda: force._points(
             force.params, force.dt, force._eps_buf, g.w, qs.eps_p, qs.state, qs.sigma,
             force._qdofs, force._sigma_q.x.array, force._work))
@@ -68,7 +69,7 @@ def _split(ctx, integ) -> dict:
             from dolfinx import fem
             from petsc4py import PETSc
 
-            vec = force.f.vector
+            vec = compat.petsc_vec(force.f)
             with vec.localForm() as local:
                 local.set(0.0)
             fem.petsc.assemble_vector(vec, force._form)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
+from .. import compat
 from ..bodies import DeformableModel
 from .quadrature import N_COMP, QuadratureForce
 
@@ -24,14 +25,14 @@ class PlasticCellFields:
         mesh = model.mesh
         self.forces = forces
         self.n_cells = mesh.topology.index_map(2).size_local
-        V4 = fem.VectorFunctionSpace(mesh, ("DG", 0), dim=N_COMP)
+        V4 = compat.vector_space(mesh, "DG", 0, dim=N_COMP)
         self.eps_p = fem.Function(V4, name="eps_p")
-        Q0 = fem.FunctionSpace(mesh, ("DG", 0))
+        Q0 = compat.scalar_space(mesh, "DG", 0)
         self.eps_p_eq = fem.Function(Q0, name="eps_p_eq")
         self.yielded = fem.Function(Q0, name="yielded")
-        dof = Q0.dofmap.list.array  # one dof per cell
+        dof = compat.cell_dofs(Q0).ravel()  # one dof per cell
         self._dofs = [dof[f.cells].astype(np.intp) for f in forces]
-        self._dof_vec = [self.eps_p.function_space.dofmap.list.array[f.cells].astype(np.intp)
+        self._dof_vec = [compat.cell_dofs(self.eps_p.function_space).ravel()[f.cells].astype(np.intp)
                          for f in forces]
         self._owned_dofs = dof[: self.n_cells].astype(np.intp)
 

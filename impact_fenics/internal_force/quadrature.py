@@ -43,6 +43,7 @@ from numba import njit
 from petsc4py import PETSc
 
 from .. import forms
+from .. import compat
 from ..bodies import DeformableModel
 from ..operators import compile_form
 
@@ -75,7 +76,7 @@ class CellGeometry:
         ref_points, ref_weights = reference_rule()
         assert ref_points.shape[0] == N_POINTS
         self.cells = cells
-        self.dofs = model.V.dofmap.list.array.reshape(-1, 3)[cells].astype(np.int32)
+        self.dofs = compat.cell_dofs(model.V)[cells].astype(np.int32)
         xy = model.node_xy[self.dofs]  # (n, 3, 2)
         xi, eta = ref_points[:, 0], ref_points[:, 1]
         self.N = np.ascontiguousarray(np.stack([1.0 - xi - eta, xi, eta], axis=1))
@@ -298,11 +299,9 @@ class QuadratureForce:
         e = forms.strain(self.u, r)
         self._eps_expr = fem.Expression(ufl.as_vector([e[0, 0], e[1, 1], e[2, 2], e[0, 2]]), points)
         self._eps_buf = np.zeros((self.cells.size, N_POINTS * N_COMP))
-        element = ufl.VectorElement("Quadrature", mesh.ufl_cell(), degree=forms.STIFFNESS_DEGREE,
-                                    dim=N_COMP, quad_scheme="default")
-        Q = fem.FunctionSpace(mesh, element)
+        Q = compat.quadrature_vector_space(mesh, forms.STIFFNESS_DEGREE, N_COMP)
         self._sigma_q = fem.Function(Q)
-        qdofs = Q.dofmap.list.array.reshape(-1, N_POINTS)[self.cells]
+        qdofs = compat.cell_dofs(Q)[self.cells]
         self._qdofs = np.ascontiguousarray(qdofs.astype(np.int32))
         s = self._sigma_q
         sigma = ufl.as_tensor([[s[0], 0, s[3]], [0, s[1], 0], [s[3], 0, s[2]]])
@@ -324,10 +323,10 @@ class QuadratureForce:
                              self.u.x.array, arr, qs.eps_p, qs.state, qs.sigma, self._work)
             self.f.x.scatter_reverse(la.ScatterMode.add)
         else:
-            self._eps_expr.eval(self.cells, values=self._eps_buf)
+            compat.eval_expression_into(self._eps_expr, self.model.mesh, self.cells, self._eps_buf)
             wp = self._points(self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
                               qs.sigma, self._qdofs, self._sigma_q.x.array, self._work)
-            vec = self.f.vector
+            vec = compat.petsc_vec(self.f)
             with vec.localForm() as local:
                 local.set(0.0)
             fem.petsc.assemble_vector(vec, self._form)

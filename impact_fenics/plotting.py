@@ -72,7 +72,7 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
         panels.append(("probe stress (MPa)", stress))
     if disp:
         panels.append(("probe displacement (mm)", disp))
-    force = [(c, h[c]) for c in h if c.endswith("contact_force")]
+    force = [(c, h[c]) for c in h if c.endswith("_force")]
     if force:
         panels.append(("contact force (N)", force))
         gaps = [(c, h[c] * 1e3) for c in h if c.endswith("min_gap")]

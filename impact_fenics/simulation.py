@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from . import forms, output, plotting
+from . import output, plotting
+from .cell_fields import STRESS_NAMES, CellStress
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
 from .contact.pairing import Constraints
@@ -23,6 +24,7 @@ from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
 from .loads import SurfaceLoad
 from .probes import Probes
+from .xdmf import FieldWriter
 from .stability import converged_omega_max, critical_dt, element_omega_bound
 from .timers import PhaseTimers
 
@@ -72,6 +74,11 @@ class Simulation:
         self.model = model
         self.comm: MPI.Comm = model.comm
         self.settings = settings
+        clock = time.perf_counter
+        # set-up time (s) by phase: stability bound, operators (forms, JIT, assembly),
+        # converged dt, contact (pairing, methods), outputs (files, probes, first frame)
+        self.setup_time: dict[str, float] = {}
+        t0 = clock()
         require((settings.dt is None) != (settings.cfl is None), "give either dt or cfl")
         require(settings.output_every > 0 and settings.history_every > 0,
                 "output_every and history_every must be > 0 (steps)")
@@ -90,12 +97,17 @@ class Simulation:
             raise InputError(f"dt = {settings.dt:.4g} s is above the stable limit "
                              f"{self.dt_critical:.4g} s (element bound on 2/omega_max); "
                              "lower dt or force it")
+        t1 = clock()
+        self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
                                      settings.matrix_type)
+        t2 = clock()
+        self.setup_time["operators"] = t2 - t1
         self.dt_converged = None
         if settings.converged_dt:
             self.dt_converged = critical_dt(converged_omega_max(
                 self.integrator.K, self.integrator.mass, model.to_global(fixed_owned)))
+            self.setup_time["converged_dt"] = clock() - t2
         v0 = np.zeros(model.n_owned)
         for body, (vr, vz) in (initial_velocity or {}).items():
             v0[model.body_dofs(body, 0)] = vr
@@ -106,6 +118,7 @@ class Simulation:
                           for name, d in self._body_z.items()}
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
+        self._cell_field_providers: list = []
         self.status = "not started"
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
@@ -128,9 +141,11 @@ class Simulation:
             raise InputError(f"a surface load acts on nodes of the contact surfaces "
                              f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
                              "facet group (the contact bookkeeping assumes no load there)")
+        t0 = time.perf_counter()
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
         self.contacts.append(c)
+        self.setup_time["contact"] = self.setup_time.get("contact", 0.0) + time.perf_counter() - t0
         return c
 
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz") -> None:
@@ -150,11 +165,14 @@ class Simulation:
         # (JIT of the output expressions) then stops the run cleanly at step 64
         stop = _StopFlag()
         try:
+            t_setup = time.perf_counter()
             staging = output.prepare_directory(s.out, comm) if s.out else None
             writer = self._field_writer(staging) if (staging and s.fields) else None
-            u_fn = writer.u if writer else None
-            probes = self._make_probes(u_fn) if self._probe_specs else None
+            probes = Probes(model, self._probe_specs) if self._probe_specs else None
             tables = self._tables(staging, probes)
+            if writer is not None:  # the initial state, outside the timed loop
+                self._write_fields(writer)
+            self.setup_time["outputs"] = time.perf_counter() - t_setup
         except BaseException:
             stop.restore()
             raise
@@ -166,7 +184,7 @@ class Simulation:
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
         Ku = integ.K.createVecRight()
-        energy_rows, max_bal = [], 0.0
+        last_energy, max_bal = None, 0.0
         track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
@@ -177,6 +195,8 @@ class Simulation:
             for n in range(n_steps):
                 is_output = (n % s.output_every == 0) or (n == n_steps - 1)
                 is_history = (n % s.history_every == 0) or is_output
+                is_fields = writer is not None and ((n + 1) % s.output_every == 0
+                                                    or n + 1 == n_steps)
                 t0 = clock()
                 if is_output:
                     pre = self._pre_output(buf, Ku)
@@ -189,19 +209,16 @@ class Simulation:
                 integ.advance()
                 t3 = clock()
                 if is_history:
-                    self._history_row(tables, probes, u_fn, buf)
+                    self._history_row(tables, probes)
                 t4 = clock()
                 if is_output:
                     row = self._post_output(pre, buf, ledger, load_work)
                     max_bal = max(max_bal, row["balance_error_rel"])
-                    energy_rows.append(row)
+                    last_energy = row
                     tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                     self._check_stability(row, ledger, n)
-                    if writer is not None:
-                        writer.set_state(buf["u"], buf["v"])
-                        writer.write((integ.n - 1) * s.dt)
-                    for tbl in tables.values():
-                        tbl.flush()
+                if is_fields:
+                    self._write_fields(writer)
                 t5 = clock()
                 if times is not None:
                     now = times.current
@@ -229,10 +246,11 @@ class Simulation:
             stop.restore()
             wall = clock() - t_run
             for tbl in tables.values():
-                tbl.flush()
+                tbl.close()
             if writer is not None:
                 writer.close()
-        summary = self._summary(times, stopped_at, wall, energy_rows, max_bal, track)
+            comm.barrier()  # every table is on disk: any rank may read it back
+        summary = self._summary(times, stopped_at, wall, last_energy, max_bal, track)
         self.summary = summary
         if extra is not None and self.status == "completed":
             summary.update(extra(self))
@@ -242,6 +260,8 @@ class Simulation:
                                              [(name, q) for name, _, q in self._probe_specs])
             output.write_json(os.path.join(staging, "summary.json"), summary, comm)
             output.finalize_directory(staging, s.out, comm)
+            for tbl in tables.values():
+                tbl.moved(os.path.abspath(s.out))
         if self.status == "diverged":
             raise UnstableRunError(self._failure)
         return summary
@@ -318,111 +338,108 @@ class Simulation:
             track["last_contact"] = n
 
     # ------------------------------------------------------------ outputs
-    def _stress_pieces(self, u, name: str):
-        pieces = []
-        for body in self.model.bodies.values():
-            expr = forms.stress_components(u, body.material)[name]
-            pieces.append((expr, self.model.tmesh.cells(body.name)))
-        return pieces
+    def add_cell_fields(self, provider) -> None:
+        """Write more cell fields with the stresses: ``provider()`` returns {name: array over
+        this rank's owned cells} (the same names at every call), e.g. a plastic strain."""
+        self._cell_field_providers.append(provider)
 
-    def _field_writer(self, staging: str) -> output.FieldWriter:
-        snapshots = self.n_steps // self.settings.output_every + 1
-        if snapshots > output.MANY_SNAPSHOTS and self.comm.rank == 0:
-            print(f"warning: {snapshots} field snapshots; dolfinx 0.5 rewrites fields.xdmf at "
-                  "each, so their cost grows with the square of their number: raise "
-                  "output_every or set fields off", flush=True)
-        names = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
-        return output.FieldWriter(os.path.join(staging, "fields.xdmf"), self.model.V,
-                                  lambda u: {k: self._stress_pieces(u, k) for k in names})
+    def _field_writer(self, staging: str) -> FieldWriter:
+        self._cell_stress = CellStress(self.model)
+        extra = [name for p in self._cell_field_providers for name in p()]
+        return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
+                           cell_fields=list(STRESS_NAMES) + extra)
 
-    def _make_probes(self, u_fn):
-        from dolfinx import fem
-
-        if u_fn is None:
-            u_fn = fem.Function(self.model.V)
-        self._probe_u = u_fn
-        specs = []
-        for name, point, quantity in self._probe_specs:
-            if quantity in ("u_r", "u_z"):
-                expr = u_fn[0 if quantity == "u_r" else 1]
-            else:
-                body = self._body_at(point)
-                comps = forms.stress_components(u_fn, body.material)
-                require(quantity in comps, f"probe '{name}': unknown quantity '{quantity}' "
-                                           f"(use u_r, u_z or {', '.join(comps)})")
-                expr = comps[quantity]
-            specs.append((name, point, expr))
-        return Probes(u_fn, specs)
-
-    def _body_at(self, point):
-        from .probes import locate_cell
-
-        cell, mine = locate_cell(self.model.mesh, point)
-        name = None
-        if mine:
-            for body in self.model.bodies:
-                if cell in self.model.tmesh.cells(body):
-                    name = body
-        name = self.comm.allreduce([name] if name else [], op=MPI.SUM)[0]
-        return self.model.bodies[name]
+    def _write_fields(self, writer: FieldWriter) -> None:
+        """u, v (state of step integ.n), the stresses and the extra cell fields."""
+        integ = self.integrator
+        u = writer.ghosted(integ.u_owned, 0)
+        v = writer.ghosted(integ.v_owned, 1)
+        stresses = self._cell_stress.evaluate(u)
+        cells = dict(zip(STRESS_NAMES, stresses))
+        for provider in self._cell_field_providers:
+            cells.update(provider())
+        writer.write(integ.n * self.settings.dt, integ.n, u, v, cells)
 
     def _tables(self, staging: str | None, probes) -> dict:
-        """History (kept in memory, and on disk with an output directory), energy and
-        per-pair tables."""
+        """History, energy and per-pair tables (on disk with an output directory, written in
+        blocks; in memory without one).
+
+        A history row is raw: the probes' dofs this rank owns (summed over the ranks once
+        per block), then step, time and the contact columns; the block's finish turns
+        the dofs into the probe values."""
         comm = self.comm
         path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
-        cap = min(self.n_steps // self.settings.history_every + 2, 4096)
         cols = ["step", "time"] + (probes.names if probes else [])
         for k, c in enumerate(self.contacts):
             tag = f"c{k}_" if len(self.contacts) > 1 else ""
-            cols += [f"{tag}n_active", f"{tag}contact_force", f"{tag}min_gap"]
+            # the total contact force (N); on a rigid body it is the force on that body
+            force = f"{c.rigid.name}_force" if c.rigid is not None else "contact_force"
+            cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
             if c.rigid is not None:
-                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v", f"{tag}{c.rigid.name}_force"]
+                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
             cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
-        tables = {"history": output.Table(path("history.csv"), cols, comm, cap, keep=True),
+        n_raw = probes.n_raw if probes else 0
+        n_probes = len(probes.names) if probes else 0
+        block = 256
+
+        out = np.empty((block, len(cols)))
+
+        def finish(raw: np.ndarray) -> np.ndarray:
+            o = out[: raw.shape[0]]
+            o[:, :2] = raw[:, n_raw: n_raw + 2]
+            if probes is not None:
+                probes.values(raw[:, :n_raw], o[:, 2: 2 + n_probes])
+            o[:, 2 + n_probes:] = raw[:, n_raw + 2:]
+            return o
+
+        tables = {"history": output.Table(path("history.csv"), cols, comm, block,
+                                          raw_columns=n_raw + len(cols) - n_probes,
+                                          summed=n_raw, finish=finish),
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
-                                         + self._momentum_columns(), comm, 256, keep=True)}
+                                         + self._momentum_columns(), comm, 16)}
+        self._history_offset = n_raw
         for k, c in enumerate(self.contacts):
-            name = "contact_pairs.csv" if len(self.contacts) == 1 else f"contact_pairs_{k}.csv"
+            name = "contact_pairs.h5" if len(self.contacts) == 1 else f"contact_pairs_{k}.h5"
             if staging:
-                tables[f"pairs{k}"] = output.Table(
-                    path(name), ["step", "time", "pair", "r", "gap", "force", "active"],
-                    comm, min(cap, 256) * c.n)
+                tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm)
         return tables
 
     def _momentum_columns(self) -> list[str]:
         names = list(self._body_z) + [c.rigid.name for c in self.contacts if c.rigid is not None]
         return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
 
-    def _history_row(self, tables, probes, u_fn, buf) -> None:
+    def _history_row(self, tables, probes) -> None:
+        """One history row of the state after the step (step integ.n): no communication,
+        no allocation."""
         integ = self.integrator
-        n = integ.n  # state after the step
-        t = n * self.settings.dt
+        n = integ.n
         row = tables["history"].row()
-        row[0], row[1] = n, t
-        k = 2
         if probes is not None:
-            integ.displacement(self._probe_u.x.array[: self.model.n_owned])
-            self._probe_u.x.scatter_forward()
-            vals = probes.evaluate()
-            row[k:k + vals.size] = vals
-            k += vals.size
+            probes.record(integ.u_owned, row)
+        k = self._history_offset
+        row[k] = n
+        row[k + 1] = n * self.settings.dt
+        k += 2
         for i, c in enumerate(self.contacts):
-            total = float(c.force.sum())
-            row[k:k + 3] = [int(c.active.sum()), total, c.min_gap]
+            st = c.stats
+            row[k] = st[0]
+            row[k + 1] = st[1]
+            row[k + 2] = st[2]
             k += 3
             if c.rigid is not None:
-                row[k:k + 3] = [c.rigid.u, c.rigid.v, total]
-                k += 3
-            row[k:k + 3] = [c.times.detection, c.times.solve, c.times.update]
+                row[k] = c.rigid.u
+                row[k + 1] = c.rigid.v
+                k += 2
+            t = c.times
+            row[k] = t.detection
+            row[k + 1] = t.solve
+            row[k + 2] = t.update
             k += 3
             tbl = tables.get(f"pairs{i}")
             if tbl is not None:
-                block = tbl.rows(c.n)
-                block[:, 0], block[:, 1], block[:, 2], block[:, 3] = n, t, c.pair_index, c.r
-                block[:, 4], block[:, 5], block[:, 6] = c.committed_gap(), c.force, c.active
+                tbl.record(n, n * self.settings.dt, c.committed_gap(), c.force, c.active)
 
-    def _summary(self, times, stopped_at, wall, energy_rows, max_bal, track) -> dict:
+    def _summary(self, times, stopped_at, wall, last_energy, max_bal, track) -> dict:
         model, s = self.model, self.settings
         n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
         summary = {
@@ -443,8 +460,8 @@ class Simulation:
             summary["time_per_step_median"] = times.medians(self.comm)
             summary["time_per_step_total"] = times.total(self.comm)
             summary["step_time_median"] = times.median_of_sum(comm=self.comm)
-        if energy_rows:
-            last = energy_rows[-1]
+        if last_energy is not None:
+            last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
             summary["energy_balance_error_rel"] = max_bal
         if self.contacts:

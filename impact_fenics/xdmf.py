@@ -1,0 +1,181 @@
+"""Fields for ParaView: an XDMF time series with every field on one grid per output time.
+
+Layout (what ``fields.xdmf`` describes):
+
+* the mesh in pieces, one per MPI rank: piece p holds the cells rank p owns
+  (each cell of the mesh in exactly one piece) and the nodes of those cells
+  (a node on a partition boundary appears in both pieces, with the same
+  values). Each rank writes its own HDF5 file (``fields.h5`` on one rank,
+  ``fields_p<rank>.h5`` on more), so nothing is gathered to one rank and the
+  writes run in parallel without an MPI-enabled HDF5;
+* ``/mesh/geometry`` (r, z in m), ``/mesh/topology`` (piece-local node
+  indices) and the static cell fields (``body_id``) are written once and
+  referenced at every time;
+* at each output time one temporal step: a spatial collection of the pieces,
+  each with ``displacement`` (m) and ``velocity`` (m/s) as point vectors
+  padded to three components (ParaView's Warp By Vector takes them as they
+  are) and every cell field (Pa for stresses) as cell scalars, under
+  ``/step_<n>/<name>`` in the piece's file.
+
+ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
+every block with every array at every time; colour by sigma_zz, Warp By Vector.
+
+The XML is appended, never rewritten: rank 0 keeps the file open, writes each
+new step where the closing tags were and puts them back after it, so a write
+costs the same however many came before. After every write the files are
+flushed and the XML is complete, so a run stopped at any point leaves a
+readable series.
+"""
+from __future__ import annotations
+
+import os
+from typing import Mapping, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+_TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+
+
+def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precision: int = 8) -> str:
+    d = " ".join(str(int(k)) for k in dims)
+    return (f'<DataItem Dimensions="{d}" NumberType="{number}" Precision="{precision}" '
+            f'Format="HDF">{h5}:{path}</DataItem>')
+
+
+class FieldWriter:
+    """XDMF + HDF5 fields of a :class:`~impact_fenics.bodies.DeformableModel`.
+
+    ``cell_fields``: names of the cell fields handed to every :meth:`write` (besides
+    the five stresses, e.g. a plastic strain); ``static_cell_fields``: cell fields
+    written once (``body_id`` is always one: the index of the cell's body in the
+    model's order). Cell arrays are over this rank's owned cells, in local order."""
+
+    def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
+                 static_cell_fields: Mapping[str, np.ndarray] | None = None):
+        import h5py
+
+        self.comm: MPI.Comm = model.comm
+        comm = self.comm
+        self.path = path
+        self.cell_fields = list(cell_fields)
+        mesh = model.mesh
+        n_cells = mesh.topology.index_map(2).size_local
+        cell_nodes = model.V.dofmap.list.array.reshape(-1, 3)[:n_cells]
+        # the piece: owned cells and their nodes, nodes in order of their local index
+        self._nodes = np.unique(cell_nodes.ravel()).astype(np.int64)
+        renumber = np.full(model.node_xy.shape[0], -1, dtype=np.int64)
+        renumber[self._nodes] = np.arange(self._nodes.size)
+        topology = renumber[cell_nodes]
+        self.n_cells, self.n_nodes = n_cells, self._nodes.size
+        self._vec = np.zeros((self.n_nodes, 3))
+        self._scatter = None
+        if comm.size > 1:
+            from dolfinx import fem
+
+            self._scatter = (fem.Function(model.V), fem.Function(model.V))
+        body_id = np.zeros(n_cells, dtype=np.int32)
+        for k, name in enumerate(model.bodies):
+            cells = model.tmesh.cells(name)
+            body_id[cells[cells < n_cells]] = k
+        static = {"body_id": body_id, **dict(static_cell_fields or {})}
+        name = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
+        self._h5_name = os.path.basename(os.path.splitext(path)[0]) + name[len("fields"):]
+        h5_path = os.path.join(os.path.dirname(os.path.abspath(path)), self._h5_name)
+        self._h5 = h5py.File(h5_path, "w")
+        self._h5.create_dataset("/mesh/geometry", data=model.node_xy[self._nodes])
+        self._h5.create_dataset("/mesh/topology", data=topology)
+        for key, values in static.items():
+            self._h5.create_dataset(f"/mesh/{key}", data=np.asarray(values)[:n_cells])
+        self._h5.flush()
+        self._static = {k: np.asarray(v).dtype for k, v in static.items()}
+        # every rank's piece sizes and file, for the XML on rank 0
+        self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
+        self._xml = None
+        self._tail_at = 0
+        self.n_writes = 0
+        if comm.rank == 0:
+            self._xml = open(path, "w")
+            names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))
+            head = ('<?xml version="1.0"?>\n<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+                    '  <Domain>\n'
+                    f'    <Information Name="body_id" Value="{names}"/>\n'
+                    '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n')
+            self._xml.write(head)
+            self._tail_at = self._xml.tell()
+            self._xml.write(_TAIL)
+            self._xml.flush()
+
+    # ------------------------------------------------------------ writing
+    def ghosted(self, owned: np.ndarray, k: int = 0) -> np.ndarray:
+        """Unrolled values of every local node (ghosts updated by a scatter) from the owned
+        ones, in buffer ``k`` (0 or 1: two fields at once); the owned array itself on one rank."""
+        if self._scatter is None:
+            return owned
+        fn = self._scatter[k]
+        fn.x.array[: owned.size] = owned
+        fn.x.scatter_forward()
+        return fn.x.array
+
+    def _node_vectors(self, local: np.ndarray) -> np.ndarray:
+        """(n_nodes, 3) vectors of this piece's nodes from local unrolled values."""
+        self._vec[:, 0] = local[2 * self._nodes]
+        self._vec[:, 1] = local[2 * self._nodes + 1]
+        return self._vec
+
+    def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
+              cell_values: Mapping[str, np.ndarray]) -> None:
+        """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
+        local nodes (see :meth:`ghosted`), and an array over the owned cells per cell field
+        (the stresses and every name of ``cell_fields``)."""
+        missing = [k for k in self.cell_fields if k not in cell_values]
+        if missing:
+            raise ValueError(f"cell fields {missing} missing: every write holds every field")
+        group = f"/step_{step:09d}"
+        h5 = self._h5
+        names = list(cell_values)
+        h5.create_dataset(f"{group}/displacement", data=self._node_vectors(u))
+        h5.create_dataset(f"{group}/velocity", data=self._node_vectors(v))
+        for key in names:
+            h5.create_dataset(f"{group}/{key}", data=cell_values[key][: self.n_cells])
+        h5.flush()
+        self.comm.barrier()  # every piece is on disk before the XML points at it
+        if self._xml is not None:
+            self._xml.seek(self._tail_at)
+            self._xml.write(self._step_xml(t, group, names))
+            self._tail_at = self._xml.tell()
+            self._xml.write(_TAIL)
+            self._xml.flush()
+        self.n_writes += 1
+
+    def _step_xml(self, t: float, group: str, names: list[str]) -> str:
+        lines = [f'      <Grid Name="{group[1:]}" GridType="Collection" CollectionType="Spatial">',
+                 f'        <Time Value="{t!r}"/>']
+        for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
+            lines += [
+                f'        <Grid Name="piece_{p}" GridType="Uniform">',
+                f'          <Topology TopologyType="Triangle" NumberOfElements="{n_cells}" '
+                f'NodesPerElement="3">{_item((n_cells, 3), h5, "/mesh/topology", "Int")}</Topology>',
+                f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
+                '</Geometry>']
+            for key in ("displacement", "velocity"):
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" Center="Node">'
+                             f'{_item((n_nodes, 3), h5, f"{group}/{key}")}</Attribute>')
+            for key in names:
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
+                             f'{_item((n_cells,), h5, f"{group}/{key}")}</Attribute>')
+            for key, dtype in self._static.items():
+                kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
+                             f'{_item((n_cells,), h5, f"/mesh/{key}", kind, dtype.itemsize)}</Attribute>')
+            lines.append("        </Grid>")
+        lines.append("      </Grid>\n")
+        return "\n".join(lines)
+
+    def close(self) -> None:
+        if self._h5 is not None:
+            self._h5.close()
+            self._h5 = None
+        if self._xml is not None:
+            self._xml.close()
+            self._xml = None

@@ -165,11 +165,13 @@ class Table:
 
 class PairHistory:
     """Per-pair gap (m), contact force (N) and active flag at every history row, in HDF5
-    (``contact_pairs.h5``: datasets step, time (rows), r (pairs, m), gap, force, active
-    (rows x pairs)), written by rank 0 in blocks of rows; the contact state is the same
-    on every rank, so nothing is gathered."""
+    (``contact_pairs.h5``: ``clock`` (rows x 2: step, time in s), ``r`` (pairs, m) and
+    ``state`` (rows x 3 x pairs: gap, force, active as 0/1)), written by rank 0 in
+    blocks of rows, two dataset writes a block; the contact state is the same on
+    every rank, so nothing is gathered. :func:`read_pairs` reads it back."""
 
-    def __init__(self, path: str, r: np.ndarray, comm: MPI.Comm, capacity: int = 64):
+    def __init__(self, path: str, r: np.ndarray, comm: MPI.Comm, capacity: int = 256,
+                 rows: int = 1024):
         self.path = path
         self.comm = comm
         n = r.size
@@ -179,18 +181,15 @@ class PairHistory:
         if comm.rank == 0:
             import h5py
 
-            self._step = np.zeros(capacity, dtype=np.int64)
-            self._time = np.zeros(capacity)
-            self._gap = np.zeros((capacity, n))
-            self._force = np.zeros((capacity, n))
-            self._active = np.zeros((capacity, n), dtype=np.int8)
+            self._clock = np.zeros((capacity, 2))
+            self._state = np.zeros((capacity, 3, n))
+            self._alloc = max(rows, capacity)  # rows the datasets hold (grown if exceeded)
             self._f = h5py.File(path, "w")
             self._f.create_dataset("r", data=r)
-            for name, arr in (("step", self._step), ("time", self._time), ("gap", self._gap),
-                              ("force", self._force), ("active", self._active)):
-                shape = (0,) + arr.shape[1:]
-                self._f.create_dataset(name, shape=shape, maxshape=(None,) + arr.shape[1:],
-                                       dtype=arr.dtype, chunks=(capacity,) + arr.shape[1:])
+            self._ds = [self._f.create_dataset(name, shape=(self._alloc,) + arr.shape[1:],
+                                               maxshape=(None,) + arr.shape[1:], dtype=np.float64,
+                                               chunks=(min(capacity, 64),) + arr.shape[1:])
+                        for name, arr in (("clock", self._clock), ("state", self._state))]
 
     def record(self, step: int, t: float, gap: np.ndarray, force: np.ndarray,
                active: np.ndarray) -> None:
@@ -198,25 +197,26 @@ class PairHistory:
         if self._f is None:
             return
         k = self._n
-        self._step[k] = step
-        self._time[k] = t
-        self._gap[k] = gap
-        self._force[k] = force
-        self._active[k] = active
+        self._clock[k, 0] = step
+        self._clock[k, 1] = t
+        state = self._state[k]
+        state[0] = gap
+        state[1] = force
+        state[2] = active
         self._n += 1
-        if self._n == self._step.size:
+        if self._n == self._clock.shape[0]:
             self.flush()
 
     def flush(self) -> None:
         if self._f is None or self._n == 0:
             return
         n, start = self._n, self._rows
-        for name, arr in (("step", self._step), ("time", self._time), ("gap", self._gap),
-                          ("force", self._force), ("active", self._active)):
-            ds = self._f[name]
-            ds.resize(start + n, axis=0)
+        if start + n > self._alloc:
+            self._alloc = 2 * (start + n)
+            for ds in self._ds:
+                ds.resize(self._alloc, axis=0)
+        for ds, arr in zip(self._ds, (self._clock, self._state)):
             ds[start: start + n] = arr[:n]
-        self._f.flush()
         self._rows += n
         self._n = 0
 
@@ -224,8 +224,11 @@ class PairHistory:
         self.path = os.path.join(directory, os.path.basename(self.path))
 
     def close(self) -> None:
+        """Write what is left and trim the datasets to the rows written."""
         self.flush()
         if self._f is not None:
+            for ds in self._ds:
+                ds.resize(self._rows, axis=0)
             self._f.close()
             self._f = None
 
@@ -236,4 +239,6 @@ def read_pairs(path: str) -> dict[str, np.ndarray]:
     import h5py
 
     with h5py.File(path, "r") as f:
-        return {k: f[k][...] for k in ("step", "time", "r", "gap", "force", "active")}
+        clock, state, r = f["clock"][...], f["state"][...], f["r"][...]
+    return {"step": clock[:, 0].astype(np.int64), "time": clock[:, 1], "r": r,
+            "gap": state[:, 0], "force": state[:, 1], "active": state[:, 2] > 0.5}

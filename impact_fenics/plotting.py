@@ -134,72 +134,40 @@ def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
 # ----------------------------------------------------------------------------- fields
 
 @dataclass
-class FieldSeries:
-    """One field of an XDMF file: its times (s), HDF5 datasets and where it lives."""
+class Series:
+    """One field of a fields.xdmf: its centring ("Node" or "Cell") and output times (s)."""
 
     name: str
-    center: str  # "Node" or "Cell"
+    center: str
     times: np.ndarray
-    datasets: list[str]
 
 
-@dataclass
 class XdmfRun:
-    """The mesh and the field series of a dolfinx XDMF file (r = x, z = y, in m)."""
+    """The mesh and the field series of a fields.xdmf (pieces joined; r = x, z = y, in m)."""
 
-    h5_path: str
-    points: np.ndarray  # (n_nodes, 2)
-    cells: np.ndarray   # (n_cells, 3) triangles
-    fields: dict[str, FieldSeries]
+    def __init__(self, series):
+        self._series = series
+        self.points = series.points  # (n_nodes, 2)
+        self.cells = series.cells  # (n_cells, 3) triangles
+        self.fields = {name: Series(name, center, series.times)
+                       for name, center in series.center.items()}
 
     def values(self, name: str, k: int) -> np.ndarray:
-        """Values of field ``name`` at its k-th time (nodal or cell, SI units)."""
-        import h5py
-
-        with h5py.File(self.h5_path, "r") as f:
-            return np.asarray(f[self.fields[name].datasets[k]])
-
-
-def _hdf_item(item: ET.Element, xdmf_dir: str) -> tuple[str, str]:
-    """(HDF5 file path, dataset) of a DataItem 'file.h5:/path'."""
-    text = (item.text or "").strip()
-    filename, _, dataset = text.partition(":")
-    return os.path.join(xdmf_dir, filename), dataset
+        """Values of field ``name`` at its k-th time (nodal (n, 3) or cell (m,), SI units)."""
+        return self._series.values(name, k)
 
 
 def read_xdmf(path: str) -> XdmfRun:
-    """Parse a dolfinx XDMF file (mesh grid, then temporal collections of functions)."""
-    import h5py
-
+    """Read a run's fields.xdmf (see impact_fenics.xdmf)."""
     from .errors import InputError
+    from .xdmf import FieldSeries
 
     if not os.path.isfile(path):
         raise InputError(f"'{path}' does not exist (a run directory holds fields.xdmf)")
     try:
-        domain = ET.parse(path).getroot().find("Domain")
-        mesh_grid = next(g for g in domain.findall("Grid") if g.get("GridType") == "Uniform")
-        h5_path, topo = _hdf_item(mesh_grid.find("Topology/DataItem"), os.path.dirname(path))
-        _, geom = _hdf_item(mesh_grid.find("Geometry/DataItem"), os.path.dirname(path))
-    except (ET.ParseError, StopIteration, AttributeError) as exc:
-        raise InputError(f"'{path}' is not an XDMF file written by dolfinx ({exc})")
-    if not os.path.isfile(h5_path):
-        raise InputError(f"'{h5_path}', the data of '{path}', does not exist")
-    with h5py.File(h5_path, "r") as f:
-        points = np.asarray(f[geom])[:, :2]
-        cells = np.asarray(f[topo]).astype(np.int64)
-    fields = {}
-    for coll in domain.findall("Grid"):
-        if coll.get("CollectionType") != "Temporal":
-            continue
-        times, datasets, center = [], [], "Node"
-        for grid in coll.findall("Grid"):
-            attr = grid.find("Attribute")
-            times.append(float(grid.find("Time").get("Value")))
-            datasets.append(_hdf_item(attr.find("DataItem"), os.path.dirname(path))[1])
-            center = attr.get("Center", "Node")
-        name = coll.get("Name")
-        fields[name] = FieldSeries(name, center, np.array(times), datasets)
-    return XdmfRun(h5_path, points, cells, fields)
+        return XdmfRun(FieldSeries(path))
+    except (ET.ParseError, ValueError, AttributeError, KeyError, OSError) as exc:
+        raise InputError(f"'{path}' is not a fields.xdmf of impact_fenics ({exc})")
 
 
 def _scalar(values: np.ndarray) -> np.ndarray:
@@ -208,7 +176,7 @@ def _scalar(values: np.ndarray) -> np.ndarray:
     return values[:, 0] if values.shape[1] == 1 else np.linalg.norm(values, axis=1)
 
 
-def _pick_times(series: FieldSeries, times: list[float] | None, n_default: int = 4) -> list[int]:
+def _pick_times(series: Series, times: list[float] | None, n_default: int = 4) -> list[int]:
     """Indices of the stored times nearest to ``times`` (s), or n_default spread over the run."""
     if times:
         picks = [int(np.argmin(np.abs(series.times - t))) for t in times]

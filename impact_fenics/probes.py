@@ -121,6 +121,9 @@ class Probes:
                 self.D[k] = D
         owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned)
         self._index = np.where(owned, dofs - model.offset, -1).astype(np.int64)
+        # load the compiled calls now, not in the first timed step
+        self.record(np.zeros(model.n_owned), np.zeros(self.n_raw))
+        self.values(np.zeros((1, self.n_raw)))
 
     def record(self, u_owned: np.ndarray, row: np.ndarray) -> None:
         """Copy the probe dofs this rank owns (m) into ``row`` (n_raw entries, zero elsewhere)."""

@@ -346,8 +346,9 @@ class Simulation:
     def _field_writer(self, staging: str) -> FieldWriter:
         self._cell_stress = CellStress(self.model)
         extra = [name for p in self._cell_field_providers for name in p()]
+        frames = self.n_steps // self.settings.output_every + 2
         return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
-                           cell_fields=list(STRESS_NAMES) + extra)
+                           cell_fields=list(STRESS_NAMES) + extra, frames=frames)
 
     def _write_fields(self, writer: FieldWriter) -> None:
         """u, v (state of step integ.n), the stresses and the extra cell fields."""
@@ -401,7 +402,8 @@ class Simulation:
         for k, c in enumerate(self.contacts):
             name = "contact_pairs.h5" if len(self.contacts) == 1 else f"contact_pairs_{k}.h5"
             if staging:
-                tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm)
+                tables[f"pairs{k}"] = output.PairHistory(
+                    path(name), c.r, comm, rows=self.n_steps // self.settings.history_every + 2)
         return tables
 
     def _momentum_columns(self) -> list[str]:

@@ -14,8 +14,14 @@ Layout (what ``fields.xdmf`` describes):
 * at each output time one temporal step: a spatial collection of the pieces,
   each with ``displacement`` (m) and ``velocity`` (m/s) as point vectors
   padded to three components (ParaView's Warp By Vector takes them as they
-  are) and every cell field (Pa for stresses) as cell scalars, under
-  ``/step_<n>/<name>`` in the piece's file.
+  are) and every cell field (Pa for stresses) as cell scalars. The values of
+  frame k are a slab of two chunked datasets of the piece's file,
+  ``/fields/point_<b>`` (frames x 2 x nodes x 3: displacement, velocity) and
+  ``/fields/cell_<b>`` (frames x cell fields x cells, in the order of
+  ``/fields/cell_names``), referenced by XDMF HyperSlabs; a frame is two
+  writes of one chunk each, whatever the number of frames before. Block b
+  holds ``frames`` frames (the number the run plans); a longer series opens
+  the next block, so no dataset ever changes its shape.
 
 ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
@@ -43,6 +49,18 @@ def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precis
             f'Format="HDF">{h5}:{path}</DataItem>')
 
 
+def _slab(start: Sequence[int], count: Sequence[int], full: Sequence[int], h5: str, path: str,
+          dims: Sequence[int]) -> str:
+    """A HyperSlab DataItem: ``count`` entries from ``start`` of the dataset (shape ``full``),
+    seen with the dimensions ``dims``."""
+    rank = len(full)
+    sel = " ".join(str(int(x)) for x in tuple(start) + (1,) * rank + tuple(count))
+    d = " ".join(str(int(x)) for x in dims)
+    return (f'<DataItem ItemType="HyperSlab" Dimensions="{d}" Type="HyperSlab">'
+            f'<DataItem Dimensions="3 {rank}" Format="XML">{sel}</DataItem>'
+            f'{_item(full, h5, path)}</DataItem>')
+
+
 class FieldWriter:
     """XDMF + HDF5 fields of a :class:`~impact_fenics.bodies.DeformableModel`.
 
@@ -52,7 +70,7 @@ class FieldWriter:
     model's order). Cell arrays are over this rank's owned cells, in local order."""
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
-                 static_cell_fields: Mapping[str, np.ndarray] | None = None):
+                 static_cell_fields: Mapping[str, np.ndarray] | None = None, frames: int = 64):
         import h5py
 
         self.comm: MPI.Comm = model.comm
@@ -68,7 +86,6 @@ class FieldWriter:
         renumber[self._nodes] = np.arange(self._nodes.size)
         topology = renumber[cell_nodes]
         self.n_cells, self.n_nodes = n_cells, self._nodes.size
-        self._vec = np.zeros((self.n_nodes, 3))
         self._scatter = None
         if comm.size > 1:
             from dolfinx import fem
@@ -87,6 +104,11 @@ class FieldWriter:
         self._h5.create_dataset("/mesh/topology", data=topology)
         for key, values in static.items():
             self._h5.create_dataset(f"/mesh/{key}", data=np.asarray(values)[:n_cells])
+        self._h5.create_dataset("/fields/cell_names", data=np.array(self.cell_fields, dtype="S"))
+        self._cell_buf = np.zeros((len(self.cell_fields), n_cells))
+        self._vec = np.zeros((2, self.n_nodes, 3))
+        self._frames = max(1, int(frames))
+        self._blocks: list = []
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
         # every rank's piece sizes and file, for the XML on rank 0
@@ -117,39 +139,46 @@ class FieldWriter:
         fn.x.scatter_forward()
         return fn.x.array
 
-    def _node_vectors(self, local: np.ndarray) -> np.ndarray:
-        """(n_nodes, 3) vectors of this piece's nodes from local unrolled values."""
-        self._vec[:, 0] = local[2 * self._nodes]
-        self._vec[:, 1] = local[2 * self._nodes + 1]
-        return self._vec
-
     def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
               cell_values: Mapping[str, np.ndarray]) -> None:
         """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
-        local nodes (see :meth:`ghosted`), and an array over the owned cells per cell field
-        (the stresses and every name of ``cell_fields``)."""
-        missing = [k for k in self.cell_fields if k not in cell_values]
-        if missing:
-            raise ValueError(f"cell fields {missing} missing: every write holds every field")
-        group = f"/step_{step:09d}"
-        h5 = self._h5
-        names = list(cell_values)
-        h5.create_dataset(f"{group}/displacement", data=self._node_vectors(u))
-        h5.create_dataset(f"{group}/velocity", data=self._node_vectors(v))
-        for key in names:
-            h5.create_dataset(f"{group}/{key}", data=cell_values[key][: self.n_cells])
-        h5.flush()
+        local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
+        of ``cell_fields``."""
+        block, k = divmod(self.n_writes, self._frames)
+        if block == len(self._blocks):  # a new block of frames (the first, or more than planned)
+            self._blocks.append(self._new_block(block))
+        point, cell = self._blocks[block]
+        vec = self._vec
+        vec[0, :, 0] = u[2 * self._nodes]
+        vec[0, :, 1] = u[2 * self._nodes + 1]
+        vec[1, :, 0] = v[2 * self._nodes]
+        vec[1, :, 1] = v[2 * self._nodes + 1]
+        for i, key in enumerate(self.cell_fields):
+            self._cell_buf[i] = cell_values[key][: self.n_cells]
+        point[k] = vec
+        cell[k] = self._cell_buf
+        self._h5.flush()
         self.comm.barrier()  # every piece is on disk before the XML points at it
         if self._xml is not None:
             self._xml.seek(self._tail_at)
-            self._xml.write(self._step_xml(t, group, names))
+            self._xml.write(self._step_xml(t, step, block, k))
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
         self.n_writes += 1
 
-    def _step_xml(self, t: float, group: str, names: list[str]) -> str:
-        lines = [f'      <Grid Name="{group[1:]}" GridType="Collection" CollectionType="Spatial">',
+    def _new_block(self, block: int):
+        """Datasets of ``frames`` frames: ``/fields/point_<block>``, ``/fields/cell_<block>``
+        (chunked by frame: a chunk is allocated when its frame is written)."""
+        nn, nc, m = self.n_nodes, self.n_cells, len(self.cell_fields)
+        point = self._h5.create_dataset(f"/fields/point_{block}", shape=(self._frames, 2, nn, 3),
+                                        chunks=(1, 2, max(nn, 1), 3), dtype=np.float64)
+        cell = self._h5.create_dataset(f"/fields/cell_{block}", shape=(self._frames, m, nc),
+                                       chunks=(1, max(m, 1), max(nc, 1)), dtype=np.float64)
+        return point, cell
+
+    def _step_xml(self, t: float, step: int, block: int, k: int) -> str:
+        lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
                  f'        <Time Value="{t!r}"/>']
         for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
             lines += [
@@ -158,12 +187,18 @@ class FieldWriter:
                 f'NodesPerElement="3">{_item((n_cells, 3), h5, "/mesh/topology", "Int")}</Topology>',
                 f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
                 '</Geometry>']
-            for key in ("displacement", "velocity"):
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" Center="Node">'
-                             f'{_item((n_nodes, 3), h5, f"{group}/{key}")}</Attribute>')
-            for key in names:
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
-                             f'{_item((n_cells,), h5, f"{group}/{key}")}</Attribute>')
+            full = (self._frames, 2, n_nodes, 3)
+            for j, key in enumerate(("displacement", "velocity")):
+                slab = _slab((k, j, 0, 0), (1, 1, n_nodes, 3), full, h5, f"/fields/point_{block}",
+                             (n_nodes, 3))
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" '
+                             f'Center="Node">{slab}</Attribute>')
+            full = (self._frames, len(self.cell_fields), n_cells)
+            for j, key in enumerate(self.cell_fields):
+                slab = _slab((k, j, 0), (1, 1, n_cells), full, h5, f"/fields/cell_{block}",
+                             (n_cells,))
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" '
+                             f'Center="Cell">{slab}</Attribute>')
             for key, dtype in self._static.items():
                 kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
@@ -179,3 +214,62 @@ class FieldWriter:
         if self._xml is not None:
             self._xml.close()
             self._xml = None
+
+
+# ----------------------------------------------------------------------------- reading back
+
+def data_item(item, xdmf_dir: str) -> np.ndarray:
+    """The array of an XDMF DataItem: HDF ('file.h5:/path'), XML text, or a HyperSlab of one."""
+    import h5py
+
+    if item.get("ItemType") == "HyperSlab":
+        sel, source = item.findall("DataItem")
+        start, stride, count = np.array(sel.text.split(), dtype=np.int64).reshape(3, -1)
+        filename, _, dataset = source.text.strip().partition(":")
+        index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
+        with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
+            data = f[dataset][index]
+    elif item.get("Format") == "HDF":
+        filename, _, dataset = item.text.strip().partition(":")
+        with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
+            data = f[dataset][...]
+    else:
+        data = np.array(item.text.split(), dtype=float)
+    dims = [int(d) for d in item.get("Dimensions").split()]
+    return np.asarray(data).reshape(dims)
+
+
+class FieldSeries:
+    """A fields.xdmf read back: the pieces joined into one mesh (points (n, 2) in m, cells
+    (m, 3)), the output times (s), each field's centring ("Node" or "Cell") and, by
+    :meth:`values`, its values at an output (nodal fields (n, 3), cell fields (m,))."""
+
+    def __init__(self, path: str):
+        import xml.etree.ElementTree as ET
+
+        self.path = path
+        self.dir = os.path.dirname(os.path.abspath(path))
+        root = ET.parse(path).getroot()
+        series = root.find("Domain/Grid")
+        if series is None or series.get("CollectionType") != "Temporal":
+            raise ValueError("no temporal collection of grids")
+        self.steps = series.findall("Grid")
+        if not self.steps:
+            raise ValueError("no output time")
+        self.times = np.array([float(s.find("Time").get("Value")) for s in self.steps])
+        pieces = self.steps[0].findall("Grid")
+        points, cells, offset = [], [], 0
+        for piece in pieces:
+            xy = data_item(piece.find("Geometry/DataItem"), self.dir)
+            points.append(xy[:, :2])
+            cells.append(data_item(piece.find("Topology/DataItem"), self.dir).astype(np.int64) + offset)
+            offset += xy.shape[0]
+        self.points = np.concatenate(points)
+        self.cells = np.concatenate(cells)
+        self.center = {a.get("Name"): a.get("Center") for a in pieces[0].findall("Attribute")}
+
+    def values(self, name: str, k: int) -> np.ndarray:
+        """Field ``name`` at output k, the pieces joined in order."""
+        parts = [data_item(piece.find(f"Attribute[@Name='{name}']/DataItem"), self.dir)
+                 for piece in self.steps[k].findall("Grid")]
+        return np.concatenate(parts)

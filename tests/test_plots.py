@@ -81,8 +81,8 @@ def test_xdmf_reader_gives_back_the_probes(bar_run):
     data = plotting.read_xdmf(os.path.join(bar_run, "fields.xdmf"))
     with open(os.path.join(bar_run, "summary.json")) as f:
         summary = json.load(f)
-    assert data.cells.shape == (summary["n_cells"], 3)
-    assert 2 * data.points.shape[0] == summary["n_dofs"]
+    assert data.cells.shape == (summary["n_cells"], 3)  # every cell once, on any rank count
+    assert 2 * data.points.shape[0] >= summary["n_dofs"]  # a node of two pieces is in both
     history = np.genfromtxt(os.path.join(bar_run, "history.csv"), delimiter=",", names=True)
     centroids = data.points[data.cells].mean(axis=1)
     cell = int(np.argmin(np.linalg.norm(centroids - [0.01, 0.05], axis=1)))
@@ -95,7 +95,7 @@ def test_xdmf_reader_gives_back_the_probes(bar_run):
         if row.size == 0:  # t = 0: history starts after the first step
             continue
         u_z = data.values("displacement", k)[data.cells[cell], 1].mean()
-        s_zz = data.values("sigma_zz", k)[cell, 0]
+        s_zz = data.values("sigma_zz", k)[cell]
         scale_u = np.abs(history["u_mid"]).max()
         scale_s = np.abs(history["s_mid"]).max()
         assert abs(u_z - history["u_mid"][row[0]]) <= 1e-10 * scale_u

@@ -291,6 +291,36 @@ class ContactSet:
         self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
         if self.rigid is not None:
             self.u_now[-1], self.v_now[-1] = self.rigid.u, self.rigid.v
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Load (or compile) every compiled call of a step now, at set-up, so that none
+        compiles inside the first timed step: detection and commit by their argument
+        types, the method's solve by one call on open gaps (no force: it changes nothing
+        that the next detection does not overwrite)."""
+        from numba import typeof
+
+        integ = self.integrator
+
+        def load(fn, *args):
+            fn.compile(tuple(typeof(a) for a in args))
+
+        slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
+                 self.active, self.was_active)
+        load(_detect_local, integ.u_owned, integ.v_owned, self._local, self._pos, *slots)
+        load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
+        load(_detect_gathered, self._recv, self._recv_u, self._recv_v, self._all_pos, *slots)
+        w = self._ledger
+        load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt, True,
+             self.n_deformable, self.mass, self.u, self.v, self.u_pred, self.v_pred, self.u_now,
+             self.v_now, w.f_prev, w.ku_prev, w.jump, self.jumps, w.jumped, self.active,
+             self.was_active, self.b, self.lo, self.up, self.force, self.stats)
+        load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
+        self.u[:], self.v[:] = self.u_now, self.v_now
+        self.gap[:] = 1.0  # open: no constraint is active
+        self.method.correct(self)
+        self.force[:] = 0.0
+        self.active[:] = False
 
     # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:

@@ -111,7 +111,7 @@ class Probes:
                                 if cell in model.tmesh.cells(body.name))
         for arr in (dofs, self.xy, self.midpoints):
             self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
-        which = self.comm.allreduce(which, op=MPI.MAX)
+        self.comm.Allreduce(MPI.IN_PLACE, which, op=MPI.MAX)
         for k, (name, _, quantity) in enumerate(probes):
             if self.code[k] < len(STRESS_NAMES):
                 D = stiffness_matrix(bodies[which[k]].material)

@@ -346,9 +346,8 @@ class Simulation:
     def _field_writer(self, staging: str) -> FieldWriter:
         self._cell_stress = CellStress(self.model)
         extra = [name for p in self._cell_field_providers for name in p()]
-        frames = self.n_steps // self.settings.output_every + 2
         return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
-                           cell_fields=list(STRESS_NAMES) + extra, frames=frames)
+                           cell_fields=list(STRESS_NAMES) + extra)
 
     def _write_fields(self, writer: FieldWriter) -> None:
         """u, v (state of step integ.n), the stresses and the extra cell fields."""

@@ -14,14 +14,11 @@ Layout (what ``fields.xdmf`` describes):
 * at each output time one temporal step: a spatial collection of the pieces,
   each with ``displacement`` (m) and ``velocity`` (m/s) as point vectors
   padded to three components (ParaView's Warp By Vector takes them as they
-  are) and every cell field (Pa for stresses) as cell scalars. The values of
-  frame k are a slab of two chunked datasets of the piece's file,
-  ``/fields/point_<b>`` (frames x 2 x nodes x 3: displacement, velocity) and
-  ``/fields/cell_<b>`` (frames x cell fields x cells, in the order of
-  ``/fields/cell_names``), referenced by XDMF HyperSlabs; a frame is two
-  writes of one chunk each, whatever the number of frames before. Block b
-  holds ``frames`` frames (the number the run plans); a longer series opens
-  the next block, so no dataset ever changes its shape.
+  are) and every cell field (Pa for stresses) as cell scalars, in the
+  datasets ``/step_<n>/<name>`` of the piece's file (created with HDF5's
+  low-level calls: a frame costs its data, not Python bookkeeping). Plain
+  datasets, no HyperSlabs: both of ParaView's XDMF readers (the default
+  Xdmf3 reader and the older XDMF reader) read them.
 
 ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
@@ -49,16 +46,13 @@ def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precis
             f'Format="HDF">{h5}:{path}</DataItem>')
 
 
-def _slab(start: Sequence[int], count: Sequence[int], full: Sequence[int], h5: str, path: str,
-          dims: Sequence[int]) -> str:
-    """A HyperSlab DataItem: ``count`` entries from ``start`` of the dataset (shape ``full``),
-    seen with the dimensions ``dims``."""
-    rank = len(full)
-    sel = " ".join(str(int(x)) for x in tuple(start) + (1,) * rank + tuple(count))
-    d = " ".join(str(int(x)) for x in dims)
-    return (f'<DataItem ItemType="HyperSlab" Dimensions="{d}" Type="HyperSlab">'
-            f'<DataItem Dimensions="3 {rank}" Format="XML">{sel}</DataItem>'
-            f'{_item(full, h5, path)}</DataItem>')
+def _dataset(group, name: str, values: np.ndarray) -> None:
+    """A float64 dataset ``name`` in ``group`` holding the C-contiguous ``values``."""
+    import h5py
+
+    space = h5py.h5s.create_simple(values.shape)
+    ds = h5py.h5d.create(group, name.encode(), h5py.h5t.NATIVE_DOUBLE, space)
+    ds.write(h5py.h5s.ALL, h5py.h5s.ALL, values)
 
 
 class FieldWriter:
@@ -70,7 +64,7 @@ class FieldWriter:
     model's order). Cell arrays are over this rank's owned cells, in local order."""
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
-                 static_cell_fields: Mapping[str, np.ndarray] | None = None, frames: int = 64):
+                 static_cell_fields: Mapping[str, np.ndarray] | None = None):
         import h5py
 
         self.comm: MPI.Comm = model.comm
@@ -104,11 +98,7 @@ class FieldWriter:
         self._h5.create_dataset("/mesh/topology", data=topology)
         for key, values in static.items():
             self._h5.create_dataset(f"/mesh/{key}", data=np.asarray(values)[:n_cells])
-        self._h5.create_dataset("/fields/cell_names", data=np.array(self.cell_fields, dtype="S"))
-        self._cell_buf = np.zeros((len(self.cell_fields), n_cells))
         self._vec = np.zeros((2, self.n_nodes, 3))
-        self._frames = max(1, int(frames))
-        self._blocks: list = []
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
         # every rank's piece sizes and file, for the XML on rank 0
@@ -144,40 +134,33 @@ class FieldWriter:
         """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
         local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
         of ``cell_fields``."""
-        block, k = divmod(self.n_writes, self._frames)
-        if block == len(self._blocks):  # a new block of frames (the first, or more than planned)
-            self._blocks.append(self._new_block(block))
-        point, cell = self._blocks[block]
+        import h5py
+
+        missing = [k for k in self.cell_fields if k not in cell_values]
+        if missing:
+            raise ValueError(f"cell fields {missing} missing: every write holds every field")
         vec = self._vec
         vec[0, :, 0] = u[2 * self._nodes]
         vec[0, :, 1] = u[2 * self._nodes + 1]
         vec[1, :, 0] = v[2 * self._nodes]
         vec[1, :, 1] = v[2 * self._nodes + 1]
-        for i, key in enumerate(self.cell_fields):
-            self._cell_buf[i] = cell_values[key][: self.n_cells]
-        point[k] = vec
-        cell[k] = self._cell_buf
+        group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
+        for name, values in (("displacement", vec[0]), ("velocity", vec[1])):
+            _dataset(group, name, values)
+        for key in self.cell_fields:
+            _dataset(group, key, np.ascontiguousarray(cell_values[key][: self.n_cells], dtype=np.float64))
         self._h5.flush()
         self.comm.barrier()  # every piece is on disk before the XML points at it
         if self._xml is not None:
             self._xml.seek(self._tail_at)
-            self._xml.write(self._step_xml(t, step, block, k))
+            self._xml.write(self._step_xml(t, step))
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
         self.n_writes += 1
 
-    def _new_block(self, block: int):
-        """Datasets of ``frames`` frames: ``/fields/point_<block>``, ``/fields/cell_<block>``
-        (chunked by frame: a chunk is allocated when its frame is written)."""
-        nn, nc, m = self.n_nodes, self.n_cells, len(self.cell_fields)
-        point = self._h5.create_dataset(f"/fields/point_{block}", shape=(self._frames, 2, nn, 3),
-                                        chunks=(1, 2, max(nn, 1), 3), dtype=np.float64)
-        cell = self._h5.create_dataset(f"/fields/cell_{block}", shape=(self._frames, m, nc),
-                                       chunks=(1, max(m, 1), max(nc, 1)), dtype=np.float64)
-        return point, cell
-
-    def _step_xml(self, t: float, step: int, block: int, k: int) -> str:
+    def _step_xml(self, t: float, step: int) -> str:
+        group = f"/step_{step}"
         lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
                  f'        <Time Value="{t!r}"/>']
         for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
@@ -187,18 +170,12 @@ class FieldWriter:
                 f'NodesPerElement="3">{_item((n_cells, 3), h5, "/mesh/topology", "Int")}</Topology>',
                 f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
                 '</Geometry>']
-            full = (self._frames, 2, n_nodes, 3)
-            for j, key in enumerate(("displacement", "velocity")):
-                slab = _slab((k, j, 0, 0), (1, 1, n_nodes, 3), full, h5, f"/fields/point_{block}",
-                             (n_nodes, 3))
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" '
-                             f'Center="Node">{slab}</Attribute>')
-            full = (self._frames, len(self.cell_fields), n_cells)
-            for j, key in enumerate(self.cell_fields):
-                slab = _slab((k, j, 0), (1, 1, n_cells), full, h5, f"/fields/cell_{block}",
-                             (n_cells,))
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" '
-                             f'Center="Cell">{slab}</Attribute>')
+            for key in ("displacement", "velocity"):
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" Center="Node">'
+                             f'{_item((n_nodes, 3), h5, f"{group}/{key}")}</Attribute>')
+            for key in self.cell_fields:
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
+                             f'{_item((n_cells,), h5, f"{group}/{key}")}</Attribute>')
             for key, dtype in self._static.items():
                 kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'

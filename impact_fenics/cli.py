@@ -122,6 +122,10 @@ def _report(title: str, s: dict, out_dir: str) -> None:
                 if first is not None else "never active")
         print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
               f"max penetration {c['max_penetration']:.3g} m")
+    from .report import console_lines
+
+    for line in console_lines(s):
+        print(line)
     print(f"results in {out_dir}/ (open fields.xdmf in ParaView; "
           f"impact-fenics plot {out_dir} renders it)")
 

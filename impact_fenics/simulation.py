@@ -4,8 +4,10 @@ Units throughout: s, m, kg, N, Pa, J.
 """
 from __future__ import annotations
 
+import gc
 import math
 import os
+import shutil
 import signal
 import sys
 import time
@@ -119,6 +121,7 @@ class Simulation:
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
+        self._peaks: dict = {}
         self.status = "not started"
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
@@ -178,6 +181,11 @@ class Simulation:
             raise
         self.history = tables["history"]
         self.energy = tables["energy"]
+        self._v_start = self._mean_velocities()
+        # the set-up made many Python objects (forms, compiled kernels): collect them now
+        # and keep them out of later collections, so no collection of them lands in a step
+        gc.collect()
+        gc.freeze()
         self.probes = probes
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm)
@@ -242,6 +250,7 @@ class Simulation:
             stopped_at = integ.n
             self._failure = str(exc)
         finally:
+            gc.unfreeze()
             progress.done()
             stop.restore()
             wall = clock() - t_run
@@ -255,6 +264,9 @@ class Simulation:
         if extra is not None and self.status == "completed":
             summary.update(extra(self))
         if staging:
+            scene = summary.get("scene_file")
+            if scene and comm.rank == 0 and os.path.isfile(scene):
+                shutil.copy(scene, os.path.join(staging, "scene" + os.path.splitext(scene)[1]))
             if s.plots and comm.rank == 0:
                 plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
                                              [(name, q) for name, _, q in self._probe_specs])
@@ -356,9 +368,26 @@ class Simulation:
         v = writer.ghosted(integ.v_owned, 1)
         stresses = self._cell_stress.evaluate(u)
         cells = dict(zip(STRESS_NAMES, stresses))
+        self._track_peaks(stresses, integ.n * self.settings.dt)
         for provider in self._cell_field_providers:
             cells.update(provider())
         writer.write(integ.n * self.settings.dt, integ.n, u, v, cells)
+
+    def _track_peaks(self, stresses: np.ndarray, t: float) -> None:
+        """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when."""
+        k_vm, k_zz = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")
+        local = np.array([stresses[k_vm].max(initial=-np.inf), stresses[k_zz].max(initial=-np.inf),
+                          -stresses[k_zz].min(initial=np.inf)])
+        self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        p = self._peaks
+        if not p:
+            p.update(von_mises=-np.inf, von_mises_time=t, sigma_zz_max=-np.inf,
+                     sigma_zz_max_time=t, sigma_zz_min=np.inf, sigma_zz_min_time=t)
+        for key, value in (("von_mises", local[0]), ("sigma_zz_max", local[1])):
+            if value > p[key]:
+                p[key], p[f"{key}_time"] = float(value), t
+        if -local[2] < p["sigma_zz_min"]:
+            p["sigma_zz_min"], p["sigma_zz_min_time"] = float(-local[2]), t
 
     def _tables(self, staging: str | None, probes) -> dict:
         """History, energy and per-pair tables (on disk with an output directory, written in
@@ -440,6 +469,67 @@ class Simulation:
             if tbl is not None:
                 tbl.record(n, n * self.settings.dt, c.committed_gap(), c.force, c.active)
 
+    def _body_figures(self) -> dict:
+        """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
+        and at the end kinetic 1/2 sum m v^2 and strain 1/2 u . K u over its dofs (J)."""
+        integ, comm = self.integrator, self.comm
+        Ku = integ.K.createVecRight()
+        integ.K.mult(integ.u_vec, Ku)
+        ku = Ku.array
+        v_end = self._mean_velocities()
+        out = {}
+        for name in self.model.bodies:
+            dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
+            local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
+                                                  integ.v_owned[dofs])),
+                              0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))])
+            comm.Allreduce(MPI.IN_PLACE, local)
+            out[name] = {"mass": self.body_mass[name],
+                         "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
+                         "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
+        Ku.destroy()
+        return out
+
+    def _mean_velocities(self) -> dict[str, float]:
+        """Mean z velocity (m/s) of every body now: momentum / mass; a rigid body's own."""
+        integ = self.integrator
+        local = np.array([float(np.dot(integ.mass[d], integ.v_owned[d])) for d in self._body_z.values()])
+        self.comm.Allreduce(MPI.IN_PLACE, local)
+        out = {name: float(p / self.body_mass[name]) for name, p in zip(self._body_z, local)}
+        out.update({c.rigid.name: float(c.rigid.v) for c in self.contacts if c.rigid is not None})
+        return out
+
+    def _contact_bodies(self, c) -> tuple[str, str]:
+        """(lower body, upper body or rigid body) of a contact set."""
+        def body_of(global_dofs):
+            counts = np.array([np.isin(global_dofs, self.model.to_global(
+                self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
+            counts = self.comm.allreduce(counts)
+            return list(self.model.bodies)[int(np.argmax(counts))]
+
+        lower = body_of(c.constraints.lower)
+        upper = c.rigid.name if c.rigid is not None else body_of(c.constraints.upper)
+        return lower, upper
+
+    def _impact_figures(self) -> list[dict]:
+        """Per contact set: peak force, impulse, time in contact, separations and, where the
+        two sides part, the rebound velocities and the coefficient of restitution."""
+        from .report import contact_figures, restitution
+
+        h = self.history.data()
+        v_end = self._mean_velocities()
+        out = []
+        for k, c in enumerate(self.contacts):
+            tag = f"c{k}_" if len(self.contacts) > 1 else ""
+            force = f"{tag}{c.rigid.name}_force" if c.rigid is not None else f"{tag}contact_force"
+            lower, upper = self._contact_bodies(c)
+            fig = {"surfaces": "/".join(c.constraints.names), "lower": lower, "upper": upper}
+            fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], self.settings.dt))
+            fig.update(restitution((self._v_start[lower], v_end[lower]),
+                                   (self._v_start[upper], v_end[upper])))
+            out.append(fig)
+        return out
+
     def _summary(self, times, stopped_at, wall, last_energy, max_bal, track) -> dict:
         model, s = self.model, self.settings
         n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
@@ -455,12 +545,28 @@ class Simulation:
             "t_end": self.n_steps * s.dt,
             "wall_time": wall,
         }
+        summary.update(_provenance())
+        summary["setup_time"] = dict(self.setup_time)
         if self.dt_converged is not None:
             summary["dt_critical_converged"] = self.dt_converged
         if times is not None and times.n_steps > 0:
-            summary["time_per_step_median"] = times.medians(self.comm)
-            summary["time_per_step_total"] = times.total(self.comm)
-            summary["step_time_median"] = times.median_of_sum(comm=self.comm)
+            medians = times.medians(self.comm)
+            totals = times.total(self.comm)
+            summary["time_per_step_median"] = medians
+            summary["time_per_step_total"] = totals
+            summary["step_time_median"] = step = times.median_of_sum(comm=self.comm)
+            summary["timing"] = {  # the loop's wall time by phase (s), and its share
+                "phases": {k: {"total": totals[k], "median": medians[k],
+                               "share": totals[k] / wall if wall > 0 else 0.0} for k in totals},
+                "rest_share": max(0.0, 1.0 - sum(totals.values()) / wall) if wall > 0 else 0.0,
+                "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
+                "definition": "share = phase total / loop wall time; rest = the loop's own "
+                              "Python, progress and signal checks"}
+        summary["bodies"] = self._body_figures()
+        if self.contacts:
+            summary["impact"] = self._impact_figures()
+        if self._peaks:
+            summary["peak_stress"] = dict(self._peaks)
         if last_energy is not None:
             last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
@@ -484,6 +590,18 @@ class Simulation:
                 summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                     ("contact_detection", "contact_solve", "contact_update"), self.comm)
         return summary
+
+
+def _provenance() -> dict:
+    """Version of impact_fenics, the date (UTC) and the command line of this run."""
+    from importlib import metadata
+
+    try:
+        version = metadata.version("impact_fenics")
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    return {"version": version, "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "command_line": " ".join(sys.argv)}
 
 
 _ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",

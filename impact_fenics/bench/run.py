@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import contact, matrix_format, peers, scaling, step
+from . import contact, matrix_format, peers, scaling, step, whole_run
 from ..output import json_ready
 from .common import MODES, Context
 from .machine import machine_info
@@ -21,6 +21,7 @@ PART_FUNCTIONS = {
     "step": step.part_step, "contact": contact.part_contact, "solvers": contact.part_solvers,
     "scaling": scaling.part_scaling, "stream": scaling.part_stream, "ranks": scaling.part_ranks,
     "format": matrix_format.part_format, "matfree": peers.part_matfree, "akantu": peers.part_akantu,
+    "whole": whole_run.part_whole_run,
 }
 PARTS = tuple(PART_FUNCTIONS)
 SERIAL_ONLY = ("ranks", "matfree", "akantu")  # launchers and serial prototypes

@@ -257,13 +257,13 @@ class ContactSet:
         self.mass = np.empty(ns)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
         if rigid:
-            self.mass[nd] = rigid.mass
+            self.mass[nd] = self._rigid_slot_mass()
         self.gap = np.empty(n)
         self.work = np.empty(n, dtype=np.int64)  # scratch indices for the methods' kernels
         self.force = np.zeros(n)
         self.active = np.zeros(n, dtype=np.bool_)
         self.was_active = np.zeros(n, dtype=np.bool_)
-        self.kappa = 0.0 if rigid is None else self.dt ** 2 / rigid.mass
+        self.kappa = 0.0 if rigid is None else self.dt ** 2 / self.mass[nd]
         self.d = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
         self.times = PhaseTimes()
         # after each step: number of active constraints, total contact force (N) and the
@@ -364,10 +364,15 @@ class ContactSet:
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
 
     # ------------------------------------------------------------ the rigid body
+    # The two places that know how a rigid body moves on its own: its slot mass and
+    # its prediction without contact. Everything else treats it as one more slot.
+    def _rigid_slot_mass(self) -> float:
+        """Mass (kg) of the rigid body's slot, fixed at set-up."""
+        return self.rigid.mass
+
     def _predict_rigid(self, t: float) -> None:
         """The rigid body's slot: its predicted state (u~, v~) at t + dt without contact,
-        from its external force at t, and its slot mass (kg). The one place that knows
-        how a rigid body moves on its own."""
+        from its external force at t."""
         rb = self.rigid
         self._rigid_f = rb.force(t)
         v_tilde = rb.v + self.dt * self._rigid_f / rb.mass

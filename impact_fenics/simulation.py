@@ -340,14 +340,15 @@ class Simulation:
                 f"dt = {self.settings.dt:.4g} s, stable dt <= {self.dt_critical:.4g} s{extra}")
 
     def _track_contact(self, track: dict, n: int) -> None:
-        if not self.contacts:
-            return
-        pen = max(c.max_penetration() for c in self.contacts)
-        track["max_penetration"] = max(track["max_penetration"], pen)
-        if any(c.any_active for c in self.contacts):
-            if track["first_contact"] is None:
-                track["first_contact"] = n
-            track["last_contact"] = n
+        """Largest committed penetration (m) and the first and last steps with contact."""
+        for c in self.contacts:
+            st = c.stats  # (number active, total force, smallest gap)
+            if -st[2] > track["max_penetration"]:
+                track["max_penetration"] = float(-st[2])
+            if st[0] > 0:
+                if track["first_contact"] is None:
+                    track["first_contact"] = n
+                track["last_contact"] = n
 
     # ------------------------------------------------------------ outputs
     def add_cell_fields(self, provider) -> None:
@@ -555,13 +556,20 @@ class Simulation:
             summary["time_per_step_median"] = medians
             summary["time_per_step_total"] = totals
             summary["step_time_median"] = step = times.median_of_sum(comm=self.comm)
+            # shares from the totals and walls averaged over the ranks: they add up to <= 1
+            mean = np.append(times.totals, wall)
+            self.comm.Allreduce(MPI.IN_PLACE, mean)
+            mean /= self.comm.size
+            share = {k: (float(mean[i] / mean[-1]) if mean[-1] > 0 else 0.0)
+                     for i, k in enumerate(times.phases)}
             summary["timing"] = {  # the loop's wall time by phase (s), and its share
-                "phases": {k: {"total": totals[k], "median": medians[k],
-                               "share": totals[k] / wall if wall > 0 else 0.0} for k in totals},
-                "rest_share": max(0.0, 1.0 - sum(totals.values()) / wall) if wall > 0 else 0.0,
+                "phases": {k: {"total": totals[k], "median": medians[k], "share": share[k]}
+                           for k in totals},
+                "rest_share": max(0.0, 1.0 - sum(share.values())),
                 "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
-                "definition": "share = phase total / loop wall time; rest = the loop's own "
-                              "Python, progress and signal checks"}
+                "definition": "total and median: the slowest rank's (s); share: the phase's "
+                              "total over the loop's wall time, both averaged over the ranks; "
+                              "rest: the loop's own Python, progress and signal checks"}
         summary["bodies"] = self._body_figures()
         if self.contacts:
             summary["impact"] = self._impact_figures()
@@ -571,6 +579,9 @@ class Simulation:
             last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
             summary["energy_balance_error_rel"] = max_bal
+            summary["energy_balance_definition"] = (
+                "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
+                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n, W_n the work of loads and contact")
         if self.contacts:
             c = self.contacts[0]
             summary["contact"] = {  # the first contact set, or all of them for the figures below

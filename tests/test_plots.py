@@ -129,3 +129,27 @@ def test_plot_command_line(bar_run):
     assert lines[0].startswith("error: --field sigma_xx: not in fields.xdmf (it has: ")
     proc = launch(["plot", bar_run + "_nowhere"])
     assert proc.returncode == 2 and proc.stderr.startswith("error: run directory ")
+
+
+def test_default_frames_skip_the_initial_state():
+    series = plotting.Series("sigma_zz", "Cell", np.linspace(0.0, 1e-4, 11))
+    assert plotting._pick_times(series, None) == [1, 4, 7, 10]  # t = 0 only when asked for
+    assert plotting._pick_times(series, [0.0]) == [0]
+
+
+def test_auto_region_frames_where_the_field_is():
+    """A field that lives only in the cells with r < 0.2, z > 0.8 of the unit square: the
+    zoom covers them, padded by a tenth of the model, and no more."""
+    n = 10
+    r, z = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")
+    points = np.column_stack([r.ravel(), z.ravel()])
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    cells = np.concatenate([np.column_stack([idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(),
+                                             idx[1:, 1:].ravel()]),
+                            np.column_stack([idx[:-1, :-1].ravel(), idx[1:, 1:].ravel(),
+                                             idx[:-1, 1:].ravel()])])
+    c = points[cells].mean(axis=1)
+    values = np.where((c[:, 0] < 0.2) & (c[:, 1] > 0.8), 1.0, 0.0)
+    r0, r1, z0, z1 = plotting._auto_region(points, cells, [values], "Cell")
+    assert (r0, z1) == (0.0, 1.0)  # clipped to the model
+    assert abs(r1 - 0.3) < 1e-12 and abs(z0 - 0.7) < 1e-12  # the hot cells' nodes + 0.1

@@ -428,11 +428,18 @@ class Simulation:
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
                                          + self._momentum_columns(), comm, 16)}
         self._history_offset = n_raw
+        # per contact: its set, the raw column of its first entry, its rigid body, pair table
+        self._history_layout, k = [], n_raw + 2
+        for i, c in enumerate(self.contacts):
+            self._history_layout.append((c, k, c.rigid, None))
+            k += 6 + (2 if c.rigid is not None else 0)
         for k, c in enumerate(self.contacts):
             name = "contact_pairs.h5" if len(self.contacts) == 1 else f"contact_pairs_{k}.h5"
             if staging:
                 tables[f"pairs{k}"] = output.PairHistory(
                     path(name), c.r, comm, rows=self.n_steps // self.settings.history_every + 2)
+                c_, col, rigid, _ = self._history_layout[k]
+                self._history_layout[k] = (c_, col, rigid, tables[f"pairs{k}"])
         return tables
 
     def _momentum_columns(self) -> list[str]:
@@ -444,31 +451,25 @@ class Simulation:
         no allocation."""
         integ = self.integrator
         n = integ.n
+        t = n * self.settings.dt
         row = tables["history"].row()
         if probes is not None:
             probes.record(integ.u_owned, row)
         k = self._history_offset
         row[k] = n
-        row[k + 1] = n * self.settings.dt
-        k += 2
-        for i, c in enumerate(self.contacts):
-            st = c.stats
-            row[k] = st[0]
-            row[k + 1] = st[1]
-            row[k + 2] = st[2]
-            k += 3
-            if c.rigid is not None:
-                row[k] = c.rigid.u
-                row[k + 1] = c.rigid.v
+        row[k + 1] = t
+        for c, k, rigid, pairs in self._history_layout:
+            row[k: k + 3] = c.stats
+            if rigid is not None:
+                row[k + 3] = rigid.u
+                row[k + 4] = rigid.v
                 k += 2
-            t = c.times
-            row[k] = t.detection
-            row[k + 1] = t.solve
-            row[k + 2] = t.update
-            k += 3
-            tbl = tables.get(f"pairs{i}")
-            if tbl is not None:
-                tbl.record(n, n * self.settings.dt, c.committed_gap(), c.force, c.active)
+            times = c.times
+            row[k + 3] = times.detection
+            row[k + 4] = times.solve
+            row[k + 5] = times.update
+            if pairs is not None:
+                pairs.record(n, t, c.committed_gap(), c.force, c.active)
 
     def _body_figures(self) -> dict:
         """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,

@@ -138,6 +138,55 @@ def write_cost(comm: MPI.Comm, n_writes: int = 200, every: int = 50) -> dict:
             "growth_last_over_first": blocks[-1] / blocks[0]}
 
 
+def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> dict:
+    """Seconds per history row of scene ``kind``: filling it (without and with the per-pair
+    record) and, per row, writing a block of rows to history.csv."""
+    import gc
+
+    from .. import output
+    from ..probes import Probes
+
+    scratch = tempfile.mkdtemp(prefix="ifx_rows_") if comm.rank == 0 else None
+    scratch = comm.bcast(scratch, root=0)
+    sim, _ = _scene(kind, os.path.join(scratch, "run"), comm)
+    staging = output.prepare_directory(os.path.join(scratch, "run"), comm)
+    probes = Probes(sim.model, sim._probe_specs) if sim._probe_specs else None
+    tables = sim._tables(staging, probes)
+    sim.integrator.predict()
+    for c in sim.contacts:
+        c.step()
+    sim.integrator.advance()
+    gc.collect()
+    clock = time.perf_counter
+    table = tables["history"]
+    res = {"columns": len(table.columns), "probes": len(sim._probe_specs)}
+    with_pairs = list(sim._history_layout)
+    for label, layout in (("fill", [(c, k, r, None) for c, k, r, _ in with_pairs]),
+                          ("fill_with_pairs", with_pairs)):
+        sim._history_layout = layout
+        samples = []
+        for _ in range(repeats):
+            table._n = 0
+            t = clock()
+            for _ in range(rows):
+                sim._history_row(tables, probes)
+            samples.append((clock() - t) / rows)
+        res[label] = float(np.median(samples))
+    samples = []
+    for _ in range(repeats // 3):
+        table._n = table._buf.shape[0]
+        t = clock()
+        table.flush()
+        samples.append((clock() - t) / table._buf.shape[0])
+    res["block_write_per_row"] = float(np.median(samples))
+    for tbl in tables.values():
+        tbl.close()
+    if comm.rank == 0:
+        import shutil
+        shutil.rmtree(scratch, ignore_errors=True)
+    return res
+
+
 def part_whole_run(ctx) -> dict:
     """The whole-run table (both scenes) and the cost per field write."""
     rows, res = [], {}
@@ -146,6 +195,11 @@ def part_whole_run(ctx) -> dict:
         res[kind] = r
         rows.append(_row(r))
     ctx.table(f"Whole run vs its steps ({ctx.comm.size} rank(s); default outputs)", HEADERS, rows)
+    for kind in ("bars", "punch_sim3"):
+        rc = res[f"rows_{kind}"] = row_cost(kind, ctx.comm)
+        ctx.log(f"   history row ({kind}, {rc['columns']} columns, {rc['probes']} probe(s)): fill "
+                f"{1e6 * rc['fill']:.2f} us, with the per-pair record {1e6 * rc['fill_with_pairs']:.2f}"
+                f" us, block write {1e6 * rc['block_write_per_row']:.2f} us per row")
     res["write_cost"] = write_cost(ctx.comm)
     wc = res["write_cost"]
     if "seconds_per_write_by_block" in wc:

@@ -11,7 +11,7 @@
 #
 # Results go to results/bar_impact_<method>/ (or --out DIR): fields.xdmf for
 # ParaView, history.csv (sigma_zz at r = 0.1 m, z = 0.2 m in the target; the
-# contact force and gaps), contact_pairs.csv (gap, force and active flag of each
+# contact force and gaps), contact_pairs.h5 (gap, force and active flag of each
 # pair), energy.csv and summary.json.
 
 import argparse

@@ -1,5 +1,9 @@
-"""impact_fenics: explicit transient dynamics with contact on FEniCSx (see README)."""
+"""impact_fenics: explicit transient dynamics with contact on axisymmetric solids (see README)."""
 import os as _os
+
+# numba colours its messages with colorama when that is installed, and colorama then
+# writes a terminal reset code at exit: a stray escape code on the console of every run
+_os.environ.setdefault("NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING", "1")
 
 # One BLAS thread per MPI rank unless the user chose otherwise: Debian's stack links
 # the serial OpenBLAS; the wheels' numpy and SciPy bring threaded ones, which on a

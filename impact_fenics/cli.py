@@ -52,6 +52,10 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--scale", type=float,
                       help="displacement magnification (default: the largest displacement "
                            "shows as 5 %% of the model size)")
+    plot.add_argument("--region", nargs=4, type=float, metavar=("R0", "R1", "Z0", "Z1"),
+                      help="show only r in [R0, R1], z in [Z0, Z1] (m); default: zoom to "
+                           "where the field is; --whole shows the whole model")
+    plot.add_argument("--whole", action="store_true", help="show the whole model")
     return parser
 
 
@@ -61,7 +65,9 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "run":
         return run_scene(args.scene, method=args.method, out=args.out, quiet=args.quiet)
-    return plot_run(args.run_dir, field=args.field, times=args.times, scale=args.scale)
+    region = None if args.whole else (tuple(args.region) if args.region else "auto")
+    return plot_run(args.run_dir, field=args.field, times=args.times, scale=args.scale,
+                    region=region)
 
 
 def run_scene(path: str, method: str | None = None, out: str | None = None,
@@ -122,12 +128,16 @@ def _report(title: str, s: dict, out_dir: str) -> None:
                 if first is not None else "never active")
         print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
               f"max penetration {c['max_penetration']:.3g} m")
+    from .report import console_lines
+
+    for line in console_lines(s):
+        print(line)
     print(f"results in {out_dir}/ (open fields.xdmf in ParaView; "
           f"impact-fenics plot {out_dir} renders it)")
 
 
 def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
-             scale: float | None = None) -> int:
+             scale: float | None = None, region="auto") -> int:
     """Render ``field`` of a finished run at ``times`` (s) into PNG files (rank 0)."""
     from mpi4py import MPI
 
@@ -136,6 +146,6 @@ def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = 
     if not os.path.isdir(run_dir):
         raise InputError(f"run directory '{run_dir}' does not exist")
     if MPI.COMM_WORLD.rank == 0:
-        for path in plotting.render_fields(run_dir, field, times, scale):
+        for path in plotting.render_fields(run_dir, field, times, scale, region=region):
             print(path)
     return 0

@@ -1,13 +1,12 @@
-"""Output: XDMF time series of fields, CSV histories and a JSON summary.
+"""Output: the run directory, CSV tables written in blocks and a JSON summary (fields: xdmf.py).
 
 Files are written into a staging directory ``DIR.partial`` and renamed to DIR
 when the run ends, so a directory named DIR always holds a finished (or
 cleanly stopped) run; a crash leaves only ``DIR.partial``. Rank 0 writes the
-CSV and JSON files; the XDMF file is written collectively.
+CSV and JSON files; every rank writes its piece of the fields.
 """
 from __future__ import annotations
 
-import csv
 import json
 import os
 import shutil
@@ -15,14 +14,8 @@ from typing import Sequence
 
 import numpy as np
 from mpi4py import MPI
-from dolfinx import fem, io
 
-from .compat import interpolation_points, scalar_space
 from .errors import InputError
-
-# beyond this many XDMF snapshots a run warns: each write rewrites the whole .xdmf
-MANY_SNAPSHOTS = 500
-
 
 def prepare_directory(path: str, comm: MPI.Comm) -> str:
     """Create the staging directory ``path.partial`` (empty) and return it.
@@ -80,100 +73,172 @@ def json_ready(obj):
 
 
 class Table:
-    """A CSV history filled row by row into a preallocated buffer.
+    """A CSV table filled row by row into a preallocated block, written a block at a time.
 
-    With ``path`` the rows are appended to the file on :meth:`flush` (rank 0);
-    with ``keep`` every row also stays in memory (:meth:`data`). The buffer
-    grows by doubling when ``keep`` is set, so rows cost no allocation once
-    warm."""
+    Rows cost no allocation: :meth:`row` hands out a view of the next row of the
+    block, and a full block is appended to the file (rank 0, exact decimal
+    round-trip, one formatting call per block) and reused, so memory does not
+    grow with the number of rows. :meth:`data` reads the rows back from the file
+    (on every rank); a table without a file keeps its rows in memory instead.
+
+    ``summed``: the number of leading raw columns ("raw" block, see ``finish``)
+    that each rank fills with its own share (zero elsewhere); they are summed
+    over the ranks once per block, so a row never communicates. ``finish(raw)``
+    turns a full raw block (rows x raw columns) into the output rows (rows x
+    ``columns``); without it the raw columns are the columns."""
 
     def __init__(self, path: str | None, columns: Sequence[str], comm: MPI.Comm,
-                 capacity: int = 4096, keep: bool = False):
+                 capacity: int = 256, raw_columns: int | None = None, summed: int = 0,
+                 finish=None):
         self.path = path
         self.columns = list(columns)
         self.comm = comm
-        self.keep = keep
-        self._buf = np.full((max(1, capacity), len(self.columns)), np.nan)
+        n_raw = len(self.columns) if raw_columns is None else raw_columns
+        self._buf = np.zeros((max(1, capacity), n_raw))
         self._n = 0
-        self._written = 0
+        self._summed = summed
+        self._sum_buf = np.zeros((self._buf.shape[0], summed))
+        self._finish = finish
+        self._fmt = ",".join(["%.17g"] * len(self.columns)) + "\n"
+        self._kept: list[np.ndarray] = []  # finished blocks, only without a file
+        self.n_rows = 0
         if path and comm.rank == 0:
             with open(path, "w", newline="") as f:
-                csv.writer(f).writerow(self.columns)
+                f.write(",".join(self.columns) + "\n")
 
     def row(self) -> np.ndarray:
-        """The next row to fill (a view)."""
+        """The next (raw) row to fill (a view)."""
         if self._n == self._buf.shape[0]:
-            if self.keep:
-                grown = np.full((2 * self._n, self._buf.shape[1]), np.nan)
-                grown[: self._n] = self._buf
-                self._buf = grown
-            else:
-                self.flush()
+            self.flush()
         r = self._buf[self._n]
         self._n += 1
         return r
 
-    def rows(self, k: int) -> np.ndarray:
-        """The next ``k`` rows to fill (a view; ``keep=False`` tables only)."""
-        if self._n + k > self._buf.shape[0]:
-            self.flush()
-        if k > self._buf.shape[0]:
-            self._buf = np.full((k, self._buf.shape[1]), np.nan)
-        block = self._buf[self._n: self._n + k]
-        self._n += k
-        return block
-
     def flush(self) -> None:
-        """Append the rows not yet written to the file."""
-        if self.path and self._n > self._written and self.comm.rank == 0:
-            with open(self.path, "a") as f:
-                np.savetxt(f, self._buf[self._written: self._n], delimiter=",", fmt="%.12g")
-        if self.keep:
-            self._written = self._n
+        """Finish the rows of the block and append them to the file (collective when
+        ``summed`` columns exist: call it on every rank)."""
+        n = self._n
+        if n == 0:
+            return
+        block = self._buf[:n]
+        if self._summed and self.comm.size > 1:
+            part = self._sum_buf[:n]
+            part[:] = block[:, : self._summed]
+            self.comm.Allreduce(MPI.IN_PLACE, part)
+            block[:, : self._summed] = part
+        out = self._finish(block) if self._finish is not None else block
+        if self.path:
+            if self.comm.rank == 0:
+                text = (self._fmt * n) % tuple(out.ravel().tolist())
+                with open(self.path, "a") as f:
+                    f.write(text)
         else:
-            self._buf[: self._n] = np.nan
-            self._n = self._written = 0
-
-    def data(self) -> dict[str, np.ndarray]:
-        """All kept rows, by column (``keep=True`` only)."""
-        return {c: self._buf[: self._n, k].copy() for k, c in enumerate(self.columns)}
-
-
-class FieldWriter:
-    """XDMF time series of displacement, velocity and DG0 stress components.
-
-    ``stresses(u)`` maps an output name to a list of (UFL expression of u, cells)
-    pieces (one per body), evaluated at cell midpoints."""
-
-    def __init__(self, path: str, V: fem.FunctionSpace, stresses):
-        mesh = V.mesh
-        self.n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-        self.xdmf = io.XDMFFile(mesh.comm, path, "w")
-        self.xdmf.write_mesh(mesh)
-        self.u = fem.Function(V, name="displacement")
-        self.v = fem.Function(V, name="velocity")
-        Q = scalar_space(mesh, "DG", 0)
-        points = interpolation_points(Q)
-        self._stress = []
-        for name, pieces in stresses(self.u).items():
-            f = fem.Function(Q, name=name)
-            exprs = [(fem.Expression(expr, points), cells) for expr, cells in pieces]
-            self._stress.append((f, exprs))
-
-    def set_state(self, u: np.ndarray, v: np.ndarray) -> None:
-        """Copy owned u (m) and v (m/s) into the fields and update the ghosts."""
-        for f, values in ((self.u, u), (self.v, v)):
-            f.x.array[: self.n_owned] = values
-            f.x.scatter_forward()
-
-    def write(self, t: float) -> None:
-        """Write u, v and the stresses at time t (s); call :meth:`set_state` first."""
-        self.xdmf.write_function(self.u, t)
-        self.xdmf.write_function(self.v, t)
-        for f, exprs in self._stress:
-            for expr, cells in exprs:
-                f.interpolate(expr, cells)
-            self.xdmf.write_function(f, t)
+            self._kept.append(np.array(out, dtype=float))
+        self.n_rows += n
+        self._n = 0
+        if self._summed:
+            self._buf[:n, : self._summed] = 0.0
 
     def close(self) -> None:
-        self.xdmf.close()
+        """Write what is left (collective, like :meth:`flush`)."""
+        self.flush()
+
+    def moved(self, directory: str) -> None:
+        """The file now lives in ``directory`` (the run directory was published)."""
+        if self.path:
+            self.path = os.path.join(directory, os.path.basename(self.path))
+
+    def data(self) -> dict[str, np.ndarray]:
+        """Every row written so far, by column: read back from the file (after the run, when
+        every rank has flushed), or the rows kept in memory by a table without a file."""
+        if not self.path:
+            self.flush()
+        if self.path:
+            raw = np.loadtxt(self.path, delimiter=",", skiprows=1, ndmin=2)
+            raw = raw.reshape(-1, len(self.columns))
+        elif self._kept:
+            raw = np.concatenate(self._kept)
+        else:
+            raw = np.zeros((0, len(self.columns)))
+        return {c: raw[:, k].copy() for k, c in enumerate(self.columns)}
+
+
+class PairHistory:
+    """Per-pair gap (m), contact force (N) and active flag at every history row, in HDF5
+    (``contact_pairs.h5``: ``clock`` (rows x 2: step, time in s), ``r`` (pairs, m) and
+    ``state`` (rows x 3 x pairs: gap, force, active as 0/1)), written by rank 0 in
+    blocks of rows, two dataset writes a block; the contact state is the same on
+    every rank, so nothing is gathered. :func:`read_pairs` reads it back."""
+
+    def __init__(self, path: str, r: np.ndarray, comm: MPI.Comm, capacity: int = 256,
+                 rows: int = 1024):
+        self.path = path
+        self.comm = comm
+        n = r.size
+        self._n = 0
+        self._f = None
+        self._rows = 0
+        if comm.rank == 0:
+            import h5py
+
+            self._clock = np.zeros((capacity, 2))
+            self._state = np.zeros((capacity, 3, n))
+            self._alloc = max(rows, capacity)  # rows the datasets hold (grown if exceeded)
+            self._f = h5py.File(path, "w")
+            self._f.create_dataset("r", data=r)
+            self._ds = [self._f.create_dataset(name, shape=(self._alloc,) + arr.shape[1:],
+                                               maxshape=(None,) + arr.shape[1:], dtype=np.float64,
+                                               chunks=(min(capacity, 64),) + arr.shape[1:])
+                        for name, arr in (("clock", self._clock), ("state", self._state))]
+
+    def record(self, step: int, t: float, gap: np.ndarray, force: np.ndarray,
+               active: np.ndarray) -> None:
+        """One row: the committed gaps (m), forces (N) and active flags of step ``step``."""
+        if self._f is None:
+            return
+        k = self._n
+        self._clock[k, 0] = step
+        self._clock[k, 1] = t
+        state = self._state[k]
+        state[0] = gap
+        state[1] = force
+        state[2] = active
+        self._n += 1
+        if self._n == self._clock.shape[0]:
+            self.flush()
+
+    def flush(self) -> None:
+        if self._f is None or self._n == 0:
+            return
+        n, start = self._n, self._rows
+        if start + n > self._alloc:
+            self._alloc = 2 * (start + n)
+            for ds in self._ds:
+                ds.resize(self._alloc, axis=0)
+        for ds, arr in zip(self._ds, (self._clock, self._state)):
+            ds[start: start + n] = arr[:n]
+        self._rows += n
+        self._n = 0
+
+    def moved(self, directory: str) -> None:
+        self.path = os.path.join(directory, os.path.basename(self.path))
+
+    def close(self) -> None:
+        """Write what is left and trim the datasets to the rows written."""
+        self.flush()
+        if self._f is not None:
+            for ds in self._ds:
+                ds.resize(self._rows, axis=0)
+            self._f.close()
+            self._f = None
+
+
+def read_pairs(path: str) -> dict[str, np.ndarray]:
+    """contact_pairs.h5 as arrays: step, time (rows), r (pairs, m), gap (m), force (N),
+    active (rows x pairs)."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        clock, state, r = f["clock"][...], f["state"][...], f["r"][...]
+    return {"step": clock[:, 0].astype(np.int64), "time": clock[:, 1], "r": r,
+            "gap": state[:, 0], "force": state[:, 1], "active": state[:, 2] > 0.5}

@@ -72,7 +72,7 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
         panels.append(("probe stress (MPa)", stress))
     if disp:
         panels.append(("probe displacement (mm)", disp))
-    force = [(c, h[c]) for c in h if c.endswith("contact_force")]
+    force = [(c, h[c]) for c in h if c.endswith("_force")]
     if force:
         panels.append(("contact force (N)", force))
         gaps = [(c, h[c] * 1e3) for c in h if c.endswith("min_gap")]
@@ -134,72 +134,40 @@ def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
 # ----------------------------------------------------------------------------- fields
 
 @dataclass
-class FieldSeries:
-    """One field of an XDMF file: its times (s), HDF5 datasets and where it lives."""
+class Series:
+    """One field of a fields.xdmf: its centring ("Node" or "Cell") and output times (s)."""
 
     name: str
-    center: str  # "Node" or "Cell"
+    center: str
     times: np.ndarray
-    datasets: list[str]
 
 
-@dataclass
 class XdmfRun:
-    """The mesh and the field series of a dolfinx XDMF file (r = x, z = y, in m)."""
+    """The mesh and the field series of a fields.xdmf (pieces joined; r = x, z = y, in m)."""
 
-    h5_path: str
-    points: np.ndarray  # (n_nodes, 2)
-    cells: np.ndarray   # (n_cells, 3) triangles
-    fields: dict[str, FieldSeries]
+    def __init__(self, series):
+        self._series = series
+        self.points = series.points  # (n_nodes, 2)
+        self.cells = series.cells  # (n_cells, 3) triangles
+        self.fields = {name: Series(name, center, series.times)
+                       for name, center in series.center.items()}
 
     def values(self, name: str, k: int) -> np.ndarray:
-        """Values of field ``name`` at its k-th time (nodal or cell, SI units)."""
-        import h5py
-
-        with h5py.File(self.h5_path, "r") as f:
-            return np.asarray(f[self.fields[name].datasets[k]])
-
-
-def _hdf_item(item: ET.Element, xdmf_dir: str) -> tuple[str, str]:
-    """(HDF5 file path, dataset) of a DataItem 'file.h5:/path'."""
-    text = (item.text or "").strip()
-    filename, _, dataset = text.partition(":")
-    return os.path.join(xdmf_dir, filename), dataset
+        """Values of field ``name`` at its k-th time (nodal (n, 3) or cell (m,), SI units)."""
+        return self._series.values(name, k)
 
 
 def read_xdmf(path: str) -> XdmfRun:
-    """Parse a dolfinx XDMF file (mesh grid, then temporal collections of functions)."""
-    import h5py
-
+    """Read a run's fields.xdmf (see impact_fenics.xdmf)."""
     from .errors import InputError
+    from .xdmf import FieldSeries
 
     if not os.path.isfile(path):
         raise InputError(f"'{path}' does not exist (a run directory holds fields.xdmf)")
     try:
-        domain = ET.parse(path).getroot().find("Domain")
-        mesh_grid = next(g for g in domain.findall("Grid") if g.get("GridType") == "Uniform")
-        h5_path, topo = _hdf_item(mesh_grid.find("Topology/DataItem"), os.path.dirname(path))
-        _, geom = _hdf_item(mesh_grid.find("Geometry/DataItem"), os.path.dirname(path))
-    except (ET.ParseError, StopIteration, AttributeError) as exc:
-        raise InputError(f"'{path}' is not an XDMF file written by dolfinx ({exc})")
-    if not os.path.isfile(h5_path):
-        raise InputError(f"'{h5_path}', the data of '{path}', does not exist")
-    with h5py.File(h5_path, "r") as f:
-        points = np.asarray(f[geom])[:, :2]
-        cells = np.asarray(f[topo]).astype(np.int64)
-    fields = {}
-    for coll in domain.findall("Grid"):
-        if coll.get("CollectionType") != "Temporal":
-            continue
-        times, datasets, center = [], [], "Node"
-        for grid in coll.findall("Grid"):
-            attr = grid.find("Attribute")
-            times.append(float(grid.find("Time").get("Value")))
-            datasets.append(_hdf_item(attr.find("DataItem"), os.path.dirname(path))[1])
-            center = attr.get("Center", "Node")
-        name = coll.get("Name")
-        fields[name] = FieldSeries(name, center, np.array(times), datasets)
-    return XdmfRun(h5_path, points, cells, fields)
+        return XdmfRun(FieldSeries(path))
+    except (ET.ParseError, ValueError, AttributeError, KeyError, OSError) as exc:
+        raise InputError(f"'{path}' is not a fields.xdmf of impact_fenics ({exc})")
 
 
 def _scalar(values: np.ndarray) -> np.ndarray:
@@ -208,14 +176,36 @@ def _scalar(values: np.ndarray) -> np.ndarray:
     return values[:, 0] if values.shape[1] == 1 else np.linalg.norm(values, axis=1)
 
 
-def _pick_times(series: FieldSeries, times: list[float] | None, n_default: int = 4) -> list[int]:
-    """Indices of the stored times nearest to ``times`` (s), or n_default spread over the run."""
+def _pick_times(series: Series, times: list[float] | None, n_default: int = 4) -> list[int]:
+    """Indices of the stored times nearest to ``times`` (s), or n_default spread over the run
+    after t = 0 (the initial state is blank: it is shown only when asked for)."""
     if times:
         picks = [int(np.argmin(np.abs(series.times - t))) for t in times]
     else:
-        picks = np.linspace(0, series.times.size - 1, min(n_default, series.times.size))
+        first = 1 if series.times.size > 1 else 0
+        picks = np.linspace(first, series.times.size - 1, min(n_default, series.times.size - first))
         picks = [int(round(k)) for k in picks]
     return sorted(set(picks))
+
+
+CLIP = (1.0, 99.0)  # percentiles of the colour range
+
+
+def _auto_region(points: np.ndarray, cells: np.ndarray, values: list[np.ndarray], center: str,
+                 level: float = 0.05) -> tuple[float, float, float, float]:
+    """(r0, r1, z0, z1) in m around where the field is: the cells (or nodes) whose |value|
+    reaches ``level`` of the largest, padded by a tenth of the model size, within the model."""
+    peak = max(float(np.nanmax(np.abs(v))) for v in values)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    if not peak > 0:
+        return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+    hot = np.zeros(len(cells) if center == "Cell" else len(points), dtype=bool)
+    for v in values:
+        hot |= np.abs(v) >= level * peak
+    xy = points[cells[hot]].reshape(-1, 2) if center == "Cell" else points[hot]
+    pad = 0.1 * float(np.ptp(points, axis=0).max())
+    a, b = np.maximum(xy.min(axis=0) - pad, lo), np.minimum(xy.max(axis=0) + pad, hi)
+    return float(a[0]), float(b[0]), float(a[1]), float(b[1])
 
 
 def _unit(field: str) -> tuple[float, str]:
@@ -230,13 +220,17 @@ def _unit(field: str) -> tuple[float, str]:
 
 
 def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
-                  scale: float | None = None, width: int = 1400) -> list[str]:
+                  scale: float | None = None, width: int = 1400,
+                  region: tuple[float, float, float, float] | str | None = "auto") -> list[str]:
     """Render ``field`` on the deformed mesh at the stored times nearest to ``times`` (s).
 
     The displacement is multiplied by ``scale`` (default: the largest
     displacement of the chosen times shows as 5 % of the model size); the
-    factor is stated in each title. One PNG per time in ``run_dir``, named
-    ``<field>_t<time in s>.png``; returns their paths."""
+    factor is stated in each title. ``region`` (r0, r1, z0, z1) in m shows only the
+    cells inside it; "auto" zooms to where |field| reaches 5 % of its largest value;
+    None shows the whole model. The colour range is clipped to the 1st-99th
+    percentile of the shown values (said in the title when it clips). One PNG per
+    time in ``run_dir``, named ``<field>_t<time in s>.png``; returns their paths."""
     from .errors import InputError
 
     data = read_xdmf(os.path.join(run_dir, "fields.xdmf"))
@@ -245,8 +239,11 @@ def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | No
                          f"{', '.join(sorted(data.fields))})")
     if scale is not None and not scale >= 0:
         raise InputError(f"--scale {scale}: must be >= 0")
+    if region not in (None, "auto") and not (len(region) == 4 and region[0] < region[1]
+                                             and region[2] < region[3]):
+        raise InputError(f"--region {region}: give r0 < r1 and z0 < z1 (m)")
     if "dolfinx.cpp" in sys.modules:
-        return _render_in_fresh_process(run_dir, field, times, scale, width)
+        return _render_in_fresh_process(run_dir, field, times, scale, width, region)
     series = data.fields[field]
     picks = _pick_times(series, times)
     disp = data.fields.get("displacement")
@@ -264,26 +261,37 @@ def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | No
         scale = _round_scale(0.05 * size / u_max) if u_max > 0 else 0.0
     factor, unit = _unit(field)
     values = {k: _scalar(data.values(field, k)) * factor for k in picks}
-    lo = min(float(np.nanmin(v)) for v in values.values())
-    hi = max(float(np.nanmax(v)) for v in values.values())
+    if region == "auto":
+        region = _auto_region(data.points, data.cells, list(values.values()), series.center)
+    keep = np.ones(len(data.cells), dtype=bool)
+    if region is not None:
+        c = data.points[data.cells].mean(axis=1)
+        keep = ((c[:, 0] >= region[0]) & (c[:, 0] <= region[1]) & (c[:, 1] >= region[2])
+                & (c[:, 1] <= region[3]))
+    shown = np.concatenate([v[keep] if series.center == "Cell" else v for v in values.values()])
+    lo, hi = (float(x) for x in np.nanpercentile(shown, CLIP))
+    clipped = lo > float(np.nanmin(shown)) or hi < float(np.nanmax(shown))
     diverging = field in STRESSES and field != "von_mises" and lo < 0 < hi
     if diverging:
         lo, hi = -max(-lo, hi), max(-lo, hi)
+    name = os.path.basename(os.path.normpath(run_dir))
     written = []
     for k in picks:
         t = float(series.times[k])
         path = os.path.join(run_dir, f"{field}_t{t:.6e}.png")
         label = f"{field} ({unit})" if unit else field
-        title = (f"{label} at t = {t * 1e6:.2f} µs, displacement x {scale:g}"
-                 if scale else f"{label} at t = {t * 1e6:.2f} µs, undeformed")
+        title = (f"{name}: {label} at t = {t * 1e6:.2f} µs, displacement x {scale:g}"
+                 if scale else f"{name}: {label} at t = {t * 1e6:.2f} µs, undeformed")
+        if clipped:
+            title += f"\ncolours clipped to the {CLIP[0]:g}-{CLIP[1]:g} percentile range"
         _render(path, data, u_at[k] * scale, values[k], series.center, (lo, hi),
-                "coolwarm" if diverging else "viridis", label, title, width)
+                "coolwarm" if diverging else "viridis", label, title, width, keep)
         written.append(path)
     return written
 
 
 def _render_in_fresh_process(run_dir: str, field: str, times: list[float] | None,
-                             scale: float | None, width: int) -> list[str]:
+                             scale: float | None, width: int, region) -> list[str]:
     """Run :func:`render_fields` in a new interpreter. VTK's C++ library aborts when it is
     loaded after dolfinx's in one process (they bind each other's libstdc++ symbols), so a
     process that ran a simulation renders through a child that never imports dolfinx."""
@@ -296,7 +304,7 @@ def _render_in_fresh_process(run_dir: str, field: str, times: list[float] | None
 
     env = clean_launcher_env()
     proc = subprocess.run([sys.executable, "-c", code,
-                           json.dumps([run_dir, field, times, scale, width])],
+                           json.dumps([run_dir, field, times, scale, width, region])],
                           capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
@@ -314,19 +322,25 @@ def _round_scale(s: float) -> float:
 
 
 def _render(path: str, data: XdmfRun, u: np.ndarray, values: np.ndarray, center: str,
-            clim: tuple[float, float], cmap: str, label: str, title: str, width: int) -> None:
+            clim: tuple[float, float], cmap: str, label: str, title: str, width: int,
+            keep: np.ndarray) -> None:
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
-    xy = data.points + u
+    xy_all = data.points + u
+    used = np.unique(data.cells[keep])  # the nodes of the shown cells
+    renumber = np.full(len(xy_all), -1)
+    renumber[used] = np.arange(used.size)
+    xy = xy_all[used]
+    tri = renumber[data.cells[keep]]
     points = np.column_stack([xy, np.zeros(len(xy))])
-    cells = np.column_stack([np.full(len(data.cells), 3), data.cells]).ravel()
-    grid = pv.UnstructuredGrid(cells, np.full(len(data.cells), pv.CellType.TRIANGLE), points)
+    cells = np.column_stack([np.full(len(tri), 3), tri]).ravel()
+    grid = pv.UnstructuredGrid(cells, np.full(len(tri), pv.CellType.TRIANGLE), points)
     if center == "Cell":
-        grid.cell_data[label] = values
+        grid.cell_data[label] = values[keep]
     else:
-        grid.point_data[label] = values
+        grid.point_data[label] = values[used]
     extent = np.ptp(xy, axis=0)
     tall = extent[1] > extent[0]  # show the longer side horizontally
     across, along = (extent[0], extent[1]) if tall else (extent[1], extent[0])
@@ -340,7 +354,13 @@ def _render(path: str, data: XdmfRun, u: np.ndarray, values: np.ndarray, center:
                                       "position_x": 0.25, "position_y": 0.04,
                                       "width": 0.5, "height": 0.08, "fmt": "%.3g"})
     plotter.add_text(title, position="upper_edge", font_size=11, color="black")
-    axes = "horizontal: z, vertical: r (m)" if tall else "horizontal: r, vertical: z (m)"
+    ref = data.points[used]  # the undeformed extent of what is shown
+    lo_xy, hi_xy = ref.min(axis=0), ref.max(axis=0)
+    mm = float(np.ptp(ref, axis=0).max()) < 1.0  # lengths in mm below a metre
+    f, u_len = (1e3, "mm") if mm else (1.0, "m")
+    axes = (f"r {lo_xy[0] * f:.4g} to {hi_xy[0] * f:.4g} {u_len}, "
+            f"z {lo_xy[1] * f:.4g} to {hi_xy[1] * f:.4g} {u_len}; "
+            + ("z to the right, r up" if tall else "r to the right, z up"))
     plotter.add_text(axes, position="lower_left", font_size=8, color="gray")
     if tall:  # look from -z': z to the right, r up
         plotter.view_yx()

@@ -4,8 +4,10 @@ Units throughout: s, m, kg, N, Pa, J.
 """
 from __future__ import annotations
 
+import gc
 import math
 import os
+import shutil
 import signal
 import sys
 import time
@@ -14,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from . import forms, output, plotting
+from . import output, plotting
+from .cell_fields import STRESS_NAMES, CellStress
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
@@ -23,10 +26,11 @@ from .contact.segments import SegmentConstraints
 from .energy import Ledger, LoadWork, deformable_energy
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
-from .internal_force.cell_fields import NAMES as PLASTIC_FIELDS, PlasticCellFields
+from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
 from .probes import Probes
+from .xdmf import FieldWriter
 from .stability import converged_omega_max, critical_dt, element_omega_bound
 from .timers import PhaseTimers
 
@@ -77,6 +81,11 @@ class Simulation:
         self.model = model
         self.comm: MPI.Comm = model.comm
         self.settings = settings
+        clock = time.perf_counter
+        # set-up time (s) by phase: stability bound, operators (forms, JIT, assembly),
+        # converged dt, contact (pairing, methods), outputs (files, probes, first frame)
+        self.setup_time: dict[str, float] = {}
+        t0 = clock()
         require((settings.dt is None) != (settings.cfl is None), "give either dt or cfl")
         require(settings.output_every > 0 and settings.history_every > 0,
                 "output_every and history_every must be > 0 (steps)")
@@ -95,14 +104,19 @@ class Simulation:
             raise InputError(f"dt = {settings.dt:.4g} s is above the stable limit "
                              f"{self.dt_critical:.4g} s (element bound on 2/omega_max); "
                              "lower dt or force it")
+        t1 = clock()
+        self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
                                      settings.matrix_type, settings.f_int_path)
+        t2 = clock()
+        self.setup_time["operators"] = t2 - t1
         self.dt_converged = None
         if settings.converged_dt:
             # the elastic K of every body (a path-dependent one is stiffest elastically)
             K = self.integrator.K if not self.integrator.nonlinear else assemble_stiffness(model)
             self.dt_converged = critical_dt(converged_omega_max(
                 K, self.integrator.mass, model.to_global(fixed_owned)))
+            self.setup_time["converged_dt"] = clock() - t2
         self.plastic_fields = (PlasticCellFields(model, self.integrator.nonlinear)
                                if self.integrator.nonlinear else None)
         v0 = np.zeros(model.n_owned)
@@ -115,6 +129,10 @@ class Simulation:
                           for name, d in self._body_z.items()}
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
+        self._cell_field_providers: list = []
+        if self.plastic_fields is not None:  # eps_p_eq and yielded with the stresses
+            self.add_cell_fields(self.cell_fields)
+        self._peaks: dict = {}
         self.status = "not started"
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
@@ -143,10 +161,12 @@ class Simulation:
             raise InputError(f"a surface load acts on nodes of the contact surfaces "
                              f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
                              "facet group (the contact bookkeeping assumes no load there)")
+        t0 = time.perf_counter()
         c = (NodeToSegmentSet(constraints, self.integrator, method) if segments
              else ContactSet(constraints, self.integrator, method, rigid))
         c.initialize()
         self.contacts.append(c)
+        self.setup_time["contact"] = self.setup_time.get("contact", 0.0) + time.perf_counter() - t0
         return c
 
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz") -> None:
@@ -166,23 +186,33 @@ class Simulation:
         # (JIT of the output expressions) then stops the run cleanly at step 64
         stop = _StopFlag()
         try:
+            t_setup = time.perf_counter()
             staging = output.prepare_directory(s.out, comm) if s.out else None
             writer = self._field_writer(staging) if (staging and s.fields) else None
-            u_fn = writer.u if writer else None
-            probes = self._make_probes(u_fn) if self._probe_specs else None
+            probes = (Probes(model, self._probe_specs, integ.nonlinear) if self._probe_specs
+                      else None)
             tables = self._tables(staging, probes)
+            if writer is not None:  # the initial state, outside the timed loop
+                self._write_fields(writer)
+            self.setup_time["outputs"] = time.perf_counter() - t_setup
         except BaseException:
             stop.restore()
             raise
         self.history = tables["history"]
         self.energy = tables["energy"]
+        self._v_start = self._mean_velocities()
+        # the set-up made many Python objects (forms, compiled kernels): collect them now
+        # and keep them out of later collections, so no collection of them lands in a step
+        gc.collect()
+        gc.freeze()
         self.probes = probes
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm)
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
+        self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
-        energy_rows, max_bal = [], 0.0
+        last_energy, max_bal = None, 0.0
         track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
@@ -193,11 +223,15 @@ class Simulation:
             for n in range(n_steps):
                 is_output = (n % s.output_every == 0) or (n == n_steps - 1)
                 is_history = (n % s.history_every == 0) or is_output
+                is_fields = writer is not None and ((n + 1) % s.output_every == 0
+                                                    or n + 1 == n_steps)
                 t0 = clock()
                 if is_output:
                     pre = self._pre_output(buf, Ku)
                 load_work.accumulate(integ)
                 integ.predict()
+                if is_output and not integ.nonlinear:
+                    self._internal_force_from_prediction(buf)
                 t1 = clock()
                 for c in self.contacts:
                     c.step()
@@ -205,21 +239,16 @@ class Simulation:
                 integ.advance()
                 t3 = clock()
                 if is_history:
-                    self._history_row(tables, probes, u_fn, buf)
+                    self._history_row(tables, probes)
                 t4 = clock()
                 if is_output:
                     row = self._post_output(pre, buf, ledger, load_work)
                     max_bal = max(max_bal, row["balance_error_rel"])
-                    energy_rows.append(row)
+                    last_energy = row
                     tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                     self._check_stability(row, ledger, n)
-                    if writer is not None:
-                        if self.plastic_fields is not None:
-                            self.plastic_fields.refresh()
-                        writer.set_state(buf["u"], buf["v"])
-                        writer.write((integ.n - 1) * s.dt)
-                    for tbl in tables.values():
-                        tbl.flush()
+                if is_fields:
+                    self._write_fields(writer)
                 t5 = clock()
                 if times is not None:
                     now = times.current
@@ -243,23 +272,30 @@ class Simulation:
             stopped_at = integ.n
             self._failure = str(exc)
         finally:
+            gc.unfreeze()
             progress.done()
             stop.restore()
             wall = clock() - t_run
             for tbl in tables.values():
-                tbl.flush()
+                tbl.close()
             if writer is not None:
                 writer.close()
-        summary = self._summary(times, stopped_at, wall, energy_rows, max_bal, track)
+            comm.barrier()  # every table is on disk: any rank may read it back
+        summary = self._summary(times, stopped_at, wall, last_energy, max_bal, track)
         self.summary = summary
         if extra is not None and self.status == "completed":
             summary.update(extra(self))
         if staging:
+            scene = summary.get("scene_file")
+            if scene and comm.rank == 0 and os.path.isfile(scene):
+                shutil.copy(scene, os.path.join(staging, "scene" + os.path.splitext(scene)[1]))
             if s.plots and comm.rank == 0:
                 plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
                                              [(name, q) for name, _, q in self._probe_specs])
             output.write_json(os.path.join(staging, "summary.json"), summary, comm)
             output.finalize_directory(staging, s.out, comm)
+            for tbl in tables.values():
+                tbl.moved(os.path.abspath(s.out))
         if self.status == "diverged":
             raise UnstableRunError(self._failure)
         return summary
@@ -269,12 +305,29 @@ class Simulation:
         integ = self.integrator
         integ.displacement(buf["u"])
         integ.velocity(buf["v"])
-        if integ.K is not None:
-            integ.K.mult(integ.u_vec, Ku)
-            buf["ku"][:] = Ku.array
-        else:
-            buf["ku"][:] = 0.0
+        if integ.nonlinear:  # K u^n of the linear bodies (the others book psi_e, W_p)
+            if integ.K is not None:
+                integ.K.mult(integ.u_vec, Ku)
+                buf["ku"][:] = Ku.array
+            else:
+                buf["ku"][:] = 0.0
         return {"rigid_v": [c.rigid.v if c.rigid else 0.0 for c in self.contacts]}
+
+    def _internal_force_from_prediction(self, buf) -> None:
+        """K u^n (N) on the free dofs from the step just predicted, without a MatMult:
+        v~ = v^n + dt M^-1 (f^n - K u^n), so K u^n = f^n - M (v~ - v^n) / dt. On fixed dofs
+        it reads 0, where u^n = 0: the strain energy 1/2 u.Ku is exact (to round-off;
+        the difference loses eps |v| m / dt, less than K u's own eps |K| |u| once
+        the motion has lasted a few steps)."""
+        integ = self.integrator
+        ku = buf["ku"]
+        np.subtract(integ.v_owned, buf["v"], out=ku)
+        ku *= self._minus_m_over_dt
+        t = integ.t
+        for ld, dofs, coef in zip(integ.loads, integ._load_dofs, integ._load_coef):
+            value = ld.history(t)
+            if value != 0.0:  # f on the free loaded dofs: m coef / dt per unit of the pulse
+                ku[dofs] -= self._minus_m_over_dt[dofs] * coef * value
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         integ = self.integrator
@@ -338,14 +391,15 @@ class Simulation:
                 f"dt = {self.settings.dt:.4g} s, stable dt <= {self.dt_critical:.4g} s{extra}")
 
     def _track_contact(self, track: dict, n: int) -> None:
-        if not self.contacts:
-            return
-        pen = max(c.max_penetration() for c in self.contacts)
-        track["max_penetration"] = max(track["max_penetration"], pen)
-        if any(c.any_active for c in self.contacts):
-            if track["first_contact"] is None:
-                track["first_contact"] = n
-            track["last_contact"] = n
+        """Largest committed penetration (m) and the first and last steps with contact."""
+        for c in self.contacts:
+            st = c.stats  # (number active, total force, smallest gap)
+            if -st[2] > track["max_penetration"]:
+                track["max_penetration"] = float(-st[2])
+            if st[0] > 0:
+                if track["first_contact"] is None:
+                    track["first_contact"] = n
+                track["last_contact"] = n
 
     # ------------------------------------------------------------ outputs
     def cell_fields(self) -> dict[str, np.ndarray]:
@@ -354,134 +408,188 @@ class Simulation:
         (1 if a point has yielded); empty without path-dependent bodies."""
         return {} if self.plastic_fields is None else self.plastic_fields.arrays()
 
-    def _quantities(self, u, material) -> dict:
-        """Cell quantities of a body made of ``material`` as UFL expressions of u: the stress
-        components, and with path-dependent bodies in the run also eps_p_eq and yielded."""
-        pf = self.plastic_fields
-        if material.linear:
-            comps = forms.stress_components(u, material)
-            if pf is not None:  # the cell fields hold 0 in the cells of linear bodies
-                comps.update({k: pf.expression(k) for k in PLASTIC_FIELDS})
-            return comps
-        comps = forms.stress_components(u, material, pf.eps_p)
-        comps.update({k: pf.expression(k) for k in PLASTIC_FIELDS})
-        return comps
+    def add_cell_fields(self, provider) -> None:
+        """Write more cell fields with the stresses: ``provider()`` returns {name: array over
+        this rank's owned cells} (the same names at every call), e.g. a plastic strain."""
+        self._cell_field_providers.append(provider)
 
-    def _stress_pieces(self, u, name: str):
-        pieces = []
-        for body in self.model.bodies.values():
-            expr = self._quantities(u, body.material)[name]
-            pieces.append((expr, self.model.tmesh.cells(body.name)))
-        return pieces
+    def _field_writer(self, staging: str) -> FieldWriter:
+        self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
+        extra = [name for p in self._cell_field_providers for name in p()]
+        return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
+                           cell_fields=list(STRESS_NAMES) + extra)
 
-    def _field_writer(self, staging: str) -> output.FieldWriter:
-        snapshots = self.n_steps // self.settings.output_every + 1
-        if snapshots > output.MANY_SNAPSHOTS and self.comm.rank == 0:
-            print(f"warning: {snapshots} field snapshots; dolfinx 0.5 rewrites fields.xdmf at "
-                  "each, so their cost grows with the square of their number: raise "
-                  "output_every or set fields off", flush=True)
-        names = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
-        if self.plastic_fields is not None:
-            names += PLASTIC_FIELDS
-        return output.FieldWriter(os.path.join(staging, "fields.xdmf"), self.model.V,
-                                  lambda u: {k: self._stress_pieces(u, k) for k in names})
+    def _write_fields(self, writer: FieldWriter) -> None:
+        """u, v (state of step integ.n), the stresses and the extra cell fields."""
+        integ = self.integrator
+        u = writer.ghosted(integ.u_owned, 0)
+        v = writer.ghosted(integ.v_owned, 1)
+        stresses = self._cell_stress.evaluate(u)
+        cells = dict(zip(STRESS_NAMES, stresses))
+        self._track_peaks(stresses, integ.n * self.settings.dt)
+        for provider in self._cell_field_providers:
+            cells.update(provider())
+        writer.write(integ.n * self.settings.dt, integ.n, u, v, cells)
 
-    def _make_probes(self, u_fn):
-        from dolfinx import fem
-
-        if u_fn is None:
-            u_fn = fem.Function(self.model.V)
-        self._probe_u = u_fn
-        specs = []
-        for name, point, quantity in self._probe_specs:
-            if quantity in ("u_r", "u_z"):
-                expr = u_fn[0 if quantity == "u_r" else 1]
-            else:
-                body = self._body_at(point)
-                comps = self._quantities(u_fn, body.material)
-                if not body.material.linear:
-                    from .probes import locate_cell
-
-                    cell, mine = locate_cell(self.model.mesh, point)
-                    if mine:
-                        self.plastic_fields.watch(cell)
-                require(quantity in comps, f"probe '{name}': unknown quantity '{quantity}' "
-                                           f"(use u_r, u_z or {', '.join(comps)})")
-                expr = comps[quantity]
-            specs.append((name, point, expr))
-        return Probes(u_fn, specs)
-
-    def _body_at(self, point):
-        from .probes import locate_cell
-
-        cell, mine = locate_cell(self.model.mesh, point)
-        name = None
-        if mine:
-            for body in self.model.bodies:
-                if cell in self.model.tmesh.cells(body):
-                    name = body
-        name = self.comm.allreduce([name] if name else [], op=MPI.SUM)[0]
-        return self.model.bodies[name]
+    def _track_peaks(self, stresses: np.ndarray, t: float) -> None:
+        """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when."""
+        k_vm, k_zz = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")
+        local = np.array([stresses[k_vm].max(initial=-np.inf), stresses[k_zz].max(initial=-np.inf),
+                          -stresses[k_zz].min(initial=np.inf)])
+        self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        p = self._peaks
+        if not p:
+            p.update(von_mises=-np.inf, von_mises_time=t, sigma_zz_max=-np.inf,
+                     sigma_zz_max_time=t, sigma_zz_min=np.inf, sigma_zz_min_time=t)
+        for key, value in (("von_mises", local[0]), ("sigma_zz_max", local[1])):
+            if value > p[key]:
+                p[key], p[f"{key}_time"] = float(value), t
+        if -local[2] < p["sigma_zz_min"]:
+            p["sigma_zz_min"], p["sigma_zz_min_time"] = float(-local[2]), t
 
     def _tables(self, staging: str | None, probes) -> dict:
-        """History (kept in memory, and on disk with an output directory), energy and
-        per-pair tables."""
+        """History, energy and per-pair tables (on disk with an output directory, written in
+        blocks; in memory without one).
+
+        A history row is raw: the probes' dofs this rank owns (summed over the ranks once
+        per block), then step, time and the contact columns; the block's finish turns
+        the dofs into the probe values."""
         comm = self.comm
         path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
-        cap = min(self.n_steps // self.settings.history_every + 2, 4096)
         cols = ["step", "time"] + (probes.names if probes else [])
         for k, c in enumerate(self.contacts):
             tag = f"c{k}_" if len(self.contacts) > 1 else ""
-            cols += [f"{tag}n_active", f"{tag}contact_force", f"{tag}min_gap"]
+            # the total contact force (N); on a rigid body it is the force on that body
+            force = f"{c.rigid.name}_force" if c.rigid is not None else "contact_force"
+            cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
             if c.rigid is not None:
-                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v", f"{tag}{c.rigid.name}_force"]
+                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
             cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
-        tables = {"history": output.Table(path("history.csv"), cols, comm, cap, keep=True),
+        n_raw = probes.n_raw if probes else 0
+        n_probes = len(probes.names) if probes else 0
+        block = 256
+
+        out = np.empty((block, len(cols)))
+
+        def finish(raw: np.ndarray) -> np.ndarray:
+            o = out[: raw.shape[0]]
+            o[:, :2] = raw[:, n_raw: n_raw + 2]
+            if probes is not None:
+                probes.values(raw[:, :n_raw], o[:, 2: 2 + n_probes])
+            o[:, 2 + n_probes:] = raw[:, n_raw + 2:]
+            return o
+
+        tables = {"history": output.Table(path("history.csv"), cols, comm, block,
+                                          raw_columns=n_raw + len(cols) - n_probes,
+                                          summed=n_raw, finish=finish),
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
-                                         + self._momentum_columns(), comm, 256, keep=True)}
+                                         + self._momentum_columns(), comm, 16)}
+        self._history_offset = n_raw
+        # per contact: its set, the raw column of its first entry, its rigid body, pair table
+        self._history_layout, k = [], n_raw + 2
+        for i, c in enumerate(self.contacts):
+            self._history_layout.append((c, k, c.rigid, None))
+            k += 6 + (2 if c.rigid is not None else 0)
         for k, c in enumerate(self.contacts):
-            name = "contact_pairs.csv" if len(self.contacts) == 1 else f"contact_pairs_{k}.csv"
+            name = "contact_pairs.h5" if len(self.contacts) == 1 else f"contact_pairs_{k}.h5"
             if staging:
-                tables[f"pairs{k}"] = output.Table(
-                    path(name), ["step", "time", "pair", "r", "gap", "force", "active"],
-                    comm, min(cap, 256) * c.n)
+                tables[f"pairs{k}"] = output.PairHistory(
+                    path(name), c.r, comm, rows=self.n_steps // self.settings.history_every + 2)
+                c_, col, rigid, _ = self._history_layout[k]
+                self._history_layout[k] = (c_, col, rigid, tables[f"pairs{k}"])
         return tables
 
     def _momentum_columns(self) -> list[str]:
         names = list(self._body_z) + [c.rigid.name for c in self.contacts if c.rigid is not None]
         return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
 
-    def _history_row(self, tables, probes, u_fn, buf) -> None:
+    def _history_row(self, tables, probes) -> None:
+        """One history row of the state after the step (step integ.n): no communication,
+        no allocation."""
         integ = self.integrator
-        n = integ.n  # state after the step
+        n = integ.n
         t = n * self.settings.dt
         row = tables["history"].row()
-        row[0], row[1] = n, t
-        k = 2
         if probes is not None:
-            integ.displacement(self._probe_u.x.array[: self.model.n_owned])
-            self._probe_u.x.scatter_forward()
-            if self.plastic_fields is not None:
-                self.plastic_fields.refresh_watched()
-            vals = probes.evaluate()
-            row[k:k + vals.size] = vals
-            k += vals.size
-        for i, c in enumerate(self.contacts):
-            total = float(c.force.sum())
-            row[k:k + 3] = [int(c.active.sum()), total, c.min_gap]
-            k += 3
-            if c.rigid is not None:
-                row[k:k + 3] = [c.rigid.u, c.rigid.v, total]
-                k += 3
-            row[k:k + 3] = [c.times.detection, c.times.solve, c.times.update]
-            k += 3
-            tbl = tables.get(f"pairs{i}")
-            if tbl is not None:
-                block = tbl.rows(c.n)
-                block[:, 0], block[:, 1], block[:, 2], block[:, 3] = n, t, c.pair_index, c.r
-                block[:, 4], block[:, 5], block[:, 6] = c.committed_gap(), c.force, c.active
+            probes.record(integ.u_owned, row)
+        k = self._history_offset
+        row[k] = n
+        row[k + 1] = t
+        for c, k, rigid, pairs in self._history_layout:
+            row[k: k + 3] = c.stats
+            if rigid is not None:
+                row[k + 3] = rigid.u
+                row[k + 4] = rigid.v
+                k += 2
+            times = c.times
+            row[k + 3] = times.detection
+            row[k + 4] = times.solve
+            row[k + 5] = times.update
+            if pairs is not None:
+                pairs.record(n, t, c.committed_gap(), c.force, c.active)
 
-    def _summary(self, times, stopped_at, wall, energy_rows, max_bal, track) -> dict:
+    def _body_figures(self) -> dict:
+        """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
+        and at the end kinetic 1/2 sum m v^2 and strain 1/2 u . K u over its dofs (J)."""
+        integ, comm = self.integrator, self.comm
+        Ku = integ.K.createVecRight()
+        integ.K.mult(integ.u_vec, Ku)
+        ku = Ku.array
+        v_end = self._mean_velocities()
+        out = {}
+        for name in self.model.bodies:
+            dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
+            local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
+                                                  integ.v_owned[dofs])),
+                              0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))])
+            comm.Allreduce(MPI.IN_PLACE, local)
+            out[name] = {"mass": self.body_mass[name],
+                         "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
+                         "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
+        Ku.destroy()
+        return out
+
+    def _mean_velocities(self) -> dict[str, float]:
+        """Mean z velocity (m/s) of every body now: momentum / mass; a rigid body's own."""
+        integ = self.integrator
+        local = np.array([float(np.dot(integ.mass[d], integ.v_owned[d])) for d in self._body_z.values()])
+        self.comm.Allreduce(MPI.IN_PLACE, local)
+        out = {name: float(p / self.body_mass[name]) for name, p in zip(self._body_z, local)}
+        out.update({c.rigid.name: float(c.rigid.v) for c in self.contacts if c.rigid is not None})
+        return out
+
+    def _contact_bodies(self, c) -> tuple[str, str]:
+        """(lower body, upper body or rigid body) of a contact set."""
+        def body_of(global_dofs):
+            counts = np.array([np.isin(global_dofs, self.model.to_global(
+                self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
+            counts = self.comm.allreduce(counts)
+            return list(self.model.bodies)[int(np.argmax(counts))]
+
+        lower = body_of(c.constraints.lower)
+        upper = c.rigid.name if c.rigid is not None else body_of(c.constraints.upper)
+        return lower, upper
+
+    def _impact_figures(self) -> list[dict]:
+        """Per contact set: peak force, impulse, time in contact, separations and, where the
+        two sides part, the rebound velocities and the coefficient of restitution."""
+        from .report import contact_figures, restitution
+
+        h = self.history.data()
+        v_end = self._mean_velocities()
+        out = []
+        for k, c in enumerate(self.contacts):
+            tag = f"c{k}_" if len(self.contacts) > 1 else ""
+            force = f"{tag}{c.rigid.name}_force" if c.rigid is not None else f"{tag}contact_force"
+            lower, upper = self._contact_bodies(c)
+            fig = {"surfaces": "/".join(c.constraints.names), "lower": lower, "upper": upper}
+            fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], self.settings.dt))
+            fig.update(restitution((self._v_start[lower], v_end[lower]),
+                                   (self._v_start[upper], v_end[upper])))
+            out.append(fig)
+        return out
+
+    def _summary(self, times, stopped_at, wall, last_energy, max_bal, track) -> dict:
         model, s = self.model, self.settings
         n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
         summary = {
@@ -496,18 +604,44 @@ class Simulation:
             "t_end": self.n_steps * s.dt,
             "wall_time": wall,
         }
+        summary.update(_provenance())
+        summary["setup_time"] = dict(self.setup_time)
         if self.dt_converged is not None:
             summary["dt_critical_converged"] = self.dt_converged
         if times is not None and times.n_steps > 0:
-            summary["time_per_step_median"] = times.medians(self.comm)
-            summary["time_per_step_total"] = times.total(self.comm)
-            summary["step_time_median"] = times.median_of_sum(comm=self.comm)
-        if energy_rows:
-            last = energy_rows[-1]
+            medians = times.medians(self.comm)
+            totals = times.total(self.comm)
+            summary["time_per_step_median"] = medians
+            summary["time_per_step_total"] = totals
+            summary["step_time_median"] = step = times.median_of_sum(comm=self.comm)
+            # shares from the totals and walls averaged over the ranks: they add up to <= 1
+            mean = np.append(times.totals, wall)
+            self.comm.Allreduce(MPI.IN_PLACE, mean)
+            mean /= self.comm.size
+            share = {k: (float(mean[i] / mean[-1]) if mean[-1] > 0 else 0.0)
+                     for i, k in enumerate(times.phases)}
+            summary["timing"] = {  # the loop's wall time by phase (s), and its share
+                "phases": {k: {"total": totals[k], "median": medians[k], "share": share[k]}
+                           for k in totals},
+                "rest_share": max(0.0, 1.0 - sum(share.values())),
+                "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
+                "definition": "total and median: the slowest rank's (s); share: the phase's "
+                              "total over the loop's wall time, both averaged over the ranks; "
+                              "rest: the loop's own Python, progress and signal checks"}
+        summary["bodies"] = self._body_figures()
+        if self.contacts:
+            summary["impact"] = self._impact_figures()
+        if self._peaks:
+            summary["peak_stress"] = dict(self._peaks)
+        if last_energy is not None:
+            last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
             summary["energy_balance_error_rel"] = max_bal
             if self.integrator.nonlinear:
                 summary["plastic_dissipation"] = last["plastic_work"]
+            summary["energy_balance_definition"] = (
+                "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
+                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n, W_n the work of loads and contact")
         if self.contacts:
             c = self.contacts[0]
             summary["contact"] = {  # the first contact set, or all of them for the figures below
@@ -532,6 +666,18 @@ class Simulation:
                 summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                     ("contact_detection", "contact_solve", "contact_update"), self.comm)
         return summary
+
+
+def _provenance() -> dict:
+    """Version of impact_fenics, the date (UTC) and the command line of this run."""
+    from importlib import metadata
+
+    try:
+        version = metadata.version("impact_fenics")
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    return {"version": version, "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "command_line": " ".join(sys.argv)}
 
 
 _ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",

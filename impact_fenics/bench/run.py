@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import contact, matrix_format, nts, peers, plastic, scaling, step
+from . import contact, matrix_format, nts, peers, plastic, scaling, step, whole_run
 from ..output import json_ready
 from .common import MODES, Context
 from .machine import machine_info
@@ -23,6 +23,7 @@ PART_FUNCTIONS = {
     "scaling": scaling.part_scaling, "stream": scaling.part_stream, "ranks": scaling.part_ranks,
     "format": matrix_format.part_format, "matfree": peers.part_matfree, "akantu": peers.part_akantu,
     "j2": plastic.part_j2,
+    "whole": whole_run.part_whole_run,
 }
 PARTS = tuple(PART_FUNCTIONS)
 SERIAL_ONLY = ("ranks", "matfree", "akantu")  # launchers and serial prototypes

@@ -9,7 +9,11 @@ then
 2. *solve*: hands the set to the method, which corrects positions and
    velocities of the contact dofs (and of the rigid body) only;
 3. *update*: writes the corrected values back to the owned dofs and books
-   the contact work.
+   the contact work (one compiled call, which also counts the active
+   constraints, the total force and the smallest gap for the history).
+
+Detection is one compiled call on one rank (take and gaps fused); the rigid
+body's own prediction and slot mass live in one Python method beside it.
 
 State lives in *slots*: one per contact dof (the lower nodes first, then the
 upper nodes of node pairs) and one more for a rigid upper body. Constraint i
@@ -189,26 +193,49 @@ def _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active):
 
 
 @njit(cache=True)
-def _write_back(u, v, local, pos, dst_u, dst_v):
-    for k in range(local.size):
-        dst_u[local[k]] = u[pos[k]]
-        dst_v[local[k]] = v[pos[k]]
+def _detect_local(src_u, src_v, local, pos, u_pred, v_pred, u, v, b, lo, up, gap, active,
+                  was_active):
+    """Detection on one rank: take the predicted contact dofs, form the gaps (one call)."""
+    _take(src_u, src_v, local, pos, u_pred, v_pred)
+    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
 
 
 @njit(cache=True)
-def _book(dt, first, n_deformable, mass, u, v, u_pred, v_pred, u_now, v_now,
-          f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up):
-    """Contact work increment of step n (see _ContactWork); rolls the state to n+1.
-    Returns the increment (J), whether this step jumped, whether the active set
-    grew, whether any constraint is active and the smallest committed gap (m)."""
+def _detect_gathered(recv, recv_u, recv_v, all_pos, u_pred, v_pred, u, v, b, lo, up, gap,
+                     active, was_active):
+    """Detection after the Allgatherv: unpack in slot order, form the gaps (one call)."""
+    _unpack(recv, recv_u, recv_v, all_pos, u_pred, v_pred)
+    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
+
+
+@njit(cache=True)
+def _committed_gap(b, u_now, lo, up, out):
+    for i in range(b.size):
+        out[i] = b[i] + u_now[up[i]] - u_now[lo[i]]
+
+
+@njit(cache=True)
+def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pred, v_pred,
+            u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
+            force, stats):
+    """Write the corrected state back to the owned dofs, then book the contact work
+    increment of step n (see _ContactWork) and roll the state to n+1 (one call).
+    Returns the increment (J), whether this step jumped and whether the active set
+    grew; ``stats`` receives (number active, total force (N), smallest committed
+    gap (m))."""
+    for k in range(local.size):
+        dst_u[local[k]] = u[pos[k]]
+        dst_v[local[k]] = v[pos[k]]
     inc = 0.0
+    n_active = 0
+    total = 0.0
     jumped_now = False
     grew = False
-    any_active = False
     min_gap = np.inf
     for i in range(active.size):
+        total += force[i]
         if active[i]:
-            any_active = True
+            n_active += 1
             if not was_active[i]:
                 grew = True
         min_gap = min(min_gap, b[i] + u[up[i]] - u[lo[i]])
@@ -229,7 +256,10 @@ def _book(dt, first, n_deformable, mass, u, v, u_pred, v_pred, u_now, v_now,
     for k in range(mass.size):
         u_now[k] = u[k]
         v_now[k] = v[k]
-    return inc, jumped_now, grew, any_active, min_gap
+    stats[0] = n_active
+    stats[1] = total
+    stats[2] = min_gap
+    return inc, jumped_now, grew
 
 
 # ----------------------------------------------------------------------------- the set
@@ -290,17 +320,19 @@ class ContactSet:
         self.mass = np.empty(ns)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
         if rigid:
-            self.mass[nd] = rigid.effective_mass(self.dt)
+            self.mass[nd] = self._rigid_slot_mass()
         self.gap = np.empty(n)
         self.work = np.empty(n, dtype=np.int64)  # scratch indices for the methods' kernels
         self.force = np.zeros(n)
         self.active = np.zeros(n, dtype=np.bool_)
         self.was_active = np.zeros(n, dtype=np.bool_)
-        self.kappa = 0.0 if rigid is None else self.dt ** 2 / rigid.effective_mass(self.dt)
+        self.kappa = 0.0 if rigid is None else self.dt ** 2 / self.mass[nd]
         self.d = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
         self.times = PhaseTimes()
-        self.any_active = False  # after each step: is any constraint active,
-        self.min_gap = np.inf  # and the smallest committed gap (m)
+        # after each step: number of active constraints, total contact force (N) and the
+        # smallest committed gap (m); a history row copies them from here
+        self.stats = np.array([0.0, 0.0, np.inf])
+        self._gap_out = np.empty(n)
         self.jumps = bool(getattr(method, "jumps", False))
         self._ledger = _ContactWork(self)
         method.setup(self)
@@ -322,6 +354,36 @@ class ContactSet:
         self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
         if self.rigid is not None:
             self.u_now[-1], self.v_now[-1] = self.rigid.u, self.rigid.v
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Load (or compile) every compiled call of a step now, at set-up, so that none
+        compiles inside the first timed step: detection and commit by their argument
+        types, the method's solve by one call on open gaps (no force: it changes nothing
+        that the next detection does not overwrite)."""
+        from numba import typeof
+
+        integ = self.integrator
+
+        def load(fn, *args):
+            fn.compile(tuple(typeof(a) for a in args))
+
+        slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
+                 self.active, self.was_active)
+        load(_detect_local, integ.u_owned, integ.v_owned, self._local, self._pos, *slots)
+        load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
+        load(_detect_gathered, self._recv, self._recv_u, self._recv_v, self._all_pos, *slots)
+        w = self._ledger
+        load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt, True,
+             self.n_deformable, self.mass, self.u, self.v, self.u_pred, self.v_pred, self.u_now,
+             self.v_now, w.f_prev, w.ku_prev, w.jump, self.jumps, w.jumped, self.active,
+             self.was_active, self.b, self.lo, self.up, self.force, self.stats)
+        load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
+        self.u[:], self.v[:] = self.u_now, self.v_now
+        self.gap[:] = 1.0  # open: no constraint is active
+        self.method.correct(self)
+        self.force[:] = 0.0
+        self.active[:] = False
 
     # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:
@@ -334,24 +396,48 @@ class ContactSet:
 
     # ------------------------------------------------------------ the step
     def step(self) -> None:
-        """Detect, solve and update for the step n -> n+1 (after the integrator's predict)."""
+        """Detect, solve and update for the step n -> n+1 (after the integrator's predict).
+
+        Three compiled calls on one rank: detection (take the predicted contact dofs
+        and form the gaps), the method's solve, and the commit (write back and book);
+        under MPI detection is a pack, the Allgatherv and an unpack with the gaps."""
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
-        self._gather(integ.u_owned, integ.v_owned, self.u_pred, self.v_pred)
         if self.rigid is not None:
-            self.u_pred[-1], self.v_pred[-1] = self.rigid.predict(integ.t, self.dt)
-        _predicted_gaps(self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up,
-                        self.gap, self.active, self.was_active)
+            self._predict_rigid(integ.t)
+        if self.comm.size == 1:
+            _detect_local(integ.u_owned, integ.v_owned, self._local, self._pos, self.u_pred,
+                          self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
+                          self.active, self.was_active)
+        else:
+            _pack(integ.u_owned, integ.v_owned, self._local, self._send)
+            self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
+            _detect_gathered(self._recv, self._recv_u, self._recv_v, self._all_pos, self.u_pred,
+                             self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
+                             self.active, self.was_active)
         t1 = clock()
         self.method.correct(self)
         t2 = clock()
-        _write_back(self.u, self.v, self._local, self._pos, integ.u_owned, integ.v_owned)
-        if self.rigid is not None:
+        if self.rigid is not None:  # commit the rigid body first: the booking needs its F^n
             self._rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
         self._ledger.book(integ.n)
         t3 = clock()
-        self.times.detection, self.times.solve, self.times.update = t1 - t0, t2 - t1, t3 - t2
+        times = self.times
+        times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
+
+    # ------------------------------------------------------------ the rigid body
+    # The two places that know how a rigid body moves on its own: its slot mass and
+    # its prediction without contact. Everything else treats it as one more slot.
+    def _rigid_slot_mass(self) -> float:
+        """Mass (kg) of the rigid body's slot, fixed at set-up: its mass plus the added
+        mass Z dt/2 of a driving rod (RigidBody.effective_mass)."""
+        return self.rigid.effective_mass(self.dt)
+
+    def _predict_rigid(self, t: float) -> None:
+        """The rigid body's slot: its predicted state (u~, v~) at t + dt without contact,
+        from its external force (and its rod's incident wave) at t (RigidBody.predict)."""
+        self.u_pred[-1], self.v_pred[-1] = self.rigid.predict(t, self.dt)
 
     # ------------------------------------------------------------ outputs
     @property
@@ -374,12 +460,23 @@ class ContactSet:
         return 0.0 if self.rigid is None else 0.5 * self.rigid.mass * v_now * v_next
 
     def committed_gap(self) -> np.ndarray:
-        """Gap (m) of the committed state, in global constraint order."""
-        return self.b + self.u_now[self.up] - self.u_now[self.lo]
+        """Gap (m) of the committed state, in global constraint order (a reused buffer)."""
+        _committed_gap(self.b, self.u_now, self.lo, self.up, self._gap_out)
+        return self._gap_out
+
+    @property
+    def any_active(self) -> bool:
+        """Is any constraint active after the last step?"""
+        return self.stats[0] > 0
+
+    @property
+    def min_gap(self) -> float:
+        """The smallest committed gap (m) after the last step."""
+        return float(self.stats[2])
 
     def max_penetration(self) -> float:
         """Committed penetration max(0, -g) (m) of the last step."""
-        return max(0.0, -self.min_gap)
+        return max(0.0, -float(self.stats[2]))
 
 
 class _ContactWork:
@@ -410,10 +507,12 @@ class _ContactWork:
             self.rigid_external_work += 0.5 * c.dt * c.v_now[-1] * (self._rigid_f_prev + c._rigid_f)
         if c.rigid is not None:
             self._rigid_f_prev = c._rigid_f
-        inc, self.jumped, grew, c.any_active, c.min_gap = _book(
+        integ = c.integrator
+        inc, self.jumped, grew = _commit(
+            c._local, c._pos, integ.u_owned, integ.v_owned,
             c.dt, n_step == 0, c.n_deformable, c.mass, c.u, c.v, c.u_pred, c.v_pred, c.u_now,
             c.v_now, self.f_prev, self.ku_prev, self.jump, c.jumps, self.jumped, c.active,
-            c.was_active, c.b, c.lo, c.up)
+            c.was_active, c.b, c.lo, c.up, c.force, c.stats)
         self.work += inc
         if grew or self.grew_last:
             self.activation_loss -= inc

@@ -1,7 +1,7 @@
 """Study part 3: the longitudinal impact of thick bars (paper Section 3.2).
 
 Per-pair gap and contact force of every method (the paper's Figs 8-10, from
-the runs' contact_pairs.csv), and sigma_zz at r = 0.1 m, z = 0.2 m (DG0 value of
+the runs' contact_pairs.h5), and sigma_zz at r = 0.1 m, z = 0.2 m (DG0 value of
 the cell holding the point) as sigma_zz / (rho c1 v0 / 2) against c1 t / a,
 against a mesh-converged reference: the same scene with FILM on meshes
 refined by halving h (and dt with it) until the history stops changing.
@@ -106,7 +106,7 @@ def paper_runs(cfg: dict, writer, ref: dict) -> dict:
     try:
         for key, label, make in methods():
             rec = run_bar(cfg, make(), b["h"], b["t_end"], out=scratch.sub(key), output_every=25)
-            rec["pairs"] = read_pairs(scratch.sub(key) + "/contact_pairs.csv")
+            rec["pairs"] = read_pairs(scratch.sub(key) + "/contact_pairs.h5")
             rec["label"] = label
             runs[key] = rec
     finally:

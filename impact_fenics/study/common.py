@@ -202,17 +202,10 @@ class Scratch:
 
 
 def read_pairs(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
-    """contact_pairs.csv of a run as arrays (steps x pairs): time, r, gap (m), force (N), active."""
-    data = None
-    if comm.rank == 0:
-        raw = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-        n_pairs = int(raw[:, 2].max()) + 1
-        raw = raw[: (raw.shape[0] // n_pairs) * n_pairs]
-        steps = raw.shape[0] // n_pairs
-        block = raw.reshape(steps, n_pairs, -1)
-        data = {"step": block[:, 0, 0], "time": block[:, 0, 1], "r": block[0, :, 3],
-                "gap": block[:, :, 4], "force": block[:, :, 5], "active": block[:, :, 6]}
-    return comm.bcast(data, root=0)
+    """contact_pairs.h5 of a run as arrays (steps x pairs): time, r, gap (m), force (N), active."""
+    from ..output import read_pairs as read
+
+    return comm.bcast(read(path) if comm.rank == 0 else None, root=0)
 
 
 def log(msg: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:

@@ -1,0 +1,235 @@
+"""Part: the whole run against its steps, and the cost of one field write against how many
+came before.
+
+A run is not its median step: outputs, history rows, energy at outputs and
+anything compiled late add to the loop. For the punch Sim3 (610 constraints,
+DME, fields every 20 steps, history every step) and the bar impact (FILM, fields
+every 25 steps), with the default outputs into a scratch directory, this part
+reports the loop's wall time over (steps x median step) and over (steps x a bare
+MatMult of K), and the set-up by phase (mesh, the Simulation's forms and
+operators, contact set-up, the run's own set-up before the first step).
+
+Run as a script (``python -m impact_fenics.bench.whole_run``) it prints the same
+rows for whatever code is importable, so the figures of an older tree can be taken
+the same way.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+PUNCH_DT, PUNCH_STEPS, PUNCH_EVERY = 3.64e-7, 400, 20
+BAR_DT, BAR_T_END, BAR_EVERY = 1e-6, 5e-4, 25
+
+
+def _matmult_median(integ, comm, repeats: int = 7, inner: int = 50) -> float:
+    """Median seconds of one bare K x (the slowest rank's)."""
+    x = integ.K.createVecRight()
+    y = integ.K.createVecLeft()
+    x.setRandom()
+    samples = []
+    for _ in range(repeats):
+        comm.Barrier()
+        t = time.perf_counter()
+        for _ in range(inner):
+            integ.K.mult(x, y)
+        samples.append(comm.allreduce((time.perf_counter() - t) / inner, op=MPI.MAX))
+    return float(np.median(samples))
+
+
+def _scene(kind: str, out: str, comm):
+    """(simulation, set-up seconds by phase) of a scene with its demo's default outputs."""
+    from .. import meshing, scenes
+    from ..simulation import Settings
+
+    clock = time.perf_counter
+    setup = {}
+    t = clock()
+    if kind == "punch_sim3":
+        tmesh = meshing.punch_block(comm=comm)
+    else:
+        tmesh = meshing.coaxial_bars(radius=0.1, striker_length=0.8, target_length=0.85, h=0.02,
+                                     structured=False, comm=comm)
+    setup["mesh"] = clock() - t
+    t = clock()
+    if kind == "punch_sim3":
+        settings = Settings(dt=PUNCH_DT, n_steps=PUNCH_STEPS, out=out, output_every=PUNCH_EVERY,
+                            quiet=True, plots=False)
+        sim = scenes.punch_indentation(settings, scenes.make_method("dme"),
+                                       radius=scenes.PUNCH_RADII[6], tmesh=tmesh, comm=comm)
+    else:
+        from ..bodies import Body, DeformableModel
+        from ..contact import pair_surfaces
+        from ..materials import STEEL
+        from ..simulation import Simulation
+
+        settings = Settings(dt=BAR_DT, t_end=BAR_T_END, out=out, output_every=BAR_EVERY,
+                            quiet=True, plots=False)
+        model = DeformableModel(tmesh, [Body("striker", STEEL), Body("target", STEEL)])
+        sim = Simulation(model, settings, initial_velocity={"striker": (0.0, 5.0)})
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
+                        scenes.make_method("film"))
+        sim.add_probe("sigma_zz_obs", (0.1, 0.2), "sigma_zz")
+    setup["simulation"] = clock() - t
+    return sim, setup
+
+
+def measure(kind: str, comm: MPI.Comm) -> dict:
+    """One whole run of scene ``kind`` ('punch_sim3' or 'bars'): its ratios and set-up."""
+    scratch = tempfile.mkdtemp(prefix="ifx_whole_") if comm.rank == 0 else None
+    scratch = comm.bcast(scratch, root=0)
+    sim, setup = _scene(kind, os.path.join(scratch, kind), comm)
+    t = time.perf_counter()
+    summary = sim.run()
+    total = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
+    wall = summary["wall_time"]
+    n = summary["stopped_at_step"]
+    median = summary["step_time_median"]
+    matmult = _matmult_median(sim.integrator, comm)
+    setup.update(summary.get("setup_time", {}))
+    setup["run_outside_loop"] = total - wall
+    res = {"scene": kind, "n_ranks": comm.size, "n_steps": n, "n_dofs": summary["n_dofs"],
+           "loop_wall": wall, "step_median": median, "matmult": matmult,
+           "wall_over_steps_median": wall / (n * median),
+           "wall_over_steps_matmult": wall / (n * matmult),
+           "setup": setup,
+           "phase_totals": summary.get("time_per_step_total", {})}
+    if comm.rank == 0:
+        import shutil
+        shutil.rmtree(scratch, ignore_errors=True)
+    return res
+
+
+def write_cost(comm: MPI.Comm, n_writes: int = 200, every: int = 50) -> dict:
+    """Seconds per field write, in blocks of ``every`` writes, on the punch mesh: flat
+    when the cost does not depend on the writes before."""
+    from .. import meshing
+    from ..bodies import Body, DeformableModel
+    from ..materials import STEEL
+
+    from ..cell_fields import STRESS_NAMES
+    from ..xdmf import FieldWriter
+
+    tmesh = meshing.punch_block(comm=comm)
+    model = DeformableModel(tmesh, [Body("block", STEEL)])
+    scratch = tempfile.mkdtemp(prefix="ifx_write_") if comm.rank == 0 else None
+    scratch = comm.bcast(scratch, root=0)
+    writer = FieldWriter(os.path.join(scratch, "fields.xdmf"), model, cell_fields=STRESS_NAMES)
+    rng = np.random.default_rng(comm.rank)
+    u = writer.ghosted(rng.standard_normal(model.n_owned) * 1e-6, 0)
+    v = writer.ghosted(rng.standard_normal(model.n_owned), 1)
+    cells = {k: rng.standard_normal(writer.n_cells) for k in STRESS_NAMES}
+    blocks = []
+    for b in range(n_writes // every):
+        comm.Barrier()
+        t = time.perf_counter()
+        for k in range(every):
+            writer.write((b * every + k) * 1e-6, b * every + k, u, v, cells)
+        blocks.append(comm.allreduce((time.perf_counter() - t) / every, op=MPI.MAX))
+    writer.close()
+    if comm.rank == 0:
+        import shutil
+        shutil.rmtree(scratch, ignore_errors=True)
+    return {"every": every, "seconds_per_write_by_block": blocks,
+            "growth_last_over_first": blocks[-1] / blocks[0]}
+
+
+def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> dict:
+    """Seconds per history row of scene ``kind``: filling it (without and with the per-pair
+    record) and, per row, writing a block of rows to history.csv."""
+    import gc
+
+    from .. import output
+    from ..probes import Probes
+
+    scratch = tempfile.mkdtemp(prefix="ifx_rows_") if comm.rank == 0 else None
+    scratch = comm.bcast(scratch, root=0)
+    sim, _ = _scene(kind, os.path.join(scratch, "run"), comm)
+    staging = output.prepare_directory(os.path.join(scratch, "run"), comm)
+    probes = Probes(sim.model, sim._probe_specs) if sim._probe_specs else None
+    tables = sim._tables(staging, probes)
+    sim.integrator.predict()
+    for c in sim.contacts:
+        c.step()
+    sim.integrator.advance()
+    gc.collect()
+    clock = time.perf_counter
+    table = tables["history"]
+    res = {"columns": len(table.columns), "probes": len(sim._probe_specs)}
+    with_pairs = list(sim._history_layout)
+    for label, layout in (("fill", [(c, k, r, None) for c, k, r, _ in with_pairs]),
+                          ("fill_with_pairs", with_pairs)):
+        sim._history_layout = layout
+        samples = []
+        for _ in range(repeats):
+            table._n = 0
+            t = clock()
+            for _ in range(rows):
+                sim._history_row(tables, probes)
+            samples.append((clock() - t) / rows)
+        res[label] = float(np.median(samples))
+    samples = []
+    for _ in range(repeats // 3):
+        table._n = table._buf.shape[0]
+        t = clock()
+        table.flush()
+        samples.append((clock() - t) / table._buf.shape[0])
+    res["block_write_per_row"] = float(np.median(samples))
+    for tbl in tables.values():
+        tbl.close()
+    if comm.rank == 0:
+        import shutil
+        shutil.rmtree(scratch, ignore_errors=True)
+    return res
+
+
+def part_whole_run(ctx) -> dict:
+    """The whole-run table (both scenes) and the cost per field write."""
+    rows, res = [], {}
+    for kind in ("punch_sim3", "bars"):
+        r = measure(kind, ctx.comm)
+        res[kind] = r
+        rows.append(_row(r))
+    ctx.table(f"Whole run vs its steps ({ctx.comm.size} rank(s); default outputs)", HEADERS, rows)
+    for kind in ("bars", "punch_sim3"):
+        rc = res[f"rows_{kind}"] = row_cost(kind, ctx.comm)
+        ctx.log(f"   history row ({kind}, {rc['columns']} columns, {rc['probes']} probe(s)): fill "
+                f"{1e6 * rc['fill']:.2f} us, with the per-pair record {1e6 * rc['fill_with_pairs']:.2f}"
+                f" us, block write {1e6 * rc['block_write_per_row']:.2f} us per row")
+    res["write_cost"] = write_cost(ctx.comm)
+    wc = res["write_cost"]
+    if "seconds_per_write_by_block" in wc:
+        ctx.log("   field write (punch mesh), ms per write in blocks of "
+                f"{wc['every']}: " + ", ".join(f"{1e3 * s:.2f}" for s in wc["seconds_per_write_by_block"]))
+    return res
+
+
+HEADERS = ["scene", "steps", "loop (s)", "median step (us)", "MatMult (us)",
+           "wall/(n x step)", "wall/(n x MatMult)", "set-up (s): mesh, sim, run"]
+
+
+def _row(r: dict) -> list:
+    s = r["setup"]
+    return [r["scene"], r["n_steps"], f"{r['loop_wall']:.3f}", f"{1e6 * r['step_median']:.1f}",
+            f"{1e6 * r['matmult']:.1f}", f"{r['wall_over_steps_median']:.2f}",
+            f"{r['wall_over_steps_matmult']:.2f}",
+            f"{s['mesh']:.2f}, {s['simulation']:.2f}, {s['run_outside_loop']:.2f}"]
+
+
+if __name__ == "__main__":
+    import json
+    import sys
+
+    comm = MPI.COMM_WORLD
+    results = [measure(k, comm) for k in ("punch_sim3", "bars")]
+    if comm.rank == 0:
+        from .tables import format_table
+
+        print(format_table(f"Whole run ({comm.size} rank(s))", HEADERS, [_row(r) for r in results]))
+        if len(sys.argv) > 1:
+            with open(sys.argv[1], "w") as f:
+                json.dump(results, f, indent=1)

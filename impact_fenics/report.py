@@ -1,0 +1,80 @@
+"""What a run tells its user: the impact figures of the summary and where the time went.
+
+:func:`impact_figures` computes, from the history read back from disk, the
+energy table and the final state, what an impact researcher reads first (all SI):
+per contact the peak force (N) and its time (s), the impulse sum F dt (N s), the
+time in contact and the number of separations, and for two bodies that
+separate their rebound velocities and the coefficient of restitution
+e = (v_upper' - v_lower') / (v_lower - v_upper) (body-mean z velocities before
+the first and after the last output). :func:`console_lines` formats the
+summary for the console.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def contact_figures(time: np.ndarray, force: np.ndarray, n_active: np.ndarray,
+                    dt: float) -> dict:
+    """Peak force (N) and its time (s), impulse (N s: sum of F over the rows times the row
+    spacing, exactly sum F dt with a row every step), time in contact (s), first and last
+    contact times (s) and the number of separations (active -> none active)."""
+    if time.size == 0:
+        return {}
+    spacing = np.diff(np.concatenate([[time[0] - dt], time]))
+    active = n_active > 0
+    k = int(np.argmax(force))
+    out = {"peak_force": float(force[k]), "peak_force_time": float(time[k]),
+           "impulse": float(np.sum(force * spacing)),
+           "time_in_contact": float(np.sum(spacing[active])),
+           "n_separations": int(np.sum(active[:-1] & ~active[1:]) + 0),
+           "first_contact_time": float(time[active][0]) if active.any() else None,
+           "last_contact_time": float(time[active][-1]) if active.any() else None,
+           "separated_at_end": bool(not active[-1])}
+    return out
+
+
+def restitution(v_lower: tuple[float, float], v_upper: tuple[float, float]) -> dict:
+    """Rebound figures of a lower body pushing up into an upper one: mean z velocities
+    (m/s) before (first) and after (second); e = separation / approach speed."""
+    approach = v_lower[0] - v_upper[0]
+    separation = v_upper[1] - v_lower[1]
+    return {"velocity_lower_before": v_lower[0], "velocity_upper_before": v_upper[0],
+            "velocity_lower_after": v_lower[1], "velocity_upper_after": v_upper[1],
+            "restitution": separation / approach if approach > 0 else None}
+
+
+def console_lines(s: dict) -> list[str]:
+    """The summary's impact figures and timing as console lines."""
+    lines = []
+    for name, b in s.get("bodies", {}).items():
+        lines.append(f"body {name}: mass {b['mass']:.6g} kg, v_z {b['velocity_z_final']:.4g} m/s "
+                     f"at the end, kinetic {b['kinetic_energy']:.4g} J, strain "
+                     f"{b['strain_energy']:.4g} J")
+    for c in s.get("impact", []):
+        if "peak_force" not in c:
+            continue
+        line = (f"contact {c['surfaces']}: peak force {c['peak_force']:.4g} N at "
+                f"{c['peak_force_time'] * 1e6:.2f} us, impulse {c['impulse']:.4g} N s, "
+                f"in contact {c['time_in_contact'] * 1e6:.1f} us, "
+                f"{c['n_separations']} separation(s)")
+        if c.get("restitution") is not None and c["separated_at_end"]:
+            line += (f"; rebound {c['velocity_lower_after']:.4g} / {c['velocity_upper_after']:.4g}"
+                     f" m/s, restitution {c['restitution']:.3f}")
+        lines.append(line)
+    peaks = s.get("peak_stress")
+    if peaks:
+        lines.append(f"peak stresses (at field outputs): von Mises {peaks['von_mises'] / 1e6:.4g} MPa "
+                     f"at {peaks['von_mises_time'] * 1e6:.2f} us, sigma_zz in "
+                     f"[{peaks['sigma_zz_min'] / 1e6:.4g}, {peaks['sigma_zz_max'] / 1e6:.4g}] MPa")
+    timing = s.get("timing")
+    if timing:
+        wall = s["wall_time"]
+        parts = ", ".join(f"{k} {v['share']:.0%}" for k, v in timing["phases"].items()
+                          if v["share"] >= 0.005)
+        lines.append(f"time: loop {wall:.3g} s = {timing['loop_over_steps_median']:.2f} x "
+                     f"(steps x median step {s['step_time_median'] * 1e6:.1f} us); {parts}, "
+                     f"rest {timing['rest_share']:.0%}")
+        setup = ", ".join(f"{k} {v:.2f} s" for k, v in s.get("setup_time", {}).items())
+        lines.append(f"set-up: {setup}")
+    return lines

@@ -1,0 +1,252 @@
+"""Fields for ParaView: an XDMF time series with every field on one grid per output time.
+
+Layout (what ``fields.xdmf`` describes):
+
+* the mesh in pieces, one per MPI rank: piece p holds the cells rank p owns
+  (each cell of the mesh in exactly one piece) and the nodes of those cells
+  (a node on a partition boundary appears in both pieces, with the same
+  values). Each rank writes its own HDF5 file (``fields.h5`` on one rank,
+  ``fields_p<rank>.h5`` on more), so nothing is gathered to one rank and the
+  writes run in parallel without an MPI-enabled HDF5;
+* ``/mesh/geometry`` (r, z in m), ``/mesh/topology`` (piece-local node
+  indices) and the static cell fields (``body_id``) are written once and
+  referenced at every time;
+* at each output time one temporal step: a spatial collection of the pieces,
+  each with ``displacement`` (m) and ``velocity`` (m/s) as point vectors
+  padded to three components (ParaView's Warp By Vector takes them as they
+  are) and every cell field (Pa for stresses) as cell scalars, in the
+  datasets ``/step_<n>/<name>`` of the piece's file (created with HDF5's
+  low-level calls: a frame costs its data, not Python bookkeeping). Plain
+  datasets, no HyperSlabs: both of ParaView's XDMF readers (the default
+  Xdmf3 reader and the older XDMF reader) read them.
+
+ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
+every block with every array at every time; colour by sigma_zz, Warp By Vector.
+
+The XML is appended, never rewritten: rank 0 keeps the file open, writes each
+new step where the closing tags were and puts them back after it, so a write
+costs the same however many came before. After every write the files are
+flushed and the XML is complete, so a run stopped at any point leaves a
+readable series.
+"""
+from __future__ import annotations
+
+import os
+from typing import Mapping, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+_TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+
+
+def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precision: int = 8) -> str:
+    d = " ".join(str(int(k)) for k in dims)
+    return (f'<DataItem Dimensions="{d}" NumberType="{number}" Precision="{precision}" '
+            f'Format="HDF">{h5}:{path}</DataItem>')
+
+
+def _dataset(group, name: str, values: np.ndarray) -> None:
+    """A float64 dataset ``name`` in ``group`` holding the C-contiguous ``values``."""
+    import h5py
+
+    space = h5py.h5s.create_simple(values.shape)
+    ds = h5py.h5d.create(group, name.encode(), h5py.h5t.NATIVE_DOUBLE, space)
+    ds.write(h5py.h5s.ALL, h5py.h5s.ALL, values)
+
+
+class FieldWriter:
+    """XDMF + HDF5 fields of a :class:`~impact_fenics.bodies.DeformableModel`.
+
+    ``cell_fields``: names of the cell fields handed to every :meth:`write` (besides
+    the five stresses, e.g. a plastic strain); ``static_cell_fields``: cell fields
+    written once (``body_id`` is always one: the index of the cell's body in the
+    model's order). Cell arrays are over this rank's owned cells, in local order."""
+
+    def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
+                 static_cell_fields: Mapping[str, np.ndarray] | None = None):
+        import h5py
+
+        self.comm: MPI.Comm = model.comm
+        comm = self.comm
+        self.path = path
+        self.cell_fields = list(cell_fields)
+        mesh = model.mesh
+        n_cells = mesh.topology.index_map(2).size_local
+        cell_nodes = model.V.dofmap.list.array.reshape(-1, 3)[:n_cells]
+        # the piece: owned cells and their nodes, nodes in order of their local index
+        self._nodes = np.unique(cell_nodes.ravel()).astype(np.int64)
+        renumber = np.full(model.node_xy.shape[0], -1, dtype=np.int64)
+        renumber[self._nodes] = np.arange(self._nodes.size)
+        topology = renumber[cell_nodes]
+        self.n_cells, self.n_nodes = n_cells, self._nodes.size
+        self._scatter = None
+        if comm.size > 1:
+            from dolfinx import fem
+
+            self._scatter = (fem.Function(model.V), fem.Function(model.V))
+        body_id = np.zeros(n_cells, dtype=np.int32)
+        for k, name in enumerate(model.bodies):
+            cells = model.tmesh.cells(name)
+            body_id[cells[cells < n_cells]] = k
+        static = {"body_id": body_id, **dict(static_cell_fields or {})}
+        name = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
+        self._h5_name = os.path.basename(os.path.splitext(path)[0]) + name[len("fields"):]
+        h5_path = os.path.join(os.path.dirname(os.path.abspath(path)), self._h5_name)
+        self._h5 = h5py.File(h5_path, "w")
+        self._h5.create_dataset("/mesh/geometry", data=model.node_xy[self._nodes])
+        self._h5.create_dataset("/mesh/topology", data=topology)
+        for key, values in static.items():
+            self._h5.create_dataset(f"/mesh/{key}", data=np.asarray(values)[:n_cells])
+        self._vec = np.zeros((2, self.n_nodes, 3))
+        self._h5.flush()
+        self._static = {k: np.asarray(v).dtype for k, v in static.items()}
+        # every rank's piece sizes and file, for the XML on rank 0
+        self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
+        self._xml = None
+        self._tail_at = 0
+        self.n_writes = 0
+        if comm.rank == 0:
+            self._xml = open(path, "w")
+            names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))
+            head = ('<?xml version="1.0"?>\n<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+                    '  <Domain>\n'
+                    f'    <Information Name="body_id" Value="{names}"/>\n'
+                    '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n')
+            self._xml.write(head)
+            self._tail_at = self._xml.tell()
+            self._xml.write(_TAIL)
+            self._xml.flush()
+
+    # ------------------------------------------------------------ writing
+    def ghosted(self, owned: np.ndarray, k: int = 0) -> np.ndarray:
+        """Unrolled values of every local node (ghosts updated by a scatter) from the owned
+        ones, in buffer ``k`` (0 or 1: two fields at once); the owned array itself on one rank."""
+        if self._scatter is None:
+            return owned
+        fn = self._scatter[k]
+        fn.x.array[: owned.size] = owned
+        fn.x.scatter_forward()
+        return fn.x.array
+
+    def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
+              cell_values: Mapping[str, np.ndarray]) -> None:
+        """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
+        local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
+        of ``cell_fields``."""
+        import h5py
+
+        missing = [k for k in self.cell_fields if k not in cell_values]
+        if missing:
+            raise ValueError(f"cell fields {missing} missing: every write holds every field")
+        vec = self._vec
+        vec[0, :, 0] = u[2 * self._nodes]
+        vec[0, :, 1] = u[2 * self._nodes + 1]
+        vec[1, :, 0] = v[2 * self._nodes]
+        vec[1, :, 1] = v[2 * self._nodes + 1]
+        group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
+        for name, values in (("displacement", vec[0]), ("velocity", vec[1])):
+            _dataset(group, name, values)
+        for key in self.cell_fields:
+            _dataset(group, key, np.ascontiguousarray(cell_values[key][: self.n_cells], dtype=np.float64))
+        self._h5.flush()
+        self.comm.barrier()  # every piece is on disk before the XML points at it
+        if self._xml is not None:
+            self._xml.seek(self._tail_at)
+            self._xml.write(self._step_xml(t, step))
+            self._tail_at = self._xml.tell()
+            self._xml.write(_TAIL)
+            self._xml.flush()
+        self.n_writes += 1
+
+    def _step_xml(self, t: float, step: int) -> str:
+        group = f"/step_{step}"
+        lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
+                 f'        <Time Value="{t!r}"/>']
+        for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
+            lines += [
+                f'        <Grid Name="piece_{p}" GridType="Uniform">',
+                f'          <Topology TopologyType="Triangle" NumberOfElements="{n_cells}" '
+                f'NodesPerElement="3">{_item((n_cells, 3), h5, "/mesh/topology", "Int")}</Topology>',
+                f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
+                '</Geometry>']
+            for key in ("displacement", "velocity"):
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" Center="Node">'
+                             f'{_item((n_nodes, 3), h5, f"{group}/{key}")}</Attribute>')
+            for key in self.cell_fields:
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
+                             f'{_item((n_cells,), h5, f"{group}/{key}")}</Attribute>')
+            for key, dtype in self._static.items():
+                kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
+                             f'{_item((n_cells,), h5, f"/mesh/{key}", kind, dtype.itemsize)}</Attribute>')
+            lines.append("        </Grid>")
+        lines.append("      </Grid>\n")
+        return "\n".join(lines)
+
+    def close(self) -> None:
+        if self._h5 is not None:
+            self._h5.close()
+            self._h5 = None
+        if self._xml is not None:
+            self._xml.close()
+            self._xml = None
+
+
+# ----------------------------------------------------------------------------- reading back
+
+def data_item(item, xdmf_dir: str) -> np.ndarray:
+    """The array of an XDMF DataItem: HDF ('file.h5:/path'), XML text, or a HyperSlab of one."""
+    import h5py
+
+    if item.get("ItemType") == "HyperSlab":
+        sel, source = item.findall("DataItem")
+        start, stride, count = np.array(sel.text.split(), dtype=np.int64).reshape(3, -1)
+        filename, _, dataset = source.text.strip().partition(":")
+        index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
+        with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
+            data = f[dataset][index]
+    elif item.get("Format") == "HDF":
+        filename, _, dataset = item.text.strip().partition(":")
+        with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
+            data = f[dataset][...]
+    else:
+        data = np.array(item.text.split(), dtype=float)
+    dims = [int(d) for d in item.get("Dimensions").split()]
+    return np.asarray(data).reshape(dims)
+
+
+class FieldSeries:
+    """A fields.xdmf read back: the pieces joined into one mesh (points (n, 2) in m, cells
+    (m, 3)), the output times (s), each field's centring ("Node" or "Cell") and, by
+    :meth:`values`, its values at an output (nodal fields (n, 3), cell fields (m,))."""
+
+    def __init__(self, path: str):
+        import xml.etree.ElementTree as ET
+
+        self.path = path
+        self.dir = os.path.dirname(os.path.abspath(path))
+        root = ET.parse(path).getroot()
+        series = root.find("Domain/Grid")
+        if series is None or series.get("CollectionType") != "Temporal":
+            raise ValueError("no temporal collection of grids")
+        self.steps = series.findall("Grid")
+        if not self.steps:
+            raise ValueError("no output time")
+        self.times = np.array([float(s.find("Time").get("Value")) for s in self.steps])
+        pieces = self.steps[0].findall("Grid")
+        points, cells, offset = [], [], 0
+        for piece in pieces:
+            xy = data_item(piece.find("Geometry/DataItem"), self.dir)
+            points.append(xy[:, :2])
+            cells.append(data_item(piece.find("Topology/DataItem"), self.dir).astype(np.int64) + offset)
+            offset += xy.shape[0]
+        self.points = np.concatenate(points)
+        self.cells = np.concatenate(cells)
+        self.center = {a.get("Name"): a.get("Center") for a in pieces[0].findall("Attribute")}
+
+    def values(self, name: str, k: int) -> np.ndarray:
+        """Field ``name`` at output k, the pieces joined in order."""
+        parts = [data_item(piece.find(f"Attribute[@Name='{name}']/DataItem"), self.dir)
+                 for piece in self.steps[k].findall("Grid")]
+        return np.concatenate(parts)

@@ -1,0 +1,256 @@
+"""What a run writes, checked against oracles outside the writer (issue 13).
+
+* fields.xdmf is read here with ElementTree and h5py, not with the writer's
+  reader: one temporal collection, one grid per output time from t = 0 to the
+  end time, every piece holding every array; the pieces hold the mesh's cells
+  once: their ring volumes sum(2 pi r_c A) add up to the bodies' exact volume
+  pi a^2 (L_s + L_t) (2 pi r_c A is exact for a triangle, so the only error is
+  round-off), whatever the number of ranks.
+* The cell values read back equal the probes of history.csv at the same step
+  to 1e-10 (both are the DG0 value of the cell, computed on two paths: the
+  writer's cell loop and the probe's six dofs).
+* The compiled cell stresses equal a UFL Expression of forms.stress_components
+  at the DG0 point to round-off, for a displacement field with every strain
+  component (the UFL/FFCx path is the independent oracle).
+* With ParaView installed (pvbatch), its default reader opens the file: every
+  block holds every array at every time, the blocks hold the cells once, the
+  colour range of sigma_zz is the data's range and Warp By Vector applies.
+  Without pvbatch that part is skipped; the structure is checked above anyway.
+"""
+import json
+import math
+import os
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+
+import h5py
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from conftest import clean_mpi_env
+from impact_fenics import scenes
+from impact_fenics.cell_fields import STRESS_NAMES, CellStress
+from impact_fenics.contact import FILM
+from impact_fenics.simulation import Settings
+
+RHO, E = 7850.0, 200e9
+C0 = math.sqrt(E / RHO)
+V0, L, A = 5.0, 0.2, 0.05
+EVERY = 10
+PROBES = [("s_zz", (0.0123, 0.0517), "sigma_zz"), ("s_rr", (0.0311, -0.0713), "sigma_rr"),
+          ("s_tt", (0.0417, 0.1234), "sigma_tt"), ("s_rz", (0.0234, -0.0156), "sigma_rz"),
+          ("vm", (0.0077, 0.0381), "von_mises"), ("uz", (0.0123, 0.0517), "u_z"),
+          ("ur", (0.0456, -0.0321), "u_r")]
+CELL_FIELDS = set(STRESS_NAMES) | {"body_id"}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    base = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("outputs")), root=0)
+    out = os.path.join(base, "bars")
+    sim = scenes.bar_impact(Settings(cfl=0.9, t_end=1.2 * L / C0, output_every=EVERY, out=out,
+                                     quiet=True, plots=False),
+                            FILM(), h=0.01, nu=0.0, v0=V0, radius=A, striker_length=L,
+                            target_length=L, structured=True, observe=None)
+    for name, point, quantity in PROBES:
+        sim.add_probe(name, point, quantity)
+    summary = sim.run()
+    return out, sim, summary
+
+
+def _item(item, base):
+    """An XDMF DataItem (HDF or a HyperSlab of one) as an array, read with h5py."""
+    if item.get("ItemType") == "HyperSlab":
+        sel, src = item.findall("DataItem")
+        start, stride, count = np.array(sel.text.split(), dtype=int).reshape(3, -1)
+        name, _, ds = src.text.strip().partition(":")
+        with h5py.File(os.path.join(base, name), "r") as f:
+            data = f[ds][tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))]
+    else:
+        name, _, ds = item.text.strip().partition(":")
+        with h5py.File(os.path.join(base, name), "r") as f:
+            data = f[ds][...]
+    return data.reshape([int(d) for d in item.get("Dimensions").split()])
+
+
+def _frames(out):
+    """[(time, [piece: {points, cells, arrays: {name: (center, values)}}])] of fields.xdmf."""
+    root = ET.parse(os.path.join(out, "fields.xdmf")).getroot()
+    series = root.findall("Domain/Grid")
+    assert len(series) == 1 and series[0].get("CollectionType") == "Temporal"
+    frames = []
+    for step in series[0].findall("Grid"):
+        assert step.get("CollectionType") == "Spatial"
+        pieces = []
+        for piece in step.findall("Grid"):
+            arrays = {a.get("Name"): (a.get("Center"), _item(a.find("DataItem"), out))
+                      for a in piece.findall("Attribute")}
+            pieces.append({"points": _item(piece.find("Geometry/DataItem"), out),
+                           "cells": _item(piece.find("Topology/DataItem"), out).astype(int),
+                           "arrays": arrays})
+        frames.append((float(step.find("Time").get("Value")), pieces))
+    return frames
+
+
+def test_one_grid_per_time_with_every_field(run):
+    out, sim, summary = run
+    frames = _frames(out)
+    times = np.array([t for t, _ in frames])
+    n = summary["n_steps"]
+    expected = [k * sim.settings.dt for k in range(0, n, EVERY)] + [n * sim.settings.dt]
+    assert np.allclose(times, sorted(set(expected)), rtol=1e-12, atol=0)  # last = end time
+    for _, pieces in frames:
+        assert len(pieces) == MPI.COMM_WORLD.size
+        for p in pieces:
+            names = set(p["arrays"])
+            assert names == {"displacement", "velocity"} | CELL_FIELDS
+            for key in ("displacement", "velocity"):
+                center, values = p["arrays"][key]
+                assert center == "Node" and values.shape == (p["points"].shape[0], 3)
+                assert np.all(values[:, 2] == 0.0)  # padded for Warp By Vector
+            for key in CELL_FIELDS:
+                center, values = p["arrays"][key]
+                assert center == "Cell" and values.shape == (p["cells"].shape[0],)
+
+
+def test_pieces_hold_the_cells_once(run):
+    out, sim, summary = run
+    _, pieces = _frames(out)[-1]
+    volume, n_cells = 0.0, 0
+    for p in pieces:
+        tri = p["points"][p["cells"]]  # (cells, 3, 2)
+        area = 0.5 * np.abs(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+        volume += float(np.sum(2 * np.pi * tri[:, :, 0].mean(axis=1) * area))
+        n_cells += p["cells"].shape[0]
+        # body_id: the striker (0) below z = 0, the target (1) above
+        z_c = tri[:, :, 1].mean(axis=1)
+        _, body = p["arrays"]["body_id"]
+        assert np.all(body[z_c < 0] == 0) and np.all(body[z_c > 0] == 1)
+    assert n_cells == summary["n_cells"]
+    assert abs(volume - np.pi * A ** 2 * 2 * L) <= 1e-12 * np.pi * A ** 2 * 2 * L
+
+
+def _containing_cell(pieces, point):
+    """(piece, cell) whose triangle contains ``point`` strictly (probe points avoid edges)."""
+    for p in pieces:
+        tri = p["points"][p["cells"]]
+        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+        l1 = ((b[:, 0] - point[0]) * (c[:, 1] - point[1]) - (c[:, 0] - point[0]) * (b[:, 1] - point[1])) / det
+        l2 = ((c[:, 0] - point[0]) * (a[:, 1] - point[1]) - (a[:, 0] - point[0]) * (c[:, 1] - point[1])) / det
+        inside = np.flatnonzero((l1 > 1e-9) & (l2 > 1e-9) & (1 - l1 - l2 > 1e-9))
+        if inside.size:
+            return p, int(inside[0])
+    raise AssertionError(f"no cell holds {point}")
+
+
+def test_cell_values_match_the_probes(run):
+    out, sim, summary = run
+    history = sim.history.data()
+    frames = _frames(out)
+    checked = 0
+    for name, point, quantity in PROBES:
+        scale = np.abs(history[name]).max()
+        assert scale > 0
+        for t, pieces in frames[1:]:  # history rows start after the first step
+            row = np.flatnonzero(np.isclose(history["time"], t, rtol=1e-12, atol=0))
+            assert row.size == 1
+            p, cell = _containing_cell(pieces, point)
+            if quantity in ("u_r", "u_z"):
+                nodal = p["arrays"]["displacement"][1][p["cells"][cell], "u_r u_z".split().index(quantity)]
+                value = nodal.mean()
+            else:
+                value = p["arrays"][quantity][1][cell]
+            assert abs(value - history[name][row[0]]) <= 1e-10 * scale, (name, t)
+            checked += 1
+    assert checked == len(PROBES) * (len(frames) - 1)
+
+
+def test_history_rows_one_per_step(run):
+    out, sim, summary = run
+    h = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
+    with open(os.path.join(out, "history.csv")) as f:
+        header = f.readline().strip().split(",")
+    assert len(header) == len(set(header))  # no duplicated columns
+    assert np.array_equal(h["step"], np.arange(1, summary["n_steps"] + 1))
+    assert np.allclose(h["time"], h["step"] * sim.settings.dt, rtol=1e-15, atol=0)
+    from impact_fenics.output import read_pairs
+
+    pairs = read_pairs(os.path.join(out, "contact_pairs.h5"))
+    assert np.array_equal(pairs["step"], h["step"])
+    assert np.allclose(pairs["force"].sum(axis=1), h["contact_force"], rtol=1e-12,
+                       atol=1e-12 * np.abs(h["contact_force"]).max())
+
+
+def test_cell_stress_equals_the_ufl_expression():
+    """A displacement with every strain component (u_r = a r + b z^2, u_z = c z + d r z +
+    e r^2): the compiled cell stresses against the UFL Expression at the DG0 point."""
+    from dolfinx import fem
+
+    from impact_fenics.forms import stress_components
+
+    sim = scenes.bar_impact(Settings(dt=1e-7, n_steps=1, quiet=True), FILM(), h=0.01, nu=0.3,
+                            radius=A, striker_length=L, target_length=L, structured=True,
+                            observe=None)
+    model = sim.model
+    u = fem.Function(model.V)
+    u.interpolate(lambda x: np.vstack([1e-3 * x[0] + 2e-3 * x[1] ** 2,
+                                       -1e-3 * x[1] + 3e-3 * x[0] * x[1] + 4e-3 * x[0] ** 2]))
+    u.x.scatter_forward()
+    values = CellStress(model).evaluate(u.x.array)
+    n_cells = model.mesh.topology.index_map(2).size_local
+    points = np.array([[1.0 / 3.0, 1.0 / 3.0]])
+    cells = np.arange(n_cells, dtype=np.int32)
+    for body in model.bodies.values():
+        comps = stress_components(u, body.material)
+        mine = np.intersect1d(model.tmesh.cells(body.name), cells).astype(np.int32)
+        for k, name in enumerate(STRESS_NAMES):
+            ref = fem.Expression(comps[name], points).eval(mine)[:, 0]
+            scale = MPI.COMM_WORLD.allreduce(float(np.abs(ref).max(initial=0.0)), op=MPI.MAX)
+            assert np.abs(values[k, mine] - ref).max(initial=0.0) <= 1e-12 * scale, name
+
+
+def _pvbatch(xdmf: str):
+    """pvbatch's JSON of tests/pvbatch_fields.py, or None without ParaView."""
+    if not shutil.which("pvbatch"):
+        return None
+    script = os.path.join(os.path.dirname(__file__), "pvbatch_fields.py")
+    cmd = ["pvbatch", script, xdmf]
+    if shutil.which("xvfb-run"):
+        cmd = ["xvfb-run", "-a"] + cmd
+    else:
+        cmd.insert(1, "--force-offscreen-rendering")
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=clean_mpi_env())
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_paraview_default_reader_sees_every_array(run):
+    out, sim, summary = run
+    result = None
+    if MPI.COMM_WORLD.rank == 0:
+        result = _pvbatch(os.path.join(out, "fields.xdmf"))
+    result = MPI.COMM_WORLD.bcast(result, root=0)
+    if result is None:
+        pytest.skip("pvbatch (ParaView) is not installed: the structure is checked from the files")
+    frames = _frames(out)
+    assert np.allclose(result["times"], [t for t, _ in frames], rtol=1e-12, atol=0)
+    for step, (_, pieces) in zip(result["steps"], frames):
+        assert sum(b["cells"] for b in step["blocks"]) == summary["n_cells"]
+        for block in step["blocks"]:
+            arrays = block["arrays"]
+            assert set(arrays) == {"displacement", "velocity"} | CELL_FIELDS
+            assert arrays["displacement"]["components"] == 3
+            assert all(arrays[k]["where"] == "cell" for k in CELL_FIELDS)
+        # the values ParaView read are the file's (its ranges against h5py's)
+        zz = np.concatenate([p["arrays"]["sigma_zz"][1] for p in pieces])
+        lo = min(b["arrays"]["sigma_zz"]["range"][0] for b in step["blocks"])
+        hi = max(b["arrays"]["sigma_zz"]["range"][1] for b in step["blocks"])
+        assert (lo, hi) == (zz.min(), zz.max())
+    zz_last = np.concatenate([p["arrays"]["sigma_zz"][1] for p in frames[-1][1]])
+    # the colour map spans the data (ParaView stores its ends to about 1e-15)
+    assert np.allclose(result["sigma_zz_colour_range"], [zz_last.min(), zz_last.max()],
+                       rtol=1e-12, atol=0)
+    assert result["warped_points"] == sum(p["points"].shape[0] for p in frames[-1][1])

@@ -1,0 +1,73 @@
+"""The summary an impact researcher reads first, against the 1D impact of two equal nu = 0
+bars (DESIGN 6): contact stress rho c0 v0 / 2 for 2 L / c0, then the velocities
+exchanged (the striker stops: it rebounds at ~0 m/s; the target leaves at v0;
+the coefficient of restitution of the pair is 1).
+
+Tolerances: body masses are exact (the lumped mass integrates rho 2 pi r
+exactly); the impulse is the striker's momentum change to round-off (the
+contact force is the only force on it, and a history row every step makes
+sum F dt exact); the 1D figures carry the element-scale errors of
+test_contact_bars (velocities within 2 % of v0, the time in contact within
+3 h / c0), and the peak force the overshoot of the wave front on the CST mesh
+(within 10 % of the 1D plateau, which the middle of the contact meets to 1 %).
+"""
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import scenes
+from impact_fenics.contact import FILM
+from impact_fenics.simulation import Settings
+
+RHO, E = 7850.0, 200e9
+C0 = math.sqrt(E / RHO)
+V0, L, A, H = 5.0, 0.2, 0.05, 0.01
+
+
+@pytest.fixture(scope="module")
+def bars(tmp_path_factory):
+    base = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("summary")), root=0)
+    out = os.path.join(base, "bars")
+    sim = scenes.bar_impact(Settings(cfl=0.9, t_end=3 * L / C0, output_every=25, out=out,
+                                     quiet=True, plots=False),
+                            FILM(), h=H, nu=0.0, v0=V0, radius=A, striker_length=L,
+                            target_length=L, structured=True, observe=None)
+    sim.run()
+    with open(os.path.join(out, "summary.json")) as f:
+        return json.load(f), sim
+
+
+def test_masses_and_provenance(bars):
+    s, sim = bars
+    mass = RHO * math.pi * A ** 2 * L
+    for name in ("striker", "target"):
+        assert abs(s["bodies"][name]["mass"] - mass) <= 1e-12 * mass
+    assert s["version"] and s["date"] and "command_line" in s
+    assert s["stopped_at_step"] == s["n_steps"]
+    assert set(s["setup_time"]) >= {"stability", "operators", "contact", "outputs"}
+    shares = [p["share"] for p in s["timing"]["phases"].values()]
+    assert all(0 <= x <= 1 for x in shares) and sum(shares) + s["timing"]["rest_share"] <= 1 + 1e-9
+
+
+def test_impact_figures_of_the_1d_solution(bars):
+    s, sim = bars
+    (c,) = s["impact"]
+    assert (c["lower"], c["upper"]) == ("striker", "target")
+    mass = s["bodies"]["striker"]["mass"]
+    plateau = RHO * C0 * V0 / 2 * math.pi * A ** 2
+    assert abs(c["peak_force"] - plateau) <= 0.10 * plateau
+    # impulse = the striker's momentum change, exactly; and m v0 in 1D
+    dp = mass * (s["bodies"]["striker"]["velocity_z_initial"] - s["bodies"]["striker"]["velocity_z_final"])
+    assert abs(c["impulse"] - dp) <= 1e-9 * mass * V0
+    assert abs(c["impulse"] - mass * V0) <= 0.02 * mass * V0
+    assert c["separated_at_end"] and c["n_separations"] == 1
+    assert abs(c["time_in_contact"] - 2 * L / C0) <= 3 * H / C0
+    # velocities exchanged: the striker stops (rebounds at ~0), the target leaves at v0
+    assert abs(c["velocity_lower_before"] - V0) <= 1e-12 * V0
+    assert abs(c["velocity_lower_after"]) <= 0.02 * V0
+    assert abs(c["velocity_upper_after"] - V0) <= 0.02 * V0
+    assert abs(c["restitution"] - 1.0) <= 0.04

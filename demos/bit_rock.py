@@ -98,7 +98,7 @@ def blow_checks(sim) -> dict:
     kinetic_bit = 0.5 * bit.mass * v[-2] * v[-1]  # the ledger's 1/2 m v^n v^{n+1}
     rock = last["kinetic"][-1] - kinetic_bit + last["strain"][-1]
     rock += sum(float(last[k][-1]) for k in PLASTIC_KEYS if k in last)
-    penetration, force = -h["bit_u"], h["contact_force"]
+    penetration, force = -h["bit_u"], h["bit_force"]
     # the contact force of step n times the step's mean downward velocity (the ledger's form)
     w = -np.concatenate([[0.0], v])  # the bit starts at rest
     work_curve = float(np.sum(force * sim.settings.dt * 0.5 * (w[:-1] + w[1:])))
@@ -149,7 +149,7 @@ def plot(sim, path: str, k_static: float) -> None:
     f_r = f_i + bit.impedance * 0.5 * (v[:-1] + v[1:])  # F_i - Z w, w = -v averaged
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     pen = -h["bit_u"] * 1e3
-    ax1.plot(pen, h["contact_force"] / 1e3, label="contact force on the bit")
+    ax1.plot(pen, h["bit_force"] / 1e3, label="contact force on the bit")
     if math.isfinite(k_static):
         d = np.linspace(0.0, pen.max(), 2)
         ax1.plot(d, k_static * d * 1e-3 / 1e3, "--", label=f"static K_h = {k_static:.3g} N/m")
@@ -159,7 +159,7 @@ def plot(sim, path: str, k_static: float) -> None:
     ax1.set_title("force-penetration")
     ax2.plot(t[:-1] * 1e6, f_i / 1e3, label="incident F_i")
     ax2.plot(t[:-1] * 1e6, f_r / 1e3, label="reflected F_r")
-    ax2.plot(h["time"] * 1e6, h["contact_force"] / 1e3, label="contact")
+    ax2.plot(h["time"] * 1e6, h["bit_force"] / 1e3, label="contact")
     ax2.set_xlabel("time (us)")
     ax2.set_ylabel("force (kN, compressive > 0)")
     ax2.legend()

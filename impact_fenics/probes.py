@@ -154,9 +154,9 @@ class Probes:
                     raise InputError(f"probe '{name}': {quantity} of body '{bodies[which[k]].name}' "
                                      "needs a material with a constant (elastic) stiffness")
                 self.D[k] = D
-            if quantity in PLASTIC_QUANTITIES and material.linear:
-                raise InputError(f"probe '{name}': {quantity} needs a path-dependent body; "
-                                 f"body '{bodies[which[k]].name}' is linear")
+            if quantity in PLASTIC_QUANTITIES and not plastic_forces:
+                raise InputError(f"probe '{name}': {quantity} needs a path-dependent body in "
+                                 "the run (it reads 0 in the cells of linear bodies)")
         owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned)
         index = np.full((n, RAW), -1, dtype=np.int64)
         index[:, :6] = np.where(owned, dofs - model.offset, -1).reshape(n, 6)

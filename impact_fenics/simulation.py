@@ -530,18 +530,23 @@ class Simulation:
 
     def _body_figures(self) -> dict:
         """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
-        and at the end kinetic 1/2 sum m v^2 and strain 1/2 u . K u over its dofs (J)."""
+        and at the end kinetic 1/2 sum m v^2 and strain energy (J): 1/2 u . K u over its dofs,
+        or the stored elastic energy psi_e of a path-dependent body."""
         integ, comm = self.integrator, self.comm
-        Ku = integ.K.createVecRight()
-        integ.K.mult(integ.u_vec, Ku)
+        Ku = integ.u_vec.duplicate()
+        if integ.K is not None:  # the linear bodies' stiffness
+            integ.K.mult(integ.u_vec, Ku)
+        else:
+            Ku.set(0.0)
         ku = Ku.array
+        psi = {f.body: f.elastic_energy_local() for f in integ.nonlinear}  # path-dependent
         v_end = self._mean_velocities()
         out = {}
         for name in self.model.bodies:
             dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
+            strain = psi[name] if name in psi else 0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))
             local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
-                                                  integ.v_owned[dofs])),
-                              0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))])
+                                                  integ.v_owned[dofs])), strain])
             comm.Allreduce(MPI.IN_PLACE, local)
             out[name] = {"mass": self.body_mass[name],
                          "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
@@ -559,15 +564,19 @@ class Simulation:
         return out
 
     def _contact_bodies(self, c) -> tuple[str, str]:
-        """(lower body, upper body or rigid body) of a contact set."""
+        """(lower body, upper body or rigid body) of a contact set; (slave body, master body)
+        of a node-to-segment one."""
         def body_of(global_dofs):
             counts = np.array([np.isin(global_dofs, self.model.to_global(
                 self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
             counts = self.comm.allreduce(counts)
             return list(self.model.bodies)[int(np.argmax(counts))]
 
-        lower = body_of(c.constraints.lower)
-        upper = c.rigid.name if c.rigid is not None else body_of(c.constraints.upper)
+        cons = c.constraints
+        if isinstance(cons, SegmentConstraints):  # (slave body, master body)
+            return body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
+        lower = body_of(cons.lower)
+        upper = c.rigid.name if c.rigid is not None else body_of(cons.upper)
         return lower, upper
 
     def _impact_figures(self) -> list[dict]:

@@ -37,6 +37,8 @@ from typing import Mapping, Sequence
 import numpy as np
 from mpi4py import MPI
 
+from .compat import cell_dofs
+
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 
 
@@ -73,7 +75,7 @@ class FieldWriter:
         self.cell_fields = list(cell_fields)
         mesh = model.mesh
         n_cells = mesh.topology.index_map(2).size_local
-        cell_nodes = model.V.dofmap.list.array.reshape(-1, 3)[:n_cells]
+        cell_nodes = cell_dofs(model.V)[:n_cells]
         # the piece: owned cells and their nodes, nodes in order of their local index
         self._nodes = np.unique(cell_nodes.ravel()).astype(np.int64)
         renumber = np.full(model.node_xy.shape[0], -1, dtype=np.int64)

@@ -55,7 +55,7 @@ def _at_max_penetration(sim):
     k = int(np.argmin(h["bit_u"]))
     assert 0 < k < h["bit_u"].size - 1  # a maximum inside the run
     assert h["bit_v"][k - 1] < 0.0 < h["bit_v"][k + 1]
-    return h["contact_force"][k], -h["bit_u"][k]
+    return h["bit_force"][k], -h["bit_u"][k]
 
 
 def test_static_stiffness_tends_to_boussinesq():
@@ -171,7 +171,7 @@ def test_same_on_all_partitions():
         sim.run()
         runs.append((sim.history.data(), sim.contacts[0].rigid))
     (hp, bp), (hs, bs) = runs
-    for col in ("bit_u", "bit_v", "contact_force"):
+    for col in ("bit_u", "bit_v", "bit_force"):
         scale = max(np.abs(hp[col]).max(), 1e-300)
         assert np.abs(hp[col] - hs[col]).max() <= 1e-10 * scale, col
     for name in ("wave_incident", "wave_reflected", "wave_delivered"):

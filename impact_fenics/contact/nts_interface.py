@@ -202,6 +202,7 @@ class NodeToSegmentSet:
         self.times = PhaseTimes()
         self.any_active = False
         self.min_gap = np.inf
+        self.stats = np.array([0.0, 0.0, np.inf])  # (number active, total force (N), min gap (m))
         self.jumps = bool(getattr(self.method, "jumps", False))
         self._f_prev = np.zeros(ns)
         self._ku_prev = np.zeros(ns)
@@ -253,6 +254,8 @@ class NodeToSegmentSet:
         if grew or self._grew_last:
             self._activation_loss -= inc
         self._grew_last = grew
+        st = self.stats
+        st[0], st[1], st[2] = np.count_nonzero(self.active), self.force.sum(), self.min_gap
         t3 = clock()
         self.times.detection, self.times.solve, self.times.update = t1 - t0, t2 - t1, t3 - t2
 

@@ -12,9 +12,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 from dolfinx import mesh as dmesh
-from dolfinx.io import gmshio
 
+from . import interrupts
 from .errors import InputError, require
+
+with interrupts.kept():  # gmsh's module (imported by gmshio) sets SIGINT to SIG_DFL
+    from dolfinx.io import gmshio
 
 
 @dataclass
@@ -57,7 +60,8 @@ _GMSH_READY = False
 def _gmsh():
     """The gmsh module, initialised once per process (gmsh 4.8 has no isInitialized)."""
     global _GMSH_READY
-    import gmsh
+    with interrupts.kept():
+        import gmsh
 
     if not _GMSH_READY:
         gmsh.initialize()
@@ -71,7 +75,8 @@ def _restart_gmsh() -> None:
     global _GMSH_READY
     import gmsh
 
-    gmsh.finalize()
+    with interrupts.kept():  # gmsh.finalize() puts back the handler of its import time
+        gmsh.finalize()
     _GMSH_READY = False
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import os
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -14,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from . import forms, output, plotting
+from . import forms, interrupts, output, plotting, rundir
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
 from .contact.pairing import Constraints
@@ -26,6 +25,13 @@ from .probes import Probes
 from .stability import converged_omega_max, critical_dt, element_omega_bound
 from .timers import PhaseTimers
 
+# Per-step divergence check (DIVERGENCE_EVERY steps: one VecNorm of v, a pass over
+# 8 B/dof against the step's ~219 B/dof, so <0.3 % of the step; the rigid bodies'
+# velocities every step): a velocity that is not finite or exceeds the runaway
+# speed (the fastest wave speed, or 10x the fastest initial speed if higher:
+# beyond it the strain would exceed 1) stops the run as diverged.
+DIVERGENCE_EVERY = 16
+RUNAWAY_FACTOR = 10.0
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
 
 
@@ -46,6 +52,7 @@ class Settings:
     history_every: int = 1
     fields: bool = True
     force_dt: bool = False
+    force: bool = False  # run what the checks refuse: a penalty above its stable bound
     converged_dt: bool = False
     matrix_type: str = "aij"
     energy_growth_limit: float = 10.0
@@ -58,6 +65,8 @@ class Settings:
         require(self.dt is not None and self.dt > 0, f"dt = {self.dt} s: must be > 0")
         if self.n_steps is None:
             require(self.t_end is not None and self.t_end > 0, "give t_end > 0 (s) or n_steps")
+            require(self.t_end >= self.dt * (1 - 1e-9), f"t_end = {self.t_end:.4g} s is shorter "
+                                                        f"than one step dt = {self.dt:.4g} s")
             return int(math.ceil(self.t_end / self.dt - 1e-9))
         require(self.n_steps > 0, f"n_steps = {self.n_steps}: must be > 0")
         return int(self.n_steps)
@@ -146,16 +155,21 @@ class Simulation:
         s = self.settings
         model, integ, comm = self.model, self.integrator, self.comm
         n_steps = self.n_steps
-        # catch SIGINT/SIGTERM before any output exists: a signal during the set-up
-        # (JIT of the output expressions) then stops the run cleanly at step 64
+        # from here a signal only sets a flag (interrupts.deferred) until the directory is
+        # in place; one before the first step removes the staging directory and stops
         stop = _StopFlag()
+        staging = None
         try:
-            staging = output.prepare_directory(s.out, comm) if s.out else None
+            staging = rundir.prepare_directory(s.out, comm) if s.out else None
             writer = self._field_writer(staging) if (staging and s.fields) else None
             u_fn = writer.u if writer else None
             probes = self._make_probes(u_fn) if self._probe_specs else None
             tables = self._tables(staging, probes)
+            if stop.collective(comm):
+                raise interrupts.Interrupted(stop.signum)
         except BaseException:
+            if staging:
+                rundir.abandon_directory(staging, comm)
             stop.restore()
             raise
         self.history = tables["history"]
@@ -166,7 +180,11 @@ class Simulation:
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
         Ku = integ.K.createVecRight()
-        energy_rows, max_bal = [], 0.0
+        last_energy, max_bal = None, 0.0
+        runaway = self._runaway_speed()
+        v_check = _OwnedVec(integ.v_owned, comm)
+        rigid = [c.rigid for c in self.contacts if c.rigid is not None]
+        serial = comm.size == 1
         track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
@@ -191,10 +209,17 @@ class Simulation:
                 if is_history:
                     self._history_row(tables, probes, u_fn, buf)
                 t4 = clock()
+                for body in rigid:
+                    if not abs(body.v) <= runaway:
+                        self._runaway(n, f"the rigid body '{body.name}' moves at {body.v:.4g} m/s")
+                if n % DIVERGENCE_EVERY == DIVERGENCE_EVERY - 1 or n == n_steps - 1:
+                    v_max = v_check.norm_inf()
+                    if not v_max <= runaway:
+                        self._runaway(n, f"a node moves at {v_max:.4g} m/s")
                 if is_output:
                     row = self._post_output(pre, buf, ledger, load_work)
                     max_bal = max(max_bal, row["balance_error_rel"])
-                    energy_rows.append(row)
+                    last_energy = row
                     tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                     self._check_stability(row, ledger, n)
                     if writer is not None:
@@ -214,7 +239,15 @@ class Simulation:
                     now[5] = t5 - t4
                     times.record()
                 progress.update(n + 1)
-                if (n + 1) % 64 == 0 and stop.collective(comm):
+                # the flag every step; under MPI the ranks agree every AGREE_EVERY steps
+                # and after the last one (a signal in the last steps is never lost)
+                if serial:
+                    caught = interrupts.STATE.signum != 0
+                else:
+                    caught = (((n + 1) % interrupts.AGREE_EVERY == 0 or n + 1 == n_steps)
+                              and stop.collective(comm))
+                if caught:
+                    stop.collective(comm)  # names the signal (serial: no communication)
                     self.status = f"interrupted by {stop.name}"
                     stopped_at = n + 1
                     break
@@ -224,24 +257,36 @@ class Simulation:
             self.status = "diverged"
             stopped_at = integ.n
             self._failure = str(exc)
+        except BaseException:
+            stop.restore()
+            raise
         finally:
             progress.done()
-            stop.restore()
             wall = clock() - t_run
+            v_check.destroy()
             for tbl in tables.values():
                 tbl.flush()
             if writer is not None:
                 writer.close()
-        summary = self._summary(times, stopped_at, wall, energy_rows, max_bal, track)
-        self.summary = summary
-        if extra is not None and self.status == "completed":
-            summary.update(extra(self))
-        if staging:
-            if s.plots and comm.rank == 0:
-                plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
-                                             [(name, q) for name, _, q in self._probe_specs])
-            output.write_json(os.path.join(staging, "summary.json"), summary, comm)
-            output.finalize_directory(staging, s.out, comm)
+        try:
+            summary = self._summary(times, stopped_at, wall, last_energy, max_bal, track)
+            self.summary = summary
+            if extra is not None and self.status.startswith("completed"):
+                summary.update(extra(self))
+            if staging:
+                # after an interrupt the data files are complete: skip the plots, finish fast
+                if s.plots and comm.rank == 0 and not stop.signum:
+                    plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
+                                                 [(name, q) for name, _, q in self._probe_specs])
+                if not self.status.startswith("interrupted") and stop.collective(comm):
+                    summary["interrupted"] = (f"{stop.name} after the last step, while the "
+                                              "output was finished (it is complete)")
+                output.write_json(os.path.join(staging, "summary.json"), summary, comm)
+                self.out_dir = rundir.finalize_directory(staging, s.out, comm)
+            stop.collective(comm)  # a signal while the directory was moved into place
+        finally:
+            stop.restore()
+        self.signal = stop.signum
         if self.status == "diverged":
             raise UnstableRunError(self._failure)
         return summary
@@ -287,6 +332,20 @@ class Simulation:
                 total += c.rigid.mass * c.rigid.v
         row["momentum_z"] = total
         return row
+
+    def _runaway_speed(self) -> float:
+        """Speed (m/s) above which a run counts as diverged: the fastest wave speed of
+        the materials, or RUNAWAY_FACTOR x the fastest initial speed if that is higher."""
+        waves = [b.material.wave_speed() for b in self.model.bodies.values()]
+        v0 = float(np.abs(self.integrator.v_owned).max(initial=0.0))
+        v0 = max([self.comm.allreduce(v0, op=MPI.MAX)] +
+                 [abs(c.rigid.v) for c in self.contacts if c.rigid is not None])
+        return max(max(waves), RUNAWAY_FACTOR * v0)
+
+    def _runaway(self, n: int, what: str) -> None:
+        raise UnstableRunError(self._diagnosis(
+            n, f"{what}, beyond the runaway speed {self._runaway_speed():.4g} m/s "
+               "(not finite, or a strain beyond 1)"))
 
     def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
         values = [row["kinetic"], row["strain"], row["external_work"], row["contact_work"]]
@@ -422,7 +481,7 @@ class Simulation:
                 block[:, 0], block[:, 1], block[:, 2], block[:, 3] = n, t, c.pair_index, c.r
                 block[:, 4], block[:, 5], block[:, 6] = c.committed_gap(), c.force, c.active
 
-    def _summary(self, times, stopped_at, wall, energy_rows, max_bal, track) -> dict:
+    def _summary(self, times, stopped_at, wall, last_energy, max_bal, track) -> dict:
         model, s = self.model, self.settings
         n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
         summary = {
@@ -443,8 +502,8 @@ class Simulation:
             summary["time_per_step_median"] = times.medians(self.comm)
             summary["time_per_step_total"] = times.total(self.comm)
             summary["step_time_median"] = times.median_of_sum(comm=self.comm)
-        if energy_rows:
-            last = energy_rows[-1]
+        if last_energy is not None:
+            last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
             summary["energy_balance_error_rel"] = max_bal
         if self.contacts:
@@ -473,32 +532,44 @@ _ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work"
 
 
 class _StopFlag:
-    """SIGINT/SIGTERM set a flag; the loop checks it collectively and stops cleanly."""
+    """SIGINT/SIGTERM set a flag (interrupts.deferred) while this object lives; the loop
+    reads it and the ranks agree on it collectively."""
 
     def __init__(self):
+        interrupts.clear()
+        self._guard = interrupts.deferred()
+        self._guard.__enter__()
+        self._open = True
+        self.signum = 0
         self.name = None
-        self._old = {}
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            try:
-                self._old[sig] = signal.signal(sig, self._handler)
-            except ValueError:  # not the main thread
-                pass
-
-    def _handler(self, signum, frame):
-        self.signum = signum
-
-    signum = 0
 
     def collective(self, comm: MPI.Comm) -> bool:
         """True on every rank once any rank has caught a signal; all then name the same one."""
-        self.signum = comm.allreduce(self.signum, op=MPI.MAX)
+        self.signum = interrupts.agree(comm)
         if self.signum:
-            self.name = signal.Signals(self.signum).name
+            self.name = interrupts.name(self.signum)
         return bool(self.signum)
 
     def restore(self) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
+        if self._open:
+            self._open = False
+            self._guard.__exit__(None, None, None)
+
+
+class _OwnedVec:
+    """A PETSc Vec on the owned entries of a numpy array (no copy): its norms are collective."""
+
+    def __init__(self, array: np.ndarray, comm: MPI.Comm):
+        from petsc4py import PETSc
+
+        self._vec = PETSc.Vec().createWithArray(array, comm=comm)
+        self._inf = PETSc.NormType.NORM_INFINITY
+
+    def norm_inf(self) -> float:
+        return self._vec.norm(self._inf)
+
+    def destroy(self) -> None:
+        self._vec.destroy()
 
 
 class _Progress:

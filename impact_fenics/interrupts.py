@@ -44,14 +44,23 @@ class _State:
 STATE = _State()
 
 
-def _world_size() -> int:
+def _world():
+    """mpi4py's COMM_WORLD if MPI is up (not while mpi4py is being imported), else None."""
     mpi = sys.modules.get("mpi4py.MPI")
-    if mpi is not None:
-        return mpi.COMM_WORLD.size
+    world = getattr(mpi, "COMM_WORLD", None)
+    try:
+        return world if world is not None and mpi.Is_initialized() and not mpi.Is_finalized() \
+            else None
+    except Exception:  # a partly imported module
+        return None
+
+
+def _world_size() -> int:
     for key in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"):
         if os.environ.get(key, "").isdigit():
             return int(os.environ[key])
-    return 1
+    world = _world()
+    return world.size if world is not None else 1
 
 
 def _handler(signum, frame) -> None:
@@ -62,9 +71,9 @@ def _handler(signum, frame) -> None:
         # another rank may wait in a collective call for this one: end them all
         sys.stderr.write(f"stopped: {Interrupted(signum)}\n")
         sys.stderr.flush()
-        mpi = sys.modules.get("mpi4py.MPI")
-        if mpi is not None:
-            mpi.COMM_WORLD.Abort(128 + signum)
+        world = _world()
+        if world is not None:
+            world.Abort(128 + signum)
         os._exit(128 + signum)
     raise Interrupted(signum)
 

@@ -158,7 +158,7 @@ class Simulation:
         # from here a signal only sets a flag (interrupts.deferred) until the directory is
         # in place; one before the first step removes the staging directory and stops
         stop = _StopFlag()
-        staging = None
+        staging = writer = None
         try:
             staging = rundir.prepare_directory(s.out, comm) if s.out else None
             writer = self._field_writer(staging) if (staging and s.fields) else None
@@ -168,6 +168,8 @@ class Simulation:
             if stop.collective(comm):
                 raise interrupts.Interrupted(stop.signum)
         except BaseException:
+            if writer is not None:
+                writer.close()  # collective: left to the garbage collector it can hang MPI
             if staging:
                 rundir.abandon_directory(staging, comm)
             stop.restore()

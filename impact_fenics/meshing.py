@@ -138,6 +138,15 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
             raise InputError(f"mesh file '{path}' is not a 2D (r, z) mesh")
         if not gmsh.model.mesh.getNodes()[0].size:
             raise InputError(f"mesh file '{path}' holds no mesh nodes")
+        # dolfinx 0.5's gmshio crashes (segmentation fault) on cells outside every
+        # 2D physical group: refuse them here, before it sees the model
+        loose = [tag for _, tag in gmsh.model.getEntities(2)
+                 if not len(gmsh.model.getPhysicalGroupsForEntity(2, tag))
+                 and len(gmsh.model.mesh.getElements(2, tag)[0])]
+        if loose:
+            raise InputError(f"mesh file '{path}': surface(s) {', '.join(map(str, loose))} "
+                             "have cells but no 2D physical group; put every surface in a "
+                             "named physical group (a body)")
 
     return _to_dolfinx(comm, build, {"source": os.path.abspath(path)})
 

@@ -125,6 +125,7 @@ def _version() -> str:
 def _take_lock(staging: str) -> str | None:
     """Create ``staging`` atomically (the lock); take over a dead run's. Returns a note."""
     note = None
+    os.makedirs(os.path.dirname(staging), exist_ok=True)
     for _ in range(3):
         try:
             os.mkdir(staging)

@@ -32,6 +32,16 @@ from .timers import PhaseTimers
 # beyond it the strain would exceed 1) stops the run as diverged.
 DIVERGENCE_EVERY = 16
 RUNAWAY_FACTOR = 10.0
+# Penalty misbehaviour, marked in the status of a run that completes: chatter, i.e.
+# the number of active penalty constraints reversing its trend (a rise followed by
+# a fall or the other way) at least CHATTER_MIN times and in CHATTER_SHARE of the
+# contact steps (a settling contact reverses a few times, a chattering one nearly
+# every step); and contact energy gain, i.e. contact work done ON the bodies (J), at
+# an output step after contact with every spring released, above GAIN_SHARE of the
+# energy put in (a released spring can only have given back what it took; while
+# springs are loaded their work includes the energy they store, of either sign).
+PENALTY_BOUND = 4.0 / 3.0
+CHATTER_MIN, CHATTER_SHARE, GAIN_SHARE = 10, 0.05, 0.01
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
 
 
@@ -139,6 +149,13 @@ class Simulation:
                              "facet group (the contact bookkeeping assumes no load there)")
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
+        beta = getattr(method, "info", {}).get("beta_max") if method.name == "penalty" else None
+        if beta is not None and beta > PENALTY_BOUND and not self.settings.force:
+            raise InputError(f"penalty: beta_max = {beta:.4g} is above the stable bound 4/3 of "
+                             f"persistent contact (p from {method.info['p_min']:.4g} to "
+                             f"{method.info['p_max']:.4g} N/m, dt = {self.settings.dt:.4g} s): "
+                             "the contact would chatter and gain energy; lower the penalty, use "
+                             "penalty = \"scaled\", or force it")
         self.contacts.append(c)
         return c
 
@@ -187,7 +204,10 @@ class Simulation:
         v_check = _OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
         serial = comm.size == 1
-        track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
+        track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None,
+                 "contact_steps": 0, "reversals": 0, "gain": 0.0, "budget": 0.0,
+                 "penalty": [k for k, c in enumerate(self.contacts) if c.method.name == "penalty"],
+                 "n_prev": [0] * len(self.contacts), "d_prev": [0] * len(self.contacts)}
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
         stopped_at = n_steps
@@ -222,6 +242,12 @@ class Simulation:
                     row = self._post_output(pre, buf, ledger, load_work)
                     max_bal = max(max_bal, row["balance_error_rel"])
                     last_energy = row
+                    if track["penalty"]:
+                        track["budget"] = max(track["budget"], abs(ledger.E0 or 0.0),
+                                              abs(row["external_work"]))
+                        if track["first_contact"] is not None and not any(
+                                c.any_active for c in self.contacts):  # springs all released
+                            track["gain"] = max(track["gain"], row["contact_work"])
                     tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                     self._check_stability(row, ledger, n)
                     if writer is not None:
@@ -254,7 +280,7 @@ class Simulation:
                     stopped_at = n + 1
                     break
             else:
-                self.status = "completed"
+                self.status = "completed" + self._penalty_trouble(track)
         except UnstableRunError as exc:
             self.status = "diverged"
             stopped_at = integ.n
@@ -335,6 +361,20 @@ class Simulation:
         row["momentum_z"] = total
         return row
 
+    @staticmethod
+    def _penalty_trouble(track: dict) -> str:
+        """' (penalty chatter ...; contact energy gain ...)' or '' (see CHATTER_MIN)."""
+        marks = []
+        rev = track["reversals"]
+        if rev >= CHATTER_MIN and rev >= CHATTER_SHARE * track["contact_steps"]:
+            marks.append(f"penalty chatter: the active set reversed {rev} times in "
+                         f"{track['contact_steps']} contact steps")
+        if track["gain"] > GAIN_SHARE * track["budget"] and track["gain"] > 0:
+            marks.append(f"contact energy gain: the penalty did {track['gain']:.4g} J of work "
+                         f"on the bodies ({track['gain'] / max(track['budget'], 1e-300):.1%} "
+                         "of the energy put in)")
+        return f" ({'; '.join(marks)})" if marks else ""
+
     def _runaway_speed(self) -> float:
         """Speed (m/s) above which a run counts as diverged: the fastest wave speed of
         the materials, or RUNAWAY_FACTOR x the fastest initial speed if that is higher."""
@@ -377,6 +417,15 @@ class Simulation:
             if track["first_contact"] is None:
                 track["first_contact"] = n
             track["last_contact"] = n
+            track["contact_steps"] += 1
+        for k in track["penalty"]:  # reversals of the number of active penalty constraints
+            n_active = int(np.count_nonzero(self.contacts[k].active))
+            d = n_active - track["n_prev"][k]
+            if d * track["d_prev"][k] < 0:
+                track["reversals"] += 1
+            track["n_prev"][k] = n_active
+            if d:
+                track["d_prev"][k] = d
 
     # ------------------------------------------------------------ outputs
     def _stress_pieces(self, u, name: str):

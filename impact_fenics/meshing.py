@@ -156,22 +156,27 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
 def _rectangle(gmsh, r0, z0, r1, z1, h, n_r=None, structured=False):
     """Rectangle [r0, r1] x [z0, z1] in the geo kernel. Returns the surface and its
     curves (bottom, right, top, left). ``n_r`` fixes the intervals along r on the
-    bottom and top curves (so that faces of touching bodies pair node to node)."""
+    bottom and top curves (so that faces of touching bodies pair node to node).
+
+    The meshing constraints are set in the geo kernel (``geo.mesh``): they are
+    applied at every synchronisation, so a second rectangle does not erase the
+    first one's (constraints set on the model are lost when the geo kernel
+    synchronises again)."""
     geo = gmsh.model.geo
     p = [geo.addPoint(r0, z0, 0, h), geo.addPoint(r1, z0, 0, h),
          geo.addPoint(r1, z1, 0, h), geo.addPoint(r0, z1, 0, h)]
     c = [geo.addLine(p[0], p[1]), geo.addLine(p[1], p[2]),
          geo.addLine(p[2], p[3]), geo.addLine(p[3], p[0])]
     s = geo.addPlaneSurface([geo.addCurveLoop(c)])
-    geo.synchronize()
     if n_r is not None:
         for k in (0, 2):
-            gmsh.model.mesh.setTransfiniteCurve(c[k], n_r + 1)
+            geo.mesh.setTransfiniteCurve(c[k], n_r + 1)
     if structured:
         n_z = max(1, int(round((z1 - z0) / h)))
         for k in (1, 3):
-            gmsh.model.mesh.setTransfiniteCurve(c[k], n_z + 1)
-        gmsh.model.mesh.setTransfiniteSurface(s, "Alternate")
+            geo.mesh.setTransfiniteCurve(c[k], n_z + 1)
+        geo.mesh.setTransfiniteSurface(s, "Alternate")
+    geo.synchronize()
     return s, c
 
 

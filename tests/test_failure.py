@@ -149,3 +149,23 @@ def test_signal_stops_cleanly(tmp_path, sig):
     history = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     assert history["step"].size == (stopped - 1) // 10 + 1
     assert int(history["step"][-1]) == 10 * ((stopped - 1) // 10) + 1
+
+
+def test_divergence_is_caught_between_outputs(tmp_path, capsys):
+    """With outputs only at the first and last step, a run at 3x the stable dt is stopped
+    by the per-step velocity check: the unstable mode grows about 30x a step, so the
+    runaway speed (the wave speed) is passed within a few steps and the check, every
+    DIVERGENCE_EVERY steps, reports it before the second check (not at the last step)."""
+    from impact_fenics.simulation import DIVERGENCE_EVERY
+
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "out"), root=0)
+    (tmp_path / "scene.toml").write_text(replace(DIVERGING, "output_every = 5",
+                                                 "output_every = 1000"))
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", str(tmp_path / "scene.toml"), "--out", out, "--quiet"])
+    assert exit_.value.code == 3
+    message = MPI.COMM_WORLD.bcast(capsys.readouterr().err.strip(), root=0)
+    step = int(re.search(r"diverged at step (\d+)", message).group(1))
+    assert "moves at" in message and step < 2 * DIVERGENCE_EVERY, message
+    with open(os.path.join(out, "summary.json")) as f:
+        assert json.load(f)["stopped_at_step"] == step + 1

@@ -617,6 +617,7 @@ class _OwnedVec:
         self._inf = PETSc.NormType.NORM_INFINITY
 
     def norm_inf(self) -> float:
+        self._vec.stateIncrease()  # written through numpy: PETSc must not reuse a cached norm
         return self._vec.norm(self._inf)
 
     def destroy(self) -> None:

@@ -169,3 +169,19 @@ def test_divergence_is_caught_between_outputs(tmp_path, capsys):
     assert "moves at" in message and step < 2 * DIVERGENCE_EVERY, message
     with open(os.path.join(out, "summary.json")) as f:
         assert json.load(f)["stopped_at_step"] == step + 1
+
+
+def test_the_velocity_check_sees_every_write():
+    """The runaway check reads the owned velocities through a PETSc Vec on the numpy
+    array that the loop and the contact write: a cached norm would hide a runaway."""
+    from impact_fenics.simulation import _OwnedVec
+
+    v = np.zeros(4)
+    vec = _OwnedVec(v, MPI.COMM_WORLD)
+    rank = MPI.COMM_WORLD.rank
+    for k, value in enumerate((3.0, 4.0, np.nan)):
+        if rank == 0:
+            v[k] = value
+        norm = vec.norm_inf()
+        assert (np.isnan(norm) if np.isnan(value) else norm == value)
+    vec.destroy()

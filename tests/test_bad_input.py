@@ -201,7 +201,8 @@ def _warnings(err: str) -> list[str]:
 
 
 def test_keys_the_method_ignores_are_named(tmp_path, capsys):
-    code, _, err, _, _ = _cli(tmp_path, capsys, PAIR,
+    text = replace(PAIR, 'method = "film"\n', 'method = "film"\nrestitution = 0.0\n')
+    code, _, err, _, _ = _cli(tmp_path, capsys, text,
                               ["run", "{base}/scene.toml", "--out", "{base}/run", "--quiet"])
     assert code == 0, err
     assert _warnings(err) == ['warning: [contact #1] restitution = 0.0 is ignored by method = '

@@ -23,7 +23,8 @@ def owned_cells(tmesh, name: str) -> int:
 def on_grid(tmesh, name: str, z0: float, dr: float, dz: float) -> bool:
     """Every node of the cells of ``name`` on the grid r = i dr, z = z0 + j dz."""
     geom = tmesh.mesh.geometry
-    nodes = np.unique(np.concatenate([geom.dofmap.links(c) for c in tmesh.cells(name)]))
+    nodes = np.unique(np.concatenate([geom.dofmap.links(c) for c in tmesh.cells(name)]
+                                     + [np.zeros(0, dtype=np.int32)]))
     x = geom.x[nodes, :2]
     ok = (np.allclose(x[:, 0] / dr, np.round(x[:, 0] / dr), atol=1e-9)
           and np.allclose((x[:, 1] - z0) / dz, np.round((x[:, 1] - z0) / dz), atol=1e-9))

@@ -5,15 +5,16 @@
 
 (or ``python -m impact_fenics ...``). ``run`` works under mpirun. Exit codes:
 0 done; 2 bad input, reported in one line "error: ..." before anything is
-written; 3 the run diverged (one line with the step and the stable dt; the
-output directory keeps what was written); 128 + the signal number when SIGINT
-or SIGTERM stopped the run (the output directory is complete up to there).
+written (an output directory that is not a run directory, or that another run
+is writing, is bad input); 3 the run diverged (one line with the step and the
+stable dt; the output directory keeps what was written); 128 + the signal
+number when SIGINT or SIGTERM stopped the program (before the run: nothing is
+written; during or after it: the output directory is complete up to there).
 """
 from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 
 from .errors import InputError, UnstableRunError, user_errors
@@ -39,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
                                    "results/<scene name>)")
     run.add_argument("--quiet", action="store_true",
                      help="no progress line and no report (errors are still printed)")
+    run.add_argument("--force", action="store_true",
+                     help="run what the checks refuse: dt above the stable limit, a penalty "
+                          "above its stable bound, a run estimated beyond the memory")
     plot = sub.add_parser("plot", help="render a field of a finished run (PNG files)",
                           description="Render a field of RUN_DIR/fields.xdmf on the deformed "
                                       "mesh at chosen times; PNG files go to RUN_DIR.")
@@ -64,25 +68,31 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``impact-fenics`` and ``python -m impact_fenics``; returns the exit code."""
     args = _parser().parse_args(argv)
     if args.command == "run":
-        return run_scene(args.scene, method=args.method, out=args.out, quiet=args.quiet)
+        return run_scene(args.scene, method=args.method, out=args.out, quiet=args.quiet,
+                         force=args.force)
     region = None if args.whole else (tuple(args.region) if args.region else "auto")
     return plot_run(args.run_dir, field=args.field, times=args.times, scale=args.scale,
                     region=region)
 
 
 def run_scene(path: str, method: str | None = None, out: str | None = None,
-              quiet: bool = False) -> int:
+              quiet: bool = False, force: bool = False) -> int:
     """Check the scene file in full, build it, run it; returns the exit code."""
     from mpi4py import MPI
 
-    from . import scene_file
+    from . import interrupts, scene_file
 
     comm = MPI.COMM_WORLD
+    if out is not None and not out.strip():
+        raise InputError("--out '': the output directory name is empty")
     scene = scene_file.read_scene(path)
     if method:
         scene.set_method(method)
+    if force:
+        scene.force = True
     out_dir = out or scene.output["dir"] or os.path.join("results", scene.stem)
     scene_file.check_output_dir(out_dir, "--out" if out else "[output] dir =", comm)
+    scene_file.check_resources(scene, comm, quiet)
     sim = scene_file.build(scene, {"out": out_dir, "quiet": quiet}, comm)
     try:
         summary = sim.run(extra=lambda s: _scene_checks(s, scene.path))
@@ -90,14 +100,18 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
         raise UnstableRunError(f"{exc}; the output so far is in {out_dir}/") from None
     if comm.rank == 0 and not quiet:
         _report(scene.title, summary, out_dir)
-    if sim.status.startswith("interrupted"):
-        name = sim.status.split()[-1]
-        code = 128 + signal.Signals[name].value if name in signal.Signals.__members__ else 1
+    if comm.rank == 0 and sim.status.startswith("completed ("):
+        print(f"warning: {sim.status}", file=sys.stderr, flush=True)
+    if sim.signal:
         if comm.rank == 0:
-            print(f"stopped: run {sim.status} at step {summary['stopped_at_step']} of "
-                  f"{summary['n_steps']}; the output so far is in {out_dir}/",
-                  file=sys.stderr, flush=True)
-        return code
+            if sim.status.startswith("interrupted"):
+                what = (f"run {sim.status} at step {summary['stopped_at_step']} of "
+                        f"{summary['n_steps']}; the output so far is in {out_dir}/")
+            else:
+                what = (f"interrupted by {interrupts.name(sim.signal)} after the last step; "
+                        f"the run is complete in {out_dir}/")
+            print(f"stopped: {what}", file=sys.stderr, flush=True)
+        return 128 + sim.signal
     return 0
 
 
@@ -145,7 +159,24 @@ def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = 
 
     if not os.path.isdir(run_dir):
         raise InputError(f"run directory '{run_dir}' does not exist")
+    if times:
+        _check_plot_times(run_dir, times)
     if MPI.COMM_WORLD.rank == 0:
         for path in plotting.render_fields(run_dir, field, times, scale, region=region):
             print(path)
     return 0
+
+
+def _check_plot_times(run_dir: str, times: list[float]) -> None:
+    """--times must lie within the run's output times (its summary: 0 to t_end, s)."""
+    import json
+
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            summary = json.load(f)
+        t_end = float(summary["stopped_at_step"]) * float(summary["dt"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return  # no summary: render_fields reports what is missing
+    for t in times:
+        if not 0.0 <= t <= t_end * (1 + 1e-9):
+            raise InputError(f"--times {t:g}: outside the run, which covers 0 to {t_end:.6g} s")

@@ -57,11 +57,15 @@ def quiet_compiler_logs() -> None:
 
 
 def user_errors(func: F) -> F:
-    """Decorate a ``main()``: InputError exits 2 and UnstableRunError exits 3, one line
-    each; the form compiler's INFO lines stay off the console."""
+    """Decorate a ``main()``: InputError exits 2, UnstableRunError exits 3 and a signal
+    before the run 128 + its number, one line each; the form compiler's INFO lines
+    stay off the console. SIGINT and SIGTERM are caught from the first line on."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        from . import interrupts
+
+        interrupts.install()
         sys.excepthook = _abort_on_unexpected
         quiet_compiler_logs()
         try:
@@ -72,6 +76,9 @@ def user_errors(func: F) -> F:
         except UnstableRunError as exc:
             _print_rank0(f"error: {exc}")
             raise SystemExit(EXIT_UNSTABLE)
+        except interrupts.Interrupted as exc:
+            _print_rank0(f"stopped: {exc}")
+            raise SystemExit(exc.exit_code)
 
     return wrapper  # type: ignore[return-value]
 

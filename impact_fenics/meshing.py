@@ -13,8 +13,12 @@ import numpy as np
 from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
+from . import interrupts
 from .compat import model_to_mesh
 from .errors import InputError, require
+
+with interrupts.kept():  # gmsh's module (imported by gmshio) sets SIGINT to SIG_DFL
+    from dolfinx.io import gmshio
 
 
 @dataclass
@@ -57,7 +61,8 @@ _GMSH_READY = False
 def _gmsh():
     """The gmsh module, initialised once per process (gmsh 4.8 has no isInitialized)."""
     global _GMSH_READY
-    import gmsh
+    with interrupts.kept():
+        import gmsh
 
     if not _GMSH_READY:
         gmsh.initialize()
@@ -71,7 +76,8 @@ def _restart_gmsh() -> None:
     global _GMSH_READY
     import gmsh
 
-    gmsh.finalize()
+    with interrupts.kept():  # gmsh.finalize() puts back the handler of its import time
+        gmsh.finalize()
     _GMSH_READY = False
 
 
@@ -133,6 +139,15 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
             raise InputError(f"mesh file '{path}' is not a 2D (r, z) mesh")
         if not gmsh.model.mesh.getNodes()[0].size:
             raise InputError(f"mesh file '{path}' holds no mesh nodes")
+        # dolfinx 0.5's gmshio crashes (segmentation fault) on cells outside every
+        # 2D physical group: refuse them here, before it sees the model
+        loose = [tag for _, tag in gmsh.model.getEntities(2)
+                 if not len(gmsh.model.getPhysicalGroupsForEntity(2, tag))
+                 and len(gmsh.model.mesh.getElements(2, tag)[0])]
+        if loose:
+            raise InputError(f"mesh file '{path}': surface(s) {', '.join(map(str, loose))} "
+                             "have cells but no 2D physical group; put every surface in a "
+                             "named physical group (a body)")
 
     return _to_dolfinx(comm, build, {"source": os.path.abspath(path)})
 
@@ -142,22 +157,27 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
 def _rectangle(gmsh, r0, z0, r1, z1, h, n_r=None, structured=False):
     """Rectangle [r0, r1] x [z0, z1] in the geo kernel. Returns the surface and its
     curves (bottom, right, top, left). ``n_r`` fixes the intervals along r on the
-    bottom and top curves (so that faces of touching bodies pair node to node)."""
+    bottom and top curves (so that faces of touching bodies pair node to node).
+
+    The meshing constraints are set in the geo kernel (``geo.mesh``): they are
+    applied at every synchronisation, so a second rectangle does not erase the
+    first one's (constraints set on the model are lost when the geo kernel
+    synchronises again)."""
     geo = gmsh.model.geo
     p = [geo.addPoint(r0, z0, 0, h), geo.addPoint(r1, z0, 0, h),
          geo.addPoint(r1, z1, 0, h), geo.addPoint(r0, z1, 0, h)]
     c = [geo.addLine(p[0], p[1]), geo.addLine(p[1], p[2]),
          geo.addLine(p[2], p[3]), geo.addLine(p[3], p[0])]
     s = geo.addPlaneSurface([geo.addCurveLoop(c)])
-    geo.synchronize()
     if n_r is not None:
         for k in (0, 2):
-            gmsh.model.mesh.setTransfiniteCurve(c[k], n_r + 1)
+            geo.mesh.setTransfiniteCurve(c[k], n_r + 1)
     if structured:
         n_z = max(1, int(round((z1 - z0) / h)))
         for k in (1, 3):
-            gmsh.model.mesh.setTransfiniteCurve(c[k], n_z + 1)
-        gmsh.model.mesh.setTransfiniteSurface(s, "Alternate")
+            geo.mesh.setTransfiniteCurve(c[k], n_z + 1)
+        geo.mesh.setTransfiniteSurface(s, "Alternate")
+    geo.synchronize()
     return s, c
 
 

@@ -2,53 +2,22 @@
 
 Files are written into a staging directory ``DIR.partial`` and renamed to DIR
 when the run ends, so a directory named DIR always holds a finished (or
-cleanly stopped) run; a crash leaves only ``DIR.partial``. Rank 0 writes the
+cleanly stopped) run; a crash leaves only ``DIR.partial``. The staging
+directory is created atomically and is the run's lock; a run removes or
+replaces only directories it wrote (see rundir.py). Rank 0 writes the
 CSV and JSON files; every rank writes its piece of the fields.
 """
 from __future__ import annotations
 
 import json
 import os
-import shutil
 from typing import Sequence
 
 import numpy as np
 from mpi4py import MPI
 
-from .errors import InputError
-
-def prepare_directory(path: str, comm: MPI.Comm) -> str:
-    """Create the staging directory ``path.partial`` (empty) and return it.
-
-    Fails with an InputError, on every rank, if the location cannot be written."""
-    staging = os.path.abspath(path) + ".partial"
-    error = None
-    if comm.rank == 0:
-        try:
-            if os.path.exists(staging):
-                shutil.rmtree(staging)
-            os.makedirs(staging)
-            probe = os.path.join(staging, ".write_test")
-            with open(probe, "w") as f:
-                f.write("ok")
-            os.remove(probe)
-        except OSError as exc:
-            error = f"output directory '{path}' cannot be written: {exc.strerror or exc}"
-    error = comm.bcast(error, root=0)
-    if error:
-        raise InputError(error)
-    return staging
-
-
-def finalize_directory(staging: str, path: str, comm: MPI.Comm) -> None:
-    """Move the finished staging directory to ``path`` (replacing an older run)."""
-    comm.barrier()
-    if comm.rank == 0:
-        final = os.path.abspath(path)
-        if os.path.exists(final):
-            shutil.rmtree(final)
-        os.replace(staging, final)
-    comm.barrier()
+# the output directory rules and the lock live in rundir.py (no dolfinx import there)
+from .rundir import abandon_directory, finalize_directory, prepare_directory  # noqa: F401
 
 
 def write_json(path: str, data: dict, comm: MPI.Comm) -> None:

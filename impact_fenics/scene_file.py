@@ -25,6 +25,7 @@ from typing import Any, Iterator
 
 from mpi4py import MPI
 
+from . import plausibility, resources, rundir
 from .errors import InputError
 
 QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
@@ -230,6 +231,7 @@ class ContactSpec:
     slave: str | None = None     # facet group of the slave nodes (node to segment)
     master: str | None = None    # facet group of the master segments (node to segment)
     reach: float | None = None   # m, node to segment: farthest master segment of a slave
+    given: tuple[str, ...] = ()  # the keys the file gave
 
 
 @dataclass
@@ -275,6 +277,7 @@ class Scene:
     time: dict[str, Any]
     output: dict[str, Any]
     probes: list[ProbeSpec] = field(default_factory=list)
+    force: bool = False  # run what the checks refuse (dt, penalty bound, memory)
 
     @property
     def stem(self) -> str:
@@ -291,11 +294,14 @@ class Scene:
 
 
 TOP_KEYS = ("title", "mesh", "materials", "bodies", "rigid", "contact", "loads", "fixed",
-            "time", "output", "probes")
+            "time", "output", "probes", "force")
 
 
 def read_scene(path: str) -> Scene:
     """Parse and check a scene file; raises InputError naming the table and the key."""
+    if os.path.isdir(path):
+        raise InputError(f"scene file '{path}' is a directory: give the .toml file "
+                         "(a run directory is rendered by impact-fenics plot)")
     if not os.path.isfile(path):
         raise InputError(f"scene file '{path}' does not exist")
     try:
@@ -324,6 +330,7 @@ def read_scene(path: str) -> Scene:
         if any(b.name == name for b in bodies):
             raise InputError(f"[rigid.{name}] the name '{name}' is also a deformable body")
     contacts = [_read_contact(where, d, rigid) for where, d in _array_of(top, "contact")]
+    _check_contact_surfaces(contacts)
     for name in rigid:
         users = [c.where for c in contacts if c.rigid == name]
         if len(users) != 1:
@@ -343,8 +350,23 @@ def read_scene(path: str) -> Scene:
                 materials[b.material].model != "elastic" for b in bodies):
             raise InputError(f"{p.where} quantity = {_fmt(p.quantity)}: needs a body of a "
                              'plastic material ([materials.NAME] model = "j2")')
+    force = top.flag("force", "run what the checks refuse: dt above the stable limit, a "
+                              "penalty above its stable bound, a run beyond the memory", False)
     return Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
-                 fixed, time, output, probes)
+                 fixed, time, output, probes, force)
+
+
+def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:
+    """A facet group in two [[contact]] tables would be corrected twice a step: refused."""
+    seen: dict[str, str] = {}
+    for c in contacts:
+        for name in (c.lower, c.upper, c.surface):
+            if name is None:
+                continue
+            if name in seen:
+                raise InputError(f"{c.where} the surface '{name}' is already in {seen[name]}: "
+                                 "each facet group may be in one [[contact]] only")
+            seen[name] = c.where
 
 
 def _read_mesh(data: Any, base: str) -> MeshSpec:
@@ -449,7 +471,7 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
         shape = ("slave", "master", "reach")
     t = _Table(data, where, shape + CONTACT_KEYS)
     method = t.text("method", f"the contact method: {', '.join(METHODS)}", choices=METHODS)
-    c = ContactSpec(where, method)
+    c = ContactSpec(where, method, given=tuple(t.data))
     if is_rigid:
         c.surface = t.text("surface", "the facet group under the rigid body")
         c.rigid = t.text("rigid", "the name of a [rigid.NAME] body")
@@ -590,24 +612,52 @@ def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
 # ----------------------------------------------------------------------------- output directory
 
 def check_output_dir(path: str, where: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
-    """Fail early, on every rank, if the output directory ``path`` cannot be created.
-
-    Nothing is created here: the run stages its output in ``path.partial``."""
-    error = None
-    if comm.rank == 0:
-        full = os.path.abspath(path)
-        parent = os.path.dirname(full)
-        while not os.path.exists(parent):
-            parent = os.path.dirname(parent)
-        if os.path.exists(full) and not os.path.isdir(full):
-            error = f"'{full}' exists and is not a directory"
-        elif not os.path.isdir(parent):
-            error = f"'{parent}' is a file, not a directory"
-        elif not os.access(parent, os.W_OK | os.X_OK):
-            error = f"no permission to write in '{parent}'"
+    """Fail early, on every rank, if the run may not write to ``path`` (the rules of
+    :mod:`impact_fenics.rundir`: not a directory of the user's, not locked by another
+    run, writable). Nothing is created here: the run stages its output in
+    ``path.partial`` and checks again, atomically, when it takes the lock."""
+    error = rundir.directory_problem(path) if comm.rank == 0 else None
     error = comm.bcast(error, root=0)
     if error:
-        raise InputError(f"{where} {_fmt(path)}: the output directory cannot be written: {error}")
+        raise InputError(f"{where} {_fmt(path)}: the output directory cannot be used: {error}")
+
+
+# ----------------------------------------------------------------------------- resources
+
+def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool = False) -> None:
+    """Estimate cells, dofs, memory and time before meshing (generator meshes); print
+    them on rank 0 and refuse a run beyond the available memory unless forced."""
+    if scene.mesh.generator is None:
+        return  # a mesh file: its size is what it is
+    import inspect
+
+    from . import meshing
+
+    params = {k: v.default for k, v in
+              inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
+              if v.default is not inspect.Parameter.empty}
+    params.update(scene.mesh.params)
+    cells, h_min = resources.generator_cells(scene.mesh.generator, params)
+    t = scene.time
+    if t["n_steps"] is not None:
+        n_steps = float(t["n_steps"])
+    else:
+        dt = t["dt"]
+        if dt is None:  # cfl: the element bound is about 0.3 h / c for these triangles
+            c = max(plausibility.wave_speed(m.E, m.nu, m.density) for m in scene.materials.values())
+            dt = t["cfl"] * 0.3 * h_min / c
+        n_steps = math.ceil(t["t_end"] / dt)
+    columns = 2 + len(scene.probes) + 9 * len(scene.contacts)
+    est = resources.estimate(cells, n_steps, comm.size, columns, scene.output["history_every"])
+    available = resources.available_memory() if comm.rank == 0 else None
+    available = comm.bcast(available, root=0)
+    if comm.rank == 0 and not quiet:
+        print(est.line(available), flush=True)
+    if available and est.memory > available and not scene.force:
+        raise InputError(f"[mesh] the run needs about {est.memory / 1e9:.3g} GB ("
+                         f"{est.cells:,.0f} cells, {est.n_steps:,.0f} steps), more than the "
+                         f"{available / 1e9:.3g} GB available: coarsen the mesh or shorten "
+                         "the run, or force it (force = true or --force)")
 
 
 # ----------------------------------------------------------------------------- building
@@ -671,7 +721,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 surface_loads.append(ld.SurfaceLoad(model, spec.facet, pulse, spec.traction))
     t, o = scene.time, scene.output
     settings = Settings(dt=t["dt"], cfl=t["cfl"], t_end=t["t_end"], n_steps=t["n_steps"],
-                        force_dt=t["force_dt"], converged_dt=t["converged_dt"], out=o["dir"],
+                        force_dt=t["force_dt"] or scene.force, force=scene.force,
+                        converged_dt=t["converged_dt"], out=o["dir"],
                         output_every=o["output_every"], history_every=o["history_every"],
                         fields=o["fields"], plots=o["plots"])
     for key, value in (settings_overrides or {}).items():
@@ -684,6 +735,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         hint = " with force_dt = true" if "stable limit" in str(exc) else ""
         raise InputError(f"[time] {exc}{hint}") from None
     for c in scene.contacts:
+        _warn_ignored_keys(c, comm)
         with _at(c.where):
             method = make_method(c.method, penalty=c.penalty, restitution=c.restitution,
                                  positions=c.positions, film_solver=c.film_solver)
@@ -705,8 +757,44 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     for p in scene.probes:
         with _at(p.where):
             locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()
+            _one_body_at(tmesh, p.point, comm)
         sim.add_probe(p.name, p.point, p.quantity)
+    plausibility.check_scene(scene, sim, comm)
     return sim
+
+
+# contact keys that only one method reads
+_METHOD_KEYS = {"penalty": ("penalty",), "restitution": ("dme",), "positions": ("dme",),
+                "film_solver": ("film",)}
+
+
+def _warn_ignored_keys(c: ContactSpec, comm: MPI.Comm) -> None:
+    """One warning line per key of a [[contact]] that its method does not read."""
+    for key, methods in _METHOD_KEYS.items():
+        if c.method not in methods and key in c.given:
+            plausibility.warn(f"{c.where} {key} = {_fmt(getattr(c, key))} is ignored by "
+                              f"method = \"{c.method}\" (only {', '.join(methods)} reads it)",
+                              comm)
+
+
+def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> None:
+    """Refuse a probe point on the interface of two bodies (its value would depend on
+    which body's cell is chosen)."""
+    import numpy as np
+    from dolfinx import geometry
+
+    mesh = tmesh.mesh
+    x = np.array([[point[0], point[1], 0.0]])
+    tree = geometry.BoundingBoxTree(mesh, mesh.topology.dim)
+    cells = geometry.compute_colliding_cells(
+        mesh, geometry.compute_collisions(tree, x), x).links(0)
+    names = {name for name, tag in tmesh.cell_names.items()
+             if np.isin(cells, tmesh.cell_tags.find(tag)).any()}
+    names = set().union(*comm.allgather(names))
+    if len(names) > 1:
+        raise InputError(f"point = [{point[0]!r}, {point[1]!r}] lies on the interface of the "
+                         f"bodies {' and '.join(sorted(names))}: its value depends on the body; "
+                         "move it into one of them")
 
 
 def _force(terms: list[tuple[float, Any]]):

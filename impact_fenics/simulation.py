@@ -8,7 +8,6 @@ import gc
 import math
 import os
 import shutil
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -16,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from . import output, plotting
+from . import interrupts, output, plotting, rundir
 from .cell_fields import STRESS_NAMES, CellStress
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
@@ -34,6 +33,25 @@ from .xdmf import FieldWriter
 from .stability import converged_omega_max, critical_dt, element_omega_bound
 from .timers import PhaseTimers
 
+# Per-step divergence check: every DIVERGENCE_EVERY steps one VecNorm of v (a pass
+# over 8 B/dof against the step's ~219 B/dof: 1-3 % of a step measured, so under
+# 0.2 % spread over 16 steps); a deformable node's velocity that is not finite or
+# exceeds the runaway speed (the fastest wave speed, or 10x the fastest initial
+# speed if higher: beyond it the strain would exceed 1) stops the run as diverged.
+# A rigid body's velocity is checked every step for being finite (it may be fast:
+# a punch that a soft penalty does not hold is wrong, not diverged).
+DIVERGENCE_EVERY = 16
+RUNAWAY_FACTOR = 10.0
+# Penalty misbehaviour, marked in the status of a run that completes: chatter, i.e.
+# the number of active penalty constraints reversing its trend (a rise followed by
+# a fall or the other way) at least CHATTER_MIN times and in CHATTER_SHARE of the
+# contact steps (a settling contact reverses a few times, a chattering one nearly
+# every step); and contact energy gain, i.e. contact work done ON the bodies (J), at
+# an output step after contact with every spring released, above GAIN_SHARE of the
+# energy put in (a released spring can only have given back what it took; while
+# springs are loaded their work includes the energy they store, of either sign).
+PENALTY_BOUND = 4.0 / 3.0
+CHATTER_MIN, CHATTER_SHARE, GAIN_SHARE = 10, 0.05, 0.01
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
 
 
@@ -54,6 +72,7 @@ class Settings:
     history_every: int = 1
     fields: bool = True
     force_dt: bool = False
+    force: bool = False  # run what the checks refuse: a penalty above its stable bound
     converged_dt: bool = False
     matrix_type: str = "aij"
     energy_growth_limit: float = 10.0
@@ -67,6 +86,8 @@ class Settings:
         require(self.dt is not None and self.dt > 0, f"dt = {self.dt} s: must be > 0")
         if self.n_steps is None:
             require(self.t_end is not None and self.t_end > 0, "give t_end > 0 (s) or n_steps")
+            require(self.t_end >= self.dt * (1 - 1e-9), f"t_end = {self.t_end:.4g} s is shorter "
+                                                        f"than one step dt = {self.dt:.4g} s")
             return int(math.ceil(self.t_end / self.dt - 1e-9))
         require(self.n_steps > 0, f"n_steps = {self.n_steps}: must be > 0")
         return int(self.n_steps)
@@ -165,6 +186,13 @@ class Simulation:
         c = (NodeToSegmentSet(constraints, self.integrator, method) if segments
              else ContactSet(constraints, self.integrator, method, rigid))
         c.initialize()
+        beta = getattr(method, "info", {}).get("beta_max") if method.name == "penalty" else None
+        if beta is not None and beta > PENALTY_BOUND and not self.settings.force:
+            raise InputError(f"penalty: beta_max = {beta:.4g} is above the stable bound 4/3 of "
+                             f"persistent contact (p from {method.info['p_min']:.4g} to "
+                             f"{method.info['p_max']:.4g} N/m, dt = {self.settings.dt:.4g} s): "
+                             "the contact would chatter and gain energy; lower the penalty, use "
+                             "penalty = \"scaled\", or force it")
         self.contacts.append(c)
         self.setup_time["contact"] = self.setup_time.get("contact", 0.0) + time.perf_counter() - t0
         return c
@@ -182,12 +210,13 @@ class Simulation:
         s = self.settings
         model, integ, comm = self.model, self.integrator, self.comm
         n_steps = self.n_steps
-        # catch SIGINT/SIGTERM before any output exists: a signal during the set-up
-        # (JIT of the output expressions) then stops the run cleanly at step 64
+        # from here a signal only sets a flag (interrupts.deferred) until the directory is
+        # in place; one before the first step removes the staging directory and stops
         stop = _StopFlag()
+        staging = writer = None
         try:
             t_setup = time.perf_counter()
-            staging = output.prepare_directory(s.out, comm) if s.out else None
+            staging = rundir.prepare_directory(s.out, comm) if s.out else None
             writer = self._field_writer(staging) if (staging and s.fields) else None
             probes = (Probes(model, self._probe_specs, integ.nonlinear) if self._probe_specs
                       else None)
@@ -195,7 +224,13 @@ class Simulation:
             if writer is not None:  # the initial state, outside the timed loop
                 self._write_fields(writer)
             self.setup_time["outputs"] = time.perf_counter() - t_setup
+            if stop.collective(comm):
+                raise interrupts.Interrupted(stop.signum)
         except BaseException:
+            if writer is not None:
+                writer.close()  # collective: left to the garbage collector it can hang MPI
+            if staging:
+                rundir.abandon_directory(staging, comm)
             stop.restore()
             raise
         self.history = tables["history"]
@@ -213,7 +248,14 @@ class Simulation:
         self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
         last_energy, max_bal = None, 0.0
-        track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None}
+        runaway = self._runaway_speed()
+        v_check = _OwnedVec(integ.v_owned, comm)
+        rigid = [c.rigid for c in self.contacts if c.rigid is not None]
+        serial = comm.size == 1
+        track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None,
+                 "contact_steps": 0, "reversals": 0, "gain": 0.0, "budget": 0.0,
+                 "penalty": [k for k, c in enumerate(self.contacts) if c.method.name == "penalty"],
+                 "n_prev": [0] * len(self.contacts), "d_prev": [0] * len(self.contacts)}
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
         stopped_at = n_steps
@@ -241,10 +283,23 @@ class Simulation:
                 if is_history:
                     self._history_row(tables, probes)
                 t4 = clock()
+                for body in rigid:
+                    if not math.isfinite(body.v):
+                        self._runaway(n, f"the rigid body '{body.name}' moves at {body.v} m/s")
+                if n % DIVERGENCE_EVERY == DIVERGENCE_EVERY - 1 or n == n_steps - 1:
+                    v_max = v_check.norm_inf()
+                    if not v_max <= runaway:
+                        self._runaway(n, f"a node moves at {v_max:.4g} m/s")
                 if is_output:
                     row = self._post_output(pre, buf, ledger, load_work)
                     max_bal = max(max_bal, row["balance_error_rel"])
                     last_energy = row
+                    if track["penalty"]:
+                        track["budget"] = max(track["budget"], abs(ledger.E0 or 0.0),
+                                              abs(row["external_work"]))
+                        if track["first_contact"] is not None and not any(
+                                c.any_active for c in self.contacts):  # springs all released
+                            track["gain"] = max(track["gain"], row["contact_work"])
                     tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                     self._check_stability(row, ledger, n)
                 if is_fields:
@@ -261,41 +316,61 @@ class Simulation:
                     now[5] = t5 - t4
                     times.record()
                 progress.update(n + 1)
-                if (n + 1) % 64 == 0 and stop.collective(comm):
+                # the flag every step; under MPI the ranks agree every AGREE_EVERY steps
+                # and after the last one (a signal in the last steps is never lost)
+                if serial:
+                    caught = interrupts.STATE.signum != 0
+                else:
+                    caught = (((n + 1) % interrupts.AGREE_EVERY == 0 or n + 1 == n_steps)
+                              and stop.collective(comm))
+                if caught:
+                    stop.collective(comm)  # names the signal (serial: no communication)
                     self.status = f"interrupted by {stop.name}"
                     stopped_at = n + 1
                     break
             else:
-                self.status = "completed"
+                self.status = "completed" + self._penalty_trouble(track)
         except UnstableRunError as exc:
             self.status = "diverged"
             stopped_at = integ.n
             self._failure = str(exc)
+        except BaseException:
+            stop.restore()
+            raise
         finally:
             gc.unfreeze()
             progress.done()
-            stop.restore()
             wall = clock() - t_run
+            v_check.destroy()
             for tbl in tables.values():
                 tbl.close()
             if writer is not None:
                 writer.close()
+        try:
             comm.barrier()  # every table is on disk: any rank may read it back
-        summary = self._summary(times, stopped_at, wall, last_energy, max_bal, track)
-        self.summary = summary
-        if extra is not None and self.status == "completed":
-            summary.update(extra(self))
-        if staging:
-            scene = summary.get("scene_file")
-            if scene and comm.rank == 0 and os.path.isfile(scene):
-                shutil.copy(scene, os.path.join(staging, "scene" + os.path.splitext(scene)[1]))
-            if s.plots and comm.rank == 0:
-                plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
-                                             [(name, q) for name, _, q in self._probe_specs])
-            output.write_json(os.path.join(staging, "summary.json"), summary, comm)
-            output.finalize_directory(staging, s.out, comm)
-            for tbl in tables.values():
-                tbl.moved(os.path.abspath(s.out))
+            summary = self._summary(times, stopped_at, wall, last_energy, max_bal, track)
+            self.summary = summary
+            if extra is not None and self.status.startswith("completed"):
+                summary.update(extra(self))
+            if staging:
+                scene = summary.get("scene_file")
+                if scene and comm.rank == 0 and os.path.isfile(scene):
+                    shutil.copy(scene, os.path.join(staging, "scene" + os.path.splitext(scene)[1]))
+                # after an interrupt the data files are complete: skip the plots, finish fast
+                if s.plots and comm.rank == 0 and not stop.signum:
+                    plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
+                                                 [(name, q) for name, _, q in self._probe_specs])
+                if not self.status.startswith("interrupted") and stop.collective(comm):
+                    summary["interrupted"] = (f"{stop.name} after the last step, while the "
+                                              "output was finished (it is complete)")
+                output.write_json(os.path.join(staging, "summary.json"), summary, comm)
+                self.out_dir = rundir.finalize_directory(staging, s.out, comm)
+                for tbl in tables.values():
+                    tbl.moved(self.out_dir)
+            stop.collective(comm)  # a signal while the directory was moved into place
+        finally:
+            stop.restore()
+        self.signal = stop.signum
         if self.status == "diverged":
             raise UnstableRunError(self._failure)
         return summary
@@ -371,6 +446,34 @@ class Simulation:
         row["momentum_z"] = total
         return row
 
+    @staticmethod
+    def _penalty_trouble(track: dict) -> str:
+        """' (penalty chatter ...; contact energy gain ...)' or '' (see CHATTER_MIN)."""
+        marks = []
+        rev = track["reversals"]
+        if rev >= CHATTER_MIN and rev >= CHATTER_SHARE * track["contact_steps"]:
+            marks.append(f"penalty chatter: the active set reversed {rev} times in "
+                         f"{track['contact_steps']} contact steps")
+        if track["gain"] > GAIN_SHARE * track["budget"] and track["gain"] > 0:
+            marks.append(f"contact energy gain: the penalty did {track['gain']:.4g} J of work "
+                         f"on the bodies ({track['gain'] / max(track['budget'], 1e-300):.1%} "
+                         "of the energy put in)")
+        return f" ({'; '.join(marks)})" if marks else ""
+
+    def _runaway_speed(self) -> float:
+        """Speed (m/s) above which a run counts as diverged: the fastest wave speed of
+        the materials, or RUNAWAY_FACTOR x the fastest initial speed if that is higher."""
+        waves = [b.material.wave_speed() for b in self.model.bodies.values()]
+        v0 = float(np.abs(self.integrator.v_owned).max(initial=0.0))
+        v0 = max([self.comm.allreduce(v0, op=MPI.MAX)] +
+                 [abs(c.rigid.v) for c in self.contacts if c.rigid is not None])
+        return max(max(waves), RUNAWAY_FACTOR * v0)
+
+    def _runaway(self, n: int, what: str) -> None:
+        raise UnstableRunError(self._diagnosis(
+            n, f"{what}, beyond the runaway speed {self._runaway_speed():.4g} m/s "
+               "(not finite, or a strain beyond 1)"))
+
     def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
         values = [row["kinetic"], row["strain"], row["external_work"], row["contact_work"]]
         budget = max(abs(ledger.E0 or 0.0), abs(row["external_work"]), 1e-300)
@@ -391,15 +494,28 @@ class Simulation:
                 f"dt = {self.settings.dt:.4g} s, stable dt <= {self.dt_critical:.4g} s{extra}")
 
     def _track_contact(self, track: dict, n: int) -> None:
-        """Largest committed penetration (m) and the first and last steps with contact."""
+        """Largest committed penetration (m), the first and last steps with contact, and
+        the reversals of the number of active penalty constraints (chatter)."""
+        touching = False
         for c in self.contacts:
             st = c.stats  # (number active, total force, smallest gap)
             if -st[2] > track["max_penetration"]:
                 track["max_penetration"] = float(-st[2])
             if st[0] > 0:
-                if track["first_contact"] is None:
-                    track["first_contact"] = n
-                track["last_contact"] = n
+                touching = True
+        if touching:
+            if track["first_contact"] is None:
+                track["first_contact"] = n
+            track["last_contact"] = n
+            track["contact_steps"] += 1
+        for k in track["penalty"]:  # reversals of the number of active penalty constraints
+            n_active = int(self.contacts[k].stats[0])
+            d = n_active - track["n_prev"][k]
+            if d * track["d_prev"][k] < 0:
+                track["reversals"] += 1
+            track["n_prev"][k] = n_active
+            if d:
+                track["d_prev"][k] = d
 
     # ------------------------------------------------------------ outputs
     def cell_fields(self) -> dict[str, np.ndarray]:
@@ -695,32 +811,45 @@ _ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work"
 
 
 class _StopFlag:
-    """SIGINT/SIGTERM set a flag; the loop checks it collectively and stops cleanly."""
+    """SIGINT/SIGTERM set a flag (interrupts.deferred) while this object lives; the loop
+    reads it and the ranks agree on it collectively."""
 
     def __init__(self):
+        interrupts.clear()
+        self._guard = interrupts.deferred()
+        self._guard.__enter__()
+        self._open = True
+        self.signum = 0
         self.name = None
-        self._old = {}
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            try:
-                self._old[sig] = signal.signal(sig, self._handler)
-            except ValueError:  # not the main thread
-                pass
-
-    def _handler(self, signum, frame):
-        self.signum = signum
-
-    signum = 0
 
     def collective(self, comm: MPI.Comm) -> bool:
         """True on every rank once any rank has caught a signal; all then name the same one."""
-        self.signum = comm.allreduce(self.signum, op=MPI.MAX)
+        self.signum = interrupts.agree(comm)
         if self.signum:
-            self.name = signal.Signals(self.signum).name
+            self.name = interrupts.name(self.signum)
         return bool(self.signum)
 
     def restore(self) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
+        if self._open:
+            self._open = False
+            self._guard.__exit__(None, None, None)
+
+
+class _OwnedVec:
+    """A PETSc Vec on the owned entries of a numpy array (no copy): its norms are collective."""
+
+    def __init__(self, array: np.ndarray, comm: MPI.Comm):
+        from petsc4py import PETSc
+
+        self._vec = PETSc.Vec().createWithArray(array, comm=comm)
+        self._inf = PETSc.NormType.NORM_INFINITY
+
+    def norm_inf(self) -> float:
+        self._vec.stateIncrease()  # written through numpy: PETSc must not reuse a cached norm
+        return self._vec.norm(self._inf)
+
+    def destroy(self) -> None:
+        self._vec.destroy()
 
 
 class _Progress:

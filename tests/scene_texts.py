@@ -34,7 +34,6 @@ material = "steel"
 lower = "striker_contact"
 upper = "target_contact"
 method = "film"
-restitution = 0.0
 
 [[loads]]
 facet = "target_end"

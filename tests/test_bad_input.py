@@ -3,9 +3,11 @@
 The launcher tests run a demo as a user would; the API tests check the
 message of the error each bad input raises.
 """
+import json
 import os
 import subprocess
 import sys
+import time
 
 import pytest
 from mpi4py import MPI
@@ -68,3 +70,162 @@ def test_poisson_ratio_out_of_range(nu):
 def test_dt_above_limit_names_both_values():
     with pytest.raises(InputError, match=r"dt = 1e-05 s is above the stable limit"):
         scenes.elastic_bar(Settings(dt=1e-5, n_steps=5, quiet=True), h=0.02, length=0.2)
+
+
+# ------------------------------------------------------------------ the command line
+# Each bad input: exit 2, one line naming it, no output directory (nor .partial), and
+# no file outside the run's own directory removed or changed (a snapshot of tmp_path).
+
+from impact_fenics import cli  # noqa: E402
+from scene_texts import BAR, PAIR, replace  # noqa: E402
+from test_cli import MSH_SCENE, _disk_msh  # noqa: E402
+
+COMM = MPI.COMM_WORLD
+
+
+def _snapshot(base: str) -> dict:
+    out = {}
+    for root, _, files in os.walk(base):
+        for name in files:
+            path = os.path.join(root, name)
+            with open(path, "rb") as f:
+                out[os.path.relpath(path, base)] = f.read()
+    return out
+
+
+def _cli(tmp_path, capsys, text: str | None, args: list[str], files: dict | None = None):
+    """Write the scene (and files) into a shared folder, run cli.main in this process;
+    return (code, stdout, stderr, folder, snapshot before)."""
+    base = COMM.bcast(str(tmp_path), root=0)
+    if COMM.rank == 0:
+        for name, content in ({"scene.toml": text} if text is not None else {}).items():
+            with open(os.path.join(base, name), "w") as f:
+                f.write(content)
+        for name, content in (files or {}).items():
+            with open(os.path.join(base, name), "w") as f:
+                f.write(content)
+    COMM.barrier()
+    before = _snapshot(base)
+    capsys.readouterr()
+    try:
+        code = cli.main([a.replace("{base}", base) for a in args])
+    except SystemExit as exc:
+        code = exc.code
+    out, err = COMM.bcast(capsys.readouterr() if COMM.rank == 0 else None, root=0)
+    return code, out, err, base, before
+
+
+def _refused(tmp_path, capsys, text, words, args=None, files=None, out_name="out"):
+    args = args or ["run", "{base}/scene.toml", "--out", f"{{base}}/{out_name}", "--quiet"]
+    code, out, err, base, before = _cli(tmp_path, capsys, text, args, files)
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("warning: ")]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("error: ") and words in lines[0], err
+    assert "Traceback" not in err + out
+    assert not os.path.exists(os.path.join(base, out_name))
+    assert not os.path.exists(os.path.join(base, out_name) + ".partial")
+    assert _snapshot(base) == before  # nothing outside the run's directory touched
+    return lines[0]
+
+
+def test_msh_surface_without_a_physical_group(tmp_path, capsys):
+    """gmshio segfaults on such a file (PETSc signal 11): refused before it sees it."""
+    text = _disk_msh(0.02, 0.04, 2, 4).splitlines()
+    last = max(k for k, ln in enumerate(text) if " 2 2 1 1 " in ln)  # the last triangle
+    text[last] = text[last].replace(" 2 2 1 1 ", " 2 2 0 2 ")  # no physical group, entity 2
+    _refused(tmp_path, capsys, MSH_SCENE, "surface(s) 2 have cells but no 2D physical group",
+             files={"disk.msh": "\n".join(text)})
+
+
+def test_a_billion_steps_are_refused_before_anything_is_allocated(tmp_path, capsys):
+    line = _refused(tmp_path, capsys, replace(BAR, "n_steps = 100", "n_steps = 1000000000"),
+                    "more than the")
+    assert "[mesh] the run needs about" in line and "force = true or --force" in line
+
+
+def test_a_mesh_beyond_the_memory_is_refused_before_meshing(tmp_path, capsys):
+    t0 = time.perf_counter()
+    _refused(tmp_path, capsys, replace(BAR, "h = 0.01", "h = 1e-5"), "cells")
+    assert time.perf_counter() - t0 < 60  # not meshed: meshing 4e7 cells takes many minutes
+
+
+def test_the_estimate_counts_a_structured_mesh_exactly(tmp_path, capsys):
+    """A structured bar of n_r x n_z intervals has 2 n_r n_z cells: the printed estimate
+    and the run agree."""
+    code, out, err, base, _ = _cli(tmp_path, capsys, replace(BAR, "n_steps = 100", "n_steps = 5"),
+                                   ["run", "{base}/scene.toml", "--out", "{base}/out"])
+    assert code == 0, err
+    assert "estimate: 40 cells," in out  # radius 0.02 / h 0.01 = 2, length 0.1 / 0.01 = 10
+    with open(os.path.join(base, "out", "summary.json")) as f:
+        assert json.load(f)["n_cells"] == 40
+
+
+def test_t_end_shorter_than_dt_is_refused(tmp_path, capsys):
+    text = replace(replace(BAR, "cfl = 0.9", "dt = 1e-7"), "n_steps = 100", "t_end = 1e-8")
+    _refused(tmp_path, capsys, text, "t_end = 1e-08 s is shorter than one step dt = 1e-07 s")
+
+
+def test_the_same_surface_in_two_contacts_is_refused(tmp_path, capsys):
+    twice = PAIR.replace("[[loads]]", """[[contact]]
+lower = "striker_contact"
+upper = "target_contact"
+method = "dme"
+
+[[loads]]""")
+    _refused(tmp_path, capsys, twice, "[contact #2] the surface 'striker_contact' is already "
+                                      "in [contact #1]")
+
+
+def test_a_probe_on_the_interface_of_two_bodies_is_refused(tmp_path, capsys):
+    _refused(tmp_path, capsys, replace(PAIR, "point = [0.01, 0.02]", "point = [0.01, 0.0]"),
+             "lies on the interface of the bodies striker and target")
+
+
+def test_an_empty_out_and_a_directory_as_scene_are_refused(tmp_path, capsys):
+    _refused(tmp_path, capsys, BAR, "--out '': the output directory name is empty",
+             args=["run", "{base}/scene.toml", "--out", "", "--quiet"])
+    _refused(tmp_path, capsys, BAR, "is a directory: give the .toml file",
+             args=["run", "{base}", "--quiet"])
+
+
+def test_plot_times_outside_the_run_are_refused(tmp_path, capsys):
+    code, _, err, base, _ = _cli(tmp_path, capsys, replace(BAR, "n_steps = 100", "n_steps = 20"),
+                                 ["run", "{base}/scene.toml", "--out", "{base}/run", "--quiet"])
+    assert code == 0, err
+    _refused(tmp_path, capsys, None, "--times 1: outside the run, which covers 0 to",
+             args=["plot", "{base}/run", "--times", "1.0"])
+
+
+def _warnings(err: str) -> list[str]:
+    return [ln for ln in err.splitlines() if ln.startswith("warning: ")]
+
+
+def test_keys_the_method_ignores_are_named(tmp_path, capsys):
+    text = replace(PAIR, 'method = "film"\n', 'method = "film"\nrestitution = 0.0\n')
+    code, _, err, _, _ = _cli(tmp_path, capsys, text,
+                              ["run", "{base}/scene.toml", "--out", "{base}/run", "--quiet"])
+    assert code == 0, err
+    assert _warnings(err) == ['warning: [contact #1] restitution = 0.0 is ignored by method = '
+                              '"film" (only dme reads it)']
+
+
+def _c1(E: float, nu: float, rho: float) -> float:
+    """Dilatational wave speed (m/s), closed form."""
+    return (E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * rho)) ** 0.5
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ("density = 7850.0", "density = 7.85",
+     f"[materials.steel] wave speed {_c1(200e9, 0.3, 7.85):.4g} m/s is outside"),
+    ("E = 200e9", "E = 210.0",
+     f"[materials.steel] wave speed {_c1(210.0, 0.3, 7850.0):.4g} m/s is outside"),
+    ("length = 0.1", "length = 200.0", "[mesh] the model is 200 m across"),
+], ids=["density_in_g", "E_in_Pa_not_GPa", "millimetres"])
+def test_implausible_values_warn_in_one_line_each(tmp_path, capsys, old, new, words):
+    text = replace(replace(BAR, "n_steps = 100", "n_steps = 3"), old, new)
+    if new.startswith("length"):
+        text = replace(text, "h = 0.01", "h = 20.0")
+    code, _, err, _, _ = _cli(tmp_path, capsys, text,
+                              ["run", "{base}/scene.toml", "--out", "{base}/run", "--quiet"])
+    assert code == 0, err
+    assert any(words in w for w in _warnings(err)), err

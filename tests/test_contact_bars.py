@@ -23,6 +23,7 @@ from impact_fenics import scenes
 from impact_fenics.contact import DME, FILM, pair_surfaces
 from impact_fenics.errors import InputError
 from impact_fenics.simulation import Settings
+from test_meshing import owned_cells
 
 RHO, E = 7850.0, 200e9
 C0 = math.sqrt(E / RHO)
@@ -34,6 +35,8 @@ def impact(method, h):
     sim = scenes.bar_impact(Settings(cfl=0.9, t_end=3 * L / C0, output_every=10, quiet=True),
                             method, h=h, nu=0.0, v0=V0, radius=A, striker_length=L,
                             target_length=L, structured=True, observe=None)
+    for name in ("striker", "target"):  # the 1D oracle needs both grids structured
+        assert owned_cells(sim.model.tmesh, name) == 2 * round(A / h) * round(L / h), name
     summary = sim.run()
     hist, energy = sim.history.data(), sim.energy.data()
     steps = np.flatnonzero(hist["n_active"] > 0)

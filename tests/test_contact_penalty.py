@@ -9,10 +9,12 @@ the stability bound beta_max < 4/3 derived in impact_fenics/contact/penalty.py.
 import math
 
 import numpy as np
+import pytest
 
 from impact_fenics import scenes
 from impact_fenics.contact import Penalty
 from impact_fenics.contact.penalty import STABILITY_BOUND, lambda_max_diag_plus_rank_one
+from impact_fenics.errors import InputError
 from impact_fenics.simulation import Settings
 
 RHO, E = 7850.0, 200e9
@@ -53,7 +55,8 @@ def _punch_under_constant_force(beta_target):
     block = dict(width=1.5, depth=0.3, h_surface=0.02, grading=0.3,
                  breaks=((0.5, 25), (1.0, 25)))
     sim = scenes.punch_indentation(
-        Settings(dt=3.64e-7, n_steps=600, output_every=10, quiet=True, energy_growth_limit=1e9),
+        Settings(dt=3.64e-7, n_steps=600, output_every=10, quiet=True, energy_growth_limit=1e9,
+                 force=beta_target > STABILITY_BOUND),
         Penalty("scaled", beta_target=beta_target), radius=0.5, block=block,
         t_rise=1e-6, t_fall=1.0, t_end=2.0)
     summary = sim.run()
@@ -65,6 +68,7 @@ def _punch_under_constant_force(beta_target):
         "punch_ke_late": float((0.5 * 0.1 * hist["punch_v"][late] ** 2).max()),
         "energy": float(np.abs(energy["total"]).max()),
         "balance": summary["energy_balance_error_rel"],
+        "status": summary["status"],
     }
 
 
@@ -74,6 +78,7 @@ def test_contact_settles_just_under_the_bound():
     assert r["flips_late"] == 0  # the active set holds
     assert r["punch_ke_late"] <= 1e-4 * r["energy"]  # the punch has come to rest on the block
     assert r["balance"] <= 1e-10
+    assert r["status"] == "completed"  # no chatter, no energy gain reported
 
 
 def test_contact_chatters_and_gains_energy_just_above_the_bound():
@@ -84,3 +89,18 @@ def test_contact_chatters_and_gains_energy_just_above_the_bound():
     # energy the non-conservative penalty pumped in (the ledger still balances)
     assert r["punch_ke_late"] >= 1e-2 * r["energy"]
     assert r["balance"] <= 1e-10
+    # and the run says so in its status (it completes: chatter does not diverge)
+    assert r["status"].startswith("completed (penalty chatter") and "contact energy gain" in r["status"]
+
+
+def test_penalty_above_the_bound_is_refused_unless_forced():
+    """beta_max is known before the first step: above 4/3 the run is refused like a dt
+    above the stable limit (Settings.force runs it)."""
+    block = dict(width=0.3, depth=0.1, h_surface=0.02, grading=0.3, h_max=0.05, breaks=((0.1, 5),))
+    settings = Settings(dt=1e-7, n_steps=5, quiet=True)
+    with pytest.raises(InputError, match=r"beta_max = 1\.4 is above the stable bound 4/3"):
+        scenes.punch_indentation(settings, Penalty("scaled", beta_target=1.4), radius=0.1,
+                                 block=block)
+    forced = scenes.punch_indentation(Settings(dt=1e-7, n_steps=5, quiet=True, force=True),
+                                      Penalty("scaled", beta_target=1.4), radius=0.1, block=block)
+    assert abs(forced.contacts[0].method.info["beta_max"] - 1.4) <= 1e-9

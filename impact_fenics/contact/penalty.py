@@ -19,9 +19,24 @@ At beta = 1 the matrix is nilpotent: the gap closes in one step (this is FILM).
 For beta < 1 the roots are complex with |z|^2 = 1 - beta (the penalty damps);
 at beta = 4/3 a root reaches z = -1, so above it the gap alternates sign every
 step: a tied pair grows without bound, a unilateral contact chatters (opens
-and closes on alternate steps) and gains energy. An elastic body behind the
-node adds a mode stiffness w = dt^2 omega^2 in [0, 4) and moves the limit to
-beta < (4 - w)/(3 - w) >= 4/3, so 4/3 is the bound that holds for every mode.
+and closes on alternate steps) and gains energy.
+
+An elastic body behind the node adds a mode stiffness w = dt^2 omega^2 in
+[0, 4) (the explicit limit without contact). Then
+g^{n+1} = (1 - beta)((1 - w) g^n + y^n): trace (1 - beta)(2 - w), determinant
+1 - beta, and the Jury conditions are 0 < beta < 2,
+1 + (1 - beta)(3 - w) > 0 and 1 + (1 - beta)(w - 1) > 0, i.e.
+
+    beta < (4 - w)/(3 - w)   for 0 <= w <= 2,
+    beta < w/(w - 1)         for 2 <= w < 4
+
+(the two meet at beta = 2, w = 2; for 2 < w < 3 the first expression is
+larger than the true limit and must not be used). Both are >= 4/3 and reach
+it at w = 0 and w -> 4, so 4/3 is the bound that holds for every mode. It is
+sharp for a rigid punch (the coupled mode has w = 0: the punch carries no
+stiffness); for node pairs of two elastic bodies it is only sufficient: their
+contact modes carry w > 0 at a realistic dt, and such pairs settle above 4/3
+(measured in docs/results.md).
 
 With a rigid punch, S = diag(d) + kappa 1 1' with kappa = dt^2 / m_p couples
 every spring through the light punch: with a uniform p, beta_max = p *

@@ -36,7 +36,7 @@ def settings(**kw) -> Settings:
     """Settings for a study run: quiet, no XDMF fields, no per-run plots (when the
     installed Simulation knows that option)."""
     names = {f.name for f in dataclasses.fields(Settings)}
-    base = dict(quiet=True, fields=False, plots=False)
+    base = dict(quiet=True, fields=False, plots=False, force=True)  # unstable penalties on purpose
     base.update(kw)
     return Settings(**{k: v for k, v in base.items() if k in names})
 

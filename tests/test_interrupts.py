@@ -1,0 +1,218 @@
+"""SIGINT and SIGTERM at every moment of a run: one line, exit 128 + signal, nothing lost.
+
+Oracles: the specification in impact_fenics/interrupts.py and the README
+(before the run nothing is written and an older run in the directory is kept;
+in the loop the run stops at the next step (serial) or at the next multiple of
+64 steps or after the last step (MPI, where the ranks agree); after the last
+step the output is finished and complete), checked on the files. In-process
+tests send the signal from inside the run at a chosen step (to one rank only
+under MPI, so the agreement is tested); the subprocess tests send it as a user
+or a batch system does (serial pass only; the MPI ones launch mpirun).
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+
+import pytest
+from mpi4py import MPI
+
+from conftest import clean_mpi_env
+from impact_fenics import interrupts, plotting, scenes
+from impact_fenics.simulation import Settings, Simulation
+from scene_texts import BAR, ROOT, replace
+from test_failure import LONG, _wait_for_loop
+
+serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
+COMM = MPI.COMM_WORLD
+N_STEPS = 200
+
+
+def _bar(out: str) -> Simulation:
+    return scenes.elastic_bar(Settings(cfl=0.9, n_steps=N_STEPS, output_every=50, quiet=True,
+                                       out=out), h=0.01, length=0.1, radius=0.02)
+
+
+def _signal_self(sig=signal.SIGINT, rank=None) -> None:
+    """Send ``sig`` to this process, on ``rank`` only (default: the last rank)."""
+    if COMM.rank == (COMM.size - 1 if rank is None else rank):
+        os.kill(os.getpid(), sig)
+
+
+def _at_step(monkeypatch, step: int) -> None:
+    """Send SIGINT to the last rank when the loop reaches ``step``."""
+    real = Simulation._track_contact
+
+    def track(self, track_, n):
+        if n == step:
+            _signal_self()
+        return real(self, track_, n)
+
+    monkeypatch.setattr(Simulation, "_track_contact", track)
+
+
+def _summary(out: str) -> dict:
+    with open(os.path.join(out, "summary.json")) as f:
+        return json.load(f)
+
+
+def _old_run(out: str) -> None:
+    """An older run in ``out`` (marker and a summary) that must survive a stop before the run."""
+    if COMM.rank == 0:
+        os.makedirs(out)
+        with open(os.path.join(out, ".impact_fenics_run"), "w") as f:
+            f.write("old\n")
+        with open(os.path.join(out, "summary.json"), "w") as f:
+            f.write('{"status": "old"}\n')
+    COMM.barrier()
+
+
+def test_signal_during_set_up_writes_nothing(tmp_path, monkeypatch):
+    out = COMM.bcast(str(tmp_path / "run"), root=0)
+    _old_run(out)
+    sim = _bar(out)
+    real = Simulation._field_writer
+
+    def writer(self, staging):
+        _signal_self()  # while the output expressions are compiled
+        return real(self, staging)
+
+    monkeypatch.setattr(Simulation, "_field_writer", writer)
+    with pytest.raises(interrupts.Interrupted) as exc:
+        sim.run()
+    assert exc.value.signum == signal.SIGINT and exc.value.exit_code == 130
+    assert not os.path.exists(out + ".partial")
+    assert _summary(out) == {"status": "old"}  # the older run is untouched
+
+
+@pytest.mark.parametrize("step", [5, N_STEPS - 10], ids=["early", "last_steps"])
+def test_signal_in_the_loop_stops_with_a_complete_directory(tmp_path, monkeypatch, step):
+    out = COMM.bcast(str(tmp_path / "run"), root=0)
+    sim = _bar(out)
+    _at_step(monkeypatch, step)
+    summary = sim.run()
+    # serial: the step after; MPI: the next multiple of 64, or the last step
+    expected = step + 1 if COMM.size == 1 else min(64 * (step // 64 + 1), N_STEPS)
+    assert sim.status == summary["status"] == "interrupted by SIGINT"
+    assert summary["stopped_at_step"] == expected and sim.signal == signal.SIGINT
+    assert _summary(out)["stopped_at_step"] == expected
+    assert not os.path.exists(out + ".partial")
+    with open(os.path.join(out, "history.csv")) as f:
+        assert len(f.read().splitlines()) == expected + 1  # header + one row per step
+
+
+def test_signal_while_plotting_finishes_the_directory(tmp_path, monkeypatch):
+    out = COMM.bcast(str(tmp_path / "run"), root=0)
+    sim = _bar(out)
+    real = plotting.write_history_plots
+
+    def plots(*args, **kwargs):
+        _signal_self(rank=0)  # plots are drawn on rank 0
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(plotting, "write_history_plots", plots)
+    summary = sim.run()
+    assert sim.status == "completed" and sim.signal == signal.SIGINT
+    assert "SIGINT after the last step" in _summary(out)["interrupted"]
+    assert summary["stopped_at_step"] == N_STEPS
+    for name in ("energy.png", "fields.xdmf", "history.csv", "summary.json"):
+        assert os.path.getsize(os.path.join(out, name)) > 0
+    assert not os.path.exists(out + ".partial")
+
+
+# ------------------------------------------------------------------ as a user sends them
+
+def _cli(args, env=None):
+    return subprocess.Popen([sys.executable, "-m", "impact_fenics", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env or clean_mpi_env(), cwd=ROOT)
+
+
+@serial_only
+@pytest.mark.parametrize("sig, delay", [(signal.SIGINT, 0.8), (signal.SIGTERM, 2.0)],
+                         ids=["SIGINT_imports", "SIGTERM_set_up"])
+def test_signal_before_the_run_prints_one_line(tmp_path, sig, delay):
+    (tmp_path / "bar.toml").write_text(BAR)
+    out = str(tmp_path / "run")
+    _old_run(out)
+    proc = _cli(["run", tmp_path / "bar.toml", "--out", out, "--quiet"])
+    time.sleep(delay)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert proc.returncode == 128 + sig.value, err
+    assert lines == [f"stopped: interrupted by {sig.name} during set-up; nothing was written"]
+    assert _summary(out) == {"status": "old"} and not os.path.exists(out + ".partial")
+
+
+def _rank_pids(tag: str) -> dict[int, int]:
+    """{rank: pid} of the MPI ranks whose environment holds IMPACT_TEST_TAG=tag."""
+    ranks = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/environ", "rb") as f:
+                    env = dict(v.split(b"=", 1) for v in f.read().split(b"\0") if b"=" in v)
+            except OSError:
+                continue
+            if env.get(b"IMPACT_TEST_TAG") == tag.encode() and b"OMPI_COMM_WORLD_RANK" in env:
+                ranks[int(env[b"OMPI_COMM_WORLD_RANK"])] = int(entry)
+    return ranks
+
+
+def _mpirun(args, tag):
+    env = clean_mpi_env()
+    env["IMPACT_TEST_TAG"] = tag
+    return subprocess.Popen([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", "2",
+                             sys.executable, "-m", "impact_fenics", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env, cwd=ROOT)
+
+
+@serial_only
+@pytest.mark.parametrize("to", ["both", "rank1"])
+def test_signal_to_the_ranks_under_mpirun(tmp_path, to):
+    """A batch system signals every rank (SIGTERM); a stray kill one rank (SIGINT): the
+    ranks agree at the next multiple of 64 steps and rank 0 reports in one line."""
+    (tmp_path / "scene.toml").write_text(LONG)
+    out = tmp_path / "run"
+    tag = uuid.uuid4().hex
+    proc = _mpirun(["run", tmp_path / "scene.toml", "--out", out, "--quiet"], tag)
+    _wait_for_loop(proc, out)
+    pids = _rank_pids(tag)
+    assert sorted(pids) == [0, 1], pids
+    sig = signal.SIGTERM if to == "both" else signal.SIGINT
+    for rank in ([0, 1] if to == "both" else [1]):
+        os.kill(pids[rank], sig)
+    _, err = proc.communicate(timeout=120)
+    lines = [ln for ln in err.splitlines() if ln.startswith(("stopped:", "error:"))]
+    assert len(lines) == 1 and f"interrupted by {sig.name}" in lines[0], err
+    assert "Traceback" not in err
+    s = _summary(str(out))
+    assert s["status"] == f"interrupted by {sig.name}" and s["n_ranks"] == 2
+    assert s["stopped_at_step"] % 64 == 0 and 0 < s["stopped_at_step"] < s["n_steps"]
+    assert not os.path.exists(str(out) + ".partial")
+
+
+@serial_only
+def test_signal_during_set_up_under_mpirun_ends_every_rank(tmp_path):
+    (tmp_path / "bar.toml").write_text(BAR)
+    out = str(tmp_path / "run")
+    tag = uuid.uuid4().hex
+    proc = _mpirun(["run", tmp_path / "bar.toml", "--out", out, "--quiet"], tag)
+    pids = {}
+    deadline = time.monotonic() + 30
+    while len(pids) != 2 and time.monotonic() < deadline:
+        pids = _rank_pids(tag)
+        time.sleep(0.05)
+    time.sleep(0.5)  # importing
+    for pid in pids.values():
+        os.kill(pid, signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode != 0
+    assert "stopped: interrupted by SIGTERM during set-up; nothing was written" in err, err
+    assert "Traceback" not in err
+    assert not os.path.exists(out) and not os.path.exists(out + ".partial")

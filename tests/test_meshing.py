@@ -1,0 +1,55 @@
+"""Mesh generators: structured grids are structured, and contact faces pair for any h.
+
+Oracles: counting (a structured grid of alternating diagonals over n_r x n_z
+intervals has 2 n_r n_z triangles and its nodes on the grid lines), and the
+node-to-node pairing of two faces split into the same number of equal
+intervals (round(radius / h)), whether radius / h is whole or not.
+"""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import meshing
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.contact import pair_surfaces
+from impact_fenics.materials import LinearElastic
+
+
+def owned_cells(tmesh, name: str) -> int:
+    n_local = tmesh.mesh.topology.index_map(2).size_local
+    return MPI.COMM_WORLD.allreduce(int(np.count_nonzero(tmesh.cells(name) < n_local)))
+
+
+def on_grid(tmesh, name: str, z0: float, dr: float, dz: float) -> bool:
+    """Every node of the cells of ``name`` on the grid r = i dr, z = z0 + j dz."""
+    geom = tmesh.mesh.geometry
+    nodes = np.unique(np.concatenate([geom.dofmap.links(c) for c in tmesh.cells(name)]
+                                     + [np.zeros(0, dtype=np.int32)]))
+    x = geom.x[nodes, :2]
+    ok = (np.allclose(x[:, 0] / dr, np.round(x[:, 0] / dr), atol=1e-9)
+          and np.allclose((x[:, 1] - z0) / dz, np.round((x[:, 1] - z0) / dz), atol=1e-9))
+    return MPI.COMM_WORLD.allreduce(ok, op=MPI.LAND)
+
+
+@pytest.mark.parametrize("h", [0.02, 0.03])  # radius / h whole, and not (0.1 / 0.03 = 3.33)
+def test_coaxial_bars_structured_are_structured(h):
+    radius, ls, lt = 0.1, 0.12, 0.09
+    tmesh = meshing.coaxial_bars(radius=radius, striker_length=ls, target_length=lt, h=h,
+                                 structured=True)
+    n_r = round(radius / h)
+    for name, length, z0 in (("striker", ls, -ls), ("target", lt, 0.0)):
+        n_z = round(length / h)
+        assert owned_cells(tmesh, name) == 2 * n_r * n_z, name
+        assert on_grid(tmesh, name, z0, radius / n_r, length / n_z), name
+
+
+@pytest.mark.parametrize("structured", [False, True])
+def test_contact_faces_pair_when_radius_over_h_is_not_whole(structured):
+    radius, h = 0.1, 0.03
+    tmesh = meshing.coaxial_bars(radius=radius, striker_length=0.12, target_length=0.09, h=h,
+                                 structured=structured)
+    model = DeformableModel(tmesh, [Body("striker", LinearElastic()),
+                                    Body("target", LinearElastic())])
+    pairs = pair_surfaces(model, "striker_contact", "target_contact")
+    assert pairs.n == round(radius / h) + 1
+    assert np.allclose(np.sort(pairs.r), np.linspace(0.0, radius, round(radius / h) + 1))

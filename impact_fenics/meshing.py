@@ -17,8 +17,8 @@ from . import interrupts
 from .compat import model_to_mesh
 from .errors import InputError, require
 
-with interrupts.kept():  # gmsh's module (imported by gmshio) sets SIGINT to SIG_DFL
-    from dolfinx.io import gmshio
+with interrupts.kept():  # gmsh's module (dolfinx's reader imports it) sets SIGINT to SIG_DFL
+    import gmsh  # noqa: F401
 
 
 @dataclass

@@ -781,13 +781,11 @@ def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> None:
     """Refuse a probe point on the interface of two bodies (its value would depend on
     which body's cell is chosen)."""
     import numpy as np
-    from dolfinx import geometry
 
-    mesh = tmesh.mesh
+    from .compat import colliding_cells
+
     x = np.array([[point[0], point[1], 0.0]])
-    tree = geometry.BoundingBoxTree(mesh, mesh.topology.dim)
-    cells = geometry.compute_colliding_cells(
-        mesh, geometry.compute_collisions(tree, x), x).links(0)
+    cells = colliding_cells(tmesh.mesh, x).links(0)
     names = {name for name, tag in tmesh.cell_names.items()
              if np.isin(cells, tmesh.cell_tags.find(tag)).any()}
     names = set().union(*comm.allgather(names))

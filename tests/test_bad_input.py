@@ -129,7 +129,7 @@ def _refused(tmp_path, capsys, text, words, args=None, files=None, out_name="out
 
 
 def test_msh_surface_without_a_physical_group(tmp_path, capsys):
-    """gmshio segfaults on such a file (PETSc signal 11): refused before it sees it."""
+    """dolfinx's gmsh reader segfaults on such a file (PETSc signal 11): refused before it sees it."""
     text = _disk_msh(0.02, 0.04, 2, 4).splitlines()
     last = max(k for k, ln in enumerate(text) if " 2 2 1 1 " in ln)  # the last triangle
     text[last] = text[last].replace(" 2 2 1 1 ", " 2 2 0 2 ")  # no physical group, entity 2

@@ -327,15 +327,20 @@ def patch():
 
 
 def test_patch_wave_crosses_non_matching_interface(patch):
-    """The 1D oracle: all of the impulse into the upper bar, none reflected. Measured like
-    the bars' exchanged velocities (2 %), shrinking with h; the interface stress history
-    (section average = total contact force / area) against the delayed pulse is no worse
-    than on the matched, monolithic bar at the coarser face's h (the front's dispersion
-    is the mesh's, 5 % margin), and shrinks with h."""
-    for k in ((6, 9), (9, 6), (12, 18)):
-        r = patch[k]
-        assert abs(r["transmitted"]) <= 0.02 and abs(r["reflected"]) <= 0.02, k
-    assert abs(patch[(12, 18)]["transmitted"]) < abs(patch[(6, 9)]["transmitted"])
+    """The 1D oracle: all of the impulse into the upper bar, none reflected. The matched,
+    monolithic bar misses it too, by a discretisation error of second order in h (its
+    CST end faces and diagonals spread the 1D field: 2.3 % at 6 faces, 0.58 % at 12).
+    The non-matching interface must add no more than half of that again at the coarser
+    face's h (measured 1.24-1.34x) and converge at the same order (a fall of at least
+    3x when h halves; second order gives 4x). The interface stress history (section
+    average = total contact force / area) against the delayed pulse is no worse than
+    on the matched bar at the coarser face's h (the front's dispersion is the mesh's,
+    5 % margin), and shrinks with h."""
+    for k, coarse in (((6, 9), (6, 6)), ((9, 6), (6, 6)), ((12, 18), (12, 12))):
+        r, m = patch[k], patch[coarse]
+        assert abs(r["transmitted"]) <= 1.5 * abs(m["transmitted"]), k
+        assert abs(r["reflected"]) <= 1.5 * abs(m["reflected"]), k
+    assert abs(patch[(12, 18)]["transmitted"]) <= abs(patch[(6, 9)]["transmitted"]) / 3
     for k, coarse in (((6, 9), (6, 6)), ((9, 6), (6, 6)), ((12, 18), (12, 12))):
         assert patch[k]["stress_error"] <= 1.05 * patch[coarse]["stress_error"], k
     assert patch[(12, 18)]["stress_error"] < patch[(6, 9)]["stress_error"]

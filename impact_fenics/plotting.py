@@ -243,6 +243,8 @@ def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | No
                                              and region[2] < region[3]):
         raise InputError(f"--region {region}: give r0 < r1 and z0 < z1 (m)")
     if "dolfinx.cpp" in sys.modules:
+        if os.environ.get("IMPACT_FENICS_RENDER_CHILD"):
+            raise RuntimeError("the rendering process loaded dolfinx (VTK cannot share it)")
         return _render_in_fresh_process(run_dir, field, times, scale, width, region)
     series = data.fields[field]
     picks = _pick_times(series, times)
@@ -303,6 +305,7 @@ def _render_in_fresh_process(run_dir: str, field: str, times: list[float] | None
     from .compat import clean_launcher_env  # dolfinx is loaded already here
 
     env = clean_launcher_env()
+    env["IMPACT_FENICS_RENDER_CHILD"] = "1"  # never spawn again from the child
     proc = subprocess.run([sys.executable, "-c", code,
                            json.dumps([run_dir, field, times, scale, width, region])],
                           capture_output=True, text=True, env=env)

@@ -37,8 +37,6 @@ from typing import Mapping, Sequence
 import numpy as np
 from mpi4py import MPI
 
-from .compat import cell_dofs
-
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 
 
@@ -75,6 +73,8 @@ class FieldWriter:
         self.cell_fields = list(cell_fields)
         mesh = model.mesh
         n_cells = mesh.topology.index_map(2).size_local
+        from .compat import cell_dofs  # (the reader below must not load dolfinx)
+
         cell_nodes = cell_dofs(model.V)[:n_cells]
         # the piece: owned cells and their nodes, nodes in order of their local index
         self._nodes = np.unique(cell_nodes.ravel()).astype(np.int64)

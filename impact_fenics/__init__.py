@@ -13,4 +13,7 @@ _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 # mpi4py.MPI before anything that loads dolfinx or petsc4py: the PyPI wheels of the
 # current FEniCSx find libmpi only once mpi4py has loaded it (impact_fenics.compat).
-from mpi4py import MPI as _MPI  # noqa: E402,F401
+from . import interrupts as _interrupts  # noqa: E402  (no MPI, no dolfinx)
+
+with _interrupts.held_at_start():  # a signal during MPI's start-up: one line, exit 130/143
+    from mpi4py import MPI as _MPI  # noqa: F401

@@ -108,17 +108,49 @@ def deferred() -> Iterator[None]:
 @contextmanager
 def kept() -> Iterator[None]:
     """Keep the SIGINT/SIGTERM handlers across a block: importing gmsh's module sets
-    SIGINT to SIG_DFL (so that Ctrl-C kills its GUI)."""
-    old = {sig: signal.getsignal(sig) for sig in SIGNALS}
+    SIGINT to SIG_DFL (so that Ctrl-C kills its GUI) and its finalize() sets it back.
+    Inside the block those calls are no-ops, so no signal ever meets SIG_DFL there
+    (blocking the signals would not do: MPI's threads would take them)."""
+    real = signal.signal
+
+    def unchanged(sig, handler):
+        if sig in SIGNALS:
+            return signal.getsignal(sig)
+        return real(sig, handler)
+
+    signal.signal = unchanged
+    try:
+        yield
+    finally:
+        signal.signal = real
+
+
+@contextmanager
+def held_at_start() -> Iterator[None]:
+    """Around the package's first imports (MPI start-up, before any main could call
+    :func:`install`): a SIGINT/SIGTERM arriving there ends the program with one line
+    and exit 128 + signum, as :func:`install` would, instead of a traceback; where the
+    program had its own handler already, the signal goes to it after the block."""
+    caught: list[int] = []
+    old = {}
+    for sig in SIGNALS:
+        try:
+            old[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
+        except ValueError:  # not the main thread: leave the handlers alone
+            old.pop(sig, None)
     try:
         yield
     finally:
         for sig, handler in old.items():
-            if handler is not None and signal.getsignal(sig) is not handler:
-                try:
-                    signal.signal(sig, handler)
-                except ValueError:  # not the main thread
-                    pass
+            signal.signal(sig, handler)
+        if caught:
+            signum = caught[0]
+            default = old.get(signum) in (signal.default_int_handler, signal.SIG_DFL)
+            if default or STATE.installed:
+                sys.stderr.write(f"stopped: {Interrupted(signum, 'during start-up')}\n")
+                sys.stderr.flush()
+                os._exit(128 + signum)
+            signal.raise_signal(signum)
 
 
 def pending() -> int:

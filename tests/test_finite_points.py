@@ -110,10 +110,12 @@ def test_small_strain_limit(material):
 
 
 def test_johnson_cook_against_ode():
-    """Isochoric uniaxial extension at a constant log-strain rate (1e4 1/s, to 0.4): the return
-    mapping with adiabatic heating converges (first order in dt) to the direct integration
-    of the same equations, q' = 3 mu (e' - ep'), ep' = rate0 exp((q / (g(ep)(1 - T*^m)) - 1) / C)
-    above the quasi-static flow stress, T' = chi q ep' / (rho c_p), by SciPy's Radau."""
+    """Isochoric uniaxial extension at a constant log-strain rate (1e4 1/s, to 0.4): the
+    return mapping with adiabatic heating converges (first order in dt) to the direct
+    integration of the same equations. On this path the elastic log strain is e - ep
+    (coaxial), so q = 3 mu (rate t - ep) and, past the elastic limit t_y = A / (3 mu rate),
+    ep' = rate0 exp((q / (g(ep) (1 - T*^m)) - 1) / C), T' = chi q ep' / (rho c_p):
+    integrated by SciPy's LSODA at rtol 1e-10 (Radau and BDF agree to 1e-9)."""
     from scipy.integrate import solve_ivp
 
     m = JohnsonCook()
@@ -122,15 +124,19 @@ def test_johnson_cook_against_ode():
     t_end = e_end / rate
 
     def rhs(t, y):
-        q, ep, T = y
+        ep, T = y
+        q = 3 * m.mu * (rate * t - ep)
         ts = min(max((T - m.t_room) / (m.t_melt - m.t_room), 0.0), 1.0)
         g = (m.A + m.B * max(ep, 0.0) ** m.n) * (1.0 - ts ** m.m)
-        epd = m.rate0 * math.exp(min((q / g - 1.0) / m.C, 700.0)) if q > g else 0.0
-        return [3 * m.mu * (rate - epd), epd, m.chi * q * epd / (m.density * m.c_p)]
+        epd = m.rate0 * math.exp(min((q / g - 1.0) / m.C, 50.0))
+        return [epd, m.chi * q * epd / (m.density * m.c_p)]
 
-    sol = solve_ivp(rhs, (0.0, t_end), [0.0, 0.0, m.t_room], method="Radau", rtol=1e-10,
-                    atol=[1e-2, 1e-14, 1e-10])
-    q_ref, ep_ref, T_ref = sol.y[:, -1]
+    t_y = m.A / (3 * m.mu * rate)
+    sol = solve_ivp(rhs, (t_y, t_end), [0.0, m.t_room], method="LSODA", rtol=1e-10,
+                    atol=[1e-15, 1e-10])
+    assert sol.status == 0
+    ep_ref, T_ref = sol.y[:, -1]
+    q_ref = 3 * m.mu * (e_end - ep_ref)
     errs = []
     for n in (400, 1600):
         dt = t_end / n
@@ -143,11 +149,11 @@ def test_johnson_cook_against_ode():
         q = tau[2] - tau[0]  # uniaxial: sqrt(3/2 |dev tau|^2) = |tau_zz - tau_rr|
         errs.append((abs(q - q_ref) / q_ref, abs(state[0] - ep_ref) / ep_ref,
                      abs(state[5] - T_ref) / (T_ref - m.t_room)))
-        assert q == pytest.approx(flow_stress(p, state[0], rate, state[5]), rel=2e-2)
     coarse, fine = np.array(errs[0]), np.array(errs[1])
+    print("JC errors (q, ep, T) at dt = t/400 and t/1600:", coarse, fine)
     assert T_ref - m.t_room > 10.0  # the heating is felt (tens of K)
-    assert np.all(fine < 2e-3)  # first order: dt = t_end / 1600
-    assert np.all(fine < coarse / 2.5)  # and it shrinks with dt (4x smaller dt)
+    assert np.all(fine < 5e-4)  # first order: dt = t_end / 1600
+    assert np.all(fine < coarse / 3)  # and it shrinks as dt (4x smaller dt)
 
 
 def test_johnson_cook_bracket_infinite_slope():

@@ -126,10 +126,11 @@ class FiniteRun:
         m_fn.x.array[1::2] = m_nodes
         m_fn.x.scatter_reverse(la.ScatterMode.add)
         self.mass = m_fn.x.array[: self.n_owned].copy()
-        length = float(self.comm.allreduce(np.ptp(self.node_xy[:, 1]) if n_local_nodes else 0.0,
-                                           op=MPI.MAX))
-        r_max = float(self.comm.allreduce(self.node_xy[:, 0].max() if n_local_nodes else 0.0,
-                                          op=MPI.MAX))
+        hi = self.node_xy.max(axis=0) if n_local_nodes else np.full(2, -np.inf)
+        lo = self.node_xy.min(axis=0) if n_local_nodes else np.full(2, np.inf)
+        self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+        self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+        length, r_max = float(hi[1] - lo[1]), float(hi[0])
         self.length0, self.radius0 = length, r_max
         owned_xy = self.node_xy[: self.n_owned_nodes]
         free = np.ones(self.n_owned, dtype=bool)

@@ -47,7 +47,9 @@ def update(F, state, params, dt, tau, work) -> float:
         hencky.radial_return(mu, dg, q, principal, work)
         wp = dg * (sy0 + h * state[0] + 0.5 * h * dg)
         state[0] += dg
-    hencky.finish(F, principal, work, state, tau)
+        hencky.finish(F, principal, work, state, tau)
+    else:
+        hencky.kirchhoff(principal, work, tau)
     return wp
 
 

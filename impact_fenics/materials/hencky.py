@@ -87,9 +87,8 @@ def radial_return(mu, dgamma, q_trial, principal, work) -> None:
 
 
 @njit(cache=True)
-def finish(F, principal, work, state, tau) -> None:
-    """tau (rr, tt, zz, rz) from the principal stresses and directions; a = C_p^-1 from the
-    (returned) log strains in work[0:3]."""
+def kirchhoff(principal, work, tau) -> None:
+    """tau (rr, tt, zz, rz) (Pa) from the principal stresses and the directions in work[3:5]."""
     c, s = work[3], work[4]
     cc, ss, cs = c * c, s * s, c * s
     t1, t2 = principal[0], principal[1]
@@ -97,6 +96,15 @@ def finish(F, principal, work, state, tau) -> None:
     tau[2] = t1 * ss + t2 * cc
     tau[3] = (t1 - t2) * cs
     tau[1] = principal[2]
+
+
+@njit(cache=True)
+def finish(F, principal, work, state, tau) -> None:
+    """tau as :func:`kirchhoff`, and a = C_p^-1 from the returned log strains in work[0:3]
+    (after plastic flow only: an elastic step leaves a unchanged)."""
+    kirchhoff(principal, work, tau)
+    c, s = work[3], work[4]
+    cc, ss, cs = c * c, s * s, c * s
     l1, l2 = math.exp(2.0 * work[0]), math.exp(2.0 * work[1])
     brr, bzz, brz = l1 * cc + l2 * ss, l1 * ss + l2 * cc, (l1 - l2) * cs
     frr, frz, fzr, fzz, ftt = F[0], F[1], F[2], F[3], F[4]

@@ -97,7 +97,9 @@ def update(F, state, params, dt, tau, work) -> float:
                             + flow_stress(params, state[0] + x, rate, temperature))
             state[0] += x
             state[TEMPERATURE] = temperature + params[CHI] * y_new * x / (params[RHO] * params[CP])
-    hencky.finish(F, principal, work, state, tau)
+            hencky.finish(F, principal, work, state, tau)
+            return wp
+    hencky.kirchhoff(principal, work, tau)
     return wp
 
 

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study clean
+.PHONY: setup demo test test-serial test-mpi study study-taylor clean
 
 setup:
 	@scripts/setup.sh
@@ -26,6 +26,10 @@ test-mpi:
 # the paper's studies: docs/figures/*.png|json and docs/results.md (about 10-20 min on 2 cores)
 study: setup
 	$(MPIRUN) -n $(NP) $(PY) demos/paper_study.py
+
+# the Taylor bar on three meshes against the literature (tests/test_taylor_study.py; long)
+study-taylor: setup
+	$(PY) -m pytest tests/test_taylor_study.py -m study -q -s
 
 clean:
 	rm -rf results .pytest_cache

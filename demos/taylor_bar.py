@@ -36,13 +36,48 @@ LITERATURE = {"final_length_mm": (21.42, 21.48), "face_radius_mm": (7.22, 7.23),
               "simo_1992_radius_mm": 7.12, "zienkiewicz_1998_radius_mm": 7.11}
 
 
+def read_scene(path: str) -> dict:
+    """The scene's keys (see scenes/taylor_bar.toml); unknown or missing keys are refused."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        require(False, f"scene '{path}': {exc}")
+    keys = {"mesh": {"radius", "length", "n_r"},
+            "material": {"E", "nu", "density", "yield_stress", "hardening"},
+            "body": {"velocity"}, "wall": {"z", "method"}, "time": {"t_end", "safety", "dt_interval"}}
+    for table, names in keys.items():
+        got = doc.get(table, {})
+        require(isinstance(got, dict) and set(got) == names,
+                f"scene '{path}': [{table}] needs exactly the keys {', '.join(sorted(names))}")
+    require(set(doc) <= set(keys) | {"title"}, f"scene '{path}': unknown tables "
+            f"{', '.join(sorted(set(doc) - set(keys) - {'title'}))}")
+    return doc
+
+
 def run(n_r: int = 4, method: str = "film", safety: float = 0.5, out: str | None = None,
-        comm=MPI.COMM_WORLD) -> dict:
-    """The Taylor bar on an n_r x (10 n_r) mesh (square cells); returns the summary."""
+        comm=MPI.COMM_WORLD, scene: dict | None = None) -> dict:
+    """The Taylor bar on an n_r x (10 n_r) mesh (square cells), or as ``scene`` (a
+    :func:`read_scene` dict) says; returns the summary."""
+    radius, length, material, v0, z_wall, interval = RADIUS, LENGTH, COPPER, V0, 0.0, 10
+    t_end = T_END
+    if scene is not None:
+        m, t = scene["mesh"], scene["time"]
+        radius, length, n_r = float(m["radius"]), float(m["length"]), int(m["n_r"])
+        material = FiniteJ2(**{k: float(v) for k, v in scene["material"].items()})
+        v0 = -float(scene["body"]["velocity"][1])
+        require(float(scene["body"]["velocity"][0]) == 0.0, "[body] velocity: v_r must be 0")
+        z_wall, method = float(scene["wall"]["z"]), str(scene["wall"]["method"])
+        t_end, safety, interval = float(t["t_end"]), float(t["safety"]), int(t["dt_interval"])
     require(n_r >= 1, f"n_r = {n_r}: must be >= 1")
-    mesh = quad_bar(comm, RADIUS, LENGTH, n_r, 10 * n_r)
-    settings = FiniteSettings(t_end=T_END, safety=safety, history_every=20)
-    bar = FiniteRun(mesh, COPPER, settings, velocity=(0.0, -V0), wall=method)
+    n_z = max(1, round(n_r * length / radius))
+    mesh = quad_bar(comm, radius, length, n_r, n_z)
+    if z_wall != 0.0:
+        mesh.geometry.x[:, 1] += z_wall
+    settings = FiniteSettings(t_end=t_end, safety=safety, dt_interval=interval, history_every=20)
+    bar = FiniteRun(mesh, material, settings, velocity=(0.0, -v0), wall=method, z_wall=z_wall)
     history = None
     if out is not None:
         if comm.rank == 0:
@@ -51,9 +86,9 @@ def run(n_r: int = 4, method: str = "film", safety: float = 0.5, out: str | None
     summary = bar.run(history_csv=history)
     # the mass and the initial kinetic energy against their closed forms
     import math
-    mass = COPPER.density * math.pi * RADIUS ** 2 * LENGTH
-    summary["initial_kinetic_closed_form"] = 0.5 * mass * V0 ** 2
-    summary["mesh"] = f"{n_r} x {10 * n_r}"
+    mass = material.density * math.pi * radius ** 2 * length
+    summary["initial_kinetic_closed_form"] = 0.5 * mass * v0 ** 2
+    summary["mesh"] = f"{n_r} x {n_z}"
     summary["method"] = method
     if out is not None and comm.rank == 0:
         with open(os.path.join(out, "summary.json"), "w") as fh:
@@ -97,10 +132,12 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--n-r", type=int, default=4, help="cells across the radius (10x along the bar)")
     p.add_argument("--method", choices=("film", "dme"), default="film")
+    p.add_argument("--scene", default=None, help="a scene file (scenes/taylor_bar.toml)")
     p.add_argument("--out", default=None)
     a = p.parse_args(argv)
-    out = a.out or f"results/taylor_bar_{a.n_r}"
-    s = run(a.n_r, a.method, out=out)
+    scene = read_scene(a.scene) if a.scene else None
+    out = a.out or f"results/taylor_bar_{scene['mesh']['n_r'] if scene else a.n_r}"
+    s = run(a.n_r, a.method, out=out, scene=scene)
     if MPI.COMM_WORLD.rank == 0:
         # ## The check serial and parallel runs share
         print(f"Taylor bar, mesh {s['mesh']}, {s['method']}, {s['n_steps']} steps "

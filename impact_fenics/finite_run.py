@@ -152,17 +152,22 @@ class FiniteRun:
             nodes = fem.locate_dofs_topological(self.V, tdim - 1, facets)
             nodes = np.sort(nodes[nodes < self.n_owned_nodes])
             self.wall = RigidWall(nodes, self.node_xy[nodes, 1], self.mass[2 * nodes + 1], wall, z_wall)
-        # tracked nodes: top of the axis (R = 0, Z = L) and the impact-face corner (R, 0)
-        self._top = self._owned_node(0.0, length)
-        self._corner = self._owned_node(r_max, 0.0)
+        # tracked nodes: the top of the axis (0, Z_max) and the lower corner (R, Z_min); the
+        # length is measured from the wall (from Z_min without one)
+        self._top = self._owned_node(0.0, float(hi[1]))
+        self._corner = self._owned_node(r_max, float(lo[1]))
+        self._z_base = z_wall if wall is not None else float(lo[1])
         self._f_prev = np.zeros(self.n_owned)
         self._u_prev = np.zeros(self.n_owned)
 
     def _owned_node(self, r: float, z: float) -> int:
+        """The owned node at (r, z) (m), or -1 if another rank owns it."""
         xy = self.node_xy[: self.n_owned_nodes]
-        d = np.hypot(xy[:, 0] - r, xy[:, 1] - z) if xy.size else np.array([np.inf])
-        k = int(np.argmin(d)) if d.size else -1
-        return k if k >= 0 and d[k] <= 1e-9 * max(self.length0, 1e-300) else -1
+        if xy.size == 0:
+            return -1
+        d = np.hypot(xy[:, 0] - r, xy[:, 1] - z)
+        k = int(np.argmin(d))
+        return k if d[k] <= 1e-9 * max(self.length0, 1e-300) else -1
 
     # ------------------------------------------------------------ measures (every rank)
     def dt_limit(self) -> float:
@@ -170,11 +175,11 @@ class FiniteRun:
         return self.comm.allreduce(self.force.length_min_local(), op=MPI.MIN) / self.wave_speed
 
     def tracked(self) -> tuple[float, float]:
-        """(current length = z of the top axis node (m), current r of the node that started at
-        (R, 0) (m))."""
+        """(current length = z of the top axis node above the wall (m), current r of the node
+        that started at (R, Z_min) (m))."""
         vals = np.array([-np.inf, -np.inf])
         if self._top >= 0:
-            vals[0] = self.node_xy[self._top, 1] + self.u[2 * self._top + 1]
+            vals[0] = self.node_xy[self._top, 1] + self.u[2 * self._top + 1] - self._z_base
         if self._corner >= 0:
             vals[1] = self.node_xy[self._corner, 0] + self.u[2 * self._corner]
         self.comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.MAX)

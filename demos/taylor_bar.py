@@ -14,7 +14,8 @@
 # Hencky/exponential-map J2 (materials/finite_j2.py), the rigid wall by FILM
 # or DME (contact/wall.py), the step re-estimated every 10 steps from the
 # current cells (finite_run.py). Results: RUN_DIR/history.csv,
-# RUN_DIR/summary.json, RUN_DIR/history.png.
+# RUN_DIR/summary.json, RUN_DIR/history.png, RUN_DIR/fields.xdmf (displacement,
+# Cauchy stress, eps_p_eq, temperature per cell; Warp By Vector at scale 1).
 
 import argparse
 import json
@@ -78,12 +79,13 @@ def run(n_r: int = 4, method: str = "film", safety: float = 0.5, out: str | None
         mesh.geometry.x[:, 1] += z_wall
     settings = FiniteSettings(t_end=t_end, safety=safety, dt_interval=interval, history_every=20)
     bar = FiniteRun(mesh, material, settings, velocity=(0.0, -v0), wall=method, z_wall=z_wall)
-    history = None
+    history = fields = None
     if out is not None:
         if comm.rank == 0:
             os.makedirs(out, exist_ok=True)
-        history = os.path.join(out, "history.csv")
-    summary = bar.run(history_csv=history)
+        comm.barrier()
+        history, fields = os.path.join(out, "history.csv"), os.path.join(out, "fields.xdmf")
+    summary = bar.run(history_csv=history, fields_path=fields)
     # the mass and the initial kinetic energy against their closed forms
     import math
     mass = material.density * math.pi * radius ** 2 * length

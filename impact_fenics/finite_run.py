@@ -72,6 +72,7 @@ class FiniteSettings:
     history_every: int = 10
     max_steps: int = 10_000_000
     ledger: bool = True
+    snapshots: int = 8  # field outputs over the run (with fields_path), plus t = 0
 
 
 @njit(cache=True)
@@ -95,6 +96,42 @@ def trapezoid_work(f, u, f_prev, u_prev) -> float:
         f_prev[i] = f[i]
         u_prev[i] = u[i]
     return work
+
+
+class FiniteFields:
+    """XDMF fields on the reference mesh: displacement (m, nodal; Warp By Vector at scale 1
+    shows the deformed body), and per cell the Cauchy stress sigma_rr, sigma_tt, sigma_zz,
+    sigma_rz and von_mises (Pa, on the current configuration), eps_p_eq (-) and, for a
+    material with one, the temperature (K)."""
+
+    NAMES = ("sigma_rr", "sigma_tt", "sigma_zz", "sigma_rz", "von_mises", "eps_p_eq", "temperature")
+
+    def __init__(self, run: "FiniteRun", path: str):
+        from dolfinx import io
+
+        self.run = run
+        Q0 = fem.FunctionSpace(run.mesh, ("DG", 0))
+        self.fields = {k: fem.Function(Q0, name=k) for k in self.NAMES}
+        n = run.force.geometry.dofs.shape[0]
+        self.dofs = Q0.dofmap.list.array[run.force.geometry.cells[:n]].astype(np.intp)
+        self.file = io.XDMFFile(run.comm, path, "w")
+        self.file.write_mesh(run.mesh)
+
+    def write(self, t: float) -> None:
+        sig, eps, temp = self.run.force.cell_values()
+        m = sig[:, :3].mean(axis=1)
+        d = sig[:, :3] - m[:, None]
+        vm = np.sqrt(1.5 * ((d * d).sum(axis=1) + 2.0 * sig[:, 3] ** 2))
+        for k, vals in zip(self.NAMES, (sig[:, 0], sig[:, 1], sig[:, 2], sig[:, 3], vm, eps, temp)):
+            self.fields[k].x.array[self.dofs] = vals
+            self.fields[k].x.scatter_forward()
+        self.run.u_fn.x.scatter_forward()
+        self.file.write_function(self.run.u_fn, t)
+        for f in self.fields.values():
+            self.file.write_function(f, t)
+
+    def close(self) -> None:
+        self.file.close()
 
 
 class FiniteRun:
@@ -193,8 +230,12 @@ class FiniteRun:
         return self.comm.allreduce(local, op=MPI.MAX)
 
     # ------------------------------------------------------------ the run
-    def run(self, history_csv: str | None = None) -> dict:
+    def run(self, history_csv: str | None = None, fields_path: str | None = None) -> dict:
+        """Step to t_end; history rows into ``history_csv`` and fields into ``fields_path``
+        (XDMF) when given (rank 0 writes the CSV; the XDMF is collective)."""
         s, comm = self.settings, self.comm
+        fields = FiniteFields(self, fields_path) if fields_path else None
+        next_snapshot = 0.0
         require(s.t_end > 0, f"t_end = {s.t_end} s: must be > 0")
         require(s.dt is None or s.dt > 0, f"dt = {s.dt} s: must be > 0")
         require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
@@ -226,6 +267,9 @@ class FiniteRun:
             self.u_fn.x.scatter_forward()
             f = self.force.compute(dt_prev if dt_prev is not None else dt)
             w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
+            if fields is not None and t >= next_snapshot * (1.0 - 1e-12):
+                fields.write(t)  # u^n and the state of the force just computed at u^n
+                next_snapshot += s.t_end / max(s.snapshots, 1)
             record = n % stride == 0
             if record:
                 stored = comm.allreduce(self.force.stored_energy_local()) if s.ledger else 0.0
@@ -259,6 +303,9 @@ class FiniteRun:
         self.u_fn.x.scatter_forward()
         f = self.force.compute(dt_prev)
         w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
+        if fields is not None:
+            fields.write(t)
+            fields.close()
         self.n_steps, self.t = n, t
         K = self.kinetic()
         stored = comm.allreduce(self.force.stored_energy_local())

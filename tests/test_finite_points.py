@@ -153,7 +153,10 @@ def test_johnson_cook_against_ode():
     print("JC errors (q, ep, T) at dt = t/400 and t/1600:", coarse, fine)
     assert T_ref - m.t_room > 10.0  # the heating is felt (tens of K)
     assert np.all(fine < 5e-4)  # first order: dt = t_end / 1600
-    assert np.all(fine < coarse / 3)  # and it shrinks as dt (4x smaller dt)
+    assert np.all(fine[:2] < coarse[:2] / 3)  # q and ep shrink as dt (4x smaller dt)
+    # the heating books the trapezoid of sigma_y over each increment: its error is already
+    # at the 1e-6 level on both (the first-order errors of q and ep nearly cancel in it)
+    assert fine[2] < 1e-5 and coarse[2] < 1e-5
 
 
 def test_johnson_cook_bracket_infinite_slope():

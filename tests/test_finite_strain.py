@@ -194,3 +194,24 @@ def test_taylor_bar_partitions(comm):
               "activation_loss"):
         assert a[k] == pytest.approx(b[k], rel=1e-10), k
     assert a["n_steps"] == b["n_steps"]
+
+
+def test_johnson_cook_bar_heats_by_its_plastic_work(comm):
+    """A Johnson-Cook copper bar onto the wall (coarse, 10 us): the heat in the bar,
+    sum_q w_q rho c_p (T_q - T_room), equals chi times the plastic work of the ledger to
+    round-off (both book the step's trapezoid of sigma_y); the temperature reaches the
+    cell output."""
+    from impact_fenics.materials.johnson_cook import JohnsonCook
+
+    jc = JohnsonCook()
+    mesh = quad_bar(comm, 3.2e-3, 32.4e-3, 2, 20)
+    run = FiniteRun(mesh, jc, FiniteSettings(t_end=10e-6), velocity=(0.0, -227.0), wall="dme")
+    s = run.run()
+    g = run.force.geometry
+    heat = comm.allreduce(float((g.w * jc.density * jc.c_p * (run.force.state[..., 5] - jc.t_room)).sum()))
+    assert s["plastic_work"] > 10.0
+    assert heat == pytest.approx(jc.chi * s["plastic_work"], rel=1e-12)
+    _, eps, temp = run.force.cell_values()
+    hot = comm.allreduce(float(temp.max(initial=0.0)), op=MPI.MAX)
+    assert hot > jc.t_room + 20.0  # tens of kelvin at the impact face
+    assert np.all((temp >= jc.t_room - 1e-9) | (eps == 0))

@@ -18,9 +18,11 @@ of t_n (staggered, explicit in T): the scalar equation
 is monotone decreasing with g(0) > 0 (yielding) and g(q_trial / 3 mu) = -sigma_y <= 0,
 so it is solved in that bracket (Illinois regula falsi, bisection safeguard): with
 n < 1 the hardening slope is infinite at eps_bar_p = 0, where a Newton step fails.
-Then T_{n+1} = T_n + chi q_{n+1} x / (rho_0 c_p), q_{n+1} = sigma_y at the solution.
-Plastic work (J/m^3) booked as x (sigma_y(eps_bar_p,n) + sigma_y(eps_bar_p,n+1)) / 2 at the
-step's rate and T_n. State: [eps_bar_p, a_rr, a_zz, a_rz, a_tt, T (K)].
+The plastic work (J/m^3) is booked as Delta W_p = x (sigma_y(eps_bar_p,n) +
+sigma_y(eps_bar_p,n+1)) / 2 at the step's rate and T_n (the trapezoid of sigma_y over the
+increment, exact for linear hardening), and the heating uses the same sigma_y:
+T_{n+1} = T_n + chi Delta W_p / (rho_0 c_p), so the heat in the body is chi times the
+plastic work in the ledger, to round-off. State: [eps_bar_p, a_rr, a_zz, a_rz, a_tt, T (K)].
 """
 from __future__ import annotations
 
@@ -92,11 +94,10 @@ def update(F, state, params, dt, tau, work) -> float:
         if x > 0.0:
             rate = x / dt
             hencky.radial_return(mu, x, q, principal, work)
-            y_new = q - 3.0 * mu * x  # = sigma_y at the solution
             wp = 0.5 * x * (flow_stress(params, state[0], rate, temperature)
                             + flow_stress(params, state[0] + x, rate, temperature))
             state[0] += x
-            state[TEMPERATURE] = temperature + params[CHI] * y_new * x / (params[RHO] * params[CP])
+            state[TEMPERATURE] = temperature + params[CHI] * wp / (params[RHO] * params[CP])
             hencky.finish(F, principal, work, state, tau)
             return wp
     hencky.kirchhoff(principal, work, tau)

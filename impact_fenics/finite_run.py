@@ -34,8 +34,6 @@ floating-point sums).
 from __future__ import annotations
 
 import csv
-import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +42,7 @@ from mpi4py import MPI
 from numba import njit
 
 from .contact.wall import RigidWall
-from .errors import InputError, UnstableRunError, require
+from .errors import UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
 
 HISTORY_COLUMNS = ("step", "time", "dt", "dt_limit", "kinetic", "internal_work", "activation_loss",

@@ -3,7 +3,6 @@ import math
 
 import numpy as np
 import pytest
-from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar

@@ -21,13 +21,13 @@ a = C_p^-1 (see :mod:`.hencky`).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from ..errors import require
+from .lame import LameConstants
 from . import hencky
 
 LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
@@ -53,15 +53,8 @@ def update(F, state, params, dt, tau, work) -> float:
     return wp
 
 
-@njit(cache=True)
-def energy(F, state, params, work) -> float:
-    """Stored elastic energy psi_e (J/m^3) at F with the current plastic state."""
-    hencky.trial_log_strains(F, state, work)
-    return hencky.elastic_energy(params[LAMBDA], params[MU], work)
-
-
 @dataclass(frozen=True)
-class FiniteJ2:
+class FiniteJ2(LameConstants):
     """E, yield_stress (sigma_y0), hardening (H) in Pa; nu (-); density (kg/m^3, reference)."""
 
     E: float = 117e9
@@ -74,19 +67,9 @@ class FiniteJ2:
     n_state: int = 5
 
     def __post_init__(self) -> None:
-        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
-        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
-        require(-1.0 < self.nu < 0.5, f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
+        self.check_elastic()
         require(self.yield_stress > 0, f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
         require(self.hardening > -3.0 * self.mu, f"material.hardening = {self.hardening} Pa: must be > -3 mu")
-
-    @property
-    def mu(self) -> float:
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
 
     def params(self) -> np.ndarray:
         return np.array([self.lmbda, self.mu, self.yield_stress, self.hardening])
@@ -96,8 +79,5 @@ class FiniteJ2:
         return np.array([0.0, 1.0, 1.0, 0.0, 1.0])
 
     update = staticmethod(update)
-    energy = staticmethod(energy)
+    energy = staticmethod(hencky.stored_energy)
 
-    def wave_speed(self) -> float:
-        """Elastic dilatational speed sqrt((lambda + 2 mu) / rho) (m/s)."""
-        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)

@@ -127,3 +127,11 @@ def elastic_energy(lmbda, mu, work) -> float:
     m = tr / 3.0
     d0, d1, d2 = work[0] - m, work[1] - m, work[2] - m
     return mu * (d0 * d0 + d1 * d1 + d2 * d2) + 0.5 * (lmbda + 2.0 * mu / 3.0) * tr * tr
+
+
+@njit(cache=True)
+def stored_energy(F, state, params, work) -> float:
+    """psi_e (J/m^3) at F with the plastic state a = C_p^-1 in state[1:5]; params[0:2] =
+    (lambda, mu) in Pa (the ``energy`` of every Hencky model)."""
+    trial_log_strains(F, state, work)
+    return elastic_energy(params[0], params[1], work)

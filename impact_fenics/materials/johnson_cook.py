@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import require
+from .lame import LameConstants
 from . import hencky
 
 (LAMBDA, MU, A_, B_, N_, C_, RATE0, M_, T_ROOM, T_MELT, CHI, RHO, CP) = range(13)
@@ -104,15 +105,8 @@ def update(F, state, params, dt, tau, work) -> float:
     return wp
 
 
-@njit(cache=True)
-def energy(F, state, params, work) -> float:
-    """Stored elastic energy psi_e (J/m^3)."""
-    hencky.trial_log_strains(F, state, work)
-    return hencky.elastic_energy(params[LAMBDA], params[MU], work)
-
-
 @dataclass(frozen=True)
-class JohnsonCook:
+class JohnsonCook(LameConstants):
     """E (Pa), nu (-), density (kg/m^3); A, B (Pa), n (-), C (-), rate0 (1/s), m (-);
     t_room, t_melt (K); chi (-), c_p (J/(kg K)). Defaults: OFHC copper (Johnson & Cook 1983)."""
 
@@ -135,23 +129,13 @@ class JohnsonCook:
     temperature_index: int = TEMPERATURE
 
     def __post_init__(self) -> None:
-        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
-        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
-        require(-1.0 < self.nu < 0.5, f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
+        self.check_elastic()
         require(self.A > 0, f"material.A = {self.A} Pa: must be > 0")
         require(self.B >= 0 and self.n > 0 and self.C >= 0 and self.m > 0,
                 "material: Johnson-Cook needs B >= 0, n > 0, C >= 0, m > 0")
         require(self.rate0 > 0, f"material.rate0 = {self.rate0} 1/s: must be > 0")
         require(self.t_melt > self.t_room, "material: t_melt must exceed t_room (K)")
         require(0 <= self.chi <= 1 and self.c_p > 0, "material: chi in [0, 1], c_p > 0 J/(kg K)")
-
-    @property
-    def mu(self) -> float:
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
 
     def params(self) -> np.ndarray:
         return np.array([self.lmbda, self.mu, self.A, self.B, self.n, self.C, self.rate0, self.m,
@@ -162,7 +146,5 @@ class JohnsonCook:
         return np.array([0.0, 1.0, 1.0, 0.0, 1.0, self.t_room])
 
     update = staticmethod(update)
-    energy = staticmethod(energy)
+    energy = staticmethod(hencky.stored_energy)
 
-    def wave_speed(self) -> float:
-        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..errors import require
+from .lame import LameConstants
 
 
 @njit(cache=True)
@@ -53,7 +53,7 @@ def energy(F, state, params, work) -> float:
 
 
 @dataclass(frozen=True)
-class NeoHookean:
+class NeoHookean(LameConstants):
     """Compressible neo-Hookean solid: E (Pa), nu (-) the small-strain constants, density
     (kg/m^3) in the reference configuration."""
 
@@ -65,17 +65,7 @@ class NeoHookean:
     n_state: int = 0
 
     def __post_init__(self) -> None:
-        require(self.E > 0, f"material.E = {self.E} Pa: Young's modulus must be > 0")
-        require(self.density > 0, f"material.density = {self.density} kg/m^3: must be > 0")
-        require(-1.0 < self.nu < 0.5, f"material.nu = {self.nu}: Poisson's ratio must lie in (-1, 0.5)")
-
-    @property
-    def mu(self) -> float:
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    @property
-    def lmbda(self) -> float:
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+        self.check_elastic()
 
     def params(self) -> np.ndarray:
         return np.array([self.lmbda, self.mu])
@@ -86,6 +76,3 @@ class NeoHookean:
     update = staticmethod(update)
     energy = staticmethod(energy)
 
-    def wave_speed(self) -> float:
-        """Small-strain dilatational speed sqrt((lambda + 2 mu) / rho) (m/s)."""
-        return math.sqrt((self.lmbda + 2.0 * self.mu) / self.density)

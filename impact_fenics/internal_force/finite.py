@@ -164,7 +164,7 @@ def kernels(update, energy):
                 return wp, j_min, c_min
             m_bar = 0.0
             for q in range(4):
-                alpha = (jbar / Jq[q]) ** (1.0 / 3.0)
+                alpha = np.cbrt(jbar / Jq[q])
                 for i in range(5):
                     fbar[i] = alpha * Fq[q, i]
                 wp += w[c, q] * update(fbar, state[c, q], params, dt, tau[c, q], work)
@@ -203,7 +203,7 @@ def kernels(update, energy):
                 jbar += w[c, q] * Jq[q]
             jbar /= volume[c]
             for q in range(4):
-                alpha = (jbar / Jq[q]) ** (1.0 / 3.0)
+                alpha = np.cbrt(jbar / Jq[q])
                 for i in range(5):
                     fbar[i] = alpha * Fq[q, i]
                 total += w[c, q] * energy(fbar, state[c, q], params, work)

@@ -8,10 +8,10 @@ elastic left Cauchy-Green tensor and its principal logarithmic strains are
     b_e = F a F',    eps_e,i = 1/2 ln lambda_i(b_e)     (Simo 1992; Simo & Hughes 1998, ch. 9).
 
 Without torsion the hoop direction is principal; the (r, z) block is a
-symmetric 2x2 matrix whose eigenvectors follow from one angle,
-theta = 1/2 atan2(2 b_rz, b_rr - b_zz), which is defined (theta = 0) also for
-equal eigenvalues (b_e = I at F = I): the explicit scheme needs no derivative
-of the logarithm, so equal eigenvalues need no other guard. The return mapping
+symmetric 2x2 matrix, whose unit eigenvectors follow in closed form; for
+equal eigenvalues (b_e = I at F = I) every direction is principal and the
+update takes (1, 0): the explicit scheme needs no derivative of the
+logarithm, so equal eigenvalues need no other guard. The return mapping
 acts on the principal values (the exponential map keeps the directions), then
 
     b_e,new = sum_i exp(2 eps_e,i) n_i n_i',   a_new = F^-1 b_e,new F^-T,
@@ -54,12 +54,22 @@ def trial_log_strains(F, state, work) -> None:
     half = 0.5 * (p - q)
     d = math.sqrt(half * half + s * s)
     mean = 0.5 * (p + q)
-    theta = 0.5 * math.atan2(2.0 * s, p - q)
     work[0] = 0.5 * math.log(mean + d)
     work[1] = 0.5 * math.log(mean - d)
     work[2] = 0.5 * math.log(ftt * ftt * att)
-    work[3] = math.cos(theta)
-    work[4] = math.sin(theta)
+    # unit eigenvector of the larger eigenvalue: (lambda_1 - q, s) or (s, lambda_1 - p),
+    # whichever has the larger first entry (both vanish only for equal eigenvalues)
+    if half >= 0.0:
+        c, sn = half + d, s
+    else:
+        c, sn = s, d - half
+    norm = math.sqrt(c * c + sn * sn)
+    if norm > 0.0:
+        work[3] = c / norm
+        work[4] = sn / norm
+    else:  # b_e = m I: every direction is principal
+        work[3] = 1.0
+        work[4] = 0.0
 
 
 @njit(cache=True)

@@ -214,3 +214,13 @@ def test_johnson_cook_bar_heats_by_its_plastic_work(comm):
     hot = comm.allreduce(float(temp.max(initial=0.0)), op=MPI.MAX)
     assert hot > jc.t_room + 20.0  # tens of kelvin at the impact face
     assert np.all((temp >= jc.t_room - 1e-9) | (eps == 0))
+
+
+def test_inverted_element_is_diagnosed(comm):
+    """A displacement that folds cells (u_z = -2 Z: F_zz = -1, J < 0) stops the force with
+    UnstableRunError naming J and a cell position, on every rank alike."""
+    from impact_fenics.errors import UnstableRunError
+
+    run = FiniteRun(quad_bar(comm, 0.01, 0.03, 2, 4), RUBBERY, FiniteSettings())
+    with pytest.raises(UnstableRunError, match=r"inverted: J = det F = .* <= 0 \(cell at R"):
+        force_at(run, set_field(run, lambda r, z: (0 * r, -2.0 * z)))

@@ -234,6 +234,7 @@ class FiniteRun:
         s, comm = self.settings, self.comm
         fields = FiniteFields(self, fields_path) if fields_path else None
         next_snapshot = 0.0
+        clock = MPI.Wtime()
         require(s.t_end > 0, f"t_end = {s.t_end} s: must be > 0")
         require(s.dt is None or s.dt > 0, f"dt = {s.dt} s: must be > 0")
         require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
@@ -305,6 +306,7 @@ class FiniteRun:
             fields.write(t)
             fields.close()
         self.n_steps, self.t = n, t
+        wall_time = comm.allreduce(MPI.Wtime() - clock, op=MPI.MAX)
         K = self.kinetic()
         stored = comm.allreduce(self.force.stored_energy_local())
         wp = comm.allreduce(self.force.plastic_work_local)
@@ -323,8 +325,9 @@ class FiniteRun:
             "kinetic_identity_error": (K + wi + ls - K0) / K0 if K0 else K + wi + ls,
             "work_gap": (comm.allreduce(w_trap) - stored - wp),
             "final_length": length, "final_face_radius": radius, "eps_p_max": self.eps_p_max(),
-            "j_min": self.force.j_min,
+            "j_min": self.force.j_min, "wall_time": wall_time,
         }
+        summary["element_steps_per_second"] = summary["n_cells"] * n / max(wall_time, 1e-300)
         if history_csv and comm.rank == 0:
             with open(history_csv, "w", newline="") as fh:
                 w = csv.writer(fh)

@@ -41,6 +41,7 @@ from dolfinx import fem, la, mesh as dmesh
 from mpi4py import MPI
 from numba import njit
 
+from . import compat
 from .contact.wall import RigidWall
 from .errors import UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
@@ -108,10 +109,10 @@ class FiniteFields:
         from dolfinx import io
 
         self.run = run
-        Q0 = fem.FunctionSpace(run.mesh, ("DG", 0))
+        Q0 = compat.scalar_space(run.mesh, "DG", 0)
         self.fields = {k: fem.Function(Q0, name=k) for k in self.NAMES}
         n = run.force.geometry.dofs.shape[0]
-        self.dofs = Q0.dofmap.list.array[run.force.geometry.cells[:n]].astype(np.intp)
+        self.dofs = compat.cell_dofs(Q0).ravel()[run.force.geometry.cells[:n]].astype(np.intp)
         self.file = io.XDMFFile(run.comm, path, "w")
         self.file.write_mesh(run.mesh)
 
@@ -143,7 +144,7 @@ class FiniteRun:
         require(getattr(material, "finite", False), "the material must be a finite-strain one")
         self.mesh, self.material, self.settings = mesh, material, settings
         self.comm = mesh.comm
-        self.V = fem.VectorFunctionSpace(mesh, ("CG", 1))
+        self.V = compat.vector_space(mesh, "Lagrange", 1)
         imap = self.V.dofmap.index_map
         self.n_owned_nodes = imap.size_local
         self.n_owned = 2 * imap.size_local

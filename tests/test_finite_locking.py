@@ -17,6 +17,7 @@ from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from impact_fenics import forms
+from impact_fenics.compat import vector_space
 from impact_fenics.finite_run import FiniteRun, FiniteSettings
 from impact_fenics.materials import LinearElastic
 from impact_fenics.materials.neo_hookean import NeoHookean
@@ -78,7 +79,7 @@ def cst_inner_displacement(n):
     mesh = dmesh.create_rectangle(comm, [np.array([A, 0.0]), np.array([B, (B - A) / n])], [n, 1],
                                   cell_type=dmesh.CellType.triangle,
                                   diagonal=dmesh.DiagonalType.right)
-    V = fem.VectorFunctionSpace(mesh, ("CG", 1))
+    V = vector_space(mesh, "Lagrange", 1)
     parts = [(LinearElastic(E=E, nu=NU, density=1000.0),
               forms.cell_measure(mesh, None, None, forms.STIFFNESS_DEGREE))]
     Kp = fem.petsc.assemble_matrix(compile_form(forms.stiffness_form(V, parts)))

@@ -56,6 +56,7 @@ import numpy as np
 from dolfinx import fem, la
 from numba import njit
 
+from .. import compat
 from ..errors import UnstableRunError
 
 N_POINTS = 4
@@ -90,8 +91,7 @@ class QuadGeometry:
 
     def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray):
         self.cells = cells
-        self.dofs = np.ascontiguousarray(V.dofmap.list.array.reshape(-1, N_NODES)[cells]
-                                         .astype(np.int32))
+        self.dofs = np.ascontiguousarray(compat.cell_dofs(V)[cells].astype(np.int32))
         X = node_xy[self.dofs]  # (n, 4, 2)
         N, dN = shape_functions(GAUSS)  # (4, 4), (4, 4, 2)
         self.N = np.ascontiguousarray(N)

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -40,6 +40,10 @@ demo-modern: setup-modern
 
 test-modern: setup-modern
 	$(MAKE) --no-print-directory test-serial test-mpi PY=$(MODERN_PY)
+
+# the Taylor bar on three meshes against the literature (tests/test_taylor_study.py; long)
+study-taylor: setup
+	$(PY) -m pytest tests/test_taylor_study.py -m study -q -s
 
 clean:
 	rm -rf results .pytest_cache

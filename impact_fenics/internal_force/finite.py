@@ -1,0 +1,337 @@
+"""Finite-strain internal force: total Lagrangian, bilinear quadrilaterals with mean dilatation.
+
+Kinematics (DESIGN 10), in the reference coordinates (R, Z) (m):
+
+    F = [[1 + du_r/dR, du_r/dZ, 0], [du_z/dR, 1 + du_z/dZ, 0], [0, 0, 1 + u_r/R]],  J = det F > 0,
+    f_int,a = int P : Grad N_a 2 pi R dX   (N),   P = tau F^-T the first Piola-Kirchhoff stress.
+
+**The element: Q1 with mean dilatation (F-bar), 2x2 Gauss.** Plastic flow is
+isochoric; constant-strain triangles cannot follow an incompressible motion
+(a CST patch has about as many volume constraints as dofs; axisymmetry adds
+the hoop strain) and lock. The bilinear quadrilateral with the volume change
+replaced by its cell mean,
+
+    F_bar_q = (J_bar / J_q)^(1/3) F_q,   J_bar = int J dV_0 / V_0  (per cell, with 2 pi R),
+
+has one volume constraint per cell (the Q1/P0 element of Nagtegaal, Parks &
+Rice 1974, in the finite-strain form of Simo, Taylor & Pister 1985 and de
+Souza Neto et al. 1996). Why this one here:
+
+* it is fully integrated (2x2 points) in the deviatoric part: no hourglass
+  modes, so no hourglass control and no hourglass work in the ledger (one-point
+  Q1 would need both); every point keeps its own plastic state;
+* one volume average per cell needs no second quadrature degree, so no form
+  mixes degrees (mis-assembled by dolfinx 0.5.2) and, as everything happens in
+  one compiled pass over the cells, no form at all;
+* it is the element of the converged Taylor-bar references (Q1/P0);
+* the lumped mass, int rho N_a 2 pi R dX, is positive at every node (N_a >= 0),
+  axis nodes included; 2x2 Gauss integrates it exactly on any quadrilateral.
+
+An F-bar patch on triangles was the alternative (keeps today's meshes); it
+needs a patch data structure across ranks. Quadrilaterals make every body of a
+mesh quadrilateral, so this force runs in its own driver
+(:mod:`..finite_run`), not through the triangle-based Integrator.
+
+The internal force is the exact derivative of sum_q w_q psi(F_bar_q) (for a
+hyperelastic material), which gives per point the effective Kirchhoff stress
+
+    tau_eff,q = dev tau_q + 1/3 J_q m_bar I,   m_bar = sum_q w_q tr tau_q / (J_bar V_0),
+    f_int,a = sum_q w_q (tau_eff,q F_q^-T) : Grad N_a(X_q),
+
+tau_q = tau(F_bar_q) from the material's point update (:mod:`..materials.hencky`
+signature), w_q the Gauss weight times |det dX/dxi| 2 pi R_q (m^3).
+
+One fused compiled pass over the owned cells computes F at the four points,
+J_bar, the point updates, tau_eff and the element force (scatter-add into the
+local owned + ghost array), then one reverse scatter sums the ghosts. It
+returns the smallest J (a J <= 0 anywhere is an inverted element: the run
+stops with a diagnosis) and the plastic work increment
+sum_q w_q Delta W_p,q (J).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from dolfinx import fem, la
+from numba import njit
+
+from .. import compat
+from ..errors import UnstableRunError
+
+N_POINTS = 4
+N_NODES = 4
+_G = 0.5 / math.sqrt(3.0)
+# 2x2 Gauss points on the reference square [0, 1]^2, and dolfinx's vertex order of a
+# quadrilateral: (0, 0), (1, 0), (0, 1), (1, 1)
+GAUSS = np.array([[0.5 - _G, 0.5 - _G], [0.5 + _G, 0.5 - _G],
+                  [0.5 - _G, 0.5 + _G], [0.5 + _G, 0.5 + _G]])
+GAUSS_WEIGHT = 0.25
+VERTICES = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+WORK = 16  # scratch entries a point update may use
+
+
+def shape_functions(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Q1 values (p, 4) and reference gradients (p, 4, 2) at reference points (p, 2)."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    vx, vy = VERTICES[:, 0], VERTICES[:, 1]
+    fx = np.where(vx == 1.0, x, 1.0 - x)
+    fy = np.where(vy == 1.0, y, 1.0 - y)
+    sx = np.where(vx == 1.0, 1.0, -1.0)
+    sy = np.where(vy == 1.0, 1.0, -1.0)
+    return fx * fy, np.stack([sx * fy, fx * sy], axis=-1)
+
+
+class QuadGeometry:
+    """Reference geometry of Q1 cells at the 2x2 Gauss points.
+
+    ``dofs`` (n, 4) node indices; ``dNdR``, ``dNdZ`` (n, 4 points, 4 nodes) (1/m);
+    ``N`` (4 points, 4 nodes); ``R`` (n, 4) point radii (m); ``w`` (n, 4)
+    weights w_q |det J| 2 pi R_q (m^3); ``volume`` (n,) V_0 of each cell (m^3)."""
+
+    def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray):
+        self.cells = cells
+        self.dofs = np.ascontiguousarray(compat.cell_dofs(V)[cells].astype(np.int32))
+        X = node_xy[self.dofs]  # (n, 4, 2)
+        N, dN = shape_functions(GAUSS)  # (4, 4), (4, 4, 2)
+        self.N = np.ascontiguousarray(N)
+        jac = np.einsum("nia,qib->nqab", X, dN)  # dX_a / dxi_b
+        det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
+        # a cell may be numbered clockwise (dolfinx's rectangles are): the sign of det is
+        # the orientation, one per cell; a sign change inside a cell is a twisted cell
+        if np.any(det[:, :1] * det <= 0.0):
+            raise ValueError("a quadrilateral of the reference mesh is twisted (det changes sign)")
+        inv = np.empty_like(jac)
+        inv[..., 0, 0], inv[..., 0, 1] = jac[..., 1, 1] / det, -jac[..., 0, 1] / det
+        inv[..., 1, 0], inv[..., 1, 1] = -jac[..., 1, 0] / det, jac[..., 0, 0] / det
+        grad = np.einsum("qib,nqba->nqia", dN, inv)  # dN_i / dX_a
+        self.dNdR = np.ascontiguousarray(grad[..., 0])
+        self.dNdZ = np.ascontiguousarray(grad[..., 1])
+        self.R = np.ascontiguousarray(np.einsum("qi,ni->nq", N, X[:, :, 0]))
+        self.w = np.ascontiguousarray(GAUSS_WEIGHT * np.abs(det) * 2.0 * math.pi * self.R)
+        self.volume = self.w.sum(axis=1)
+
+    def lumped_mass(self, density: float, n_local_nodes: int) -> np.ndarray:
+        """Row sums of the consistent mass, rho int N_a 2 pi R dX (kg), per local node
+        (owned cells only: sum ghosts with a reverse scatter)."""
+        m = np.zeros(n_local_nodes)
+        np.add.at(m, self.dofs.ravel(), (density * self.w @ self.N).ravel())
+        return m
+
+
+@njit(cache=True)
+def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F) -> float:
+    """F at point q of cell c into F = (F_rr, F_rz, F_zr, F_zz, F_tt); returns J."""
+    frr = frz = fzr = fzz = ur = 0.0
+    for a in range(4):
+        k = 2 * dofs[c, a]
+        gr, gz = dNdR[c, q, a], dNdZ[c, q, a]
+        frr += gr * u[k]
+        frz += gz * u[k]
+        fzr += gr * u[k + 1]
+        fzz += gz * u[k + 1]
+        ur += N[q, a] * u[k]
+    F[0], F[1], F[2], F[3], F[4] = 1.0 + frr, frz, fzr, 1.0 + fzz, 1.0 + ur / R[c, q]
+    return (F[0] * F[3] - F[1] * F[2]) * F[4]
+
+
+_KERNELS: dict = {}
+
+
+def kernels(update, energy):
+    """The fused force pass and the stored-energy pass, specialised on a material."""
+    key = (update, energy)
+    if key in _KERNELS:
+        return _KERNELS[key]
+
+    @njit(fastmath=False)
+    def force(params, dt, dofs, dNdR, dNdZ, N, R, w, volume, u, f, state, tau, Fq, Jq, fbar, work):
+        """f += f_int (N) over the cells; state and tau (Kirchhoff, Pa) updated in place.
+        Returns (plastic work increment (J), smallest J, cell of the smallest J)."""
+        wp = 0.0
+        j_min = np.inf
+        c_min = -1
+        for c in range(dofs.shape[0]):
+            jbar = 0.0
+            for q in range(4):
+                Jq[q] = deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q])
+                jbar += w[c, q] * Jq[q]
+                if Jq[q] < j_min:
+                    j_min = Jq[q]
+                    c_min = c
+            jbar /= volume[c]
+            if jbar <= 0.0 or j_min <= 0.0:
+                return wp, j_min, c_min
+            m_bar = 0.0
+            for q in range(4):
+                alpha = np.cbrt(jbar / Jq[q])
+                for i in range(5):
+                    fbar[i] = alpha * Fq[q, i]
+                wp += w[c, q] * update(fbar, state[c, q], params, dt, tau[c, q], work)
+                m_bar += w[c, q] * (tau[c, q, 0] + tau[c, q, 1] + tau[c, q, 2])
+            m_bar /= jbar * volume[c]
+            for q in range(4):
+                t = tau[c, q]
+                F = Fq[q]
+                p = (t[0] + t[1] + t[2]) / 3.0
+                shift = Jq[q] * m_bar / 3.0 - p  # tau_eff = tau - p I + J m_bar / 3 I
+                trr, ttt, tzz, trz = t[0] + shift, t[1] + shift, t[2] + shift, t[3]
+                det = F[0] * F[3] - F[1] * F[2]
+                # F^-1 of the (r, z) block; P = tau_eff F^-T, P_ij = sum_k tau_ik Finv_jk
+                i00, i01, i10, i11 = F[3] / det, -F[1] / det, -F[2] / det, F[0] / det
+                wq = w[c, q]
+                prr = wq * (trr * i00 + trz * i01)
+                prz = wq * (trr * i10 + trz * i11)
+                pzr = wq * (trz * i00 + tzz * i01)
+                pzz = wq * (trz * i10 + tzz * i11)
+                ptt = wq * ttt / (F[4] * R[c, q])
+                for a in range(4):
+                    k = 2 * dofs[c, a]
+                    gr, gz = dNdR[c, q, a], dNdZ[c, q, a]
+                    f[k] += prr * gr + prz * gz + ptt * N[q, a]
+                    f[k + 1] += pzr * gr + pzz * gz
+        return wp, j_min, c_min
+
+    @njit(fastmath=False)
+    def stored(params, dofs, dNdR, dNdZ, N, R, w, volume, u, state, Fq, Jq, fbar, work):
+        """sum_q w_q psi(F_bar_q) (J) with the current state."""
+        total = 0.0
+        for c in range(dofs.shape[0]):
+            jbar = 0.0
+            for q in range(4):
+                Jq[q] = deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q])
+                jbar += w[c, q] * Jq[q]
+            jbar /= volume[c]
+            for q in range(4):
+                alpha = np.cbrt(jbar / Jq[q])
+                for i in range(5):
+                    fbar[i] = alpha * Fq[q, i]
+                total += w[c, q] * energy(fbar, state[c, q], params, work)
+        return total
+
+    _KERNELS[key] = (force, stored)
+    return force, stored
+
+
+@njit(cache=True)
+def cell_length_min(dofs, X, u) -> float:
+    """Smallest characteristic length A / max diagonal (m) of the cells in the current
+    configuration x = X + u (A the area; for a square of side h it is h / sqrt 2)."""
+    best = np.inf
+    for c in range(dofs.shape[0]):
+        n0, n1, n2, n3 = dofs[c, 0], dofs[c, 1], dofs[c, 2], dofs[c, 3]
+        x0r, x0z = X[n0, 0] + u[2 * n0], X[n0, 1] + u[2 * n0 + 1]
+        x1r, x1z = X[n1, 0] + u[2 * n1], X[n1, 1] + u[2 * n1 + 1]
+        x2r, x2z = X[n2, 0] + u[2 * n2], X[n2, 1] + u[2 * n2 + 1]
+        x3r, x3z = X[n3, 0] + u[2 * n3], X[n3, 1] + u[2 * n3 + 1]
+        d1r, d1z = x3r - x0r, x3z - x0z  # diagonals 0-3 and 1-2
+        d2r, d2z = x2r - x1r, x2z - x1z
+        area = 0.5 * abs(d1r * d2z - d1z * d2r)
+        dmax = max(math.sqrt(d1r * d1r + d1z * d1z), math.sqrt(d2r * d2r + d2z * d2z))
+        length = area / dmax
+        if length < best:
+            best = length
+    return best
+
+
+@njit(cache=True)
+def cell_means(tau, state, w, volume, dofs, dNdR, dNdZ, N, R, u, Fq, Jq, out_sigma, out_eps, out_t,
+               i_temp) -> None:
+    """Per cell: Cauchy stress (rr, tt, zz, rz) = mean tau / J_bar (Pa), mean eps_bar_p and,
+    when ``i_temp`` >= 0, mean state[i_temp] (the temperature, K)."""
+    for c in range(dofs.shape[0]):
+        jbar = 0.0
+        for q in range(4):
+            jbar += w[c, q] * deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q])
+        jbar /= volume[c]
+        for i in range(4):
+            s = 0.0
+            for q in range(4):
+                s += w[c, q] * tau[c, q, i]
+            out_sigma[c, i] = s / (volume[c] * jbar)
+        e = 0.0
+        t = 0.0
+        for q in range(4):
+            e += w[c, q] * state[c, q, 0]
+            if i_temp >= 0:
+                t += w[c, q] * state[c, q, i_temp]
+        out_eps[c] = e / volume[c]
+        out_t[c] = t / volume[c] if i_temp >= 0 else 0.0
+
+
+class FiniteStrainForce:
+    """f_int(u) of the finite-strain material ``material`` on the owned ``cells`` (Q1 mesh).
+
+    ``u`` is the displacement Function (its ghost entries must be current on entry
+    to :meth:`compute`); the force goes to ``self.f`` (owned entries summed)."""
+
+    def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray, material,
+                 u: fem.Function):
+        self.V, self.material, self.u = V, material, u
+        self.node_xy = np.ascontiguousarray(node_xy)
+        self.geometry = QuadGeometry(V, node_xy, cells)
+        n = cells.size
+        self.params = material.params()
+        self.state = np.empty((n, N_POINTS, max(material.n_state, 1)))
+        self.state[:] = material.initial_state()
+        self.tau = np.zeros((n, N_POINTS, 4))
+        self._Fq = np.zeros((N_POINTS, 5))
+        self._Jq = np.zeros(N_POINTS)
+        self._fbar = np.zeros(5)
+        self._work = np.zeros(WORK)
+        self.f = fem.Function(V)
+        self.n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self.f_owned = self.f.x.array[: self.n_owned]
+        self.plastic_work_local = 0.0
+        self.j_min = 1.0
+        self._force, self._stored = kernels(material.update, material.energy)
+
+    def compute(self, dt: float) -> np.ndarray:
+        """f_int(u^n) (N), owned view; the state moves to the current u. Raises
+        UnstableRunError on a non-positive J (inverted element)."""
+        g = self.geometry
+        arr = self.f.x.array
+        arr[:] = 0.0
+        wp, j_min, c_min = self._force(self.params, dt, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w,
+                                       g.volume, self.u.x.array, arr, self.state, self.tau,
+                                       self._Fq, self._Jq, self._fbar, self._work)
+        comm = self.V.mesh.comm
+        j_all = comm.allreduce(j_min, op=_MIN)
+        if not j_all > 0.0:
+            where = ""
+            if j_min <= 0.0 and c_min >= 0:
+                xy = self.node_xy[g.dofs[c_min]].mean(axis=0)
+                where = f" (cell at R = {xy[0]:.4g} m, Z = {xy[1]:.4g} m)"
+            where = "".join(comm.allgather(where))
+            raise UnstableRunError(f"an element inverted: J = det F = {j_all:.3g} <= 0{where}; "
+                                   "the mesh is too coarse for this deformation or dt too large")
+        self.j_min = j_all
+        self.f.x.scatter_reverse(la.ScatterMode.add)
+        self.plastic_work_local += wp
+        return self.f_owned
+
+    def stored_energy_local(self) -> float:
+        """sum_q w_q psi(F_bar_q) (J) on this rank's cells at the current u and state."""
+        g = self.geometry
+        return self._stored(self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume,
+                            self.u.x.array, self.state, self._Fq, self._Jq, self._fbar, self._work)
+
+    def length_min_local(self) -> float:
+        """Smallest current characteristic cell length on this rank (m)."""
+        return cell_length_min(self.geometry.dofs, self.node_xy, self.u.x.array)
+
+    def cell_values(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per owned cell: Cauchy stress (n, 4) (Pa), mean eps_bar_p (n,), mean temperature (K,
+        0 without one)."""
+        g = self.geometry
+        n = g.dofs.shape[0]
+        sig, eps, temp = np.zeros((n, 4)), np.zeros(n), np.zeros(n)
+        i_temp = getattr(self.material, "temperature_index", -1)
+        cell_means(self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
+                   self.u.x.array, self._Fq, self._Jq, sig, eps, temp, i_temp)
+        return sig, eps, temp
+
+
+from mpi4py import MPI as _MPI  # noqa: E402
+
+_MIN = _MPI.MIN

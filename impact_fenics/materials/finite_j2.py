@@ -1,0 +1,83 @@
+"""J2 plasticity at finite strain with linear isotropic hardening (multiplicative, Hencky).
+
+F = F_e F_p; the elastic response is hyperelastic in the logarithmic elastic
+strains, psi_e = mu |dev eps_e|^2 + K/2 (tr eps_e)^2, so the Kirchhoff stress is
+tau = lambda tr(eps_e) I + 2 mu eps_e (principal axes of b_e). Von Mises yield in
+the Kirchhoff stress, sqrt(3/2 dev tau : dev tau) <= sigma_y0 + H eps_bar_p;
+associative flow integrated by the exponential map, which makes the return a
+radial return on the principal log strains (Simo 1992, CMAME 99, 61-112; Simo &
+Hughes 1998, box 9.1; de Souza Neto et al. 2008, box 14.3):
+
+    Delta eps_bar_p = f_trial / (3 mu + H),   dev tau = (1 - 3 mu Delta eps_bar_p / q_trial) dev tau_trial.
+
+At small strain it is the small-strain radial return of :mod:`.j2`. It is a
+stored-energy model (not a hypoelastic rate), so the ledger splits the internal
+work into the stored psi_e and the plastic work
+
+    Delta W_p = Delta eps_bar_p (sigma_y(eps_bar_p,n) + sigma_y(eps_bar_p,n+1)) / 2   (J/m^3),
+
+exact for linear hardening. State: [eps_bar_p, a_rr, a_zz, a_rz, a_tt] with
+a = C_p^-1 (see :mod:`.hencky`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import require
+from .lame import LameConstants
+from . import hencky
+
+LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
+
+
+@njit(cache=True)
+def update(F, state, params, dt, tau, work) -> float:
+    """Exponential-map radial return at one point; returns the plastic work increment (J/m^3)."""
+    lmbda, mu, sy0, h = params[LAMBDA], params[MU], params[YIELD_STRESS], params[HARDENING]
+    principal = work[8:11]
+    hencky.trial_log_strains(F, state, work)
+    q = hencky.principal_kirchhoff(lmbda, mu, work, principal)
+    f = q - (sy0 + h * state[0])
+    wp = 0.0
+    if f > 0.0:
+        dg = f / (3.0 * mu + h)
+        hencky.radial_return(mu, dg, q, principal, work)
+        wp = dg * (sy0 + h * state[0] + 0.5 * h * dg)
+        state[0] += dg
+        hencky.finish(F, principal, work, state, tau)
+    else:
+        hencky.kirchhoff(principal, work, tau)
+    return wp
+
+
+@dataclass(frozen=True)
+class FiniteJ2(LameConstants):
+    """E, yield_stress (sigma_y0), hardening (H) in Pa; nu (-); density (kg/m^3, reference)."""
+
+    E: float = 117e9
+    nu: float = 0.35
+    density: float = 8930.0
+    yield_stress: float = 400e6
+    hardening: float = 100e6
+    linear: bool = False
+    finite: bool = True
+    n_state: int = 5
+
+    def __post_init__(self) -> None:
+        self.check_elastic()
+        require(self.yield_stress > 0, f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
+        require(self.hardening > -3.0 * self.mu, f"material.hardening = {self.hardening} Pa: must be > -3 mu")
+
+    def params(self) -> np.ndarray:
+        return np.array([self.lmbda, self.mu, self.yield_stress, self.hardening])
+
+    def initial_state(self) -> np.ndarray:
+        """[eps_bar_p, a_rr, a_zz, a_rz, a_tt] = [0, 1, 1, 0, 1] (a = C_p^-1 = I)."""
+        return np.array([0.0, 1.0, 1.0, 0.0, 1.0])
+
+    update = staticmethod(update)
+    energy = staticmethod(hencky.stored_energy)
+

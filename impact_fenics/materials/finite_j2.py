@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import require
-from .lame import LameConstants
+from .elastic import IsotropicConstants
 from . import hencky
 
 LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
@@ -54,7 +54,7 @@ def update(F, state, params, dt, tau, work) -> float:
 
 
 @dataclass(frozen=True)
-class FiniteJ2(LameConstants):
+class FiniteJ2(IsotropicConstants):
     """E, yield_stress (sigma_y0), hardening (H) in Pa; nu (-); density (kg/m^3, reference)."""
 
     E: float = 117e9

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import require
-from .lame import LameConstants
+from .elastic import IsotropicConstants
 from . import hencky
 
 (LAMBDA, MU, A_, B_, N_, C_, RATE0, M_, T_ROOM, T_MELT, CHI, RHO, CP) = range(13)
@@ -106,7 +106,7 @@ def update(F, state, params, dt, tau, work) -> float:
 
 
 @dataclass(frozen=True)
-class JohnsonCook(LameConstants):
+class JohnsonCook(IsotropicConstants):
     """E (Pa), nu (-), density (kg/m^3); A, B (Pa), n (-), C (-), rate0 (1/s), m (-);
     t_room, t_melt (K); chi (-), c_p (J/(kg K)). Defaults: OFHC copper (Johnson & Cook 1983)."""
 

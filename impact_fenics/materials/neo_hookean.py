@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .lame import LameConstants
+from .elastic import IsotropicConstants
 
 
 @njit(cache=True)
@@ -53,7 +53,7 @@ def energy(F, state, params, work) -> float:
 
 
 @dataclass(frozen=True)
-class NeoHookean(LameConstants):
+class NeoHookean(IsotropicConstants):
     """Compressible neo-Hookean solid: E (Pa), nu (-) the small-strain constants, density
     (kg/m^3) in the reference configuration."""
 

@@ -17,3 +17,12 @@ from . import interrupts as _interrupts  # noqa: E402  (no MPI, no dolfinx)
 
 with _interrupts.held_at_start():  # a signal during MPI's start-up: one line, exit 130/143
     from mpi4py import MPI as _MPI  # noqa: F401
+
+    # PETSc's own SIGINT/SIGTERM handlers (the wheels' PETSc installs them) would abort
+    # where ours stop a run cleanly: keep them off, unless PETSc is up already
+    import sys as _sys
+
+    if "petsc4py.PETSc" not in _sys.modules:
+        import petsc4py as _petsc4py
+
+        _petsc4py.init(["impact_fenics", "-no_signal_handler"])  # (program name, option)

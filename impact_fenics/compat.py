@@ -150,6 +150,17 @@ def compile_form(form):
     return fem.form(form, form_compiler_params={}, jit_params={})
 
 
+def scatter_add(x) -> None:
+    """Add the ghost entries of the dolfinx vector ``x`` (``u.x``) into their owners.
+
+    0.5: ``x.scatter_reverse(la.ScatterMode.add)``.
+    0.11: ``x.scatter_reverse(la.InsertMode.add)``."""
+    from dolfinx import la
+
+    mode = la.ScatterMode.add if hasattr(la, "ScatterMode") else la.InsertMode.add
+    x.scatter_reverse(mode)
+
+
 def eval_expression_into(expr, mesh, cells: np.ndarray, out: np.ndarray) -> np.ndarray:
     """Values of a compiled ``fem.Expression`` on ``cells`` written into ``out``, a
     C-contiguous (n_cells, n_points * value_size) array (no allocation in a loop).

@@ -37,7 +37,7 @@ import csv
 from dataclasses import dataclass
 
 import numpy as np
-from dolfinx import fem, la, mesh as dmesh
+from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 from numba import njit
 
@@ -160,7 +160,7 @@ class FiniteRun:
         m_nodes = self.force.geometry.lumped_mass(material.density, n_local_nodes)
         m_fn.x.array[0::2] = m_nodes
         m_fn.x.array[1::2] = m_nodes
-        m_fn.x.scatter_reverse(la.ScatterMode.add)
+        compat.scatter_add(m_fn.x)
         self.mass = m_fn.x.array[: self.n_owned].copy()
         hi = self.node_xy.max(axis=0) if n_local_nodes else np.full(2, -np.inf)
         lo = self.node_xy.min(axis=0) if n_local_nodes else np.full(2, np.inf)

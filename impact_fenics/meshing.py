@@ -65,7 +65,8 @@ def _gmsh():
         import gmsh
 
     if not _GMSH_READY:
-        gmsh.initialize()
+        with interrupts.kept():  # newer gmsh sets SIGINT to SIG_DFL in initialize()
+            gmsh.initialize()
         _GMSH_READY = True
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.Verbosity", 1)

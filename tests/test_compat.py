@@ -31,7 +31,7 @@ OLD_OR_NEW_API = re.compile(
     r"BoundingBoxTree|\bbb_tree\b|compute_collisions(_points)?\(|form_compiler_params|"
     r"jit_params|form_compiler_options|jit_options|\.interpolation_points\b|"
     r"dofmap\.list\b|\.x\.petsc_vec|\.vector\b|\.eval\(|geometry\.dofmaps?\b|"
-    r"\bnp\.trapz\b|\bnp\.trapezoid\b")
+    r"\bnp\.trapz\b|\bnp\.trapezoid\b|\bScatterMode\.add\b|scatter_reverse\(")
 
 
 def _sources():

@@ -12,6 +12,7 @@ from mpi4py import MPI
 from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact import pair_surfaces
+from impact_fenics.compat import geometry_dofs
 from impact_fenics.materials import LinearElastic
 
 
@@ -22,10 +23,9 @@ def owned_cells(tmesh, name: str) -> int:
 
 def on_grid(tmesh, name: str, z0: float, dr: float, dz: float) -> bool:
     """Every node of the cells of ``name`` on the grid r = i dr, z = z0 + j dz."""
-    geom = tmesh.mesh.geometry
-    nodes = np.unique(np.concatenate([geom.dofmap.links(c) for c in tmesh.cells(name)]
-                                     + [np.zeros(0, dtype=np.int32)]))
-    x = geom.x[nodes, :2]
+    cells = tmesh.cells(name)
+    nodes = np.unique(geometry_dofs(tmesh.mesh)[cells].ravel())
+    x = tmesh.mesh.geometry.x[nodes, :2]
     ok = (np.allclose(x[:, 0] / dr, np.round(x[:, 0] / dr), atol=1e-9)
           and np.allclose((x[:, 1] - z0) / dz, np.round((x[:, 1] - z0) / dz), atol=1e-9))
     return MPI.COMM_WORLD.allreduce(ok, op=MPI.LAND)

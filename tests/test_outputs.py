@@ -122,7 +122,8 @@ def test_pieces_hold_the_cells_once(run):
     volume, n_cells = 0.0, 0
     for p in pieces:
         tri = p["points"][p["cells"]]  # (cells, 3, 2)
-        area = 0.5 * np.abs(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+        a, b = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
         volume += float(np.sum(2 * np.pi * tri[:, :, 0].mean(axis=1) * area))
         n_cells += p["cells"].shape[0]
         # body_id: the striker (0) below z = 0, the target (1) above

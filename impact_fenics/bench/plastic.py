@@ -50,7 +50,7 @@ def _split(ctx, integ) -> dict:
         out["fused_kernel"] = ctx.median(lambda: force._fused(
             force.params, force.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, integ._u_fn.x.array,
             f, qs.eps_p, qs.state, qs.sigma, force._work))
-        out["ghost_reverse"] = ctx.median(lambda: force.f.x.scatter_reverse(_add()))
+        out["ghost_reverse"] = ctx.median(lambda: compat.scatter_add(force.f.x))
         # the point updates alone (state in and out, the update) on the same strains: the
         # generic path's point loop
         eps = _point_strains(force)
@@ -77,11 +77,6 @@ def _split(ctx, integ) -> dict:
         out["assemble_vector"] = ctx.median(assemble)
     return out
 
-
-def _add():
-    from dolfinx import la
-
-    return la.ScatterMode.add
 
 
 def _point_strains(force) -> np.ndarray:

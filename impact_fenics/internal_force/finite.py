@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from dolfinx import fem, la
+from dolfinx import fem
 from numba import njit
 
 from .. import compat
@@ -306,7 +306,7 @@ class FiniteStrainForce:
             raise UnstableRunError(f"an element inverted: J = det F = {j_all:.3g} <= 0{where}; "
                                    "the mesh is too coarse for this deformation or dt too large")
         self.j_min = j_all
-        self.f.x.scatter_reverse(la.ScatterMode.add)
+        compat.scatter_add(self.f.x)
         self.plastic_work_local += wp
         return self.f_owned
 

@@ -38,7 +38,7 @@ import math
 import basix
 import numpy as np
 import ufl
-from dolfinx import fem, la
+from dolfinx import fem
 from numba import njit
 from petsc4py import PETSc
 
@@ -321,7 +321,7 @@ class QuadratureForce:
             arr[:] = 0.0
             wp = self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
                              self.u.x.array, arr, qs.eps_p, qs.state, qs.sigma, self._work)
-            self.f.x.scatter_reverse(la.ScatterMode.add)
+            compat.scatter_add(self.f.x)
         else:
             compat.eval_expression_into(self._eps_expr, self.model.mesh, self.cells, self._eps_buf)
             wp = self._points(self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,

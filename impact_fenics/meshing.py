@@ -260,23 +260,30 @@ def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length
             "coaxial_bars: radius, lengths and h must be > 0 (m)")
 
     def build(gmsh):
-        n_r = max(1, int(round(radius / h)))
-        s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h, n_r=n_r,
-                            structured=structured)
-        s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h, n_r=n_r,
-                            structured=structured)
-        _group(gmsh, 2, [s1], "striker", 1)
-        _group(gmsh, 2, [s2], "target", 2)
-        for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
-                                  ("striker_contact", [c1[2]], 13), ("target_contact", [c2[0]], 14),
-                                  ("target_lateral", [c2[1]], 15), ("target_end", [c2[2]], 16),
-                                  ("axis", [c1[3], c2[3]], 17)):
-            _group(gmsh, 1, curves, name, tag)
-        _generate(gmsh)
+        _two_bars(gmsh, radius, striker_length, target_length, h, h, structured)
 
     return _to_dolfinx(comm, build, {"scene": "coaxial_bars", "radius": radius, "h": h,
                                      "striker_length": striker_length,
                                      "target_length": target_length})
+
+
+def _two_bars(gmsh, radius: float, striker_length: float, target_length: float,
+              h_striker: float, h_target: float, structured: bool) -> None:
+    """The striker [-striker_length, 0] and the target [0, target_length] (m) of radius
+    ``radius``, each face with round(radius / h) equal intervals of its body's size h,
+    and the groups of :func:`coaxial_bars`; meshed."""
+    s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h_striker,
+                        n_r=max(1, int(round(radius / h_striker))), structured=structured)
+    s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h_target,
+                        n_r=max(1, int(round(radius / h_target))), structured=structured)
+    _group(gmsh, 2, [s1], "striker", 1)
+    _group(gmsh, 2, [s2], "target", 2)
+    for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
+                              ("striker_contact", [c1[2]], 13), ("target_contact", [c2[0]], 14),
+                              ("target_lateral", [c2[1]], 15), ("target_end", [c2[2]], 16),
+                              ("axis", [c1[3], c2[3]], 17)):
+        _group(gmsh, 1, curves, name, tag)
+    _generate(gmsh)
 
 
 def coaxial_bars_sized(radius: float = 0.05, striker_length: float = 0.2,
@@ -293,18 +300,7 @@ def coaxial_bars_sized(radius: float = 0.05, striker_length: float = 0.2,
             and h_target > 0, "coaxial_bars_sized: radius, lengths and sizes must be > 0 (m)")
 
     def build(gmsh):
-        s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h_striker,
-                            n_r=max(1, int(round(radius / h_striker))), structured=structured)
-        s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h_target,
-                            n_r=max(1, int(round(radius / h_target))), structured=structured)
-        _group(gmsh, 2, [s1], "striker", 1)
-        _group(gmsh, 2, [s2], "target", 2)
-        for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
-                                  ("striker_contact", [c1[2]], 13), ("target_contact", [c2[0]], 14),
-                                  ("target_lateral", [c2[1]], 15), ("target_end", [c2[2]], 16),
-                                  ("axis", [c1[3], c2[3]], 17)):
-            _group(gmsh, 1, curves, name, tag)
-        _generate(gmsh)
+        _two_bars(gmsh, radius, striker_length, target_length, h_striker, h_target, structured)
 
     return _to_dolfinx(comm, build, {"scene": "coaxial_bars_sized", "radius": radius,
                                      "h_striker": h_striker, "h_target": h_target,

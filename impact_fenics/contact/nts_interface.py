@@ -29,7 +29,7 @@ from numba import njit
 
 from ..errors import InputError
 from .banded import band_of_s, bandwidth, gap_of
-from .interface import PhaseTimes
+from .interface import PhaseTimes, _take
 from .segments import SegmentConstraints
 
 
@@ -48,13 +48,6 @@ def apply_multipliers(lam, cs, cc, mass, free, dt, u, v):
                 dv = dt * (cc[i, k] * f) / mass[s]
                 v[s] += dv
                 u[s] += dt * dv
-
-
-@njit(cache=True)
-def _gather_local(src_u, src_v, local, pos, u_out, v_out):
-    for k in range(local.size):
-        u_out[pos[k]] = src_u[local[k]]
-        v_out[pos[k]] = src_v[local[k]]
 
 
 @njit(cache=True)
@@ -217,7 +210,7 @@ class NodeToSegmentSet:
     def _gather(self, src_u, src_v, u_out, v_out) -> None:
         """src_u, src_v (owned arrays) on the contact dofs, into slot order on every rank."""
         if self.comm.size == 1:
-            _gather_local(src_u, src_v, self._local, self._pos_mine, u_out, v_out)
+            _take(src_u, src_v, self._local, self._pos_mine, u_out, v_out)
             return
         _pack_pairs(src_u, src_v, self._local, self._send)
         self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
@@ -245,7 +238,7 @@ class NodeToSegmentSet:
         t1 = clock()
         self.method.correct(self)
         t2 = clock()
-        _gather_local(self.u, self.v, self._pos_mine, self._local, integ.u_owned, integ.v_owned)
+        _take(self.u, self.v, self._pos_mine, self._local, integ.u_owned, integ.v_owned)
         inc, self._jumped, grew, self.any_active, self.min_gap = _book(
             self.dt, integ.n == 0, self.mass, self.u, self.v, self.u_pred, self.v_pred,
             self.u_now, self.v_now, self._f_prev, self._ku_prev, self._jump, self.jumps,

@@ -164,6 +164,9 @@ class Probes:
         # load the compiled calls now, not in the first timed step
         self.record(np.zeros(model.n_owned), np.zeros(self.n_raw))
         self.values(np.zeros((1, self.n_raw)))
+        # and with ``out`` a column slice of a wider block, as a history table passes it
+        # (two rows and a column either side: a view numpy does not call contiguous)
+        self.values(np.zeros((2, self.n_raw)), np.zeros((2, n + 2))[:, 1: n + 1])
 
     def record(self, u_owned: np.ndarray, row: np.ndarray) -> None:
         """Copy the probe dofs this rank owns (m), and the plastic state of the probe cells

@@ -25,6 +25,7 @@ from .contact.segments import SegmentConstraints
 from .energy import Ledger, LoadWork, deformable_energy
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
+from .jit_watch import gained, signature_counts
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
@@ -260,6 +261,7 @@ class Simulation:
         self.status = "running"
         stopped_at = n_steps
         clock = time.perf_counter
+        jit_before = signature_counts()
         t_run = clock()
         try:
             for n in range(n_steps):
@@ -341,6 +343,8 @@ class Simulation:
             gc.unfreeze()
             progress.done()
             wall = clock() - t_run
+            # kernels compiled inside the loop (a signature not loaded at set-up): none
+            self.compiled_in_loop = gained(jit_before, signature_counts())
             v_check.destroy()
             for tbl in tables.values():
                 tbl.close()
@@ -750,9 +754,11 @@ class Simulation:
                            for k in totals},
                 "rest_share": max(0.0, 1.0 - sum(share.values())),
                 "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
+                "compiled_in_loop": list(self.compiled_in_loop),
                 "definition": "total and median: the slowest rank's (s); share: the phase's "
                               "total over the loop's wall time, both averaged over the ranks; "
-                              "rest: the loop's own Python, progress and signal checks"}
+                              "rest: the loop's own Python, progress and signal checks; "
+                              "compiled_in_loop: numba kernels that compiled inside the loop"}
         summary["bodies"] = self._body_figures()
         if self.contacts:
             summary["impact"] = self._impact_figures()

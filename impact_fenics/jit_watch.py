@@ -1,0 +1,32 @@
+"""Which compiled kernels gained a signature: the check that nothing compiles in the loop.
+
+A numba kernel compiles (or loads from its cache) once per signature, the first
+time it is called with new argument types, e.g. an array view whose layout
+differs from the one loaded at set-up. Inside the timed loop that costs
+0.1-1 s once, which no median shows. :func:`signature_counts` counts the
+signatures of every kernel of the package; the loop compares the counts before
+and after and the summary names any kernel that gained one.
+"""
+from __future__ import annotations
+
+import sys
+
+
+def signature_counts() -> dict[str, int]:
+    """{module.kernel: number of compiled signatures} of every numba kernel in the loaded
+    modules of impact_fenics (a few hundred microseconds)."""
+    from numba.core.dispatcher import Dispatcher
+
+    counts: dict[str, int] = {}
+    for name, module in list(sys.modules.items()):
+        if module is None or not name.startswith("impact_fenics"):
+            continue
+        for obj in list(vars(module).values()):
+            if isinstance(obj, Dispatcher):
+                counts[f"{obj.py_func.__module__}.{obj.py_func.__name__}"] = len(obj.signatures)
+    return counts
+
+
+def gained(before: dict[str, int], after: dict[str, int]) -> list[str]:
+    """Kernels with more signatures in ``after`` than in ``before`` (sorted names)."""
+    return sorted(k for k, n in after.items() if n > before.get(k, 0))

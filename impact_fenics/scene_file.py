@@ -591,10 +591,12 @@ def _read_time(data: Any) -> dict[str, Any]:
 
 
 def _read_output(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[output]", ("dir", "output_every", "history_every", "fields", "plots"))
+    t = _Table(data, "[output]", ("dir", "output_every", "history_every", "pairs_every", "fields",
+                                  "plots"))
     return {"dir": t.text("dir", "the output directory", None),
             "output_every": t.count("output_every", "steps between field and energy outputs", 50),
             "history_every": t.count("history_every", "steps between history rows", 1),
+            "pairs_every": t.count("pairs_every", "steps between per-pair contact rows", 10),
             "fields": t.flag("fields", "write fields.xdmf", True),
             "plots": t.flag("plots", "write history.png and energy.png", True)}
 
@@ -724,7 +726,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                         force_dt=t["force_dt"] or scene.force, force=scene.force,
                         converged_dt=t["converged_dt"], out=o["dir"],
                         output_every=o["output_every"], history_every=o["history_every"],
-                        fields=o["fields"], plots=o["plots"])
+                        pairs_every=o["pairs_every"], fields=o["fields"], plots=o["plots"])
     for key, value in (settings_overrides or {}).items():
         setattr(settings, key, value)
     velocity = {b.name: b.velocity for b in scene.bodies if b.velocity != (0.0, 0.0)}

@@ -180,9 +180,13 @@ def test_history_rows_one_per_step(run):
     assert np.allclose(h["time"], h["step"] * sim.settings.dt, rtol=1e-15, atol=0)
     from impact_fenics.output import read_pairs
 
+    # per-pair rows after the steps n = 0, k, 2k, ... (k = pairs_every) and the last one,
+    # the state of step n + 1: the history's rows there
     pairs = read_pairs(os.path.join(out, "contact_pairs.h5"))
-    assert np.array_equal(pairs["step"], h["step"])
-    assert np.allclose(pairs["force"].sum(axis=1), h["contact_force"], rtol=1e-12,
+    k, n_steps = sim.settings.pairs_every, summary["n_steps"]
+    rows = np.union1d(np.arange(0, n_steps, k), [n_steps - 1])
+    assert np.array_equal(pairs["step"], h["step"][rows])
+    assert np.allclose(pairs["force"].sum(axis=1), h["contact_force"][rows], rtol=1e-12,
                        atol=1e-12 * np.abs(h["contact_force"]).max())
 
 

@@ -288,14 +288,27 @@ class ContactSet:
             raise InputError("a rigid contact face needs exactly one rigid body, "
                              "and node pairs need none")
         self.rigid = rigid
-        self.b = constraints.b
         self.r = constraints.r
         self.pair_index = np.arange(n)
         dofs = constraints.lower if rigid else np.concatenate([constraints.lower, constraints.upper])
         self.n_deformable = nd = dofs.size
         self.n_slots = ns = nd + (1 if rigid else 0)
-        self.lo = np.arange(n, dtype=np.int64)
-        self.up = np.full(n, nd, dtype=np.int64) if rigid else np.arange(n, 2 * n, dtype=np.int64)
+        # the state, packed in a few arrays for the one compiled call of a step (fused.py);
+        # the attributes below are views of their rows
+        self._slots = np.zeros((8, ns))  # u, v, u_pred, v_pred, u_now, v_now, mass, f_prev
+        self._cons = np.zeros((4, n))  # b, gap, force, d
+        self._ints = np.zeros((3, n), dtype=np.int64)  # lo, up, work
+        self._flags = np.zeros((2, n), dtype=np.bool_)  # active, was_active
+        self._jumps_state = np.zeros((2, nd))  # ku_prev, jump (_ContactWork)
+        self._ledger_state = np.zeros(4)  # work, activation loss, jumped, grew (_ContactWork)
+        self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.mass = \
+            self._slots[:7]
+        self.b, self.gap, self.force, self.d = self._cons
+        self.lo, self.up, self.work = self._ints  # work: scratch indices for the methods' kernels
+        self.active, self.was_active = self._flags
+        self.b[:] = constraints.b
+        self.lo[:] = np.arange(n)
+        self.up[:] = nd if rigid else np.arange(n, 2 * n)
         # which slots this rank owns, and where the gathered values go
         lo_dof, hi_dof = model.offset, model.offset + model.n_owned
         mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
@@ -313,21 +326,11 @@ class ContactSet:
         self._recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(starts, counts)]).astype(np.int64)
         self._send = np.empty(2 * mine.size)
         self._recv = np.empty(2 * nd)
-        # slot state
-        self.u, self.v = np.zeros(ns), np.zeros(ns)
-        self.u_pred, self.v_pred = np.zeros(ns), np.zeros(ns)
-        self.u_now, self.v_now = np.zeros(ns), np.zeros(ns)
-        self.mass = np.empty(ns)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
         if rigid:
             self.mass[nd] = self._rigid_slot_mass()
-        self.gap = np.empty(n)
-        self.work = np.empty(n, dtype=np.int64)  # scratch indices for the methods' kernels
-        self.force = np.zeros(n)
-        self.active = np.zeros(n, dtype=np.bool_)
-        self.was_active = np.zeros(n, dtype=np.bool_)
         self.kappa = 0.0 if rigid is None else self.dt ** 2 / self.mass[nd]
-        self.d = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
+        self.d[:] = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
         self.times = PhaseTimes()
         # after each step: number of active constraints, total contact force (N) and the
         # smallest committed gap (m); a history row copies them from here
@@ -336,6 +339,7 @@ class ContactSet:
         self.jumps = bool(getattr(method, "jumps", False))
         self._ledger = _ContactWork(self)
         method.setup(self)
+        self._fused = self._fused_method()
 
     # ------------------------------------------------------------ gather
     def _gather(self, src_u: np.ndarray, src_v: np.ndarray, u_out: np.ndarray,
@@ -356,34 +360,76 @@ class ContactSet:
             self.u_now[-1], self.v_now[-1] = self.rigid.u, self.rigid.v
         self._load_kernels()
 
+    def _fused_method(self):
+        """(code, penalty stiffnesses (N/m), restitution, mass-weighted positions) of a
+        method that the one compiled call runs (fused.contact_step), or None: a method of
+        another type (FILM dense, a user's) runs its own correct() between detection and
+        commit."""
+        from . import fused
+        from .dme import DME
+        from .film import FILM
+        from .penalty import Penalty
+
+        self._contact_step = fused.contact_step
+        m = self.method
+        if type(m) is Penalty:
+            return fused.PENALTY, m.p, 0.0, False
+        if type(m) is FILM and m.solver == "fast":
+            return fused.FILM_FAST, self.d, 0.0, False
+        if type(m) is DME:
+            return ((fused.DME_CLUSTER if self.rigid is not None else fused.DME_PAIRS), self.d,
+                    m.e, m.positions == "mass_weighted")
+        return None
+
     def _load_kernels(self) -> None:
         """Load (or compile) every compiled call of a step now, at set-up, so that none
-        compiles inside the first timed step: detection and commit by their argument
-        types, the method's solve by one call on open gaps (no force: it changes nothing
-        that the next detection does not overwrite)."""
+        compiles inside the first timed step: by their argument types the fused step
+        (or detection and commit), and a method outside it by one call on open gaps (no
+        force: it changes nothing that the next detection does not overwrite)."""
         from numba import typeof
+
+        from .fused import contact_step
 
         integ = self.integrator
 
         def load(fn, *args):
             fn.compile(tuple(typeof(a) for a in args))
 
+        load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
+        load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
+        if self._fused is not None:
+            load(contact_step, *self._fused_args(True))
+            return
         slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
                  self.active, self.was_active)
         load(_detect_local, integ.u_owned, integ.v_owned, self._local, self._pos, *slots)
-        load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
         load(_detect_gathered, self._recv, self._recv_u, self._recv_v, self._all_pos, *slots)
         w = self._ledger
         load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt, True,
              self.n_deformable, self.mass, self.u, self.v, self.u_pred, self.v_pred, self.u_now,
              self.v_now, w.f_prev, w.ku_prev, w.jump, self.jumps, w.jumped, self.active,
              self.was_active, self.b, self.lo, self.up, self.force, self.stats)
-        load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
         self.u[:], self.v[:] = self.u_now, self.v_now
         self.gap[:] = 1.0  # open: no constraint is active
         self.method.correct(self)
         self.force[:] = 0.0
         self.active[:] = False
+
+    def use_separate_calls(self) -> None:
+        """Run the step as detection, the method's correct() and the commit (three compiled
+        calls), as before the fused call: the reference it equals bit for bit, for tests and
+        the benchmark. Call before the run."""
+        self._fused = None
+        self._load_kernels()
+
+    def _fused_args(self, first: bool) -> tuple:
+        """The arguments of fused.contact_step for a step (``first``: the step n = 0)."""
+        integ = self.integrator
+        code, p, e, mass_weighted = self._fused
+        return (code, self.comm.size > 1, integ.u_owned, integ.v_owned, self._local, self._pos,
+                self._recv, self._recv_u, self._recv_v, self._all_pos, self._slots, self._cons,
+                self._ints, self._flags, self._jumps_state, p, self.stats, self._ledger_state,
+                self.dt, self.kappa, e, mass_weighted, first, self.n_deformable, self.jumps)
 
     # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:
@@ -398,9 +444,43 @@ class ContactSet:
     def step(self) -> None:
         """Detect, solve and update for the step n -> n+1 (after the integrator's predict).
 
-        Three compiled calls on one rank: detection (take the predicted contact dofs
-        and form the gaps), the method's solve, and the commit (write back and book);
-        under MPI detection is a pack, the Allgatherv and an unpack with the gaps."""
+        Penalty, FILM fast and DME: one compiled call (fused.contact_step: take the
+        predicted contact dofs, form the gaps, correct, write back and book; under MPI
+        after a compiled pack and the Allgatherv), with only the rigid body's prediction
+        and commit in Python around it. Its time is booked as ``solve``; ``detection``
+        and ``update`` hold the Python before and after it (the rigid body, the
+        Allgatherv). Another method: detection, the method's correct() and the commit
+        as three calls, timed as such."""
+        if self._fused is None:
+            self._step_unfused()
+            return
+        integ = self.integrator
+        clock = time.perf_counter
+        t0 = clock()
+        rigid = self.rigid
+        if rigid is not None:
+            self._predict_rigid(integ.t)
+        if self.comm.size > 1:
+            _pack(integ.u_owned, integ.v_owned, self._local, self._send)
+            self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
+        code, p, e, mass_weighted = self._fused
+        t1 = clock()
+        self._contact_step(code, self.comm.size > 1, integ.u_owned, integ.v_owned, self._local,
+                     self._pos, self._recv, self._recv_u, self._recv_v, self._all_pos,
+                     self._slots, self._cons, self._ints, self._flags, self._jumps_state, p,
+                     self.stats, self._ledger_state, self.dt, self.kappa, e, mass_weighted,
+                     integ.n == 0, self.n_deformable, self.jumps)
+        t2 = clock()
+        if rigid is not None:  # its commit and the work of its external force
+            v_n = rigid.v
+            self._rigid_f = rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
+            self._ledger.book_rigid(integ.n, v_n, self._rigid_f)
+        t3 = clock()
+        times = self.times
+        times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
+
+    def _step_unfused(self) -> None:
+        """The step of a method outside the fused call: detection, correct(), commit."""
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
@@ -420,7 +500,9 @@ class ContactSet:
         self.method.correct(self)
         t2 = clock()
         if self.rigid is not None:  # commit the rigid body first: the booking needs its F^n
+            v_n = self.rigid.v
             self._rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
+            self._ledger.book_rigid(integ.n, v_n, self._rigid_f)
         self._ledger.book(integ.n)
         t3 = clock()
         times = self.times
@@ -487,33 +569,47 @@ class _ContactWork:
     A position set apart from u^n + dt v^{n+1} (a jump j, DME) adds
     1/2 j . K (u^n + u^{n+1}) one step later, when K u^{n+1} on the contact dofs
     is known from the free prediction: K u^n = -m (v~^{n+1} - v^n) / dt there.
+    Its arrays are rows of the set's packed state, which the fused call
+    (fused.contact_step) books the same way as :meth:`book`.
     """
 
     def __init__(self, c: ContactSet):
         self.c = c
-        self.f_prev = np.zeros(c.n_slots)
-        self.ku_prev = np.zeros(c.n_deformable)
-        self.jump = np.zeros(c.n_deformable)
-        self.jumped = False
-        self.grew_last = False
-        self.work = 0.0
-        self.activation_loss = 0.0
+        self.f_prev = c._slots[7]
+        self.ku_prev, self.jump = c._jumps_state
+        self._state = c._ledger_state  # work, activation loss, jumped, grew (0/1)
         self.rigid_external_work = 0.0
         self._rigid_f_prev = 0.0
 
+    @property
+    def work(self) -> float:
+        return float(self._state[0])
+
+    @property
+    def activation_loss(self) -> float:
+        return float(self._state[1])
+
+    @property
+    def jumped(self) -> bool:
+        return bool(self._state[2])
+
+    def book_rigid(self, n_step: int, v_n: float, f: float) -> None:
+        """Work (J) of the external force on the rigid body in step n: 1/2 dt v^n (F^{n-1} + F^n)."""
+        if n_step > 0:
+            self.rigid_external_work += 0.5 * self.c.dt * v_n * (self._rigid_f_prev + f)
+        self._rigid_f_prev = f
+
     def book(self, n_step: int) -> None:
         c = self.c
-        if c.rigid is not None and n_step > 0:
-            self.rigid_external_work += 0.5 * c.dt * c.v_now[-1] * (self._rigid_f_prev + c._rigid_f)
-        if c.rigid is not None:
-            self._rigid_f_prev = c._rigid_f
         integ = c.integrator
-        inc, self.jumped, grew = _commit(
+        state = self._state
+        inc, jumped, grew = _commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
             c.dt, n_step == 0, c.n_deformable, c.mass, c.u, c.v, c.u_pred, c.v_pred, c.u_now,
             c.v_now, self.f_prev, self.ku_prev, self.jump, c.jumps, self.jumped, c.active,
             c.was_active, c.b, c.lo, c.up, c.force, c.stats)
-        self.work += inc
-        if grew or self.grew_last:
-            self.activation_loss -= inc
-        self.grew_last = grew
+        state[0] += inc
+        if grew or state[3]:
+            state[1] -= inc
+        state[2] = 1.0 if jumped else 0.0
+        state[3] = 1.0 if grew else 0.0

@@ -36,7 +36,8 @@ def settings(**kw) -> Settings:
     """Settings for a study run: quiet, no XDMF fields, no per-run plots (when the
     installed Simulation knows that option)."""
     names = {f.name for f in dataclasses.fields(Settings)}
-    base = dict(quiet=True, fields=False, plots=False, force=True)  # unstable penalties on purpose
+    # unstable penalties on purpose; per-pair rows every step (the bars study reads them)
+    base = dict(quiet=True, fields=False, plots=False, force=True, pairs_every=1)
     base.update(kw)
     return Settings(**{k: v for k, v in base.items() if k in names})
 

@@ -6,8 +6,13 @@ anything compiled late add to the loop. For the punch Sim3 (610 constraints,
 DME, fields every 20 steps, history every step) and the bar impact (FILM, fields
 every 25 steps), with the default outputs into a scratch directory, this part
 reports the loop's wall time over (steps x median step) and over (steps x a bare
-MatMult of K), and the set-up by phase (mesh, the Simulation's forms and
-operators, contact set-up, the run's own set-up before the first step).
+MatMult of K), where the time beyond the median steps went (each phase's total
+over the loop minus steps x its median; rest: the loop's own Python), any
+kernel compiled inside the loop, and the set-up by phase (mesh; the
+Simulation's stability bound, operators and contact set-up; the run's outputs
+before the first step). Then the contact share of the step at Sim3 for DME,
+penalty and FILM fast (median contact time of a step over the median step,
+without outputs).
 
 Run as a script (``python -m impact_fenics.bench.whole_run``) it prints the same
 rows for whatever code is importable, so the figures of an older tree can be taken
@@ -92,12 +97,19 @@ def measure(kind: str, comm: MPI.Comm) -> dict:
     matmult = _matmult_median(sim.integrator, comm)
     setup.update(summary.get("setup_time", {}))
     setup["run_outside_loop"] = total - wall
+    totals = summary.get("time_per_step_total", {})
+    medians = summary.get("time_per_step_median", {})
+    # the loop beyond its median steps, by phase (s): total - steps x median; the rest is
+    # what no phase timer holds (timers, progress, checks, the loop's Python)
+    beyond = {k: totals[k] - n * medians.get(k, 0.0) for k in totals}
+    beyond["rest"] = wall - sum(totals.values())
     res = {"scene": kind, "n_ranks": comm.size, "n_steps": n, "n_dofs": summary["n_dofs"],
            "loop_wall": wall, "step_median": median, "matmult": matmult,
            "wall_over_steps_median": wall / (n * median),
            "wall_over_steps_matmult": wall / (n * matmult),
-           "setup": setup,
-           "phase_totals": summary.get("time_per_step_total", {})}
+           "setup": setup, "phase_totals": totals, "phase_medians": medians,
+           "beyond_median": beyond,
+           "compiled_in_loop": summary.get("timing", {}).get("compiled_in_loop")}
     if comm.rank == 0:
         import shutil
         shutil.rmtree(scratch, ignore_errors=True)
@@ -159,17 +171,19 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
     gc.collect()
     clock = time.perf_counter
     table = tables["history"]
-    res = {"columns": len(table.columns), "probes": len(sim._probe_specs)}
-    with_pairs = list(sim._history_layout)
-    for label, layout in (("fill", [(c, k, r, None) for c, k, r, _ in with_pairs]),
-                          ("fill_with_pairs", with_pairs)):
-        sim._history_layout = layout
+    res = {"columns": len(table.columns), "probes": len(sim._probe_specs),
+           "pairs": sum(c.n for c in sim.contacts)}
+    for label, pairs in (("fill", False), ("fill_with_pairs", True)):
         samples = []
         for _ in range(repeats):
             table._n = 0
+            for _, pt in sim._pair_tables:
+                pt._n, pt._rows = 0, 0
             t = clock()
             for _ in range(rows):
                 sim._history_row(tables, probes)
+                if pairs:
+                    sim._pair_rows()
             samples.append((clock() - t) / rows)
         res[label] = float(np.median(samples))
     samples = []
@@ -179,6 +193,14 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
         table.flush()
         samples.append((clock() - t) / table._buf.shape[0])
     res["block_write_per_row"] = float(np.median(samples))
+    samples = []
+    for _, pt in sim._pair_tables:  # rank 0: a block of per-pair rows into contact_pairs.h5
+        for _ in range(repeats // 3):
+            pt._n, pt._rows = pt._clock.shape[0], 0
+            t = clock()
+            pt.flush()
+            samples.append((clock() - t) / pt._clock.shape[0])
+    res["pairs_block_write_per_row"] = comm.bcast(float(np.median(samples)) if samples else 0.0)
     for tbl in tables.values():
         tbl.close()
     if comm.rank == 0:
@@ -187,19 +209,52 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
     return res
 
 
+def contact_share(comm: MPI.Comm, steps: int = PUNCH_STEPS) -> list[dict]:
+    """Median contact time of a step (detection + solve + update) over the median step at
+    Sim3 (610 constraints) for DME, penalty and FILM fast, without outputs."""
+    from .. import meshing, scenes
+    from ..simulation import Settings
+
+    tmesh = meshing.punch_block(comm=comm)
+    out = []
+    for name in ("dme", "penalty", "film"):
+        settings = Settings(dt=PUNCH_DT, n_steps=steps, out=None, fields=False, quiet=True,
+                            plots=False)
+        sim = scenes.punch_indentation(settings, scenes.make_method(name),
+                                       radius=scenes.PUNCH_RADII[6], tmesh=tmesh, comm=comm)
+        s = sim.run()
+        contact, step = s["contact_cpu_time_per_step_median"], s["step_time_median"]
+        out.append({"method": "film fast" if name == "film" else name,
+                    "n_constraints": sim.contacts[0].n, "contact": contact, "step": step,
+                    "share": contact / step,
+                    "compiled_in_loop": s["timing"]["compiled_in_loop"]})
+    return out
+
+
 def part_whole_run(ctx) -> dict:
-    """The whole-run table (both scenes) and the cost per field write."""
+    """The whole-run table (both scenes), the contact share at Sim3 and the cost per
+    field write and history row."""
     rows, res = [], {}
     for kind in ("punch_sim3", "bars"):
         r = measure(kind, ctx.comm)
         res[kind] = r
         rows.append(_row(r))
     ctx.table(f"Whole run vs its steps ({ctx.comm.size} rank(s); default outputs)", HEADERS, rows)
+    ctx.table("   where the loop went beyond steps x median (ms), by phase; set-up (s) by phase",
+              BEYOND_HEADERS, [_beyond_row(res[k]) for k in ("punch_sim3", "bars")])
+    res["contact_share"] = contact_share(ctx.comm)
+    ctx.table("Contact share of the step at Sim3 (punch R_z = 6 m, no outputs; medians in us)",
+              ["method", "constraints", "contact", "step", "share", "compiled in loop"],
+              [[r["method"], r["n_constraints"], f"{1e6 * r['contact']:.1f}",
+                f"{1e6 * r['step']:.1f}", f"{100 * r['share']:.1f} %",
+                ", ".join(r["compiled_in_loop"]) or "none"] for r in res["contact_share"]])
     for kind in ("bars", "punch_sim3"):
         rc = res[f"rows_{kind}"] = row_cost(kind, ctx.comm)
         ctx.log(f"   history row ({kind}, {rc['columns']} columns, {rc['probes']} probe(s)): fill "
-                f"{1e6 * rc['fill']:.2f} us, with the per-pair record {1e6 * rc['fill_with_pairs']:.2f}"
-                f" us, block write {1e6 * rc['block_write_per_row']:.2f} us per row")
+                f"{1e6 * rc['fill']:.2f} us, with a per-pair row ({rc['pairs']} pairs) "
+                f"{1e6 * rc['fill_with_pairs']:.2f} us, block write "
+                f"{1e6 * rc['block_write_per_row']:.2f} us per row (per-pair rows: "
+                f"{1e6 * rc['pairs_block_write_per_row']:.2f} us per row)")
     res["write_cost"] = write_cost(ctx.comm)
     wc = res["write_cost"]
     if "seconds_per_write_by_block" in wc:
@@ -210,6 +265,20 @@ def part_whole_run(ctx) -> dict:
 
 HEADERS = ["scene", "steps", "loop (s)", "median step (us)", "MatMult (us)",
            "wall/(n x step)", "wall/(n x MatMult)", "set-up (s): mesh, sim, run"]
+
+
+BEYOND_HEADERS = ["scene", "f_int", "contact", "history", "output", "rest", "compiled in loop",
+                  "stability", "operators", "contact set-up", "outputs"]
+
+
+def _beyond_row(r: dict) -> list:
+    b, s = r["beyond_median"], r["setup"]
+    contact = sum(b.get(k, 0.0) for k in ("contact_detection", "contact_solve", "contact_update"))
+    return [r["scene"]] + [f"{1e3 * v:.1f}" for v in (b.get("f_int", 0.0), contact,
+                                                      b.get("history", 0.0), b.get("output", 0.0),
+                                                      b["rest"])] + \
+        [", ".join(r["compiled_in_loop"] or []) or "none"] + \
+        [f"{s.get(k, 0.0):.2f}" for k in ("stability", "operators", "contact", "outputs")]
 
 
 def _row(r: dict) -> list:

@@ -244,6 +244,7 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pre
         if not first:
             inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
         f_prev[k] = f
+    rolled = 0  # slots already rolled to n+1 (in the jump loop, after their last read)
     if jumps:
         for k in range(n_deformable):
             ku = -mass[k] * (v_pred[k] - v_now[k]) / dt  # K u^n on this dof
@@ -253,7 +254,10 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pre
             jump[k] = u[k] - u_now[k] - dt * v[k]
             if jump[k] != 0.0:
                 jumped_now = True
-    for k in range(mass.size):
+            u_now[k] = u[k]
+            v_now[k] = v[k]
+        rolled = n_deformable
+    for k in range(rolled, mass.size):
         u_now[k] = u[k]
         v_now[k] = v[k]
     stats[0] = n_active
@@ -340,6 +344,9 @@ class ContactSet:
         self._ledger = _ContactWork(self)
         method.setup(self)
         self._fused = self._fused_method()
+        # its arguments, fixed for the run: for the first step (n = 0) and for the others
+        self._fused_call = (None if self._fused is None else
+                            (self._fused_args(True), self._fused_args(False)))
 
     # ------------------------------------------------------------ gather
     def _gather(self, src_u: np.ndarray, src_v: np.ndarray, u_out: np.ndarray,
@@ -463,13 +470,9 @@ class ContactSet:
         if self.comm.size > 1:
             _pack(integ.u_owned, integ.v_owned, self._local, self._send)
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
-        code, p, e, mass_weighted = self._fused
+        args = self._fused_call[integ.n != 0]
         t1 = clock()
-        self._contact_step(code, self.comm.size > 1, integ.u_owned, integ.v_owned, self._local,
-                     self._pos, self._recv, self._recv_u, self._recv_v, self._all_pos,
-                     self._slots, self._cons, self._ints, self._flags, self._jumps_state, p,
-                     self.stats, self._ledger_state, self.dt, self.kappa, e, mass_weighted,
-                     integ.n == 0, self.n_deformable, self.jumps)
+        self._contact_step(*args)
         t2 = clock()
         if rigid is not None:  # its commit and the work of its external force
             v_n = rigid.v

@@ -546,13 +546,8 @@ class Simulation:
     def _field_writer(self, staging: str) -> FieldWriter:
         self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
         extra = [name for p in self._cell_field_providers for name in p()]
-        writer = FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
-                             cell_fields=list(STRESS_NAMES) + extra)
-        # the outputs of the run (the state of step n after steps n = k output_every and the
-        # last): their HDF5 groups and datasets now, not in the loop
-        every = self.settings.output_every
-        writer.prepare(list(range(0, self.n_steps, every)) + [self.n_steps])
-        return writer
+        return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
+                           cell_fields=list(STRESS_NAMES) + extra)
 
     def _write_fields(self, writer: FieldWriter) -> None:
         """u, v (state of step integ.n), the stresses and the extra cell fields."""

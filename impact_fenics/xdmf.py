@@ -25,10 +25,9 @@ every block with every array at every time; colour by sigma_zz, Warp By Vector.
 
 The XML is appended, never rewritten: rank 0 keeps the file open, writes each
 new step where the closing tags were and puts them back after it, so a write
-costs the same however many came before. The groups and datasets of the
-outputs a run will write can be created at set-up (:meth:`FieldWriter.prepare`,
-~30 us of HDF5 bookkeeping each): a write in the loop is then the data alone,
-and ``close`` removes the prepared groups of outputs never written. After every write the files are
+costs the same however many came before. (Creating a frame's datasets ahead,
+at set-up, does not pay: HDF5's flush then walks every object of the file, and
+reopening a dataset costs half of creating it.) After every write the files are
 flushed and the XML is complete, so a run stopped at any point leaves a
 readable series.
 """
@@ -131,7 +130,6 @@ class FieldWriter:
         self._xml = None
         self._tail_at = 0
         self.n_writes = 0
-        self._prepared: dict[int, tuple] = {}  # step: (group, {name: dataset}) (prepare)
         _point_vectors(np.zeros(2), np.zeros(2), np.zeros(1, np.int64), np.zeros((2, 1, 3)))
         if comm.rank == 0:
             self._xml = open(path, "w")
@@ -156,23 +154,6 @@ class FieldWriter:
         fn.x.scatter_forward()
         return fn.x.array
 
-    def prepare(self, steps) -> None:
-        """Create now (at set-up) the group and datasets of the outputs at ``steps``, so that
-        their writes hold the data alone; any not written are removed at :meth:`close`."""
-        import h5py
-
-        spaces = {"point": h5py.h5s.create_simple((self.n_nodes, 3)),
-                  "cell": h5py.h5s.create_simple((self.n_cells,))}
-        names = [("displacement", "point"), ("velocity", "point")] + \
-            [(key, "cell") for key in self.cell_fields]
-        for step in steps:
-            if step in self._prepared:
-                continue
-            group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
-            self._prepared[step] = (group, {
-                name: h5py.h5d.create(group, name.encode(), h5py.h5t.NATIVE_DOUBLE, spaces[kind])
-                for name, kind in names})
-
     def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
               cell_values: Mapping[str, np.ndarray]) -> None:
         """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
@@ -185,21 +166,12 @@ class FieldWriter:
             raise ValueError(f"cell fields {missing} missing: every write holds every field")
         vec = self._vec
         _point_vectors(u, v, self._nodes, vec)
-        prepared = self._prepared.pop(step, None)
-        if prepared is None:
-            group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
-            for name, values in (("displacement", vec[0]), ("velocity", vec[1])):
-                _dataset(group, name, values)
-            for key in self.cell_fields:
-                _dataset(group, key, np.ascontiguousarray(cell_values[key][: self.n_cells],
-                                                          dtype=np.float64))
-        else:
-            datasets = prepared[1]
-            _write(datasets["displacement"], vec[0])
-            _write(datasets["velocity"], vec[1])
-            for key in self.cell_fields:
-                _write(datasets[key], np.ascontiguousarray(cell_values[key][: self.n_cells],
-                                                           dtype=np.float64))
+        group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
+        for name, values in (("displacement", vec[0]), ("velocity", vec[1])):
+            _dataset(group, name, values)
+        for key in self.cell_fields:
+            _dataset(group, key, np.ascontiguousarray(cell_values[key][: self.n_cells],
+                                                      dtype=np.float64))
         self._h5.flush()
         self.comm.barrier()  # every piece is on disk before the XML points at it
         if self._xml is not None:
@@ -237,10 +209,6 @@ class FieldWriter:
 
     def close(self) -> None:
         if self._h5 is not None:
-            unwritten = list(self._prepared)  # prepared, never written (a run cut short)
-            self._prepared.clear()
-            for step in unwritten:
-                del self._h5[f"step_{step}"]
             self._h5.close()
             self._h5 = None
         if self._xml is not None:

@@ -25,6 +25,8 @@ matfree   a compiled matrix-free CST internal force (benchmarks/matfree_cst.py) 
           against MatMult.
 akantu    Akantu's explicit lumped-mass plane-strain step in its own venv         peers.py
           (benchmarks/akantu_peer.py).
+whole     whole runs against their steps (punch Sim3, bars; default outputs),    whole_run.py
+          the set-up by phase, the contact share at Sim3, history and field cost.
 
 The rest: run.py (options, the order of the parts, the JSON), common.py (modes,
 the timer, the run context, child processes), bar.py (the benchmark's bar and

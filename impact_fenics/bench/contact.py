@@ -1,14 +1,15 @@
 """Parts 2 and 2b: contact time per step against the number of constraints (rigid punch
 and node pairs, every method), and FILM's solvers alone.
 
-The phases are those ContactSet.step times (impact_fenics/contact/interface.py):
-detection gathers the predicted state of the contact dofs (compiled take, or
-pack + Allgatherv + unpack under MPI) and forms the gaps (one compiled call);
-solve is the method's correction (one compiled call; FILM dense: numpy and
-LAPACK); update writes the corrected state back and books the contact work (two
-compiled calls, the bookkeeping one with twenty arguments). Each phase is the
-compiled work plus the Python and the argument unboxing of its calls: part 2b
-times a solver against an empty compiled call with the same arguments.
+The phases are those ContactSet.step times (impact_fenics/contact/interface.py).
+Penalty, FILM fast and DME run the whole step as one compiled call
+(contact/fused.py: take the predicted contact dofs, form the gaps, correct, write
+back, book the contact work), booked as solve; detection and update are then
+only the Python around it (the rigid body's prediction and commit; under MPI
+the compiled pack and the Allgatherv in detection). FILM dense keeps three
+phases: detection (one compiled call), its numpy/LAPACK solve, the commit (one
+compiled call). Part 2b times a solver against an empty compiled call with the
+same arguments.
 """
 from __future__ import annotations
 
@@ -22,8 +23,9 @@ from .common import Mode
 
 CONTACT_METHODS = ("penalty", "film_fast", "film_dense", "dme")
 PHASES = ("contact_detection", "contact_solve", "contact_update", "f_int")
-SPLIT = ("   detect: gather the predicted state of the contact dofs, form the gaps; solve: the "
-         "method; update: write back, book the contact work (each: numba calls and their Python)")
+SPLIT = ("   penalty, FILM fast, DME: solve = the one compiled call of the step (gather, gaps, "
+         "method, write-back, booking); detect/update = the Python around it (rigid body, MPI "
+         "gather); FILM dense: detect, its solve, update as three calls")
 
 
 @njit(cache=True)

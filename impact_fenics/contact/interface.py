@@ -12,8 +12,11 @@ then
    the contact work (one compiled call, which also counts the active
    constraints, the total force and the smallest gap for the history).
 
-Detection is one compiled call on one rank (take and gaps fused); the rigid
-body's own prediction and slot mass live in one Python method beside it.
+For penalty, FILM fast and DME the three are one compiled call
+(:mod:`.fused`; under MPI after a compiled pack and the Allgatherv); another
+method (FILM dense, a user's) runs its correct() between a compiled detection
+and a compiled commit. The rigid body's own prediction and commit (its force
+is a Python callable) are the only Python of a step around them.
 
 State lives in *slots*: one per contact dof (the lower nodes first, then the
 upper nodes of node pairs) and one more for a rigid upper body. Constraint i

@@ -13,6 +13,32 @@ from typing import Sequence
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
+
+
+@njit(cache=True)
+def _record(current, totals, sample, state) -> None:
+    """Book ``current`` (one step's phase times, s) into the totals and the bounded sample,
+    then zero it; ``state`` = (steps recorded, samples kept, stride). One compiled call: a
+    step's bookkeeping costs ~0.3 us, not the ~1.3 us of the numpy operations."""
+    for i in range(current.size):
+        totals[i] += current[i]
+    n, stride = state[0], state[2]
+    if n % stride == 0:
+        m = state[1]
+        if m == sample.shape[0]:  # full: keep every second sample, double the stride
+            half = m // 2
+            for j in range(half):
+                sample[j, :] = sample[2 * j, :]
+            m = half
+            stride *= 2
+            state[1], state[2] = m, stride
+        if n % stride == 0:
+            sample[m, :] = current
+            state[1] = m + 1
+    state[0] = n + 1
+    for i in range(current.size):
+        current[i] = 0.0
 
 
 class PhaseTimers:
@@ -24,25 +50,27 @@ class PhaseTimers:
         self.phases = tuple(phases)
         self.current = np.zeros(len(self.phases))  # fill this step's times here, then record()
         self.totals = np.zeros(len(self.phases))
-        self.n_steps = 0
         self._sample = np.zeros((capacity, len(self.phases)))
-        self._n_sample = 0
-        self._stride = 1
+        self._state = np.array([0, 0, 1], dtype=np.int64)  # steps, samples kept, stride
+        _record(np.zeros_like(self.current), np.zeros_like(self.totals),
+                np.zeros_like(self._sample), np.array([1, 0, 1], dtype=np.int64))  # load it now
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps recorded."""
+        return int(self._state[0])
+
+    @property
+    def _n_sample(self) -> int:
+        return int(self._state[1])
+
+    @property
+    def _stride(self) -> int:
+        return int(self._state[2])
 
     def record(self) -> None:
         """Book ``current`` as one step's phase times, then zero it."""
-        self.totals += self.current
-        if self.n_steps % self._stride == 0:
-            if self._n_sample == self._sample.shape[0]:
-                half = self._n_sample // 2
-                self._sample[:half] = self._sample[0:self._n_sample:2]
-                self._n_sample = half
-                self._stride *= 2
-            if self.n_steps % self._stride == 0:
-                self._sample[self._n_sample] = self.current
-                self._n_sample += 1
-        self.n_steps += 1
-        self.current[:] = 0.0
+        _record(self.current, self.totals, self._sample, self._state)
 
     def medians(self, comm: MPI.Comm | None = None) -> dict[str, float]:
         """Median time (s) of each phase over the sampled steps (the slowest rank's)."""

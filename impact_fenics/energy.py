@@ -87,9 +87,12 @@ class Ledger:
 
 
 def deformable_energy(mass: np.ndarray, v_now: np.ndarray, v_next: np.ndarray,
-                      u_now: np.ndarray, Ku_now: np.ndarray, comm: MPI.Comm) -> tuple[float, float]:
-    """Kinetic 1/2 v^n' M v^{n+1} and strain 1/2 u^n' K u^n (J), summed over ranks."""
-    local = np.array([0.5 * float(np.dot(mass * v_now, v_next)), 0.5 * float(np.dot(u_now, Ku_now))])
+                      u_now: np.ndarray, Ku_now: np.ndarray, comm: MPI.Comm,
+                      scratch: np.ndarray | None = None) -> tuple[float, float]:
+    """Kinetic 1/2 v^n' M v^{n+1} and strain 1/2 u^n' K u^n (J), summed over ranks
+    (``scratch``: a buffer like ``mass`` for M v^n, else one is allocated)."""
+    mv = np.multiply(mass, v_now, out=scratch)
+    local = np.array([0.5 * float(np.dot(mv, v_next)), 0.5 * float(np.dot(u_now, Ku_now))])
     total = np.empty(2)
     comm.Allreduce(local, total)
     return float(total[0]), float(total[1])

@@ -252,7 +252,9 @@ class Simulation:
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm)
         times = PhaseTimers(PHASES) if s.timers else None
-        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku")}
+        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku", "mv")}
+        # per body: the masses of its z dofs (constant) and a buffer for their velocities
+        self._body_momentum = [(integ.mass[d], np.empty(d.size), d) for d in self._body_z.values()]
         self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
         last_energy, max_bal = None, 0.0
@@ -422,7 +424,7 @@ class Simulation:
         integ = self.integrator
         integ.velocity(buf["v_next"])
         kinetic, strain = deformable_energy(integ.mass, buf["v"], buf["v_next"], buf["u"],
-                                            buf["ku"], self.comm)
+                                            buf["ku"], self.comm, buf["mv"])
         ext = load_work.total()
         work_c = 0.0
         for c, v_now in zip(self.contacts, pre["rigid_v"]):
@@ -447,7 +449,7 @@ class Simulation:
         # (a node that two bonded bodies share counts in both)
         v = buf["v_next"]
         local = np.array([float(np.dot(integ.mass[1::2], v[1::2]))] +
-                         [float(np.dot(integ.mass[d], v[d])) for d in self._body_z.values()])
+                         [float(np.dot(m, np.take(v, d, out=vd))) for m, vd, d in self._body_momentum])
         momenta = np.zeros_like(local)
         self.comm.Allreduce(local, momenta)
         total = float(momenta[0])

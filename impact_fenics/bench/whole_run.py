@@ -7,7 +7,8 @@ DME, fields every 20 steps, history every step) and the bar impact (FILM, fields
 every 25 steps), with the default outputs into a scratch directory, this part
 reports the loop's wall time over (steps x median step) and over (steps x a bare
 MatMult of K), where the time beyond the median steps went (each phase's total
-over the loop minus steps x its median; rest: the loop's own Python), any
+over the loop minus steps x its median; rest: the loop's own Python; under MPI
+the phase totals and medians are the slowest rank's, so rest may read below 0), any
 kernel compiled inside the loop, and the set-up by phase (mesh; the
 Simulation's stability bound, operators and contact set-up; the run's outputs
 before the first step). Then the contact share of the step at Sim3 for DME,

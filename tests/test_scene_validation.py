@@ -62,6 +62,8 @@ CASES = [
      "[time] give exactly one of dt"),
     ("n_steps not integer", _edit(PAIR, "n_steps = 20", "n_steps = 20.5"),
      "[time] n_steps = 20.5: must be an integer >= 1"),
+    ("pairs_every = 0", _edit(PAIR, "output_every = 10", "output_every = 10\npairs_every = 0"),
+     "[output] pairs_every = 0: must be an integer >= 1"),
     ("dt above the stable limit", _edit(PAIR, "dt = 1e-7", "dt = 1e-4"),
      "[time] dt = 0.0001 s is above the stable limit"),
     ("restitution > 1", _edit(PAIR, "method = \"film\"", "method = \"dme\"\nrestitution = 1.5"),

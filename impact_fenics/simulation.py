@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from . import interrupts, output, plotting, rundir
 from .cell_fields import STRESS_NAMES, CellStress
@@ -547,6 +548,7 @@ class Simulation:
 
     def _field_writer(self, staging: str) -> FieldWriter:
         self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
+        self._peak_buf = np.empty(3)
         extra = [name for p in self._cell_field_providers for name in p()]
         return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
                            cell_fields=list(STRESS_NAMES) + extra)
@@ -565,9 +567,8 @@ class Simulation:
 
     def _track_peaks(self, stresses: np.ndarray, t: float) -> None:
         """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when."""
-        k_vm, k_zz = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")
-        local = np.array([stresses[k_vm].max(initial=-np.inf), stresses[k_zz].max(initial=-np.inf),
-                          -stresses[k_zz].min(initial=np.inf)])
+        local = self._peak_buf
+        _extremes(stresses[_K_VM], stresses[_K_ZZ], local)
         self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
         p = self._peaks
         if not p:
@@ -818,6 +819,22 @@ class Simulation:
                 summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                     ("contact_detection", "contact_solve", "contact_update"), self.comm)
         return summary
+
+
+_K_VM, _K_ZZ = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")
+
+
+@njit(cache=True)
+def _extremes(von_mises, sigma_zz, out) -> None:
+    """out = (max von Mises, max sigma_zz, -min sigma_zz) (Pa; -inf of an empty array)."""
+    out[0] = -np.inf
+    out[1] = -np.inf
+    out[2] = -np.inf
+    for k in range(von_mises.size):
+        out[0] = max(out[0], von_mises[k])
+    for k in range(sigma_zz.size):
+        out[1] = max(out[1], sigma_zz[k])
+        out[2] = max(out[2], -sigma_zz[k])
 
 
 def _provenance() -> dict:

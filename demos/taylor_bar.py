@@ -35,7 +35,6 @@ import numpy as np
 from mpi4py import MPI
 
 from impact_fenics import compat
-
 from impact_fenics.errors import require, user_errors
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.finite_j2 import FiniteJ2
@@ -184,9 +183,10 @@ def main(argv=None) -> None:
         # ## The check serial and parallel runs share
         print(f"Taylor bar, mesh {s['mesh']}, {s['method']}, impact face {s['face']}, "
               f"{s['n_steps']} steps (dt {s['dt_min']:.3g}..{s['dt_max']:.3g} s)")
-        note = "" if s["face"] == "held" else "; they hold the face: see --face held"
-        print(f"  final length      {s['final_length'] * 1e3:.4f} mm   (literature 21.42-21.48{note})")
-        print(f"  impact-face radius {s['final_face_radius'] * 1e3:.4f} mm   (literature 7.22-7.23)")
+        note = "" if s["face"] == "held" else "; they hold the face: --face held"
+        print(f"  final length      {s['final_length'] * 1e3:.4f} mm   (literature 21.42-21.48)")
+        print(f"  impact-face radius {s['final_face_radius'] * 1e3:.4f} mm   "
+              f"(literature 7.22-7.23{note})")
         if s["face"] == "held":
             print(f"  impact-face loss at t = 0 (1/2 m_face v0^2) {s['impact_face_loss']:.4f} J")
         print(f"  max eps_bar_p     {s['eps_p_max']:.4f}")

@@ -274,7 +274,7 @@ class FiniteRun:
         beta = self.penalty_beta(dt, dt_avg)
         self.beta_max = max(getattr(self, "beta_max", 0.0), beta)
         if beta > STABILITY_BOUND and not self.settings.force:
-            what = (f"wall penalty = {self.wall.penalty:.4g} N/m: beta_max = p dt^2 / m = "
+            what = (f"[wall] penalty = {self.wall.penalty:.4g} N/m: beta_max = p dt^2 / m = "
                     f"{beta:.4g} is above the stable bound 4/3")
             if n == 0:
                 raise InputError(f"{what} at dt = {dt:.4g} s; lower the penalty, use "
@@ -371,6 +371,8 @@ class FiniteRun:
                             f"run stopped at step {n} (t = {t:.6g} s): the fixed dt = {dt:.4g} s is "
                             f"above the current stable limit {dt_lim:.4g} s (elements flattened); "
                             "use the adaptive step (dt = None) or a smaller dt")
+                if dt < s.t_end - t:  # the range of dt leaves out the last, clipped step
+                    dts[0], dts[1] = min(dts[0], dt), max(dts[1], dt)
                 dt = min(dt, s.t_end - t)
                 dt_avg = dt if dt_prev is None else 0.5 * (dt_prev + dt)
                 if new_limit and n > 0 and self.wall is not None and self.wall.method == "penalty":
@@ -402,7 +404,6 @@ class FiniteRun:
                     taken = self.wall.contact_loss_local
                 t += dt
                 dt_prev = dt
-                dts[0], dts[1] = min(dts[0], dt), max(dts[1], dt)
                 n += 1
                 if not np.isfinite(self.v[:8]).all():
                     raise UnstableRunError(f"run diverged at step {n} (t = {t:.6g} s): velocity "

@@ -156,12 +156,16 @@ class _TimeProgress:
 
 
 class FiniteRun:
-    """One finite-strain body on a quadrilateral mesh, u_r = 0 on the axis, optionally a wall."""
+    """One finite-strain body on a quadrilateral mesh, u_r = 0 on the axis, optionally a wall.
+
+    ``velocity`` (v_r, v_z) in m/s; ``wall`` 'film', 'dme' or 'penalty' (contact/wall.py) at
+    z = ``z_wall`` (m), the penalty a stiffness in N/m or 'scaled' (beta = ``penalty_beta``
+    at every step); ``name`` the body's name in the fields."""
 
     def __init__(self, mesh: dmesh.Mesh, material, settings: FiniteSettings,
                  velocity: tuple[float, float] = (0.0, 0.0), wall: str | None = None,
                  z_wall: float = 0.0, fixed_z: np.ndarray | None = None,
-                 penalty: float | str = "scaled", name: str = "body"):
+                 penalty: float | str = "scaled", penalty_beta: float = 1.0, name: str = "body"):
         require(mesh.topology.cell_type == dmesh.CellType.quadrilateral,
                 "finite strain runs on quadrilateral meshes (Q1 mean dilatation)")
         require(getattr(material, "finite", False), "the material must be a finite-strain one")
@@ -211,7 +215,7 @@ class FiniteRun:
             nodes = fem.locate_dofs_topological(self.V, tdim - 1, facets)
             nodes = np.sort(nodes[nodes < self.n_owned_nodes])
             self.wall = RigidWall(nodes, self.node_xy[nodes, 1], self.mass[2 * nodes + 1], wall,
-                                  z_wall, penalty=penalty)
+                                  z_wall, penalty=penalty, beta_target=penalty_beta)
             gap = self.comm.allreduce(float((self.node_xy[nodes, 1] - z_wall).min(initial=np.inf)),
                                       op=MPI.MIN)
             if gap < -1e-12 * length:

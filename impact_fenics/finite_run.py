@@ -104,6 +104,13 @@ def velocity_update(coef, f, v, dt_avg) -> float:
 
 
 @njit(cache=True)
+def advance_positions(u, v, dt) -> None:
+    """u += dt v (m), in place (no temporary)."""
+    for i in range(u.size):
+        u[i] += dt * v[i]
+
+
+@njit(cache=True)
 def trapezoid_work(f, u, f_prev, u_prev) -> float:
     """1/2 (f_prev + f) . (u - u_prev) (J), and stores f, u as the previous ones."""
     work = 0.0
@@ -401,7 +408,7 @@ class FiniteRun:
                             n_rows += 1
                 t3 = clock()
                 w_int += velocity_update(self.coef, f, self.v, dt_avg)
-                self.u_owned += dt * self.v
+                advance_positions(self.u_owned, self.v, dt)
                 t4 = clock()
                 if self.wall is not None:
                     w_int += self.wall.step(self.u_owned, self.v, dt, dt_avg, f)

@@ -80,7 +80,7 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
     """Check the scene file in full, build it, run it; returns the exit code."""
     from mpi4py import MPI
 
-    from . import interrupts, scene_file
+    from . import scene_file
 
     comm = MPI.COMM_WORLD
     if out is not None and not out.strip():
@@ -104,22 +104,30 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
         _report(scene.title, summary, out_dir)
     if comm.rank == 0 and sim.status.startswith("completed ("):
         print(f"warning: {sim.status}", file=sys.stderr, flush=True)
-    if sim.signal:
-        if comm.rank == 0:
-            if sim.status.startswith("interrupted"):
-                what = (f"run {sim.status} at step {summary['stopped_at_step']} of "
-                        f"{summary['n_steps']}; the output so far is in {out_dir}/")
-            else:
-                what = (f"interrupted by {interrupts.name(sim.signal)} after the last step; "
-                        f"the run is complete in {out_dir}/")
-            print(f"stopped: {what}", file=sys.stderr, flush=True)
-        return 128 + sim.signal
-    return 0
+    return _exit_code(sim, f"step {summary['stopped_at_step']} of {summary['n_steps']}",
+                      out_dir, comm)
+
+
+def _exit_code(run, at: str, out_dir: str, comm) -> int:
+    """0, or 128 + the signal that stopped ``run`` (a Simulation or a FiniteRun, stopped
+    ``at`` a step) after one line on rank 0."""
+    from . import interrupts
+
+    if not run.signal:
+        return 0
+    if comm.rank == 0:
+        if run.status.startswith("interrupted"):
+            what = f"run {run.status} at {at}; the output so far is in {out_dir}/"
+        else:
+            what = (f"interrupted by {interrupts.name(run.signal)} after the last step; "
+                    f"the run is complete in {out_dir}/")
+        print(f"stopped: {what}", file=sys.stderr, flush=True)
+    return 128 + run.signal
 
 
 def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
     """A finite-strain scene (finite_scene.py): build, run, report; returns the exit code."""
-    from . import finite_scene, interrupts
+    from . import finite_scene
 
     run = finite_scene.build(scene, {"out": out_dir, "quiet": quiet}, comm)
     try:
@@ -142,17 +150,7 @@ def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
             print(line)
         print(f"results in {out_dir}/ (open fields.xdmf in ParaView; Warp By Vector at scale 1 "
               "shows the deformed body)")
-    if run.signal:
-        if comm.rank == 0:
-            if run.status.startswith("interrupted"):
-                what = (f"run {run.status} at t = {s['t_end']:.6g} s (step {s['n_steps']}); the "
-                        f"output so far is in {out_dir}/")
-            else:
-                what = (f"interrupted by {interrupts.name(run.signal)} after the last step; "
-                        f"the run is complete in {out_dir}/")
-            print(f"stopped: {what}", file=sys.stderr, flush=True)
-        return 128 + run.signal
-    return 0
+    return _exit_code(run, f"t = {s['t_end']:.6g} s (step {s['n_steps']})", out_dir, comm)
 
 
 def _scene_checks(sim, scene_path: str) -> dict:

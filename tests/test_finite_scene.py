@@ -256,8 +256,6 @@ CASES = [
                                   'yield_stress = 400e6\nhardening = 100e6',
                                   'model = "elastic"\nE = 117e9\nnu = 0.35\ndensity = 8930.0'),
      '[materials.copper] model = "elastic": a finite-strain body takes model = "j2"'),
-    ("quadrilaterals without finite strain", ('strain = "finite"\n', 'strain = "small"\n'),
-     "[wall] a rigid wall needs a finite-strain body"),
     ("bad n_r", ("n_r = 2", "n_r = 0"), "[mesh] n_r = 0: must be an integer >= 1"),
 ]
 

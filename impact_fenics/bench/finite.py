@@ -26,9 +26,9 @@ import math
 import numpy as np
 
 from .. import compat
-from .bar import bar_integrator, step_fn, time_matmult
+from .bar import step_fn
 from .common import per_dof
-from .plastic import j2_integrator, yielding_steel
+from .plastic import j2_integrator, linear_reference, yielding_steel
 
 # the Taylor bar of each mode: (cells across the radius, end time in s)
 TAYLOR = {"smoke": (2, 4e-6), "quick": (4, 80e-6), "full": (8, 80e-6)}
@@ -90,11 +90,7 @@ def _finite_split(ctx, run, dt: float) -> dict:
 
 def part_finite(ctx) -> dict:
     comm = ctx.comm
-    tmesh, h = ctx.mesh(ctx.mode.step_dofs)
-    model, lin = bar_integrator(tmesh)
-    N = int(model.n_global)
-    t = {"linear_step": ctx.median(step_fn(lin)),
-         "matmult": time_matmult(ctx, lin.K, lin.u_vec.array)}
+    tmesh, h, N, lin, t = linear_reference(ctx)
     steel = yielding_steel(h)
     _, integ = j2_integrator(tmesh, "fast", lin.dt, steel)
     step = step_fn(integ)

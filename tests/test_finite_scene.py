@@ -184,6 +184,15 @@ def test_paraview_default_reader_opens_the_quadrilaterals(taylor_run):
     assert result["warped_points"] > 0
 
 
+def test_plot_renders_the_quadrilaterals(taylor_run):
+    """`impact-fenics plot` on the finite run: a PNG of eps_p_eq at the end time."""
+    out, s = taylor_run
+    assert cli.main(["plot", out, "--field", "eps_p_eq", "--times", repr(s["t_end"])]) == 0
+    if COMM.rank == 0:
+        pngs = [n for n in os.listdir(out) if n.startswith("eps_p_eq_t") and n.endswith(".png")]
+        assert len(pngs) == 1 and os.path.getsize(os.path.join(out, pngs[0])) > 1000
+
+
 def test_a_users_folder_is_refused(tmp_path, capsys):
     base = COMM.bcast(str(tmp_path), root=0)
     scene, out = os.path.join(base, "s.toml"), os.path.join(base, "mine")

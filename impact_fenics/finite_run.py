@@ -26,6 +26,18 @@ of side h) and c the material's elastic dilatational speed, and the step is
 stops (UnstableRunError, exit 3 in a demo) once the current limit falls below it.
 Δt is recorded in the history and its range in the summary.
 
+**What a run writes** (``settings.out``, as every run of the package: staged in
+``DIR.partial`` and published by rundir.py, SIGINT/SIGTERM stop it at a step
+boundary with a complete directory, progress on a terminal only):
+``history.csv`` (HISTORY_COLUMNS, SI units, one row every ``history_every``
+steps and the last state), ``fields.xdmf`` (xdmf.py: quadrilaterals, the
+displacement and velocity v^{n-1/2} at the nodes, per cell the Cauchy stress,
+von Mises, eps_p_eq and a temperature, every ``output_every`` steps and the
+end), ``history.png`` and ``summary.json`` (shape, energies, dt range, time by
+phase, provenance). The wall's energy: ``activation_loss`` what it took and
+kept, ``penalty_energy`` what a penalty wall's springs hold (given back when
+they release), so K + W_int + activation_loss + penalty_energy = K_0.
+
 Under MPI each rank updates the points of its owned cells; f_int's ghost
 entries are summed into their owners, and u's ghosts are refreshed before each
 force evaluation, so every rank count gives the same numbers (to the order of

@@ -94,6 +94,21 @@ def taylor_run(tmp_path_factory):
         return out, json.load(f)
 
 
+def test_the_scene_file_is_the_issues_taylor_bar():
+    """scenes/taylor_bar.toml reads as a finite-strain scene with the issue's values."""
+    from impact_fenics import scene_file
+
+    sc = scene_file.read_scene(os.path.join(os.path.dirname(__file__), "..", "scenes",
+                                            "taylor_bar.toml"))
+    assert sc.finite and sc.mesh.generator == "quad_bar"
+    assert sc.mesh.params["radius"] == 3.2e-3 and sc.mesh.params["length"] == 32.4e-3
+    m = sc.materials[sc.bodies[0].material]
+    assert (m.model, m.E, m.nu, m.density, m.yield_stress, m.hardening) == (
+        "j2", 117e9, 0.35, 8930.0, 400e6, 100e6)
+    assert sc.bodies[0].velocity == (0.0, -227.0) and sc.time["t_end"] == 80e-6
+    assert (sc.wall.z, sc.wall.method) == (0.0, "film")
+
+
 def test_run_directory_and_summary(taylor_run):
     out, s = taylor_run
     assert not os.path.exists(out + ".partial")

@@ -159,7 +159,7 @@ class _TimeProgress:
         if not self.on:
             return
         now = time.perf_counter()
-        if now - self.shown < 0.5:
+        if now - self.shown < 0.5 and t < self.t_end * (1.0 - 1e-12):  # the last one always
             return
         self.shown = now
         frac = t / self.t_end

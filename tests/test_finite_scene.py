@@ -208,6 +208,19 @@ def test_plot_renders_the_quadrilaterals(taylor_run):
         assert len(pngs) == 1 and os.path.getsize(os.path.join(out, pngs[0])) > 1000
 
 
+@serial_only
+def test_progress_only_on_a_terminal(tmp_path):
+    from test_cli import _run_in_terminal
+
+    (tmp_path / "s.toml").write_text(TAYLOR)
+    code, text = _run_in_terminal(["run", tmp_path / "s.toml", "--out", tmp_path / "a"])
+    assert code == 0, text
+    assert "t = 8.0000e-06 of 8.0000e-06 s" in text and "steps/s" in text and "ETA" in text
+    proc = launch(["run", tmp_path / "s.toml", "--out", tmp_path / "b"])  # stdout: a pipe
+    assert proc.returncode == 0 and "short Taylor bar: completed" in proc.stdout
+    assert "steps/s" not in proc.stdout + proc.stderr
+
+
 def test_a_users_folder_is_refused(tmp_path, capsys):
     base = COMM.bcast(str(tmp_path), root=0)
     scene, out = os.path.join(base, "s.toml"), os.path.join(base, "mine")

@@ -38,6 +38,7 @@ from impact_fenics import compat
 from impact_fenics.errors import require, user_errors
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.finite_j2 import FiniteJ2
+from impact_fenics.plotting import write_finite_plots
 
 # ## The scene
 LENGTH, RADIUS = 32.4e-3, 3.2e-3  # m
@@ -59,24 +60,19 @@ def impact_face_nodes(mesh, z_face: float, tol: float) -> np.ndarray:
 
 
 def read_scene(path: str) -> dict:
-    """The scene's keys (see scenes/taylor_bar.toml); unknown or missing keys are refused."""
-    import tomllib
+    """The scene's values (scenes/taylor_bar.toml), checked as `impact-fenics run` checks them."""
+    from impact_fenics import scene_file
 
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        require(False, f"scene '{path}': {exc}")
-    keys = {"mesh": {"radius", "length", "n_r"},
-            "material": {"E", "nu", "density", "yield_stress", "hardening"},
-            "body": {"velocity"}, "wall": {"z", "method"}, "time": {"t_end", "safety", "dt_interval"}}
-    for table, names in keys.items():
-        got = doc.get(table, {})
-        require(isinstance(got, dict) and set(got) == names,
-                f"scene '{path}': [{table}] needs exactly the keys {', '.join(sorted(names))}")
-    require(set(doc) <= set(keys) | {"title"}, f"scene '{path}': unknown tables "
-            f"{', '.join(sorted(set(doc) - set(keys) - {'title'}))}")
-    return doc
+    sc = scene_file.read_scene(path)
+    require(sc.finite and sc.wall is not None and sc.time["dt"] is None,
+            f"scene '{path}': the demo needs a finite-strain body, a [wall] and [time] cfl")
+    m, body, t = sc.materials[sc.bodies[0].material], sc.bodies[0], sc.time
+    require(m.model == "j2", f"scene '{path}': the demo runs a j2 material")
+    return {"mesh": dict(sc.mesh.params),
+            "material": {"E": m.E, "nu": m.nu, "density": m.density,
+                         "yield_stress": m.yield_stress, "hardening": m.hardening},
+            "body": {"velocity": list(body.velocity)}, "wall": {"z": sc.wall.z, "method": sc.wall.method},
+            "time": {"t_end": t["t_end"], "safety": t["cfl"], "dt_interval": t["dt_interval"] or 10}}
 
 
 def run(n_r: int = 4, method: str = "film", safety: float = 0.5, out: str | None = None,
@@ -130,38 +126,9 @@ def run(n_r: int = 4, method: str = "film", safety: float = 0.5, out: str | None
     if out is not None and comm.rank == 0:
         with open(os.path.join(out, "summary.json"), "w") as fh:
             json.dump(summary, fh, indent=1)
-        plot(bar.history, os.path.join(out, "history.png"))
+        write_finite_plots(out, bar.history)
     bar.summary = summary
     return summary
-
-
-def plot(h: dict, path: str) -> None:
-    """Length, face radius, max eps_bar_p, the energies and dt against time."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = h["time"] * 1e6
-    fig, ax = plt.subplots(2, 2, figsize=(10, 7))
-    ax[0, 0].plot(t, h["length"] * 1e3, label="length")
-    ax[0, 0].plot(t, h["face_radius"] * 1e3, label="impact-face radius")
-    ax[0, 0].set_ylabel("mm")
-    ax[0, 0].legend()
-    ax[0, 1].plot(t, h["eps_p_max"])
-    ax[0, 1].set_ylabel("max equivalent plastic strain")
-    for k in ("kinetic", "plastic_work", "stored", "activation_loss"):
-        ax[1, 0].plot(t, h[k], label=k)
-    ax[1, 0].set_ylabel("J")
-    ax[1, 0].legend()
-    ax[1, 1].semilogy(t, h["dt"], label="dt")
-    ax[1, 1].semilogy(t, h["dt_limit"], label="limit estimate")
-    ax[1, 1].set_ylabel("s")
-    ax[1, 1].legend()
-    for a in ax.ravel():
-        a.set_xlabel("t (us)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 @user_errors

@@ -80,7 +80,7 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
     """Check the scene file in full, build it, run it; returns the exit code."""
     from mpi4py import MPI
 
-    from . import interrupts, scene_file
+    from . import scene_file
 
     comm = MPI.COMM_WORLD
     if out is not None and not out.strip():
@@ -93,6 +93,8 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
     out_dir = out or scene.output["dir"] or os.path.join("results", scene.stem)
     scene_file.check_output_dir(out_dir, "--out" if out else "[output] dir =", comm)
     scene_file.check_resources(scene, comm, quiet)
+    if scene.finite:
+        return _run_finite(scene, out_dir, quiet, comm)
     sim = scene_file.build(scene, {"out": out_dir, "quiet": quiet}, comm)
     try:
         summary = sim.run(extra=lambda s: _scene_checks(s, scene.path))
@@ -102,17 +104,53 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
         _report(scene.title, summary, out_dir)
     if comm.rank == 0 and sim.status.startswith("completed ("):
         print(f"warning: {sim.status}", file=sys.stderr, flush=True)
-    if sim.signal:
-        if comm.rank == 0:
-            if sim.status.startswith("interrupted"):
-                what = (f"run {sim.status} at step {summary['stopped_at_step']} of "
-                        f"{summary['n_steps']}; the output so far is in {out_dir}/")
-            else:
-                what = (f"interrupted by {interrupts.name(sim.signal)} after the last step; "
-                        f"the run is complete in {out_dir}/")
-            print(f"stopped: {what}", file=sys.stderr, flush=True)
-        return 128 + sim.signal
-    return 0
+    return _exit_code(sim, f"step {summary['stopped_at_step']} of {summary['n_steps']}",
+                      out_dir, comm)
+
+
+def _exit_code(run, at: str, out_dir: str, comm) -> int:
+    """0, or 128 + the signal that stopped ``run`` (a Simulation or a FiniteRun, stopped
+    ``at`` a step) after one line on rank 0."""
+    from . import interrupts
+
+    if not run.signal:
+        return 0
+    if comm.rank == 0:
+        if run.status.startswith("interrupted"):
+            what = f"run {run.status} at {at}; the output so far is in {out_dir}/"
+        else:
+            what = (f"interrupted by {interrupts.name(run.signal)} after the last step; "
+                    f"the run is complete in {out_dir}/")
+        print(f"stopped: {what}", file=sys.stderr, flush=True)
+    return 128 + run.signal
+
+
+def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
+    """A finite-strain scene (finite_scene.py): build, run, report; returns the exit code."""
+    from . import finite_scene
+
+    run = finite_scene.build(scene, {"out": out_dir, "quiet": quiet}, comm)
+    try:
+        s = run.run()
+    except UnstableRunError as exc:
+        raise UnstableRunError(f"{exc}; the output so far is in {out_dir}/") from None
+    if comm.rank == 0 and not quiet:
+        from .report import console_lines
+
+        print(f"{scene.title}: {s['status']}, {s['n_steps']} steps of {s['dt_min']:.4g} to "
+              f"{s['dt_max']:.4g} s to t = {s['t_end']:.6g} s, {s['n_cells']} quadrilaterals "
+              f"({s['n_dofs']} dofs) on {s['n_ranks']} rank(s), {s['wall_time']:.1f} s")
+        print(f"shape: length {s['final_length'] * 1e3:.4f} mm, impact-face radius "
+              f"{s['final_face_radius'] * 1e3:.4f} mm, max eps_p {s['eps_p_max']:.4f}")
+        print(f"energy (J): initial kinetic {s['initial_kinetic']:.6g}, kinetic {s['kinetic']:.6g}, "
+              f"stored {s['stored_elastic']:.6g}, plastic {s['plastic_work']:.6g}, wall "
+              f"{s['activation_loss']:.6g} lost + {s['penalty_energy']:.6g} in springs; kinetic "
+              f"identity {s['kinetic_identity_error']:.1e} (relative)")
+        for line in console_lines(s):
+            print(line)
+        print(f"results in {out_dir}/ (open fields.xdmf in ParaView; Warp By Vector at scale 1 "
+              "shows the deformed body)")
+    return _exit_code(run, f"t = {s['t_end']:.6g} s (step {s['n_steps']})", out_dir, comm)
 
 
 def _scene_checks(sim, scene_path: str) -> dict:
@@ -174,7 +212,8 @@ def _check_plot_times(run_dir: str, times: list[float]) -> None:
     try:
         with open(os.path.join(run_dir, "summary.json")) as f:
             summary = json.load(f)
-        t_end = float(summary["stopped_at_step"]) * float(summary["dt"])
+        t_end = (float(summary["t_end"]) if summary.get("strain") == "finite"
+                 else float(summary["stopped_at_step"]) * float(summary["dt"]))
     except (OSError, ValueError, KeyError, TypeError):
         return  # no summary: render_fields reports what is missing
     for t in times:

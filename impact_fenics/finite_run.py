@@ -26,6 +26,18 @@ of side h) and c the material's elastic dilatational speed, and the step is
 stops (UnstableRunError, exit 3 in a demo) once the current limit falls below it.
 Δt is recorded in the history and its range in the summary.
 
+**What a run writes** (``settings.out``, as every run of the package: staged in
+``DIR.partial`` and published by rundir.py, SIGINT/SIGTERM stop it at a step
+boundary with a complete directory, progress on a terminal only):
+``history.csv`` (HISTORY_COLUMNS, SI units, one row every ``history_every``
+steps and the last state), ``fields.xdmf`` (xdmf.py: quadrilaterals, the
+displacement and velocity v^{n-1/2} at the nodes, per cell the Cauchy stress,
+von Mises, eps_p_eq and a temperature, every ``output_every`` steps and the
+end), ``history.png`` and ``summary.json`` (shape, energies, dt range, time by
+phase, provenance). The wall's energy: ``activation_loss`` what it took and
+kept, ``penalty_energy`` what a penalty wall's springs hold (given back when
+they release), so K + W_int + activation_loss + penalty_energy = K_0.
+
 Under MPI each rank updates the points of its owned cells; f_int's ghost
 entries are summed into their owners, and u's ghosts are refreshed before each
 force evaluation, so every rank count gives the same numbers (to the order of
@@ -33,22 +45,29 @@ floating-point sums).
 """
 from __future__ import annotations
 
-import csv
-from dataclasses import dataclass
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 from numba import njit
 
-from . import compat
+from . import compat, interrupts, output, rundir
 from .contact.wall import RigidWall
-from .errors import UnstableRunError, require
+from .errors import InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
+from .timers import PhaseTimers
 
 HISTORY_COLUMNS = ("step", "time", "dt", "dt_limit", "kinetic", "internal_work", "activation_loss",
                    "stored", "plastic_work", "balance_error", "work_gap", "n_active", "j_min",
-                   "eps_p_max", "length", "face_radius")
+                   "eps_p_max", "length", "face_radius", "wall_force", "penalty_energy",
+                   "velocity_z")
+PHASES = ("f_int", "update", "wall", "history", "output")
+CELL_FIELDS = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "eps_p_eq")
 
 
 def quad_bar(comm: MPI.Comm, radius: float, length: float, n_r: int, n_z: int) -> dmesh.Mesh:
@@ -62,7 +81,10 @@ def quad_bar(comm: MPI.Comm, radius: float, length: float, n_r: int, n_z: int) -
 @dataclass
 class FiniteSettings:
     """t_end (s); dt (s) fixed, or None for the adaptive step safety x dt_lim, re-estimated
-    every dt_interval steps; history every history_every steps (bounded: decimated in memory)."""
+    every dt_interval steps; history every history_every steps (bounded: decimated in memory),
+    fields every output_every steps (and at t = 0 and the end). ``out``: the run directory
+    (staged in out.partial, see rundir.py) that gets history.csv, fields.xdmf,
+    history.png and summary.json; ``force`` runs a penalty wall above its stable bound."""
 
     t_end: float = 80e-6
     dt: float | None = None
@@ -71,7 +93,14 @@ class FiniteSettings:
     history_every: int = 10
     max_steps: int = 10_000_000
     ledger: bool = True
-    snapshots: int = 8  # field outputs over the run (with fields_path), plus t = 0
+    output_every: int = 50
+    out: str | None = None
+    fields: bool = True
+    plots: bool = True
+    quiet: bool = True
+    force: bool = False
+    timers: bool = True
+    summary_extra: dict = field(default_factory=dict)  # entries copied into the summary
 
 
 @njit(cache=True)
@@ -87,6 +116,13 @@ def velocity_update(coef, f, v, dt_avg) -> float:
 
 
 @njit(cache=True)
+def advance_positions(u, v, dt) -> None:
+    """u += dt v (m), in place (no temporary)."""
+    for i in range(u.size):
+        u[i] += dt * v[i]
+
+
+@njit(cache=True)
 def trapezoid_work(f, u, f_prev, u_prev) -> float:
     """1/2 (f_prev + f) . (u - u_prev) (J), and stores f, u as the previous ones."""
     work = 0.0
@@ -97,48 +133,58 @@ def trapezoid_work(f, u, f_prev, u_prev) -> float:
     return work
 
 
-class FiniteFields:
-    """XDMF fields on the reference mesh: displacement (m, nodal; Warp By Vector at scale 1
-    shows the deformed body), and per cell the Cauchy stress sigma_rr, sigma_tt, sigma_zz,
-    sigma_rz and von_mises (Pa, on the current configuration), eps_p_eq (-) and, for a
-    material with one, the temperature (K)."""
+class _OneBody:
+    """What :class:`~impact_fenics.xdmf.FieldWriter` reads of a model, for one quadrilateral
+    body: comm, mesh, V, node_xy (local nodes, m), the body's name and its local cells."""
 
-    NAMES = ("sigma_rr", "sigma_tt", "sigma_zz", "sigma_rz", "von_mises", "eps_p_eq", "temperature")
+    def __init__(self, run: "FiniteRun", name: str):
+        self.comm, self.mesh, self.V, self.node_xy = run.comm, run.mesh, run.V, run.node_xy
+        self.bodies = [name]
+        self.tmesh = self
+        self._cells = np.arange(run.mesh.topology.index_map(2).size_local, dtype=np.int32)
 
-    def __init__(self, run: "FiniteRun", path: str):
-        from dolfinx import io
+    def cells(self, name: str) -> np.ndarray:
+        return self._cells
 
-        self.run = run
-        Q0 = compat.scalar_space(run.mesh, "DG", 0)
-        self.fields = {k: fem.Function(Q0, name=k) for k in self.NAMES}
-        n = run.force.geometry.dofs.shape[0]
-        self.dofs = compat.cell_dofs(Q0).ravel()[run.force.geometry.cells[:n]].astype(np.intp)
-        self.file = io.XDMFFile(run.comm, path, "w")
-        self.file.write_mesh(run.mesh)
 
-    def write(self, t: float) -> None:
-        sig, eps, temp = self.run.force.cell_values()
-        m = sig[:, :3].mean(axis=1)
-        d = sig[:, :3] - m[:, None]
-        vm = np.sqrt(1.5 * ((d * d).sum(axis=1) + 2.0 * sig[:, 3] ** 2))
-        for k, vals in zip(self.NAMES, (sig[:, 0], sig[:, 1], sig[:, 2], sig[:, 3], vm, eps, temp)):
-            self.fields[k].x.array[self.dofs] = vals
-            self.fields[k].x.scatter_forward()
-        self.run.u_fn.x.scatter_forward()
-        self.file.write_function(self.run.u_fn, t)
-        for f in self.fields.values():
-            self.file.write_function(f, t)
+class _TimeProgress:
+    """Simulated time, steps/s and the ETA on one line, on a terminal only (rank 0)."""
+
+    def __init__(self, t_end: float, enabled: bool):
+        self.t_end = t_end
+        self.on = enabled and sys.stdout.isatty()
+        self.start = self.shown = time.perf_counter()
+
+    def show(self, n: int, t: float, dt: float) -> None:
+        if not self.on:
+            return
+        now = time.perf_counter()
+        if now - self.shown < 0.5 and t < self.t_end * (1.0 - 1e-12):  # the last one always
+            return
+        self.shown = now
+        frac = t / self.t_end
+        eta = (now - self.start) * (1.0 - frac) / max(frac, 1e-12)
+        sys.stdout.write(f"\rt = {t:.4e} of {self.t_end:.4e} s  step {n}  dt {dt:.3e} s  "
+                         f"{n / max(now - self.start, 1e-9):,.0f} steps/s  ETA {eta:,.0f} s   ")
+        sys.stdout.flush()
 
     def close(self) -> None:
-        self.file.close()
+        if self.on:
+            sys.stdout.write("\n")
+            sys.stdout.flush()
 
 
 class FiniteRun:
-    """One finite-strain body on a quadrilateral mesh, u_r = 0 on the axis, optionally a wall."""
+    """One finite-strain body on a quadrilateral mesh, u_r = 0 on the axis, optionally a wall.
+
+    ``velocity`` (v_r, v_z) in m/s; ``wall`` 'film', 'dme' or 'penalty' (contact/wall.py) at
+    z = ``z_wall`` (m), the penalty a stiffness in N/m or 'scaled' (beta = ``penalty_beta``
+    at every step); ``name`` the body's name in the fields."""
 
     def __init__(self, mesh: dmesh.Mesh, material, settings: FiniteSettings,
                  velocity: tuple[float, float] = (0.0, 0.0), wall: str | None = None,
-                 z_wall: float = 0.0, fixed_z: np.ndarray | None = None):
+                 z_wall: float = 0.0, fixed_z: np.ndarray | None = None,
+                 penalty: float | str = "scaled", penalty_beta: float = 1.0, name: str = "body"):
         require(mesh.topology.cell_type == dmesh.CellType.quadrilateral,
                 "finite strain runs on quadrilateral meshes (Q1 mean dilatation)")
         require(getattr(material, "finite", False), "the material must be a finite-strain one")
@@ -187,7 +233,16 @@ class FiniteRun:
             facets = dmesh.exterior_facet_indices(mesh.topology)
             nodes = fem.locate_dofs_topological(self.V, tdim - 1, facets)
             nodes = np.sort(nodes[nodes < self.n_owned_nodes])
-            self.wall = RigidWall(nodes, self.node_xy[nodes, 1], self.mass[2 * nodes + 1], wall, z_wall)
+            self.wall = RigidWall(nodes, self.node_xy[nodes, 1], self.mass[2 * nodes + 1], wall,
+                                  z_wall, penalty=penalty, beta_target=penalty_beta)
+            gap = self.comm.allreduce(float((self.node_xy[nodes, 1] - z_wall).min(initial=np.inf)),
+                                      op=MPI.MIN)
+            if gap < -1e-12 * length:
+                raise InputError(f"the wall z = {z_wall:.6g} m cuts the body (its lowest boundary "
+                                 f"node is at z = {z_wall + gap:.6g} m): the body must start above it")
+        self.name = name
+        self.status = "set up"
+        self.signal = 0
         # tracked nodes: the top of the axis (0, Z_max) and the lower corner (R, Z_min); the
         # length is measured from the wall (from Z_min without one)
         self._top = self._owned_node(0.0, float(hi[1]))
@@ -229,109 +284,294 @@ class FiniteRun:
         return self.comm.allreduce(local, op=MPI.MAX)
 
     # ------------------------------------------------------------ the run
+    def penalty_beta(self, dt: float, dt_avg: float) -> float:
+        """Largest beta_i = p_i dt dt_avg / m_i (-) of a penalty wall over all ranks (0 without)."""
+        local = self.wall.beta_max_local(dt, dt_avg) if self.wall is not None else 0.0
+        return self.comm.allreduce(local, op=MPI.MAX)
+
+    def _check_penalty(self, dt: float, dt_avg: float, n: int, t: float) -> None:
+        """A penalty wall above the stable bound 4/3 (contact/penalty.py) is refused unless
+        forced: before the run as bad input, during it (the step grew) as a stopped run."""
+        from .contact.wall import STABILITY_BOUND
+
+        beta = self.penalty_beta(dt, dt_avg)
+        self.beta_max = max(getattr(self, "beta_max", 0.0), beta)
+        if beta > STABILITY_BOUND and not self.settings.force:
+            what = (f"[wall] penalty = {self.wall.penalty:.4g} N/m: beta_max = p dt^2 / m = "
+                    f"{beta:.4g} is above the stable bound 4/3")
+            if n == 0:
+                raise InputError(f"{what} at dt = {dt:.4g} s; lower the penalty, use "
+                                 'penalty = "scaled", or force it')
+            raise UnstableRunError(f"run stopped at step {n} (t = {t:.6g} s): {what} at the "
+                                   f"current dt = {dt:.4g} s")
+
+    def _cell_values(self) -> dict[str, np.ndarray]:
+        """The cell fields of the current state: Cauchy stress (Pa), von Mises (Pa), eps_p_eq
+        (-) and the temperature (K) of a material with one."""
+        sig, eps, temp = self.force.cell_values()  # stress columns rr, tt, zz, rz
+        m = sig[:, :3].mean(axis=1)
+        d = sig[:, :3] - m[:, None]
+        vm = np.sqrt(1.5 * ((d * d).sum(axis=1) + 2.0 * sig[:, 3] ** 2))
+        out = {"sigma_rr": sig[:, 0], "sigma_tt": sig[:, 1], "sigma_zz": sig[:, 2],
+               "sigma_rz": sig[:, 3], "von_mises": vm, "eps_p_eq": eps}
+        if self.has_temperature:
+            out["temperature"] = temp
+        return out
+
+    @property
+    def has_temperature(self) -> bool:
+        return getattr(self.material, "temperature_index", -1) >= 0
+
+    # ------------------------------------------------------------ the run
     def run(self, history_csv: str | None = None, fields_path: str | None = None) -> dict:
-        """Step to t_end; history rows into ``history_csv`` and fields into ``fields_path``
-        (XDMF) when given (rank 0 writes the CSV; the XDMF is collective)."""
+        """Step to t_end and return the summary. With ``settings.out`` the run directory gets
+        history.csv, fields.xdmf, history.png and summary.json (staged, see rundir.py; a
+        signal stops the run at a step boundary with a complete directory); otherwise the
+        history and the fields go to ``history_csv`` and ``fields_path`` when given."""
+        from .simulation import _StopFlag  # the signal flag every run shares
+        from .xdmf import FieldWriter
+
         s, comm = self.settings, self.comm
-        fields = FiniteFields(self, fields_path) if fields_path else None
-        next_snapshot = 0.0
-        clock = MPI.Wtime()
         require(s.t_end > 0, f"t_end = {s.t_end} s: must be > 0")
         require(s.dt is None or s.dt > 0, f"dt = {s.dt} s: must be > 0")
         require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
+        require(s.history_every >= 1 and s.output_every >= 1,
+                "history_every and output_every must be >= 1")
+        dt_lim = self.dt_limit()
+        dt0 = min(s.dt if s.dt is not None else s.safety * dt_lim, s.t_end)
+        self._check_penalty(dt0, dt0, 0, 0.0)
+        t_setup = time.perf_counter()
+        stop = _StopFlag()
+        staging = writer = table = None
+        try:
+            staging = rundir.prepare_directory(s.out, comm) if s.out else None
+            hist_path = os.path.join(staging, "history.csv") if staging else history_csv
+            xdmf = (os.path.join(staging, "fields.xdmf") if (staging and s.fields)
+                    else None if staging else fields_path)
+            table = output.Table(hist_path, HISTORY_COLUMNS, comm) if hist_path else None
+            names = CELL_FIELDS + (("temperature",) if self.has_temperature else ())
+            writer = FieldWriter(xdmf, _OneBody(self, self.name), names) if xdmf else None
+            if stop.collective(comm):
+                raise interrupts.Interrupted(stop.signum)
+        except BaseException:
+            if writer is not None:
+                writer.close()
+            if staging:
+                rundir.abandon_directory(staging, comm)
+            stop.restore()
+            raise
+        self.setup_time = {"outputs": time.perf_counter() - t_setup}
+        timers = PhaseTimers(PHASES) if s.timers else None
+        progress = _TimeProgress(s.t_end, not s.quiet and comm.rank == 0)
         cap = 4096
         hist = np.zeros((cap, len(HISTORY_COLUMNS)))
         n_rows, stride = 0, s.history_every
         K0 = self.kinetic()
-        w_int = loss = w_trap = 0.0
-        t, dt_prev, dt_lim = 0.0, None, self.dt_limit()
+        total_mass = comm.allreduce(float(self.mass[1::2].sum()))
+        w_int = taken = w_trap = 0.0
+        t, dt_prev = 0.0, None
         dts = [np.inf, 0.0]
         n = 0
+        serial = comm.size == 1
+        failure = None
+        clock = time.perf_counter
         self.status = "running"
-        while t < s.t_end * (1.0 - 1e-12):
-            if n >= s.max_steps:
-                raise UnstableRunError(f"more than {s.max_steps} steps before t_end = {s.t_end} s")
-            if n % s.dt_interval == 0:
-                dt_lim = self.dt_limit()
-            if s.dt is None:
-                dt = s.safety * dt_lim
+        t_run = clock()
+        try:
+            while t < s.t_end * (1.0 - 1e-12):
+                t0 = clock()
+                if n >= s.max_steps:
+                    raise UnstableRunError(f"more than {s.max_steps} steps before t_end = {s.t_end} s")
+                new_limit = n % s.dt_interval == 0
+                if new_limit and n > 0:
+                    dt_lim = self.dt_limit()
+                if s.dt is None:
+                    dt = s.safety * dt_lim
+                else:
+                    dt = s.dt
+                    if dt > dt_lim:
+                        raise UnstableRunError(
+                            f"run stopped at step {n} (t = {t:.6g} s): the fixed dt = {dt:.4g} s is "
+                            f"above the current stable limit {dt_lim:.4g} s (elements flattened); "
+                            "use the adaptive step (dt = None) or a smaller dt")
+                if dt < s.t_end - t:  # the range of dt leaves out the last, clipped step
+                    dts[0], dts[1] = min(dts[0], dt), max(dts[1], dt)
+                dt = min(dt, s.t_end - t)
+                dt_avg = dt if dt_prev is None else 0.5 * (dt_prev + dt)
+                if new_limit and n > 0 and self.wall is not None and self.wall.method == "penalty":
+                    self._check_penalty(dt, dt_avg, n, t)
+                self.u_fn.x.scatter_forward()
+                f = self.force.compute(dt_prev if dt_prev is not None else dt)
+                w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
+                t1 = clock()
+                if writer is not None and n % s.output_every == 0:
+                    writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
+                t2 = clock()
+                if n % stride == 0 or (table is not None and n % s.history_every == 0):
+                    row = self._history_row(n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass)
+                    if table is not None and n % s.history_every == 0:
+                        table.row()[:] = row
+                    if n % stride == 0:
+                        if n_rows == cap:  # keep memory bounded: every other row, double the stride
+                            hist[: cap // 2] = hist[0:cap:2]
+                            n_rows, stride = cap // 2, 2 * stride
+                        if n % stride == 0:
+                            hist[n_rows] = row
+                            n_rows += 1
+                t3 = clock()
+                w_int += velocity_update(self.coef, f, self.v, dt_avg)
+                advance_positions(self.u_owned, self.v, dt)
+                t4 = clock()
+                if self.wall is not None:
+                    w_int += self.wall.step(self.u_owned, self.v, dt, dt_avg, f)
+                    taken = self.wall.contact_loss_local
+                t += dt
+                dt_prev = dt
+                n += 1
+                if n % 16 == 0 and not comm.allreduce(  # collective: every rank stops alike
+                        bool(np.isfinite(np.dot(self.v, self.v))), op=MPI.LAND):
+                    raise UnstableRunError(f"run diverged at step {n} (t = {t:.6g} s): velocity "
+                                           "not finite")
+                t5 = clock()
+                if timers is not None:
+                    now = timers.current
+                    now[:] = (t1 - t0, t4 - t3, t5 - t4, t3 - t2, t2 - t1)
+                    timers.record()
+                progress.show(n, t, dt)
+                done = not t < s.t_end * (1.0 - 1e-12)
+                caught = (interrupts.STATE.signum != 0 if serial else
+                          (n % interrupts.AGREE_EVERY == 0 or done) and stop.collective(comm))
+                if caught:
+                    stop.collective(comm)
+                    self.status = f"interrupted by {stop.name}"
+                    break
             else:
-                dt = s.dt
-                if dt > dt_lim:
-                    raise UnstableRunError(
-                        f"run stopped at step {n} (t = {t:.6g} s): the fixed dt = {dt:.4g} s is above "
-                        f"the current stable limit {dt_lim:.4g} s (elements flattened); use the "
-                        "adaptive step (dt = None) or a smaller dt")
-            dt = min(dt, s.t_end - t)
-            dt_avg = dt if dt_prev is None else 0.5 * (dt_prev + dt)
-            self.u_fn.x.scatter_forward()
-            f = self.force.compute(dt_prev if dt_prev is not None else dt)
-            w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
-            if fields is not None and t >= next_snapshot * (1.0 - 1e-12):
-                fields.write(t)  # u^n and the state of the force just computed at u^n
-                next_snapshot += s.t_end / max(s.snapshots, 1)
-            record = n % stride == 0
-            if record:
-                stored = comm.allreduce(self.force.stored_energy_local()) if s.ledger else 0.0
-                wp = comm.allreduce(self.force.plastic_work_local)
-                kin = self.kinetic()  # v^{n-1/2}
-                wi = comm.allreduce(w_int)
-                ls = comm.allreduce(loss)
-                length, radius = self.tracked()
-                n_act = comm.allreduce(self.wall.n_active_local) if self.wall else 0
-                row = [n, t, dt, dt_lim, kin, wi, ls, stored, wp, kin + wi + ls - K0,
-                       comm.allreduce(w_trap) - stored - wp, n_act, self.force.j_min,
-                       self.eps_p_max(), length, radius]
-                if n_rows == cap:  # keep memory bounded: every other row, double the stride
+                self.status = "completed"
+        except UnstableRunError as exc:
+            self.status = "diverged"
+            failure = str(exc)
+            if staging is None:
+                stop.restore()
+                if table is not None:
+                    table.close()
+                if writer is not None:
+                    writer.close()
+                raise
+        except BaseException:
+            stop.restore()
+            raise
+        finally:
+            progress.close()
+        wall_time = comm.allreduce(clock() - t_run, op=MPI.MAX)
+        try:
+            # the final state: force at u^N so that the state and the stored energy are current
+            if self.status != "diverged":
+                self.u_fn.x.scatter_forward()
+                f = self.force.compute(dt_prev)
+                w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
+                row = self._history_row(n, t, dt_prev, dt_lim, K0, w_int, taken, w_trap,
+                                        total_mass)
+                if table is not None:  # the last state, u^N, always
+                    table.row()[:] = row
+                if n_rows == cap:
                     hist[: cap // 2] = hist[0:cap:2]
-                    n_rows, stride = cap // 2, 2 * stride
+                    n_rows = cap // 2
                 hist[n_rows] = row
                 n_rows += 1
-            w_int += velocity_update(self.coef, f, self.v, dt_avg)
-            self.u_owned += dt * self.v
-            if self.wall is not None:
-                before = self.wall.activation_loss_local
-                w_int += self.wall.step(self.u_owned, self.v, dt, dt_avg, f)
-                loss += self.wall.activation_loss_local - before
-            t += dt
-            dt_prev = dt
-            dts[0], dts[1] = min(dts[0], dt), max(dts[1], dt)
-            n += 1
-            if not np.isfinite(self.v[:8]).all():
-                raise UnstableRunError(f"run diverged at step {n} (t = {t:.6g} s): velocity not finite")
-        # the final state: force at u^N so that the state and the stored energy are current
-        self.u_fn.x.scatter_forward()
-        f = self.force.compute(dt_prev)
-        w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
-        if fields is not None:
-            fields.write(t)
-            fields.close()
-        self.n_steps, self.t = n, t
-        wall_time = comm.allreduce(MPI.Wtime() - clock, op=MPI.MAX)
+                if writer is not None:
+                    writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
+            if table is not None:
+                table.close()
+            if writer is not None:
+                writer.close()
+            self.n_steps, self.t = n, t
+            self.history = {c: hist[:n_rows, i].copy() for i, c in enumerate(HISTORY_COLUMNS)}
+            summary = self._summary(K0, n, t, dts, w_int, taken, w_trap, wall_time, timers)
+            summary.update(s.summary_extra)
+            if failure is not None:
+                summary["failure"] = failure
+            if staging:
+                scene = summary.get("scene_file")
+                if scene and comm.rank == 0 and os.path.isfile(scene):
+                    shutil.copy(scene, os.path.join(staging, "scene" + os.path.splitext(scene)[1]))
+                if s.plots and comm.rank == 0 and not stop.signum:
+                    from .plotting import write_finite_plots
+
+                    write_finite_plots(staging, self.history)
+                if not self.status.startswith("interrupted") and stop.collective(comm):
+                    summary["interrupted"] = (f"{stop.name} after the last step, while the "
+                                              "output was finished (it is complete)")
+                output.write_json(os.path.join(staging, "summary.json"), summary, comm)
+                self.out_dir = rundir.finalize_directory(staging, s.out, comm)
+            stop.collective(comm)
+        finally:
+            stop.restore()
+        self.signal = stop.signum
+        self.summary = summary
+        if failure is not None:
+            raise UnstableRunError(failure)
+        return summary
+
+    def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass) -> list:
+        """One history row (every rank the same): see HISTORY_COLUMNS (SI units)."""
+        comm, wall = self.comm, self.wall
+        stored = comm.allreduce(self.force.stored_energy_local()) if self.settings.ledger else 0.0
+        wp = comm.allreduce(self.force.plastic_work_local)
+        kin = self.kinetic()  # v^{n-1/2}
+        wi = comm.allreduce(w_int)
+        tk = comm.allreduce(taken)
+        spring = comm.allreduce(wall.spring_energy_local) if wall is not None else 0.0
+        length, radius = self.tracked()
+        n_act = comm.allreduce(wall.n_active_local) if wall is not None else 0
+        force = comm.allreduce(wall.force_local) if wall is not None else 0.0
+        vz = comm.allreduce(float(np.dot(self.mass[1::2], self.v[1::2]))) / total_mass
+        return [n, t, dt, dt_lim, kin, wi, tk - spring, stored, wp, kin + wi + tk - K0,
+                comm.allreduce(w_trap) - stored - wp, n_act, self.force.j_min,
+                self.eps_p_max(), length, radius, force, spring, vz]
+
+    def _summary(self, K0, n, t, dts, w_int, taken, w_trap, wall_time, timers) -> dict:
+        """The run's figures (SI units); every rank returns the same dictionary."""
+        from .simulation import _provenance
+
+        s, comm = self.settings, self.comm
         K = self.kinetic()
         stored = comm.allreduce(self.force.stored_energy_local())
         wp = comm.allreduce(self.force.plastic_work_local)
-        wi, ls = comm.allreduce(w_int), comm.allreduce(loss)
+        wi, tk = comm.allreduce(w_int), comm.allreduce(taken)
+        spring = comm.allreduce(self.wall.spring_energy_local) if self.wall is not None else 0.0
         length, radius = self.tracked()
-        self.history = {c: hist[:n_rows, i].copy() for i, c in enumerate(HISTORY_COLUMNS)}
-        self.status = "completed"
+        n_cells = comm.allreduce(self.force.geometry.dofs.shape[0])
         summary = {
-            "status": self.status, "n_steps": n, "t_end": t, "n_ranks": comm.size,
-            "n_cells": comm.allreduce(self.force.geometry.dofs.shape[0]),
+            "status": self.status, "strain": "finite", "n_steps": n, "stopped_at_step": n,
+            "t_end": t, "t_end_requested": s.t_end, "n_ranks": comm.size,
+            "n_cells": n_cells, "n_dofs": int(self.V.dofmap.index_map.size_global * 2),
             "dt_min": comm.allreduce(dts[0], op=MPI.MIN), "dt_max": comm.allreduce(dts[1], op=MPI.MAX),
             "dt_rule": "fixed" if s.dt is not None else
             f"{s.safety} x min(A / max diagonal) / c, every {s.dt_interval} steps",
             "initial_kinetic": K0, "kinetic": K, "stored_elastic": stored, "plastic_work": wp,
-            "internal_work": wi, "activation_loss": ls,
-            "kinetic_identity_error": (K + wi + ls - K0) / K0 if K0 else K + wi + ls,
+            "internal_work": wi, "activation_loss": tk - spring, "penalty_energy": spring,
+            "kinetic_identity_error": (K + wi + tk - K0) / K0 if K0 else K + wi + tk,
             "work_gap": (comm.allreduce(w_trap) - stored - wp),
             "final_length": length, "final_face_radius": radius, "eps_p_max": self.eps_p_max(),
             "j_min": self.force.j_min, "wall_time": wall_time,
+            "energy_definition": "kinetic 1/2 v M v at the last half step; internal_work the "
+                                 "booked work of f_int (kinetic identity: kinetic + internal_work "
+                                 "+ activation_loss + penalty_energy = initial_kinetic to "
+                                 "round-off); activation_loss the energy the wall took and kept; "
+                                 "penalty_energy 1/2 p g^2 stored in the wall's springs (returned "
+                                 "when they release); work_gap = internal_work booked by the "
+                                 "trapezoid - stored - plastic (O(dt^2))",
         }
-        summary["element_steps_per_second"] = summary["n_cells"] * n / max(wall_time, 1e-300)
-        if history_csv and comm.rank == 0:
-            with open(history_csv, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(HISTORY_COLUMNS)
-                w.writerows(np.column_stack([self.history[c] for c in HISTORY_COLUMNS]).tolist())
+        summary["element_steps_per_second"] = n_cells * n / max(wall_time, 1e-300)
+        if self.wall is not None:
+            summary["wall"] = {"method": self.wall.method, "z": self.wall.z_wall,
+                               "n_candidates": comm.allreduce(self.wall.nodes.size)}
+            if self.wall.method == "penalty":
+                summary["wall"]["penalty"] = self.wall.penalty
+                summary["wall"]["beta_max"] = getattr(self, "beta_max", None)
+                summary["wall"]["beta_bound"] = 4.0 / 3.0
+        summary.update(_provenance())
+        summary["setup_time"] = dict(getattr(self, "setup_time", {}))
+        if timers is not None and timers.n_steps > 0:
+            summary.update(timers.summary(comm, wall_time))
         return summary

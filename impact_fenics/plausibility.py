@@ -46,6 +46,12 @@ def warn(message: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
 
 def check_scene(scene, sim, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """Warn about each value of a built scene outside the bounds above."""
+    check_values(scene, sim.settings.dt, sim.n_steps, sim.model.mesh, comm)
+
+
+def check_values(scene, dt: float, n_steps: int, mesh, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """Warn about each value outside the bounds above: the scene's materials and speeds,
+    the step ``dt`` (s), ``n_steps`` and the extent of ``mesh`` (m)."""
     for m in scene.materials.values():
         c = wave_speed(m.E, m.nu, m.density)
         if not WAVE_SPEED[0] <= c <= WAVE_SPEED[1]:
@@ -58,14 +64,13 @@ def check_scene(scene, sim, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         if v > MAX_SPEED:
             warn(f"{where}: {v:.4g} m/s is above {MAX_SPEED:g} m/s, faster than any impact "
                  "a small-strain model describes: check the units (m/s)", comm)
-    dt = sim.settings.dt
     if not DT[0] <= dt <= DT[1]:
         warn(f"[time] dt = {dt:.4g} s is outside [{DT[0]:g}, {DT[1]:g}] s: check the units (s)",
              comm)
-    if sim.n_steps > MAX_STEPS:
-        warn(f"[time] {sim.n_steps:,} steps, more than {MAX_STEPS:,}: round-off and run "
+    if n_steps > MAX_STEPS:
+        warn(f"[time] {n_steps:,} steps, more than {MAX_STEPS:,}: round-off and run "
              "time dominate; shorten t_end or coarsen the mesh", comm)
-    x = sim.model.mesh.geometry.x[:, :2]
+    x = mesh.geometry.x[:, :2]
     local = np.concatenate([-x.min(axis=0), x.max(axis=0)]) if x.size else np.full(4, -np.inf)
     box = np.empty(4)
     comm.Allreduce(local, box, op=MPI.MAX)  # -r_min, -z_min, r_max, z_max

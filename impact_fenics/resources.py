@@ -62,6 +62,8 @@ def generator_cells(generator: str, p: dict) -> tuple[float, float]:
         cells = sum(_rect_cells(p["radius"], length, p["h"], p["structured"])
                     for length in (p["striker_length"], p["target_length"]))
         return cells, p["h"]
+    if generator == "quad_bar":  # n_r x round(n_r length / radius) quadrilaterals
+        return p["n_r"] * max(1, round(p["n_r"] * p["length"] / p["radius"])), p["radius"] / p["n_r"]
     if generator == "punch_block":
         hs, g, h_max = p["h_surface"], p["grading"], p["h_max"]
         hs = min([hs] + [(r1 - r0) / n for (r0, (r1, n)) in
@@ -77,9 +79,11 @@ def generator_cells(generator: str, p: dict) -> tuple[float, float]:
 
 
 def estimate(cells: float, n_steps: float, n_ranks: int, history_columns: int,
-             history_every: int) -> Estimate:
-    """Memory (bytes) and wall time (s) of ``cells`` CST cells run for ``n_steps``."""
-    dofs = cells + 4.0 * math.sqrt(cells) + 2.0  # 2 per node, ~cells/2 nodes plus the boundary
+             history_every: int, dofs: float | None = None) -> Estimate:
+    """Memory (bytes) and wall time (s) of ``cells`` CST cells (or ``dofs`` dofs of another
+    element) run for ``n_steps``."""
+    if dofs is None:
+        dofs = cells + 4.0 * math.sqrt(cells) + 2.0  # 2 per node, ~cells/2 nodes plus the boundary
     rows = n_steps / history_every + 2
     memory = (n_ranks * BASE_BYTES_PER_RANK + BYTES_PER_DOF * dofs
               + 2 * 8.0 * rows * history_columns)

@@ -56,6 +56,9 @@ GENERATORS: dict[str, dict[str, tuple[str, str]]] = {
                            "h_striker": (_LENGTH, "striker element size in m"),
                            "h_target": (_LENGTH, "target element size in m"),
                            "structured": ("bool", "structured grids")},
+    "quad_bar": {"radius": (_LENGTH, "bar radius in m"), "length": (_LENGTH, "bar length in m"),
+                 "n_r": ("count", "bilinear quadrilaterals across the radius (square cells; "
+                                  "round(n_r length / radius) along)")},
     "nosed_striker_on_block": {"nose_radius": (_LENGTH, "striker (and nose) radius in m"),
                                "shank_length": (_LENGTH, "striker length above the nose in m"),
                                "block_width": (_LENGTH, "block radius in m"),
@@ -193,7 +196,7 @@ class MaterialSpec:
     E: float        # Pa
     nu: float
     density: float  # kg/m^3
-    model: str = "elastic"     # "elastic" or "j2"
+    model: str = "elastic"     # "elastic", "j2" or (finite strain) "neo_hookean"
     yield_stress: float = 0.0  # Pa (j2)
     hardening: float = 0.0     # Pa, d sigma_y / d eps_bar_p (j2)
     viscosity: float = 0.0     # Pa s, overstress viscosity (j2; 0: rate-independent)
@@ -204,6 +207,7 @@ class BodySpec:
     name: str
     material: str
     velocity: tuple[float, float]  # (v_r, v_z), m/s
+    strain: str = "small"  # "small" or "finite" (total Lagrangian, finite_run.py)
 
 
 @dataclass
@@ -278,6 +282,12 @@ class Scene:
     output: dict[str, Any]
     probes: list[ProbeSpec] = field(default_factory=list)
     force: bool = False  # run what the checks refuse (dt, penalty bound, memory)
+    wall: Any = None     # finite_scene.WallSpec of a [wall] table, or None
+
+    @property
+    def finite(self) -> bool:
+        """A finite-strain scene ([bodies.NAME] strain = "finite"): run by finite_run.py."""
+        return any(b.strain == "finite" for b in self.bodies)
 
     @property
     def stem(self) -> str:
@@ -287,6 +297,9 @@ class Scene:
         """Use ``method`` for every contact (the command line's --method)."""
         if method not in METHODS:
             raise InputError(f"--method {method}: use one of {', '.join(METHODS)}")
+        if self.wall is not None:
+            self.wall.method = method
+            return
         if not self.contacts:
             raise InputError(f"--method {method}: the scene has no [[contact]]")
         for c in self.contacts:
@@ -294,7 +307,7 @@ class Scene:
 
 
 TOP_KEYS = ("title", "mesh", "materials", "bodies", "rigid", "contact", "loads", "fixed",
-            "time", "output", "probes", "force")
+            "time", "output", "probes", "force", "wall")
 
 
 def read_scene(path: str) -> Scene:
@@ -352,8 +365,14 @@ def read_scene(path: str) -> Scene:
                              'plastic material ([materials.NAME] model = "j2")')
     force = top.flag("force", "run what the checks refuse: dt above the stable limit, a "
                               "penalty above its stable bound, a run beyond the memory", False)
-    return Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
-                 fixed, time, output, probes, force)
+    scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
+                  fixed, time, output, probes, force)
+    from . import finite_scene
+
+    if "wall" in top:
+        scene.wall = finite_scene.read_wall(top.data["wall"])
+    finite_scene.check_kind(scene)
+    return scene
 
 
 def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:
@@ -399,6 +418,8 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
             params[key] = t.positive(key, what)
         elif kind == "bool":
             params[key] = t.flag(key, what, False)
+        elif kind == "count":
+            params[key] = t.count(key, what)
         else:
             params[key] = _breaks(t, key, what)
     return MeshSpec(generator, params, None)
@@ -419,18 +440,19 @@ PLASTIC_KEYS = ("yield_stress", "hardening", "viscosity")
 
 def _read_material(name: str, data: dict) -> MaterialSpec:
     t = _Table(data, f"[materials.{name}]", ("model", "E", "nu", "density") + PLASTIC_KEYS)
-    model = t.text("model", "the material model", "elastic", choices=("elastic", "j2"))
+    model = t.text("model", "the material model", "elastic",
+                   choices=("elastic", "j2", "neo_hookean"))
     E = t.positive("E", "Young's modulus in Pa")
     nu = t.number("nu", "Poisson's ratio")
     if not -1.0 < nu < 0.5:
         raise t.error("nu", "Poisson's ratio must lie in (-1, 0.5); nu >= 0.5 is "
                             "incompressible and has no explicit stable time step")
     density = t.positive("density", "mass density in kg/m^3")
-    if model == "elastic":
+    if model in ("elastic", "neo_hookean"):
         for key in PLASTIC_KEYS:
             if key in t:
                 raise t.error(key, 'only for model = "j2"')
-        return MaterialSpec(name, E, nu, density)
+        return MaterialSpec(name, E, nu, density, model)
     yield_stress = t.positive("yield_stress", "initial yield stress in Pa")
     hardening = t.number("hardening", "hardening modulus d sigma_y / d eps_bar_p in Pa", 0.0)
     if hardening < 0:
@@ -442,13 +464,15 @@ def _read_material(name: str, data: dict) -> MaterialSpec:
 
 
 def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> BodySpec:
-    t = _Table(data, f"[bodies.{name}]", ("material", "velocity"))
+    t = _Table(data, f"[bodies.{name}]", ("material", "velocity", "strain"))
     material = t.text("material", "the name of a [materials.NAME] table")
     if material not in materials:
         raise t.error("material", f"no table [materials.{material}] "
                                   f"(materials: {', '.join(materials) or 'none'})")
     velocity = t.pair("velocity", "initial (v_r, v_z) in m/s", (0.0, 0.0))
-    return BodySpec(name, material, velocity)
+    strain = t.text("strain", "small (the linear and small-strain paths) or finite (total "
+                              "Lagrangian, Q1 mean dilatation)", "small", choices=("small", "finite"))
+    return BodySpec(name, material, velocity, strain)
 
 
 def _read_rigid(name: str, data: dict) -> RigidSpec:
@@ -576,7 +600,8 @@ def _read_fixed(where: str, data: dict) -> FixedSpec:
 
 
 def _read_time(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[time]", ("dt", "cfl", "t_end", "n_steps", "force_dt", "converged_dt"))
+    t = _Table(data, "[time]", ("dt", "cfl", "t_end", "n_steps", "force_dt", "converged_dt",
+                                "dt_interval"))
     if ("dt" in t) == ("cfl" in t):
         raise InputError("[time] give exactly one of dt (the time step in s) or cfl "
                          "(a fraction of the stable limit)")
@@ -587,7 +612,9 @@ def _read_time(data: Any) -> dict[str, Any]:
             "t_end": t.positive("t_end", "the end time in s", None),
             "n_steps": t.count("n_steps", "the number of steps", None),
             "force_dt": t.flag("force_dt", "run with a dt above the stable limit", False),
-            "converged_dt": t.flag("converged_dt", "also compute the converged stable dt", False)}
+            "converged_dt": t.flag("converged_dt", "also compute the converged stable dt", False),
+            "dt_interval": t.count("dt_interval", "steps between re-estimates of the stable "
+                                                  "step (finite strain)", None)}
 
 
 def _read_output(data: Any) -> dict[str, Any]:
@@ -635,9 +662,11 @@ def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool =
 
     from . import meshing
 
-    params = {k: v.default for k, v in
-              inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
-              if v.default is not inspect.Parameter.empty}
+    quads = scene.mesh.generator == "quad_bar"  # finite_run.quad_bar: every key given
+    params = {} if quads else {
+        k: v.default for k, v in
+        inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
+        if v.default is not inspect.Parameter.empty}
     params.update(scene.mesh.params)
     cells, h_min = resources.generator_cells(scene.mesh.generator, params)
     t = scene.time
@@ -645,12 +674,14 @@ def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool =
         n_steps = float(t["n_steps"])
     else:
         dt = t["dt"]
-        if dt is None:  # cfl: the element bound is about 0.3 h / c for these triangles
+        if dt is None:  # cfl: the element bound is about 0.3 h / c for these triangles, h / sqrt 2 / c
+            # for square quadrilaterals (finite strain: at the start; flattening cells lower it)
             c = max(plausibility.wave_speed(m.E, m.nu, m.density) for m in scene.materials.values())
-            dt = t["cfl"] * 0.3 * h_min / c
+            dt = t["cfl"] * (math.sqrt(0.5) if quads else 0.3) * h_min / c
         n_steps = math.ceil(t["t_end"] / dt)
     columns = 2 + len(scene.probes) + 9 * len(scene.contacts)
-    est = resources.estimate(cells, n_steps, comm.size, columns, scene.output["history_every"])
+    est = resources.estimate(cells, n_steps, comm.size, columns, scene.output["history_every"],
+                             dofs=2.0 * (cells + 2.0 * math.sqrt(cells) + 1.0) if quads else None)
     available = resources.available_memory() if comm.rank == 0 else None
     available = comm.bcast(available, root=0)
     if comm.rank == 0 and not quiet:

@@ -94,3 +94,26 @@ class PhaseTimers:
         if comm is not None:
             comm.Allreduce(MPI.IN_PLACE, tot, op=MPI.MAX)
         return {k: float(v) for k, v in zip(self.phases, tot)}
+
+    def summary(self, comm: MPI.Comm, wall: float) -> dict:
+        """The summary entries of a loop of ``wall`` s (the slowest rank's): per phase the
+        median and total (s) and the share of the loop, the median step (s) and the loop's
+        wall time over steps x median step."""
+        medians, totals = self.medians(comm), self.total(comm)
+        step = self.median_of_sum(comm=comm)
+        mean = np.append(self.totals, wall)
+        comm.Allreduce(MPI.IN_PLACE, mean)
+        mean /= comm.size
+        share = {k: (float(mean[i] / mean[-1]) if mean[-1] > 0 else 0.0)
+                 for i, k in enumerate(self.phases)}
+        return {"time_per_step_median": medians, "time_per_step_total": totals,
+                "step_time_median": step,
+                "timing": {"phases": {k: {"total": totals[k], "median": medians[k],
+                                          "share": share[k]} for k in totals},
+                           "rest_share": max(0.0, 1.0 - sum(share.values())),
+                           "loop_over_steps_median": (wall / (self.n_steps * step) if step > 0
+                                                      else None),
+                           "definition": "total and median: the slowest rank's (s); share: the "
+                                         "phase's total over the loop's wall time, both "
+                                         "averaged over the ranks; rest: the loop's own Python, "
+                                         "progress and signal checks"}}

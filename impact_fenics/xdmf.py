@@ -2,7 +2,8 @@
 
 Layout (what ``fields.xdmf`` describes):
 
-* the mesh in pieces, one per MPI rank: piece p holds the cells rank p owns
+* the mesh (triangles, or quadrilaterals for the finite-strain bodies) in
+  pieces, one per MPI rank: piece p holds the cells rank p owns
   (each cell of the mesh in exactly one piece) and the nodes of those cells
   (a node on a partition boundary appears in both pieces, with the same
   values). Each rank writes its own HDF5 file (``fields.h5`` on one rank,
@@ -45,6 +46,10 @@ from mpi4py import MPI
 from numba import njit
 
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+# XDMF topology of P1 cells by nodes per cell; dolfinx numbers a quadrilateral's vertices
+# (0, 0), (1, 0), (0, 1), (1, 1), XDMF (like VTK) goes round the cell: 0, 1, 3, 2
+CELL_TYPES = {3: "Triangle", 4: "Quadrilateral"}
+QUAD_CYCLE = [0, 1, 3, 2]
 
 
 def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precision: int = 8) -> str:
@@ -103,6 +108,9 @@ class FieldWriter:
         from .compat import cell_dofs  # (the reader below must not load dolfinx)
 
         cell_nodes = cell_dofs(model.V)[:n_cells]
+        if cell_nodes.shape[1] == 4:  # a quadrilateral: dolfinx's tensor order -> XDMF's cycle
+            cell_nodes = cell_nodes[:, QUAD_CYCLE]
+        self._cell_type = CELL_TYPES[cell_nodes.shape[1]]
         # the piece: owned cells and their nodes, nodes in order of their local index
         self._nodes = np.unique(cell_nodes.ravel()).astype(np.int64)
         renumber = np.full(model.node_xy.shape[0], -1, dtype=np.int64)
@@ -200,13 +208,15 @@ class FieldWriter:
 
     def _step_xml(self, t: float, step: int) -> str:
         group = f"/step_{step}"
+        npc = 4 if self._cell_type == "Quadrilateral" else 3
         lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
                  f'        <Time Value="{t!r}"/>']
         for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
             lines += [
                 f'        <Grid Name="piece_{p}" GridType="Uniform">',
-                f'          <Topology TopologyType="Triangle" NumberOfElements="{n_cells}" '
-                f'NodesPerElement="3">{_item((n_cells, 3), h5, "/mesh/topology", "Int")}</Topology>',
+                f'          <Topology TopologyType="{self._cell_type}" NumberOfElements="{n_cells}" '
+                f'NodesPerElement="{npc}">{_item((n_cells, npc), h5, "/mesh/topology", "Int")}'
+                '</Topology>',
                 f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
                 '</Geometry>']
             for key in ("displacement", "velocity"):
@@ -259,7 +269,7 @@ def data_item(item, xdmf_dir: str) -> np.ndarray:
 
 class FieldSeries:
     """A fields.xdmf read back: the pieces joined into one mesh (points (n, 2) in m, cells
-    (m, 3)), the output times (s), each field's centring ("Node" or "Cell") and, by
+    (m, 3) triangles or (m, 4) quadrilaterals), the output times (s), each field's centring ("Node" or "Cell") and, by
     :meth:`values`, its values at an output (nodal fields (n, 3), cell fields (m,))."""
 
     def __init__(self, path: str):

@@ -17,7 +17,7 @@ from impact_fenics.bench.contact import CONTACT_METHODS
 from impact_fenics.bench.step import scipy_equivalence
 
 # akantu needs a venv of its own that CI does not have: left out here
-PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2"
+PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite"
 TIMING_KEYS = ("median", "gbs", "step", "matmult", "multadd", "axpy", "contact", "fast", "force",
                "numba_call_floor")
 
@@ -92,6 +92,12 @@ def test_smoke_run_writes_the_expected_figures(smoke):
     for k in ("j2_fast", "j2_generic", "j2_fast_elastic", "linear_step", "matmult"):
         assert j2["ns_per_dof"][k] > 0 and j2["ratio_to_linear_step"][k] > 0, k
     assert j2["yielded_fraction_fast"] > 0.1  # the J2 row times real return mappings
+
+    fin = smoke["finite"]
+    for k in ("j2_finite_strain", "j2_small_strain", "linear_step", "matmult"):
+        assert fin["ns_per_dof"][k] > 0 and fin["ratio_to_linear_step"][k] > 0, k
+    assert fin["n_dofs_quadrilateral"] == fin["n_dofs"]  # the same nodes, quadrilaterals
+    assert fin["yielded_fraction_finite"] > 0.1 and fin["split_finite"]["fused_kernel"] > 0
 
     for path, value in _numbers(smoke):
         assert math.isfinite(value), path

@@ -23,6 +23,9 @@ ranks     the scaling and stream parts again on 2 ranks (launched with          
 format    AIJ against BAIJ (block size 2) for MatMult and the whole step.         matrix_format.py
 matfree   a compiled matrix-free CST internal force (benchmarks/matfree_cst.py)   peers.py
           against MatMult.
+finite    the finite-strain J2 step against the small-strain J2 step and the      finite.py
+          linear step, with where its time goes.
+taylor    the Taylor bar's whole run in element-steps per second, 1 and 2 ranks.  finite.py
 akantu    Akantu's explicit lumped-mass plane-strain step in its own venv         peers.py
           (benchmarks/akantu_peer.py).
 whole     whole runs against their steps (punch Sim3, bars; default outputs),    whole_run.py

@@ -92,13 +92,19 @@ def _point_strains(force) -> np.ndarray:
     return eps.reshape(g.dofs.shape[0], 12)
 
 
-def part_j2(ctx) -> dict:
-    comm = ctx.comm
+def linear_reference(ctx):
+    """(mesh, h, dofs, linear integrator, timings of the linear step and of MatMult (s)) of the
+    benchmark's bar at the mode's step size: what the plastic rows are measured against."""
     tmesh, h = ctx.mesh(ctx.mode.step_dofs)
     model, lin = bar_integrator(tmesh)
-    N = int(model.n_global)
     t = {"linear_step": ctx.median(step_fn(lin)),
          "matmult": time_matmult(ctx, lin.K, lin.u_vec.array)}
+    return tmesh, h, int(model.n_global), lin, t
+
+
+def part_j2(ctx) -> dict:
+    comm = ctx.comm
+    tmesh, h, N, lin, t = linear_reference(ctx)
     steel = yielding_steel(h)
     res = {"n_dofs": N, "h": h, "dt": lin.dt, "yield_stress": steel.yield_stress}
     _, integ = j2_integrator(tmesh, "fast", lin.dt, J2_ELASTIC)

@@ -1,0 +1,169 @@
+"""Finite-strain scene files: the [wall] table, what a finite-strain scene may hold, its build.
+
+A scene chooses finite strain per body, ``strain = "finite"`` in [bodies.NAME]
+(default ``"small"``). Finite-strain bodies are Q1 mean-dilatation
+quadrilaterals (internal_force/finite.py) and a dolfinx 0.5.2 mesh has one
+cell type, so such a scene runs on its own driver (:mod:`.finite_run`, a
+variable step re-estimated every ``dt_interval`` steps) and holds, for now:
+
+* one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
+  across the radius, square cells; the bar spans 0 <= z <= length);
+* its material ``model = "j2"`` (multiplicative J2, Hencky elasticity, linear
+  hardening; rate-independent) or ``"neo_hookean"``;
+* optionally a ``[wall]``: the rigid frictionless plane z (m, default 0, at or
+  below the bar) with ``method`` = "film", "dme" or "penalty" and, for
+  penalty, ``penalty`` = a stiffness in N/m or "scaled" (the default: beta = 1
+  at every step); a stiffness whose beta = p dt^2 / m exceeds 4/3 is refused
+  unless forced (contact/wall.py);
+* ``[time]`` t_end (s) and either cfl (the step as a fraction, <= 1, of the
+  current element limit) or dt (a fixed step, s); dt_interval (steps, default
+  10);
+* no [[contact]], [rigid], [[loads]], [[fixed]] or [[probes]] (refused, one line).
+
+A small-strain scene may not use [wall], quad_bar, neo_hookean or dt_interval.
+Every refusal is an InputError naming the table and the key (exit 2).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from mpi4py import MPI
+
+from .errors import InputError
+
+WALL_METHODS = ("film", "dme", "penalty")
+DT_INTERVAL = 10  # steps between re-estimates of the stable step, unless [time] dt_interval
+FINITE_MODELS = ("j2", "neo_hookean")
+
+
+@dataclass
+class WallSpec:
+    z: float                      # m, the plane z = const (normal +z)
+    method: str                   # film, dme or penalty
+    penalty: float | str = "scaled"  # N/m, or "scaled" (beta = 1 each step)
+    given: tuple[str, ...] = ()
+
+
+def read_wall(data: Any) -> WallSpec:
+    """The [wall] table."""
+    from .scene_file import _Table
+
+    t = _Table(data, "[wall]", ("z", "method", "penalty"))
+    wall = WallSpec(t.number("z", "height of the wall plane in m", 0.0),
+                    t.text("method", f"the wall method: {', '.join(WALL_METHODS)}",
+                           choices=WALL_METHODS), given=tuple(t.data))
+    if "penalty" in t:
+        p = t.data["penalty"]
+        if isinstance(p, str):
+            if p != "scaled":
+                raise t.error("penalty", 'give a stiffness in N/m or "scaled"')
+            wall.penalty = p
+        else:
+            wall.penalty = t.positive("penalty", 'penalty stiffness in N/m, or "scaled"')
+    return wall
+
+
+def check_kind(scene) -> None:
+    """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
+    kinds = {b.strain for b in scene.bodies}
+    if not scene.finite:
+        if scene.wall is not None:
+            raise InputError('[wall] a rigid wall needs a finite-strain body ([bodies.NAME] '
+                             'strain = "finite"); small-strain bodies meet rigid bodies through '
+                             "[rigid.NAME] and [[contact]]")
+        if scene.mesh.generator == "quad_bar":
+            raise InputError('[mesh] generator = "quad_bar": quadrilaterals carry finite-strain '
+                             'bodies only: set strain = "finite" in [bodies.NAME]')
+        for m in scene.materials.values():
+            if m.model == "neo_hookean":
+                raise InputError(f'[materials.{m.name}] model = "neo_hookean" is a finite-strain '
+                                 'material: its body needs strain = "finite"')
+        if scene.time["dt_interval"] is not None:
+            raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
+        return
+    body = next(b for b in scene.bodies if b.strain == "finite")
+    where = f'[bodies.{body.name}] strain = "finite":'
+    if len(scene.bodies) > 1 or len(kinds) > 1:
+        raise InputError(f"{where} a finite-strain scene has one body for now (the mesh is "
+                         "quadrilateral and no body-to-body contact runs on it)")
+    if scene.mesh.generator != "quad_bar":
+        given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
+                 else "file = ...")
+        raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar" '
+                         "(bilinear quadrilaterals, Q1 mean dilatation)")
+    for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
+                      ("loads", "[[loads]]"), ("fixed", "[[fixed]]"), ("probes", "[[probes]]")):
+        if getattr(scene, key):
+            raise InputError(f"{what}: not available with finite strain yet ({where} runs "
+                             "against a [wall] only)")
+    m = scene.materials[body.material]
+    if m.model not in FINITE_MODELS:
+        raise InputError(f'[materials.{m.name}] model = "{m.model}": a finite-strain body takes '
+                         'model = "j2" (multiplicative, Hencky) or "neo_hookean"')
+    if m.viscosity != 0.0:
+        raise InputError(f"[materials.{m.name}] viscosity = {m.viscosity!r}: finite-strain J2 is "
+                         "rate-independent (give no viscosity)")
+    t = scene.time
+    if t["n_steps"] is not None:
+        raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "
+                         "give t_end (s)")
+    if t["cfl"] is not None and t["cfl"] > 1.0:
+        raise InputError(f"[time] cfl = {t['cfl']!r}: must be <= 1 (the fraction of the current "
+                         "element limit min(A / max diagonal) / c)")
+    for key in ("force_dt", "converged_dt"):
+        if t[key]:
+            raise InputError(f"[time] {key}: not available with finite strain (a fixed dt above "
+                             "the current limit stops the run; the limit is re-estimated)")
+    if scene.wall is not None and scene.wall.method != "penalty" and "penalty" in scene.wall.given:
+        from .plausibility import warn
+
+        warn(f'[wall] penalty = {scene.wall.penalty!r} is ignored by method = '
+             f'"{scene.wall.method}" (only penalty reads it)')
+
+
+def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.COMM_WORLD):
+    """The :class:`~impact_fenics.finite_run.FiniteRun` of a checked finite-strain scene;
+    ``overrides`` sets fields of its FiniteSettings (out, quiet, ...)."""
+    from . import plausibility
+    from .finite_run import FiniteRun, FiniteSettings, quad_bar
+    from .materials.finite_j2 import FiniteJ2
+    from .materials.neo_hookean import NeoHookean
+    from .scene_file import _at
+
+    body = scene.bodies[0]
+    spec = scene.materials[body.material]
+    with _at(f"[materials.{spec.name}]"):
+        if spec.model == "j2":
+            material = FiniteJ2(E=spec.E, nu=spec.nu, density=spec.density,
+                                yield_stress=spec.yield_stress, hardening=spec.hardening)
+        else:
+            material = NeoHookean(E=spec.E, nu=spec.nu, density=spec.density)
+    p = scene.mesh.params
+    n_z = max(1, round(p["n_r"] * p["length"] / p["radius"]))
+    with _at("[mesh]"):
+        mesh = quad_bar(comm, p["radius"], p["length"], p["n_r"], n_z)
+    t, o = scene.time, scene.output
+    settings = FiniteSettings(t_end=t["t_end"], dt=t["dt"],
+                              safety=t["cfl"] if t["cfl"] is not None else 0.5,
+                              dt_interval=t["dt_interval"] or DT_INTERVAL,
+                              history_every=o["history_every"], output_every=o["output_every"],
+                              out=o["dir"], fields=o["fields"], plots=o["plots"],
+                              force=scene.force)
+    settings.summary_extra = {"scene_file": scene.path, "title": scene.title,
+                              "mesh": f"{p['n_r']} x {n_z} quadrilaterals", "body": body.name,
+                              "material": spec.model}
+    for key, value in (overrides or {}).items():
+        setattr(settings, key, value)
+    wall = scene.wall
+    with _at("[wall]" if wall is not None else "[bodies]"):
+        run = FiniteRun(mesh, material, settings, velocity=body.velocity,
+                        wall=wall.method if wall else None, z_wall=wall.z if wall else 0.0,
+                        penalty=wall.penalty if wall else "scaled", name=body.name)
+    dt = settings.dt if settings.dt is not None else settings.safety * run.dt_limit()
+    if settings.dt is not None and settings.dt > run.dt_limit():
+        raise InputError(f"[time] dt = {settings.dt!r} s is above the stable limit "
+                         f"{run.dt_limit():.4g} s of the undeformed cells; use cfl or a smaller dt")
+    plausibility.check_values(scene, dt, math.ceil(settings.t_end / dt), mesh, comm)
+    return run

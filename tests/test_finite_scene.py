@@ -1,0 +1,350 @@
+"""A finite-strain scene through `impact-fenics run`, like every other scene (issue 11, part B).
+
+Oracles, none taken from the writer under test:
+
+* the run directory: the marker, the copied scene, no DIR.partial left; a user's folder
+  is refused before anything is written (rundir.py's rule);
+* fields.xdmf read with ElementTree and h5py: one temporal collection, one grid per
+  output time (every output_every steps from t = 0, and the end time), each piece of
+  every grid holding every field; the cells are quadrilaterals listed once over the
+  pieces, their nodes going round the cell (the shoelace area is the cell's), and
+  their ring volumes
+  sum(2 pi r_c A) add up to pi R^2 L (exact for a rectangle, whose centroid is its
+  mean radius: round-off only), on any number of ranks;
+* the displacement written at the end time moves the node that started at (0, L) to
+  the final length of the summary (two paths: the field writer and the tracked node);
+* history.csv has one row every history_every steps and the last state; its kinetic
+  identity column is round-off (the scheme's exact identity, DESIGN 9);
+* bad input: one line naming the table and the key, exit 2, nothing written;
+* a signal in the loop stops the run at a step boundary with a complete directory.
+"""
+import json
+import math
+import os
+import signal
+import xml.etree.ElementTree as ET
+
+import h5py
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import cli
+from impact_fenics.finite_run import FiniteRun
+from scene_texts import launch, replace
+
+COMM = MPI.COMM_WORLD
+serial_only = pytest.mark.skipif(COMM.size > 1, reason="launches processes: serial only")
+R, L, V0 = 3.2e-3, 32.4e-3, 227.0
+# the Taylor bar on a 2 x 20 mesh, 8 us: the face is on the wall and yields (eps_p > 1)
+TAYLOR = f"""title = "short Taylor bar"
+[mesh]
+generator = "quad_bar"
+radius = {R!r}
+length = {L!r}
+n_r = 2
+
+[materials.copper]
+model = "j2"
+E = 117e9
+nu = 0.35
+density = 8930.0
+yield_stress = 400e6
+hardening = 100e6
+
+[bodies.bar]
+material = "copper"
+velocity = [0.0, -{V0!r}]
+strain = "finite"
+
+[wall]
+z = 0.0
+method = "film"
+
+[time]
+t_end = 8e-6
+cfl = 0.5
+dt_interval = 10
+
+[output]
+history_every = 3
+output_every = 25
+"""
+FIELDS = {"displacement", "velocity", "sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz",
+          "von_mises", "eps_p_eq", "body_id"}
+
+
+def _item(item, base):
+    name, _, ds = item.text.strip().partition(":")
+    with h5py.File(os.path.join(base, name), "r") as f:
+        return f[ds][...].reshape([int(d) for d in item.get("Dimensions").split()])
+
+
+@pytest.fixture(scope="module")
+def taylor_run(tmp_path_factory):
+    base = COMM.bcast(str(tmp_path_factory.mktemp("finite_scene")), root=0)
+    scene = os.path.join(base, "taylor.toml")
+    if COMM.rank == 0:
+        with open(scene, "w") as f:
+            f.write(TAYLOR)
+    COMM.barrier()
+    out = os.path.join(base, "run")
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    with open(os.path.join(out, "summary.json")) as f:
+        return out, json.load(f)
+
+
+def test_the_scene_file_is_the_issues_taylor_bar():
+    """scenes/taylor_bar.toml reads as a finite-strain scene with the issue's values."""
+    from impact_fenics import scene_file
+
+    sc = scene_file.read_scene(os.path.join(os.path.dirname(__file__), "..", "scenes",
+                                            "taylor_bar.toml"))
+    assert sc.finite and sc.mesh.generator == "quad_bar"
+    assert sc.mesh.params["radius"] == 3.2e-3 and sc.mesh.params["length"] == 32.4e-3
+    m = sc.materials[sc.bodies[0].material]
+    assert (m.model, m.E, m.nu, m.density, m.yield_stress, m.hardening) == (
+        "j2", 117e9, 0.35, 8930.0, 400e6, 100e6)
+    assert sc.bodies[0].velocity == (0.0, -227.0) and sc.time["t_end"] == 80e-6
+    assert (sc.wall.z, sc.wall.method) == (0.0, "film")
+
+
+def test_run_directory_and_summary(taylor_run):
+    out, s = taylor_run
+    assert not os.path.exists(out + ".partial")
+    names = set(os.listdir(out))
+    assert {".impact_fenics_run", "scene.toml", "summary.json", "history.csv", "history.png",
+            "fields.xdmf"} <= names
+    assert s["status"] == "completed" and s["strain"] == "finite" and s["n_ranks"] == COMM.size
+    assert s["t_end"] == pytest.approx(8e-6, rel=1e-12)
+    K0 = 0.5 * 8930.0 * math.pi * R * R * L * V0 ** 2  # the lumped mass is exact: round-off
+    assert s["initial_kinetic"] == pytest.approx(K0, rel=1e-12)
+    assert abs(s["kinetic_identity_error"]) < 1e-12
+    assert s["eps_p_max"] > 0.5 and s["wall"]["method"] == "film"
+    assert 0 < s["dt_min"] <= s["dt_max"]
+    for key in ("final_length", "final_face_radius", "plastic_work", "stored_elastic",
+                "activation_loss", "penalty_energy", "version", "date", "command_line",
+                "setup_time", "scene_file", "timing", "step_time_median"):
+        assert key in s, key
+    assert set(s["timing"]["phases"]) == {"f_int", "update", "wall", "history", "output"}
+
+
+def test_history_rows_and_identity(taylor_run):
+    out, s = taylor_run
+    with open(os.path.join(out, "history.csv")) as f:
+        head = f.readline().strip().split(",")
+    h = np.loadtxt(os.path.join(out, "history.csv"), delimiter=",", skiprows=1, ndmin=2)
+    step = h[:, head.index("step")]
+    n = s["n_steps"]
+    expected = list(range(0, n, 3)) + [n]
+    assert step.tolist() == expected
+    assert np.abs(h[:, head.index("balance_error")]).max() < 1e-12 * s["initial_kinetic"]
+    assert h[-1, head.index("length")] == s["final_length"]
+
+
+def test_fields_one_grid_per_output_with_every_field(taylor_run):
+    out, s = taylor_run
+    root = ET.parse(os.path.join(out, "fields.xdmf")).getroot()
+    series = root.findall("Domain/Grid")
+    assert len(series) == 1 and series[0].get("CollectionType") == "Temporal"
+    steps = series[0].findall("Grid")
+    names = [g.get("Name") for g in steps]
+    n = s["n_steps"]
+    assert names == [f"step_{k}" for k in range(0, n, 25)] + ([f"step_{n}"] if n % 25 else [])
+    assert float(steps[-1].find("Time").get("Value")) == pytest.approx(s["t_end"], rel=1e-14)
+    volume = 0.0
+    n_cells = 0
+    for step in steps:
+        pieces = step.findall("Grid")
+        assert len(pieces) == COMM.size
+        for p in pieces:
+            topo = p.find("Topology")
+            assert topo.get("TopologyType") == "Quadrilateral" and topo.get("NodesPerElement") == "4"
+            arrays = {a.get("Name"): a for a in p.findall("Attribute")}
+            assert set(arrays) == FIELDS
+            if step is steps[0]:
+                xy = _item(p.find("Geometry/DataItem"), out)
+                cells = _item(topo.find("DataItem"), out).astype(int)
+                c = xy[cells]  # (m, 4, 2), nodes going round the cell
+                x, y = c[..., 0], c[..., 1]
+                area = 0.5 * (x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1)
+                # going round: the shoelace area is the cell's (a bow-tie order gives 0)
+                assert np.allclose(np.abs(area), (R / 2) * (L / 20), rtol=1e-12, atol=0)
+                volume += float((2 * math.pi * c[..., 0].mean(axis=1) * np.abs(area)).sum())
+                n_cells += cells.shape[0]
+    assert n_cells == s["n_cells"] == 2 * 20
+    assert volume == pytest.approx(math.pi * R * R * L, rel=1e-13)
+    # the last displacement moves the node (0, L) to the summary's final length
+    z_top = []
+    for p in steps[-1].findall("Grid"):
+        xy = _item(p.find("Geometry/DataItem"), out)
+        u = _item(p.find("Attribute[@Name='displacement']/DataItem"), out)
+        k = np.flatnonzero(np.hypot(xy[:, 0], xy[:, 1] - L) < 1e-12)
+        z_top += list(xy[k, 1] + u[k, 1])
+    assert z_top and np.allclose(z_top, s["final_length"], rtol=1e-14, atol=0)
+
+
+def _paraview(xdmf: str):
+    """tests/pvbatch_fields.py's JSON on ``xdmf``, or None without pvbatch: off-screen
+    rendering first, then a virtual X server (either may be missing on a machine)."""
+    import shutil
+    import subprocess
+
+    from conftest import clean_mpi_env
+
+    if not shutil.which("pvbatch"):
+        return None
+    script = os.path.join(os.path.dirname(__file__), "pvbatch_fields.py")
+    tried = []
+    for cmd in (["pvbatch", "--force-offscreen-rendering", script, xdmf],
+                ["xvfb-run", "-a", "pvbatch", script, xdmf]):
+        if not shutil.which(cmd[0]):
+            continue
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
+                              env=clean_mpi_env())
+        if proc.returncode == 0:
+            return json.loads(proc.stdout.strip().splitlines()[-1])
+        tried.append(f"{' '.join(cmd[:2])}: {proc.stderr[-500:]}")
+    raise AssertionError("pvbatch failed: " + " | ".join(tried))
+
+
+def test_paraview_default_reader_opens_the_quadrilaterals(taylor_run):
+    out, s = taylor_run
+    result = _paraview(os.path.join(out, "fields.xdmf")) if COMM.rank == 0 else None
+    result = COMM.bcast(result, root=0)
+    if result is None:
+        pytest.skip("pvbatch (ParaView) is not installed: the structure is checked from the files")
+    for step in result["steps"]:
+        assert sum(b["cells"] for b in step["blocks"]) == s["n_cells"]
+        for block in step["blocks"]:
+            assert set(block["arrays"]) == FIELDS
+    assert result["warped_points"] > 0
+
+
+def test_plot_renders_the_quadrilaterals(taylor_run):
+    """`impact-fenics plot` on the finite run: a PNG of eps_p_eq at the end time."""
+    out, s = taylor_run
+    assert cli.main(["plot", out, "--field", "eps_p_eq", "--times", repr(s["t_end"])]) == 0
+    if COMM.rank == 0:
+        pngs = [n for n in os.listdir(out) if n.startswith("eps_p_eq_t") and n.endswith(".png")]
+        assert len(pngs) == 1 and os.path.getsize(os.path.join(out, pngs[0])) > 1000
+
+
+@serial_only
+def test_progress_only_on_a_terminal(tmp_path):
+    from test_cli import _run_in_terminal
+
+    (tmp_path / "s.toml").write_text(TAYLOR)
+    code, text = _run_in_terminal(["run", tmp_path / "s.toml", "--out", tmp_path / "a"])
+    assert code == 0, text
+    assert "t = 8.0000e-06 of 8.0000e-06 s" in text and "steps/s" in text and "ETA" in text
+    proc = launch(["run", tmp_path / "s.toml", "--out", tmp_path / "b"])  # stdout: a pipe
+    assert proc.returncode == 0 and "short Taylor bar: completed" in proc.stdout
+    assert "steps/s" not in proc.stdout + proc.stderr
+
+
+def test_a_users_folder_is_refused(tmp_path, capsys):
+    base = COMM.bcast(str(tmp_path), root=0)
+    scene, out = os.path.join(base, "s.toml"), os.path.join(base, "mine")
+    if COMM.rank == 0:
+        os.makedirs(out)
+        with open(os.path.join(out, "thesis.tex"), "w") as f:
+            f.write("mine\n")
+        with open(scene, "w") as f:
+            f.write(TAYLOR)
+    COMM.barrier()
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", scene, "--out", out, "--quiet"])
+    assert exit_.value.code == 2
+    if COMM.rank == 0:
+        assert "is not a run directory" in capsys.readouterr().err
+        assert os.listdir(out) == ["thesis.tex"] and not os.path.exists(out + ".partial")
+
+
+def test_a_signal_in_the_loop_leaves_a_complete_directory(tmp_path, monkeypatch):
+    """SIGINT at step 5: serially the run stops after that step, under MPI at the next
+    agreement (step 64) or the end; the directory is published with its summary."""
+    base = COMM.bcast(str(tmp_path), root=0)
+    scene, out = os.path.join(base, "s.toml"), os.path.join(base, "run")
+    if COMM.rank == 0:
+        with open(scene, "w") as f:
+            f.write(TAYLOR)
+    COMM.barrier()
+    real = FiniteRun._history_row
+
+    def row(self, n, *args):
+        if n == 6 and COMM.rank == COMM.size - 1:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(self, n, *args)
+
+    monkeypatch.setattr(FiniteRun, "_history_row", row)
+    code = cli.main(["run", scene, "--out", out, "--quiet"])
+    assert code == 128 + signal.SIGINT
+    with open(os.path.join(out, "summary.json")) as f:
+        s = json.load(f)
+    assert s["status"] == "interrupted by SIGINT"
+    assert s["n_steps"] == (7 if COMM.size == 1 else 64)
+    assert not os.path.exists(out + ".partial")
+
+
+# bad input: (id, (old, new) edit of TAYLOR, the start of the message after "error: ")
+CASES = [
+    ("finite on triangles", ("n_r = 2", "h = 1e-3"),
+     '[mesh] generator = "bar": a finite-strain body needs generator = "quad_bar"'),
+    ("wall without finite strain", ('strain = "finite"\n', ""),
+     "[wall] a rigid wall needs a finite-strain body"),
+    ("bad strain", ('strain = "finite"', 'strain = "large"'),
+     '[bodies.bar] strain = "large": use one of small, finite'),
+    ("bad wall method", ('method = "film"', 'method = "glue"'),
+     '[wall] method = "glue": use one of film, dme, penalty'),
+    ("unknown wall key", ('method = "film"', 'method = "film"\nfriction = 0.2'),
+     "[wall] unknown key 'friction'"),
+    ("negative penalty", ('method = "film"', 'method = "penalty"\npenalty = -1e9'),
+     "[wall] penalty = -1000000000.0: must be > 0"),
+    ("penalty above the bound", ('method = "film"', 'method = "penalty"\npenalty = 1e15'),
+     "[wall] penalty = 1e+15 N/m: beta_max = p dt^2 / m = "),
+    ("wall cuts the bar", ("z = 0.0", "z = 0.001"), "[wall] the wall z = 0.001 m cuts the body"),
+    ("cfl above 1", ("cfl = 0.5", "cfl = 1.5"), "[time] cfl = 1.5: must be <= 1"),
+    ("n_steps", ("t_end = 8e-6", "n_steps = 100"), "[time] n_steps: the finite-strain step varies"),
+    ("contact with finite strain", ("[time]", '[[contact]]\nlower = "a"\nupper = "b"\n'
+                                              'method = "film"\n\n[time]'),
+     "[[contact]]: not available with finite strain yet"),
+    ("viscous finite J2", ("hardening = 100e6", "hardening = 100e6\nviscosity = 1.0"),
+     "[materials.copper] viscosity = 1.0: finite-strain J2 is rate-independent"),
+    ("elastic at finite strain", ('model = "j2"\nE = 117e9\nnu = 0.35\ndensity = 8930.0\n'
+                                  'yield_stress = 400e6\nhardening = 100e6',
+                                  'model = "elastic"\nE = 117e9\nnu = 0.35\ndensity = 8930.0'),
+     '[materials.copper] model = "elastic": a finite-strain body takes model = "j2"'),
+    ("bad n_r", ("n_r = 2", "n_r = 0"), "[mesh] n_r = 0: must be an integer >= 1"),
+]
+
+
+def _write(tmp, edit):
+    scene = tmp / "scene.toml"
+    text = replace(TAYLOR, *edit)
+    if edit == ("n_r = 2", "h = 1e-3"):  # the same bar of triangles
+        text = replace(text, 'generator = "quad_bar"', 'generator = "bar"')
+    scene.write_text(text)
+    return ["run", str(scene), "--quiet", "--out", str(tmp / "out")]
+
+
+@serial_only
+@pytest.mark.parametrize("edit, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_finite_scene_one_line_exit_2(tmp_path, edit, expected):
+    proc = launch(_write(tmp_path, edit))
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("error: " + expected), proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()
+
+
+@pytest.mark.parametrize("edit, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_finite_scene_in_process(tmp_path, capsys, edit, expected):
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(_write(tmp_path, edit))
+    assert exit_.value.code == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    if COMM.rank == 0:
+        assert len(err) == 1 and err[0].startswith("error: " + expected), err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()

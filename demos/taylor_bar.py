@@ -34,7 +34,7 @@ import os
 import numpy as np
 from mpi4py import MPI
 
-from impact_fenics import compat
+from impact_fenics.finite_scene import face_nodes
 from impact_fenics.errors import require, user_errors
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.finite_j2 import FiniteJ2
@@ -49,14 +49,6 @@ COPPER = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardenin
 LITERATURE = {"final_length_mm": (21.42, 21.48), "face_radius_mm": (7.22, 7.23),
               "simo_1992_radius_mm": 7.12, "zienkiewicz_1998_radius_mm": 7.11}
 FACES = ("contact", "held")
-
-
-def impact_face_nodes(mesh, z_face: float, tol: float) -> np.ndarray:
-    """Owned nodes of the impact face Z = z_face (m), numbered as FiniteRun numbers them
-    (the dofs of a P1 vector space on ``mesh``)."""
-    V = compat.vector_space(mesh, "Lagrange", 1)
-    xy = V.tabulate_dof_coordinates()[: V.dofmap.index_map.size_local, :2]
-    return np.flatnonzero(np.abs(xy[:, 1] - z_face) <= tol)
 
 
 def read_scene(path: str) -> dict:
@@ -97,7 +89,7 @@ def run(n_r: int = 4, method: str = "film", safety: float = 0.5, out: str | None
     if z_wall != 0.0:
         mesh.geometry.x[:, 1] += z_wall
     settings = FiniteSettings(t_end=t_end, safety=safety, dt_interval=interval, history_every=20)
-    held = impact_face_nodes(mesh, z_wall, 1e-9 * length) if face == "held" else None
+    held = face_nodes(mesh, z_wall, 1e-9 * length) if face == "held" else None
     bar = FiniteRun(mesh, material, settings, velocity=(0.0, -v0), wall=method, z_wall=z_wall,
                     fixed_z=held)
     history = fields = None

@@ -14,7 +14,11 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   below the bar) with ``method`` = "film", "dme" or "penalty" and, for
   penalty, ``penalty`` = a stiffness in N/m or "scaled" (the default: beta = 1
   at every step); a stiffness whose beta = p dt^2 / m exceeds 4/3 is refused
-  unless forced (contact/wall.py);
+  unless forced (contact/wall.py); ``face`` = "contact" (default: every boundary
+  node a unilateral candidate, so the rim of the impact face may lift off) or
+  "held" (u_z = 0 on the face Z = 0 from t = 0, free to slide radially: the
+  condition of the converged Taylor-bar references; needs z = 0; the face's
+  stop, 1/2 m_face v0^2 in J, is reported as impact_face_loss);
 * ``[time]`` t_end (s) and either cfl (the step as a fraction, <= 1, of the
   current element limit) or dt (a fixed step, s); dt_interval (steps, default
   10);
@@ -29,11 +33,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from mpi4py import MPI
 
 from .errors import InputError
 
 WALL_METHODS = ("film", "dme", "penalty")
+WALL_FACES = ("contact", "held")
 DT_INTERVAL = 10  # steps between re-estimates of the stable step, unless [time] dt_interval
 FINITE_MODELS = ("j2", "neo_hookean")
 
@@ -43,6 +49,7 @@ class WallSpec:
     z: float                      # m, the plane z = const (normal +z)
     method: str                   # film, dme or penalty
     penalty: float | str = "scaled"  # N/m, or "scaled" (beta = 1 each step)
+    face: str = "contact"         # the impact face: unilateral contact, or held (u_z = 0)
     given: tuple[str, ...] = ()
 
 
@@ -50,10 +57,15 @@ def read_wall(data: Any) -> WallSpec:
     """The [wall] table."""
     from .scene_file import _Table
 
-    t = _Table(data, "[wall]", ("z", "method", "penalty"))
+    t = _Table(data, "[wall]", ("z", "method", "penalty", "face"))
     wall = WallSpec(t.number("z", "height of the wall plane in m", 0.0),
                     t.text("method", f"the wall method: {', '.join(WALL_METHODS)}",
-                           choices=WALL_METHODS), given=tuple(t.data))
+                           choices=WALL_METHODS), given=tuple(t.data),
+                    face=t.text("face", f"the impact face: {', '.join(WALL_FACES)}", "contact",
+                                choices=WALL_FACES))
+    if wall.face == "held" and wall.z != 0.0:
+        raise t.error("face", f"it keeps the bar's face Z = 0 on the wall and needs z = 0 "
+                      f"(got z = {wall.z!r} m)")
     if "penalty" in t:
         p = t.data["penalty"]
         if isinstance(p, str):
@@ -157,13 +169,34 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     for key, value in (overrides or {}).items():
         setattr(settings, key, value)
     wall = scene.wall
+    held = None
+    if wall is not None and wall.face == "held":
+        held = face_nodes(mesh, 0.0, 1e-9 * p["length"])
     with _at("[wall]" if wall is not None else "[bodies]"):
         run = FiniteRun(mesh, material, settings, velocity=body.velocity,
                         wall=wall.method if wall else None, z_wall=wall.z if wall else 0.0,
-                        penalty=wall.penalty if wall else "scaled", name=body.name)
+                        penalty=wall.penalty if wall else "scaled", name=body.name,
+                        fixed_z=held)
+    if wall is not None:
+        # a held face stops at t = 0 (FiniteRun zeroes its u_z velocity): that loss is
+        # outside the run's ledger, which starts from the rest of the bar
+        m_face = float(np.sum(run.mass[2 * held + 1])) if held is not None else 0.0
+        settings.summary_extra["wall_face"] = wall.face
+        settings.summary_extra["impact_face_loss"] = comm.allreduce(
+            0.5 * m_face * float(body.velocity[1]) ** 2)
     dt = settings.dt if settings.dt is not None else settings.safety * run.dt_limit()
     if settings.dt is not None and settings.dt > run.dt_limit():
         raise InputError(f"[time] dt = {settings.dt!r} s is above the stable limit "
                          f"{run.dt_limit():.4g} s of the undeformed cells; use cfl or a smaller dt")
     plausibility.check_values(scene, dt, math.ceil(settings.t_end / dt), mesh, comm)
     return run
+
+
+def face_nodes(mesh, z_face: float, tol: float) -> np.ndarray:
+    """Owned nodes of the face Z = z_face (m) of a quad_bar mesh, numbered as FiniteRun
+    numbers them (the dofs of a P1 vector space on ``mesh``)."""
+    from . import compat
+
+    V = compat.vector_space(mesh, "Lagrange", 1)
+    xy = V.tabulate_dof_coordinates()[: V.dofmap.index_map.size_local, :2]
+    return np.flatnonzero(np.abs(xy[:, 1] - z_face) <= tol)

@@ -184,6 +184,43 @@ def test_fields_one_grid_per_output_with_every_field(taylor_run):
     assert z_top and np.allclose(z_top, s["final_length"], rtol=1e-14, atol=0)
 
 
+def test_a_held_face_stays_on_the_wall(tmp_path_factory):
+    """[wall] face = "held" (the Taylor references' condition): u_z = 0 on the face Z = 0
+    through the run, read back from the last grid of fields.xdmf (round-off), the
+    face's nodes sliding outward (u_r > 0 at the rim), and the face's stop at t = 0
+    booked as impact_face_loss = 1/2 m_face v0^2, where the row-sum lumped mass of the
+    face is half the bottom cell row's, rho pi R^2 (L / 20) / 2, exactly (the Q1 shape
+    functions are linear in Z and the 2 pi R weight does not depend on Z): round-off."""
+    base = COMM.bcast(str(tmp_path_factory.mktemp("held_face")), root=0)
+    scene = os.path.join(base, "held.toml")
+    if COMM.rank == 0:
+        with open(scene, "w") as f:
+            f.write(replace(TAYLOR, 'method = "film"', 'method = "film"\nface = "held"'))
+    COMM.barrier()
+    out = os.path.join(base, "run")
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    with open(os.path.join(out, "summary.json")) as f:
+        s = json.load(f)
+    assert s["wall_face"] == "held"
+    m_face = 0.5 * 8930.0 * math.pi * R * R * (L / 20)
+    assert s["impact_face_loss"] == pytest.approx(0.5 * m_face * V0 ** 2, rel=1e-12)
+    root = ET.parse(os.path.join(out, "fields.xdmf")).getroot()
+    u_face, r_face = [], []
+    for p in root.findall("Domain/Grid")[0].findall("Grid")[-1].findall("Grid"):
+        xy = _item(p.find("Geometry/DataItem"), out)
+        u = _item(p.find("Attribute[@Name='displacement']/DataItem"), out)
+        k = np.flatnonzero(np.abs(xy[:, 1]) < 1e-12)
+        u_face += list(u[k, 1])
+        r_face += list(xy[k, 0] + u[k, 0])
+    u_face, r_face = COMM.allgather(u_face), COMM.allgather(r_face)
+    u_face = np.concatenate([np.asarray(a, dtype=float) for a in u_face])
+    r_face = np.concatenate([np.asarray(a, dtype=float) for a in r_face])
+    # zero to round-off of the bar's length (the face's nodes are wall candidates too, and
+    # the wall's projection of a node on it adds a few 1e-18 m)
+    assert u_face.size >= 3 and np.abs(u_face).max() <= 1e-14 * L
+    assert r_face.max() == pytest.approx(s["final_face_radius"], rel=1e-14) and r_face.max() > R
+
+
 def _paraview(xdmf: str):
     """tests/pvbatch_fields.py's JSON on ``xdmf``, or None without pvbatch: off-screen
     rendering first, then a virtual X server (either may be missing on a machine)."""
@@ -316,6 +353,10 @@ CASES = [
                                   'model = "elastic"\nE = 117e9\nnu = 0.35\ndensity = 8930.0'),
      '[materials.copper] model = "elastic": a finite-strain body takes model = "j2"'),
     ("bad n_r", ("n_r = 2", "n_r = 0"), "[mesh] n_r = 0: must be an integer >= 1"),
+    ("bad face", ('method = "film"', 'method = "film"\nface = "glued"'),
+     '[wall] face = "glued": use one of contact, held'),
+    ("held face off the wall", ("z = 0.0", 'z = -0.001\nface = "held"'),
+     '[wall] face = "held": it keeps the bar\'s face Z = 0 on the wall and needs z = 0'),
 ]
 
 

@@ -254,3 +254,14 @@ def launcher_rank_variable() -> str:
 
     OpenMPI: ``OMPI_COMM_WORLD_RANK``.  MPICH (Hydra): ``PMI_RANK``."""
     return "PMI_RANK" if "MPICH" in MPI.Get_library_version() else "OMPI_COMM_WORLD_RANK"
+
+
+def launcher_ctrl_c_signal() -> int:
+    """The signal the ranks receive when the launcher gets SIGINT (Ctrl-C in its terminal).
+
+    OpenMPI's ``mpirun``: SIGTERM, then SIGKILL about a second later.
+    MPICH's Hydra ``mpiexec``: SIGINT itself, and it waits for the ranks (a second
+    Ctrl-C aborts them)."""
+    import signal
+
+    return signal.SIGINT if "MPICH" in MPI.Get_library_version() else signal.SIGTERM

@@ -51,10 +51,17 @@ def versions() -> dict[str, str]:
 def model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):
     """(mesh, cell_tags, facet_tags) of a gmsh model built on ``rank``.
 
-    0.5: ``io.gmshio.model_to_mesh`` returns that tuple.
-    0.11: ``io.gmsh.model_to_mesh`` returns a named tuple (MeshData) with more fields."""
+    0.5: ``io.gmshio.model_to_mesh`` returns that tuple; the mesh is ghosted by shared
+    facet (every facet on a rank boundary sees both its cells).
+    0.11: ``io.gmsh.model_to_mesh`` returns a named tuple (MeshData) with more fields,
+    and without a partitioner the mesh has no ghost cells: one is passed that ghosts
+    by shared facet, as on 0.5 (the facet-to-cell links of contact and of the checks
+    of facet groups rely on it)."""
     if hasattr(_io, "gmsh") and hasattr(_io.gmsh, "model_to_mesh"):
-        data = _io.gmsh.model_to_mesh(model, comm, rank, gdim=gdim)
+        from dolfinx import mesh as _mesh
+
+        partitioner = _mesh.create_cell_partitioner(_mesh.GhostMode.shared_facet, 2)
+        data = _io.gmsh.model_to_mesh(model, comm, rank, gdim=gdim, partitioner=partitioner)
         if hasattr(data, "facet_tags"):
             return data.mesh, data.cell_tags, data.facet_tags
         return tuple(data)[:3]

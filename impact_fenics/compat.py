@@ -178,8 +178,8 @@ def eval_expression_into(expr, mesh, cells: np.ndarray, out: np.ndarray) -> np.n
     if LEGACY:
         expr.eval(cells, values=out)
     else:
-        n_points = expr.X().shape[0]
-        expr.eval(mesh, cells, values=out.reshape(out.shape[0], n_points, -1))
+        n_points = expr.X().shape[0]  # (no -1 in the shapes: a rank may have no cells)
+        expr.eval(mesh, cells, values=out.reshape(out.shape[0], n_points, out.shape[1] // n_points))
     return out
 
 
@@ -210,7 +210,7 @@ def eval_expression(expr, mesh, cells: np.ndarray) -> np.ndarray:
     if LEGACY:
         return expr.eval(cells)
     values = expr.eval(mesh, cells)
-    return values.reshape(values.shape[0], -1)
+    return values.reshape(values.shape[0], int(np.prod(values.shape[1:])))  # 0 cells too
 
 
 # ---------------------------------------------------------------------- output

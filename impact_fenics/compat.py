@@ -51,10 +51,17 @@ def versions() -> dict[str, str]:
 def model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):
     """(mesh, cell_tags, facet_tags) of a gmsh model built on ``rank``.
 
-    0.5: ``io.gmshio.model_to_mesh`` returns that tuple.
-    0.11: ``io.gmsh.model_to_mesh`` returns a named tuple (MeshData) with more fields."""
+    0.5: ``io.gmshio.model_to_mesh`` returns that tuple; the mesh is ghosted by shared
+    facet (every facet on a rank boundary sees both its cells).
+    0.11: ``io.gmsh.model_to_mesh`` returns a named tuple (MeshData) with more fields,
+    and without a partitioner the mesh has no ghost cells: one is passed that ghosts
+    by shared facet, as on 0.5 (the facet-to-cell links of contact and of the checks
+    of facet groups rely on it)."""
     if hasattr(_io, "gmsh") and hasattr(_io.gmsh, "model_to_mesh"):
-        data = _io.gmsh.model_to_mesh(model, comm, rank, gdim=gdim)
+        from dolfinx import mesh as _mesh
+
+        partitioner = _mesh.create_cell_partitioner(_mesh.GhostMode.shared_facet, 2)
+        data = _io.gmsh.model_to_mesh(model, comm, rank, gdim=gdim, partitioner=partitioner)
         if hasattr(data, "facet_tags"):
             return data.mesh, data.cell_tags, data.facet_tags
         return tuple(data)[:3]
@@ -171,8 +178,8 @@ def eval_expression_into(expr, mesh, cells: np.ndarray, out: np.ndarray) -> np.n
     if LEGACY:
         expr.eval(cells, values=out)
     else:
-        n_points = expr.X().shape[0]
-        expr.eval(mesh, cells, values=out.reshape(out.shape[0], n_points, -1))
+        n_points = expr.X().shape[0]  # (no -1 in the shapes: a rank may have no cells)
+        expr.eval(mesh, cells, values=out.reshape(out.shape[0], n_points, out.shape[1] // n_points))
     return out
 
 
@@ -203,7 +210,7 @@ def eval_expression(expr, mesh, cells: np.ndarray) -> np.ndarray:
     if LEGACY:
         return expr.eval(cells)
     values = expr.eval(mesh, cells)
-    return values.reshape(values.shape[0], -1)
+    return values.reshape(values.shape[0], int(np.prod(values.shape[1:])))  # 0 cells too
 
 
 # ---------------------------------------------------------------------- output
@@ -254,3 +261,14 @@ def launcher_rank_variable() -> str:
 
     OpenMPI: ``OMPI_COMM_WORLD_RANK``.  MPICH (Hydra): ``PMI_RANK``."""
     return "PMI_RANK" if "MPICH" in MPI.Get_library_version() else "OMPI_COMM_WORLD_RANK"
+
+
+def launcher_ctrl_c_signal() -> int:
+    """The signal the ranks receive when the launcher gets SIGINT (Ctrl-C in its terminal).
+
+    OpenMPI's ``mpirun``: SIGTERM, then SIGKILL about a second later.
+    MPICH's Hydra ``mpiexec``: SIGINT itself, and it waits for the ranks (a second
+    Ctrl-C aborts them)."""
+    import signal
+
+    return signal.SIGINT if "MPICH" in MPI.Get_library_version() else signal.SIGTERM

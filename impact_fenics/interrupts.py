@@ -110,7 +110,10 @@ def kept() -> Iterator[None]:
     """Keep the SIGINT/SIGTERM handlers across a block: importing gmsh's module sets
     SIGINT to SIG_DFL (so that Ctrl-C kills its GUI) and its finalize() sets it back.
     Inside the block those calls are no-ops, so no signal ever meets SIG_DFL there
-    (blocking the signals would not do: MPI's threads would take them)."""
+    (blocking the signals would not do: MPI's threads would take them). Newer gmsh's
+    initialize() also resets SIGTERM (and SIGHUP) to the default action in C, below
+    Python's record of the handler: on leaving the block, the handlers Python has on
+    record are installed again, so a SIGTERM still reaches ours."""
     real = signal.signal
 
     def unchanged(sig, handler):
@@ -123,6 +126,13 @@ def kept() -> Iterator[None]:
         yield
     finally:
         signal.signal = real
+        for sig in SIGNALS:
+            handler = signal.getsignal(sig)
+            if handler is not None:  # None: set outside Python, not ours to touch
+                try:
+                    real(sig, handler)
+                except ValueError:  # not the main thread
+                    pass
 
 
 @contextmanager

@@ -880,20 +880,28 @@ class _StopFlag:
 
 
 class _OwnedVec:
-    """A PETSc Vec on the owned entries of a numpy array (no copy): its norms are collective."""
+    """The largest speed max_i |v_i| over the owned entries of a numpy array on every rank,
+    NaN on every rank if any rank holds a NaN (collective; no allocation: one scratch
+    array and one two-value reduction). Read from the array itself, so it sees every
+    write. Not PETSc's NORM_INFINITY: with MPICH (the wheels) its MPI_MAX drops a NaN
+    on some ranks, so the ranks would disagree about a runaway and hang."""
 
     def __init__(self, array: np.ndarray, comm: MPI.Comm):
-        from petsc4py import PETSc
-
-        self._vec = PETSc.Vec().createWithArray(array, comm=comm)
-        self._inf = PETSc.NormType.NORM_INFINITY
+        self._array, self._comm = array, comm
+        self._abs = np.empty_like(array)
+        self._buf = np.zeros(2)  # (largest |v|, 1 if a NaN)
 
     def norm_inf(self) -> float:
-        self._vec.stateIncrease()  # written through numpy: PETSc must not reuse a cached norm
-        return self._vec.norm(self._inf)
+        np.abs(self._array, out=self._abs)
+        local = float(self._abs.max()) if self._abs.size else 0.0
+        nan = local != local
+        self._buf[0], self._buf[1] = (0.0 if nan else local), (1.0 if nan else 0.0)
+        if self._comm.size > 1:
+            self._comm.Allreduce(MPI.IN_PLACE, self._buf, op=MPI.MAX)
+        return math.nan if self._buf[1] else float(self._buf[0])
 
     def destroy(self) -> None:
-        self._vec.destroy()
+        pass
 
 
 class _Progress:

@@ -117,6 +117,30 @@ def test_colliding_cells_contain_the_point(comm):
     assert comm.allreduce(len(cells)) >= 1
 
 
+def test_gmsh_meshes_see_both_cells_of_every_interior_facet(comm):
+    """A gmsh mesh is ghosted by shared facet on both stacks: a facet has one local cell
+    exactly when it lies on the rectangle's boundary (r = 0 or R, z = 0 or L; the oracle
+    is geometry), also where two ranks' cells meet."""
+    R, L = 0.05, 0.1
+    msh = meshing.bar(radius=R, length=L, h=0.0125, comm=comm).mesh
+    top = msh.topology
+    for d in ((1, 2), (1, 0), (2, 0)):
+        top.create_connectivity(*d)
+    f2c, f2v, c2v = top.connectivity(1, 2), top.connectivity(1, 0), top.connectivity(2, 0)
+    geo = compat.geometry_dofs(msh)  # P1: a cell's nodes in the order of its vertices
+    tol = 1e-9
+    n_owned = top.index_map(1).size_local
+    assert comm.allreduce(n_owned) > 0
+    for f in range(n_owned):  # an owned facet sees all its cells
+        cells = f2c.links(f)
+        cv = c2v.links(cells[0])
+        nodes = [geo[cells[0]][np.flatnonzero(cv == v)[0]] for v in f2v.links(f)]
+        xy = msh.geometry.x[nodes, :2]
+        on_boundary = (np.all(np.abs(xy[:, 0]) < tol) or np.all(np.abs(xy[:, 0] - R) < tol)
+                       or np.all(np.abs(xy[:, 1]) < tol) or np.all(np.abs(xy[:, 1] - L) < tol))
+        assert cells.size == (1 if on_boundary else 2), (f, xy)
+
+
 def test_trapezoid_is_exact_on_a_linear_function():
     x = np.linspace(0.0, 2.0, 7)
     assert compat.trapezoid(3.0 * x + 1.0, x) == pytest.approx(8.0, rel=1e-14)

@@ -173,8 +173,9 @@ def test_divergence_is_caught_between_outputs(tmp_path, capsys):
 
 
 def test_the_velocity_check_sees_every_write():
-    """The runaway check reads the owned velocities through a PETSc Vec on the numpy
-    array that the loop and the contact write: a cached norm would hide a runaway."""
+    """The runaway check reads the numpy array that the loop and the contact write (a
+    cached norm would hide a runaway), and a NaN on one rank is a NaN on every rank (the
+    ranks must agree to stop together; PETSc's inf-norm under MPICH does not)."""
     from impact_fenics.simulation import _OwnedVec
 
     v = np.zeros(4)

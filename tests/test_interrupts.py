@@ -22,6 +22,7 @@ from mpi4py import MPI
 
 from conftest import clean_mpi_env
 from impact_fenics import interrupts, plotting, scenes
+from impact_fenics.compat import launcher_ctrl_c_signal, launcher_rank_variable
 from impact_fenics.simulation import Settings, Simulation
 from scene_texts import BAR, ROOT, replace
 from test_failure import LONG, _wait_for_loop
@@ -153,6 +154,10 @@ def test_signal_before_the_run_prints_one_line(tmp_path, sig, delay):
     assert _summary(out) == {"status": "old"} and not os.path.exists(out + ".partial")
 
 
+# the launcher's rank variable: OMPI_COMM_WORLD_RANK (OpenMPI), PMI_RANK (MPICH's Hydra)
+RANK_VARIABLE = launcher_rank_variable().encode()
+
+
 def _rank_pids(tag: str) -> dict[int, int]:
     """{rank: pid} of the MPI ranks whose environment holds IMPACT_TEST_TAG=tag."""
     ranks = {}
@@ -163,8 +168,8 @@ def _rank_pids(tag: str) -> dict[int, int]:
                     env = dict(v.split(b"=", 1) for v in f.read().split(b"\0") if b"=" in v)
             except OSError:
                 continue
-            if env.get(b"IMPACT_TEST_TAG") == tag.encode() and b"OMPI_COMM_WORLD_RANK" in env:
-                ranks[int(env[b"OMPI_COMM_WORLD_RANK"])] = int(entry)
+            if env.get(b"IMPACT_TEST_TAG") == tag.encode() and RANK_VARIABLE in env:
+                ranks[int(env[RANK_VARIABLE])] = int(entry)
     return ranks
 
 
@@ -203,7 +208,37 @@ def test_signal_to_the_ranks_under_mpirun(tmp_path, to):
 
 
 @serial_only
+def test_ctrl_c_on_the_launcher_stops_the_run_cleanly(tmp_path):
+    """Ctrl-C in the launcher's terminal (SIGINT to its process group: the launcher and the
+    ranks): the ranks get the launcher's signal (OpenMPI sends SIGTERM, MPICH's Hydra
+    forwards SIGINT), agree at the next multiple of 64 steps, and the directory is
+    complete up to there with one line on stderr."""
+    (tmp_path / "scene.toml").write_text(LONG)
+    out = tmp_path / "run"
+    env = clean_mpi_env()
+    proc = subprocess.Popen([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", "2",
+                             sys.executable, "-m", "impact_fenics", "run",
+                             str(tmp_path / "scene.toml"), "--out", str(out), "--quiet"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env, cwd=ROOT, start_new_session=True)  # a terminal's group
+    _wait_for_loop(proc, out)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    sig = signal.Signals(launcher_ctrl_c_signal())
+    lines = [ln for ln in err.splitlines() if ln.startswith(("stopped:", "error:"))]
+    assert proc.returncode != 0
+    assert len(lines) == 1 and f"interrupted by {sig.name}" in lines[0], err
+    assert "Traceback" not in err
+    s = _summary(str(out))
+    assert s["status"] == f"interrupted by {sig.name}"
+    assert s["stopped_at_step"] % 64 == 0 and 0 < s["stopped_at_step"] < s["n_steps"]
+    assert not os.path.exists(str(out) + ".partial")
+
+
+@serial_only
 def test_signal_during_set_up_under_mpirun_ends_every_rank(tmp_path):
+    """SIGTERM to every rank before the run (while importing or building the scene): every
+    rank ends, the one line names the phase, nothing is written."""
     (tmp_path / "bar.toml").write_text(BAR)
     out = str(tmp_path / "run")
     tag = uuid.uuid4().hex
@@ -213,11 +248,12 @@ def test_signal_during_set_up_under_mpirun_ends_every_rank(tmp_path):
     while len(pids) != 2 and time.monotonic() < deadline:
         pids = _rank_pids(tag)
         time.sleep(0.05)
-    time.sleep(0.5)  # importing
+    time.sleep(0.5)  # importing (start-up) or building the scene (set-up) on a loaded machine
     for pid in pids.values():
         os.kill(pid, signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode != 0
-    assert "stopped: interrupted by SIGTERM during set-up; nothing was written" in err, err
+    assert any(f"stopped: interrupted by SIGTERM during {phase}; nothing was written" in err
+               for phase in ("start-up", "set-up")), err
     assert "Traceback" not in err
     assert not os.path.exists(out) and not os.path.exists(out + ".partial")

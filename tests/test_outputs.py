@@ -228,7 +228,13 @@ def _pvbatch(xdmf: str):
         cmd = ["xvfb-run", "-a"] + cmd
     else:
         cmd.insert(1, "--force-offscreen-rendering")
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=clean_mpi_env())
+    for _ in range(3):
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
+                              env=clean_mpi_env())
+        # xvfb-run -a picks its display number racily: with other X servers starting at
+        # the same moment, ParaView may find none and abort in creating its window
+        if "CreateAWindow" not in proc.stderr:
+            break
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 

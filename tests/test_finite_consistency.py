@@ -188,7 +188,7 @@ def test_wall_projects_releases_and_leaves_the_tangent_alone():
         np.testing.assert_allclose(wall.impulse[on], mass[on] * (v_new - vz[on]) / dt, rtol=1e-12)
         # no internal force: v^- = v~; the loss is 1/2 m (v~^2 - v^2), the kinetic energy lost
         loss = float(np.sum(0.5 * mass[on] * (vz[on] ** 2 - v_new ** 2)))
-        assert wall.activation_loss_local == pytest.approx(loss, rel=1e-12)
+        assert wall.contact_loss_local == pytest.approx(loss, rel=1e-12)
         assert wall.n_active_local == 2
 
 

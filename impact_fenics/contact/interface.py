@@ -271,6 +271,23 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pre
 
 # ----------------------------------------------------------------------------- the set
 
+def owned_slots(model, dofs: np.ndarray, comm: MPI.Comm) -> tuple:
+    """The contact slots (global z dofs ``dofs``) this rank owns, for the gather of
+    (u, v) pairs: (local owned indices, their slot positions, every rank's positions
+    in rank order, Allgatherv counts and displacements in doubles). Refuses dofs not
+    owned exactly once over the ranks."""
+    lo_dof, hi_dof = model.offset, model.offset + model.n_owned
+    mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
+    counts = np.array(comm.allgather(mine.size))
+    positions = np.concatenate(comm.allgather(mine)).astype(np.int64)
+    if not np.array_equal(np.sort(positions), np.arange(dofs.size)):
+        raise InputError("contact dofs are not all owned exactly once: "
+                         "each contact node must belong to one body")
+    displs = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
+    return ((dofs[mine] - lo_dof).astype(np.int64), mine.astype(np.int64), positions,
+            2 * counts, displs)
+
+
 class ContactSet:
     """Constraints, their gathered state and the rigid body, on every rank.
 
@@ -317,21 +334,12 @@ class ContactSet:
         self.lo[:] = np.arange(n)
         self.up[:] = nd if rigid else np.arange(n, 2 * n)
         # which slots this rank owns, and where the gathered values go
-        lo_dof, hi_dof = model.offset, model.offset + model.n_owned
-        mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
-        self._local = (dofs[mine] - lo_dof).astype(np.int64)
-        self._pos = mine.astype(np.int64)
-        counts = np.array(self.comm.allgather(mine.size))
-        positions = np.concatenate(self.comm.allgather(mine)).astype(np.int64)
-        if not np.array_equal(np.sort(positions), np.arange(nd)):
-            raise InputError("contact dofs are not all owned exactly once: "
-                             "each contact node must belong to one body")
-        self._all_pos = positions
-        starts = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
-        self._counts, self._displs = 2 * counts, starts
-        self._recv_u = np.concatenate([s + np.arange(c) for s, c in zip(starts, counts)]).astype(np.int64)
-        self._recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(starts, counts)]).astype(np.int64)
-        self._send = np.empty(2 * mine.size)
+        (self._local, self._pos, self._all_pos, self._counts,
+         self._displs) = owned_slots(model, dofs, self.comm)
+        counts = self._counts // 2  # slots per rank; each sends (u of them, then v of them)
+        self._recv_u = np.concatenate([s + np.arange(c) for s, c in zip(self._displs, counts)]).astype(np.int64)
+        self._recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(self._displs, counts)]).astype(np.int64)
+        self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * nd)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
         if rigid:

@@ -29,7 +29,7 @@ from numba import njit
 
 from ..errors import InputError
 from .banded import band_of_s, bandwidth, gap_of
-from .interface import PhaseTimes, _take
+from .interface import PhaseTimes, _take, owned_slots
 from .segments import SegmentConstraints
 
 
@@ -145,19 +145,9 @@ class NodeToSegmentSet:
         self.n_slots = ns = dofs.size
         n_slave = constraints.slave_xy.shape[0]
         # which slots this rank owns, and where the gathered values go
-        lo_dof, hi_dof = model.offset, model.offset + model.n_owned
-        mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
-        self._local = (dofs[mine] - lo_dof).astype(np.int64)
-        self._pos_mine = mine.astype(np.int64)
-        counts = np.array(self.comm.allgather(mine.size))
-        positions = np.concatenate(self.comm.allgather(mine)).astype(np.int64)
-        if not np.array_equal(np.sort(positions), np.arange(ns)):
-            raise InputError("contact dofs are not all owned exactly once: "
-                             "each contact node must belong to one body")
-        self._pos = positions
-        self._counts = 2 * counts
-        self._displs = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
-        self._send = np.empty(2 * mine.size)
+        (self._local, self._pos_mine, self._pos, self._counts,
+         self._displs) = owned_slots(model, dofs, self.comm)
+        self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * ns)
         # slot state
         self.u, self.v = np.zeros(ns), np.zeros(ns)

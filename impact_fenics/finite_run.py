@@ -56,7 +56,7 @@ from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 from numba import njit
 
-from . import compat, interrupts, output, rundir
+from . import compat, console, interrupts, output, rundir
 from .contact.wall import RigidWall
 from .errors import InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
@@ -152,7 +152,7 @@ class _TimeProgress:
 
     def __init__(self, t_end: float, enabled: bool):
         self.t_end = t_end
-        self.on = enabled and sys.stdout.isatty()
+        self.on = enabled and console.on_terminal()
         self.start = self.shown = time.perf_counter()
 
     def show(self, n: int, t: float, dt: float) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
-from . import interrupts, output, plotting, rundir
+from . import console, interrupts, output, plotting, rundir
 from .cell_fields import STRESS_NAMES, CellStress
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
@@ -909,7 +909,7 @@ class _Progress:
 
     def __init__(self, n_steps: int, dt: float, quiet: bool):
         self.n_steps, self.dt = n_steps, dt
-        self.enabled = (not quiet) and sys.stdout.isatty()
+        self.enabled = (not quiet) and console.on_terminal()
         self.t0 = time.perf_counter()
         self.last = self.t0
 

@@ -212,12 +212,13 @@ def test_console_script_under_mpirun(tmp_path):
     assert two["contact"]["last_contact_step"] == one["contact"]["last_contact_step"]
 
 
-def _run_in_terminal(args, timeout=120.0) -> tuple[int, str]:
-    """Run the command line with stdout and stderr on a pseudo-terminal; return (code, text)."""
+def _run_in_terminal(args, timeout=120.0, launcher=()) -> tuple[int, str]:
+    """Run the command line (after ``launcher``, e.g. mpirun -n 2) with stdout and stderr on a
+    pseudo-terminal; return (code, text)."""
     import pty
 
     master, slave = pty.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "impact_fenics", *map(str, args)],
+    proc = subprocess.Popen([*launcher, sys.executable, "-m", "impact_fenics", *map(str, args)],
                             stdin=subprocess.DEVNULL, stdout=slave, stderr=slave,
                             env=clean_mpi_env(), cwd=ROOT)
     os.close(slave)
@@ -252,3 +253,26 @@ def test_progress_only_on_a_terminal(tmp_path):
     proc = launch(["run", tmp_path / "bar.toml", "--out", tmp_path / "c"])  # stdout: a pipe
     assert proc.returncode == 0 and "completed" in proc.stdout
     assert "steps/s" not in proc.stdout + proc.stderr
+
+
+@serial_only
+def test_progress_under_mpirun_follows_the_launchers_terminal(tmp_path):
+    """Under a launcher the rank's own stdout says nothing of the user's: OpenMPI gives ranks a
+    pseudo-terminal even when mpirun writes to a file, MPICH gives them a pipe even when
+    mpiexec runs in a terminal. The progress line shows when the launcher's output is a
+    terminal, and a redirected log holds no carriage return."""
+    (tmp_path / "bar.toml").write_text(BAR)
+    mpirun = (os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", "2")
+    code, text = _run_in_terminal(["run", tmp_path / "bar.toml", "--out", tmp_path / "a"],
+                                  launcher=mpirun)
+    assert code == 0, text
+    assert "step 100/100" in text and "steps/s" in text
+    log = tmp_path / "run.log"
+    with open(log, "w") as f:
+        proc = subprocess.run([*mpirun, sys.executable, "-m", "impact_fenics", "run",
+                               str(tmp_path / "bar.toml"), "--out", str(tmp_path / "b")],
+                              stdin=subprocess.DEVNULL, stdout=f, stderr=subprocess.STDOUT,
+                              env=clean_mpi_env(), cwd=ROOT, timeout=300)
+    text = log.read_text()
+    assert proc.returncode == 0 and "completed" in text, text
+    assert "\r" not in text and "steps/s" not in text

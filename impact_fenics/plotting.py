@@ -400,7 +400,11 @@ def _render(path: str, data: XdmfRun, u: np.ndarray, values: np.ndarray, center:
     plotter.add_text(title, position="upper_edge", font_size=11, color="black")
     ref = data.points[used]  # the undeformed extent of what is shown
     lo_xy, hi_xy = ref.min(axis=0), ref.max(axis=0)
-    mm = float(np.ptp(ref, axis=0).max()) < 1.0  # lengths in mm below a metre
+    size = float(np.ptp(ref, axis=0).max())
+    mm = size < 1.0  # lengths in mm below a metre
+    # a node on the axis may sit at r = -4e-19 (mesh round-off): print it as 0
+    lo_xy = np.where(np.abs(lo_xy) < 1e-12 * size, 0.0, lo_xy)
+    hi_xy = np.where(np.abs(hi_xy) < 1e-12 * size, 0.0, hi_xy)
     f, u_len = (1e3, "mm") if mm else (1.0, "m")
     axes = (f"r {lo_xy[0] * f:.4g} to {hi_xy[0] * f:.4g} {u_len}, "
             f"z {lo_xy[1] * f:.4g} to {hi_xy[1] * f:.4g} {u_len}; "

@@ -240,7 +240,8 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
     for k in range(local.size):
         dst_u[local[k]] = u[pos[k]]
         dst_v[local[k]] = v[pos[k]]
-    inc = 0.0
+    inc = 0.0  # the work of the slots' forces,
+    inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
     n_active = 0
     total = 0.0
     jumped_now = False
@@ -263,7 +264,7 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
         for k in range(n_deformable):
             ku = -m_over_dt[k] * (v_pred[k] - v_now[k])  # K u^n on this dof
             if jumped:
-                inc += 0.5 * jump[k] * (ku_prev[k] + ku)
+                inc_jump += 0.5 * jump[k] * (ku_prev[k] + ku)
             ku_prev[k] = ku
             jump[k] = u[k] - u_now[k] - dt * v[k]
             if jump[k] != 0.0:
@@ -277,7 +278,7 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
     stats[0] = n_active
     stats[1] = total
     stats[2] = min_gap
-    return inc, jumped_now, grew
+    return inc + inc_jump, jumped_now, grew
 
 
 # ----------------------------------------------------------------------------- the set
@@ -350,8 +351,17 @@ class ContactSet:
         counts = self._counts // 2  # slots per rank; each sends (u of them, then v of them)
         recv_u = np.concatenate([s + np.arange(c) for s, c in zip(self._displs, counts)])
         recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(self._displs, counts)])
-        self._gath = np.array([recv_u, recv_v, all_pos], dtype=np.int64).reshape(3, -1)
-        self._recv_u, self._recv_v, self._all_pos = self._gath
+        # per slot: where its predicted u and v are read (the Allgatherv buffer under MPI,
+        # the owned arrays in serial) and the owned dof it is written back to (-1: another
+        # rank's), for the fused rigid-face pass
+        to = np.full(nd, -1, dtype=np.int64)
+        to[pos] = local
+        from_u, from_v = to.copy(), to.copy()
+        if self.comm.size > 1:
+            from_u[all_pos], from_v[all_pos] = recv_u, recv_v
+        self._gath = np.array([recv_u, recv_v, all_pos, from_u, from_v, to],
+                              dtype=np.int64).reshape(6, -1)
+        self._recv_u, self._recv_v, self._all_pos = self._gath[:3]
         self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * nd)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))

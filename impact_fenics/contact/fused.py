@@ -54,15 +54,17 @@ def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
     kernel and _commit, so the same numbers bit for bit. Returns (work increment (J),
     jumped, grew, done); not done (FILM with candidates left unloaded, DME with a node
     that would pull: the rare sorted cases) leaves u_pred, v_pred set for the general
-    path, nothing else changed."""
+    path, nothing else changed. The step's scratch rows of the nodes (u, v, gap,
+    was_active) are not written: the committed state is u_now, v_now (and u, v at the
+    body's slot)."""
     u, v, u_pred, v_pred = slots[0], slots[1], slots[2], slots[3]
     u_now, v_now, mass, f_prev = slots[4], slots[5], slots[6], slots[7]
     dt_over_m, m_over_dt, ku_prev, jump = slots[8], slots[9], slots[10], slots[11]
-    b, gap, force, d_inv, p = cons[0], cons[1], cons[2], cons[4], cons[5]
-    active, was_active = flags[0], flags[1]
+    b, force, d_inv, p = cons[0], cons[2], cons[4], cons[5]
+    active = flags[0]
     dt = misc[DT]
     kappa = misc[KAPPA]
-    n = gap.size
+    n = b.size
     body = n
     to = gath[5]
     if recv.size > 0:
@@ -87,7 +89,6 @@ def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
         u_pred[i] = ut
         v_pred[i] = vt
         g = b[i] + ut_b - ut
-        gap[i] = g
         if code == PENALTY:
             f = -p[i] * g if g < 0.0 else 0.0
             force[i] = f
@@ -115,8 +116,9 @@ def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
         g_ref = g_sum / n_cand
         s = 0.0
         for i in range(n):
-            if gap[i] < 0.0:
-                s += (gap[i] - g_ref) * d_inv[i]
+            g = b[i] + ut_b - u_pred[i]
+            if g < 0.0:
+                s += (g - g_ref) * d_inv[i]
         base = (g_ref - kappa * s) / (1.0 + kappa * w)
     elif code == DME_CLUSTER:
         if not v_min >= momentum / total_mass:
@@ -136,7 +138,9 @@ def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
     jumped_now = False
     grew = False
     for i in range(n):
-        ut, vt, g = u_pred[i], v_pred[i], gap[i]
+        ut, vt = u_pred[i], v_pred[i]
+        bi = b[i]
+        g = bi + ut_b - ut
         ui, vi = ut, vt
         if code == PENALTY:
             f = force[i]
@@ -161,18 +165,15 @@ def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
             if act:
                 f = m_over_dt[i] * (vt - v_c)
                 vi = v_c
-                ui = u_b + b[i]
+                ui = u_b + bi
         force[i] = f
         was = active[i]
-        was_active[i] = was
         active[i] = act
         total += f
         if act:
             n_active += 1
             if not was:
                 grew = True
-        u[i] = ui
-        v[i] = vi
         k = to[i]
         if k >= 0:
             src_u[k] = ui
@@ -192,10 +193,10 @@ def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
         u_now[i] = ui
         v_now[i] = vi
         if min_known:
-            min_gap = min(min_gap, b[i] + u_b - ui)
+            min_gap = min(min_gap, bi + u_b - ui)
     if not min_known:
         for i in range(n):
-            min_gap = min(min_gap, b[i] + u_b - u[i])
+            min_gap = min(min_gap, b[i] + u_b - u_now[i])
     # the body's slot, last, as in _commit
     u[body] = u_b
     v[body] = v_b

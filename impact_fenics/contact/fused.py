@@ -44,173 +44,184 @@ from .penalty import _penalty
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
 
 
-@njit(cache=True)
-def _face_step(code, first, src_u, src_v, recv, gath, slots, cons, flags, misc):
-    """The step of a rigid face (constraint i ties node slot i to the body's slot) for
-    penalty, FILM fast and DME's cluster in two passes over the nodes (and a third for
-    FILM's reference gap, a fourth for its committed gaps): A takes the prediction, forms
-    the gaps and the method's sums; B corrects each node, writes it back, books its work
-    and rolls it. The same operations in the same order as detection, the method's
-    kernel and _commit, so the same numbers bit for bit. Returns (work increment (J),
-    jumped, grew, done); not done (FILM with candidates left unloaded, DME with a node
-    that would pull: the rare sorted cases) leaves u_pred, v_pred set for the general
-    path, nothing else changed. The step's scratch rows of the nodes (u, v, gap,
-    was_active) are not written: the committed state is u_now, v_now (and u, v at the
-    body's slot)."""
-    u, v, u_pred, v_pred = slots[0], slots[1], slots[2], slots[3]
-    u_now, v_now, mass, f_prev = slots[4], slots[5], slots[6], slots[7]
-    dt_over_m, m_over_dt, ku_prev, jump = slots[8], slots[9], slots[10], slots[11]
-    b, force, d_inv, p = cons[0], cons[2], cons[4], cons[5]
-    active = flags[0]
-    dt = misc[DT]
-    kappa = misc[KAPPA]
-    n = b.size
-    body = n
-    to = gath[5]
-    if recv.size > 0:
-        su, sv, iu, iv = recv, recv, gath[3], gath[4]
-    else:
-        su, sv, iu, iv = src_u, src_v, to, to
-    ut_b, vt_b = u_pred[body], v_pred[body]
-    u_b, v_b = ut_b, vt_b  # the body's corrected state (penalty: summed in A; FILM: in B)
-    dvb = dt_over_m[body]
-    # pass A: the prediction, the gaps and the sums of the method
-    n_cand = 0
-    a = 0.0
-    w = 0.0
-    g_max = -np.inf
-    g_sum = 0.0
-    momentum = mass[body] * vt_b
-    total_mass = mass[body]
-    v_min = np.inf
-    for i in range(n):
-        ut = su[iu[i]]
-        vt = sv[iv[i]]
-        u_pred[i] = ut
-        v_pred[i] = vt
-        g = b[i] + ut_b - ut
-        if code == PENALTY:
-            f = -p[i] * g if g < 0.0 else 0.0
-            force[i] = f
-            if f != 0.0:
-                dv = f * dvb
-                v_b += dv
-                u_b += dt * dv
-        elif g < 0.0:
-            n_cand += 1
-            if code == FILM_FAST:
-                a -= g * d_inv[i]
-                w += d_inv[i]
-                g_max = max(g_max, g)
-                g_sum += g
-            else:
-                momentum += mass[i] * vt
-                total_mass += mass[i]
-                v_min = min(v_min, vt)
-    g_ref = 0.0
-    base = 0.0
-    v_c = 0.0
-    if code == FILM_FAST and n_cand > 0:
-        if not g_max + kappa * a / (1.0 + kappa * w) <= 0.0:
-            return 0.0, False, False, False
-        g_ref = g_sum / n_cand
-        s = 0.0
-        for i in range(n):
-            g = b[i] + ut_b - u_pred[i]
-            if g < 0.0:
-                s += (g - g_ref) * d_inv[i]
-        base = (g_ref - kappa * s) / (1.0 + kappa * w)
-    elif code == DME_CLUSTER:
-        if not v_min >= momentum / total_mass:
-            return 0.0, False, False, False
-        v_c = momentum / total_mass
-        u_b = u_now[body] + dt * v_c
-        v_b = v_c
-    # pass B: correct, write back, book and roll each node
-    jumps = misc[JUMPS] != 0.0
-    jumped = misc[LEDGER + 2] != 0.0
-    min_known = code != FILM_FAST  # the body's position is final before B
-    inc = 0.0
-    inc_jump = 0.0
-    n_active = 0
-    total = 0.0
-    min_gap = np.inf
-    jumped_now = False
-    grew = False
-    for i in range(n):
-        ut, vt = u_pred[i], v_pred[i]
-        bi = b[i]
-        g = bi + ut_b - ut
-        ui, vi = ut, vt
-        if code == PENALTY:
-            f = force[i]
-            act = g < 0.0
-            if f != 0.0:
-                dv = f * dt_over_m[i]
-                vi = vt - dv
-                ui = ut - dt * dv
-        elif code == FILM_FAST:
-            f = max(-(g - g_ref + base) * d_inv[i], 0.0) if g < 0.0 else 0.0
-            act = f > 0.0
-            if f != 0.0:
-                dv = f * dt_over_m[i]
-                vi = vt - dv
-                ui = ut - dt * dv
-                dv = f * dvb
-                v_b += dv
-                u_b += dt * dv
+def _make_face_step(code: int):
+    """The rigid-face step of method ``code``, compiled for it alone (``code`` is a
+    constant of the closure: no branch on the method inside the loops)."""
+
+    @njit(cache=True)
+    def _face_step(first, src_u, src_v, recv, gath, slots, cons, flags, misc):
+        """The step of a rigid face (constraint i ties node slot i to the body's slot) for
+        penalty, FILM fast and DME's cluster in two passes over the nodes (and a third for
+        FILM's reference gap, a fourth for its committed gaps): A takes the prediction, forms
+        the gaps and the method's sums; B corrects each node, writes it back, books its work
+        and rolls it. The same operations in the same order as detection, the method's
+        kernel and _commit, so the same numbers bit for bit. Returns (work increment (J),
+        jumped, grew, done); not done (FILM with candidates left unloaded, DME with a node
+        that would pull: the rare sorted cases) leaves u_pred, v_pred set for the general
+        path, nothing else changed. The step's scratch rows of the nodes (u, v, gap,
+        was_active) are not written: the committed state is u_now, v_now (and u, v at the
+        body's slot)."""
+        u, v, u_pred, v_pred = slots[0], slots[1], slots[2], slots[3]
+        u_now, v_now, mass, f_prev = slots[4], slots[5], slots[6], slots[7]
+        dt_over_m, m_over_dt, ku_prev, jump = slots[8], slots[9], slots[10], slots[11]
+        b, force, d_inv, p = cons[0], cons[2], cons[4], cons[5]
+        active = flags[0]
+        dt = misc[DT]
+        kappa = misc[KAPPA]
+        n = b.size
+        body = n
+        to = gath[5]
+        if recv.size > 0:
+            su, sv, iu, iv = recv, recv, gath[3], gath[4]
         else:
-            act = g < 0.0
-            f = 0.0
-            if act:
-                f = m_over_dt[i] * (vt - v_c)
-                vi = v_c
-                ui = u_b + bi
-        force[i] = f
-        was = active[i]
-        active[i] = act
-        total += f
-        if act:
-            n_active += 1
-            if not was:
-                grew = True
-        k = to[i]
-        if k >= 0:
-            src_u[k] = ui
-            src_v[k] = vi
-        fb = m_over_dt[i] * (vi - vt)
-        if not first:
-            inc += 0.5 * dt * v_now[i] * (f_prev[i] + fb)
-        f_prev[i] = fb
-        if jumps:
-            ku = -m_over_dt[i] * (vt - v_now[i])
-            if jumped:
-                inc_jump += 0.5 * jump[i] * (ku_prev[i] + ku)
-            ku_prev[i] = ku
-            jump[i] = ui - u_now[i] - dt * vi
-            if jump[i] != 0.0:
-                jumped_now = True
-        u_now[i] = ui
-        v_now[i] = vi
-        if min_known:
-            min_gap = min(min_gap, bi + u_b - ui)
-    if not min_known:
+            su, sv, iu, iv = src_u, src_v, to, to
+        ut_b, vt_b = u_pred[body], v_pred[body]
+        u_b, v_b = ut_b, vt_b  # the body's corrected state (penalty: summed in A; FILM: in B)
+        dvb = dt_over_m[body]
+        # pass A: the prediction, the gaps and the sums of the method
+        n_cand = 0
+        a = 0.0
+        w = 0.0
+        g_max = -np.inf
+        g_sum = 0.0
+        momentum = mass[body] * vt_b
+        total_mass = mass[body]
+        v_min = np.inf
         for i in range(n):
-            min_gap = min(min_gap, b[i] + u_b - u_now[i])
-    # the body's slot, last, as in _commit
-    u[body] = u_b
-    v[body] = v_b
-    fb = m_over_dt[body] * (v_b - vt_b)
-    if not first:
-        inc += 0.5 * dt * v_now[body] * (f_prev[body] + fb)
-    f_prev[body] = fb
-    u_now[body] = u_b
-    v_now[body] = v_b
-    stats = misc[STATS:STATS + 3]
-    stats[0] = n_active
-    stats[1] = total
-    stats[2] = min_gap
-    return inc + inc_jump, jumped_now, grew, True
+            ut = su[iu[i]]
+            vt = sv[iv[i]]
+            u_pred[i] = ut
+            v_pred[i] = vt
+            g = b[i] + ut_b - ut
+            if code == PENALTY:
+                f = -p[i] * g if g < 0.0 else 0.0
+                force[i] = f
+                if f != 0.0:
+                    dv = f * dvb
+                    v_b += dv
+                    u_b += dt * dv
+            elif g < 0.0:
+                n_cand += 1
+                if code == FILM_FAST:
+                    a -= g * d_inv[i]
+                    w += d_inv[i]
+                    g_max = max(g_max, g)
+                    g_sum += g
+                else:
+                    momentum += mass[i] * vt
+                    total_mass += mass[i]
+                    v_min = min(v_min, vt)
+        g_ref = 0.0
+        base = 0.0
+        v_c = 0.0
+        if code == FILM_FAST and n_cand > 0:
+            if not g_max + kappa * a / (1.0 + kappa * w) <= 0.0:
+                return 0.0, False, False, False
+            g_ref = g_sum / n_cand
+            s = 0.0
+            for i in range(n):
+                g = b[i] + ut_b - u_pred[i]
+                if g < 0.0:
+                    s += (g - g_ref) * d_inv[i]
+            base = (g_ref - kappa * s) / (1.0 + kappa * w)
+        elif code == DME_CLUSTER:
+            if not v_min >= momentum / total_mass:
+                return 0.0, False, False, False
+            v_c = momentum / total_mass
+            u_b = u_now[body] + dt * v_c
+            v_b = v_c
+        # pass B: correct, write back, book and roll each node
+        jumps = code == DME_CLUSTER and misc[JUMPS] != 0.0
+        jumped = misc[LEDGER + 2] != 0.0
+        min_known = code != FILM_FAST  # the body's position is final before B
+        inc = 0.0
+        inc_jump = 0.0
+        n_active = 0
+        total = 0.0
+        min_gap = np.inf
+        jumped_now = False
+        grew = False
+        for i in range(n):
+            ut, vt = u_pred[i], v_pred[i]
+            bi = b[i]
+            g = bi + ut_b - ut
+            ui, vi = ut, vt
+            if code == PENALTY:
+                f = force[i]
+                act = g < 0.0
+                if f != 0.0:
+                    dv = f * dt_over_m[i]
+                    vi = vt - dv
+                    ui = ut - dt * dv
+            elif code == FILM_FAST:
+                f = max(-(g - g_ref + base) * d_inv[i], 0.0) if g < 0.0 else 0.0
+                act = f > 0.0
+                if f != 0.0:
+                    dv = f * dt_over_m[i]
+                    vi = vt - dv
+                    ui = ut - dt * dv
+                    dv = f * dvb
+                    v_b += dv
+                    u_b += dt * dv
+            else:
+                act = g < 0.0
+                f = 0.0
+                if act:
+                    f = m_over_dt[i] * (vt - v_c)
+                    vi = v_c
+                    ui = u_b + bi
+            force[i] = f
+            was = active[i]
+            active[i] = act
+            total += f
+            if act:
+                n_active += 1
+                if not was:
+                    grew = True
+            k = to[i]
+            if k >= 0:
+                src_u[k] = ui
+                src_v[k] = vi
+            fb = m_over_dt[i] * (vi - vt)
+            if not first:
+                inc += 0.5 * dt * v_now[i] * (f_prev[i] + fb)
+            f_prev[i] = fb
+            if jumps:
+                ku = -m_over_dt[i] * (vt - v_now[i])
+                if jumped:
+                    inc_jump += 0.5 * jump[i] * (ku_prev[i] + ku)
+                ku_prev[i] = ku
+                jump[i] = ui - u_now[i] - dt * vi
+                if jump[i] != 0.0:
+                    jumped_now = True
+            u_now[i] = ui
+            v_now[i] = vi
+            if min_known:
+                min_gap = min(min_gap, bi + u_b - ui)
+        if not min_known:
+            for i in range(n):
+                min_gap = min(min_gap, b[i] + u_b - u_now[i])
+        # the body's slot, last, as in _commit
+        u[body] = u_b
+        v[body] = v_b
+        fb = m_over_dt[body] * (v_b - vt_b)
+        if not first:
+            inc += 0.5 * dt * v_now[body] * (f_prev[body] + fb)
+        f_prev[body] = fb
+        u_now[body] = u_b
+        v_now[body] = v_b
+        stats = misc[STATS:STATS + 3]
+        stats[0] = n_active
+        stats[1] = total
+        stats[2] = min_gap
+        return inc + inc_jump, jumped_now, grew, True
+
+    return _face_step
+
+
+_FACE_STEP = {code: _make_face_step(code) for code in (PENALTY, FILM_FAST, DME_CLUSTER)}
+_face_penalty, _face_film, _face_cluster = _FACE_STEP[PENALTY], _FACE_STEP[FILM_FAST], \
+    _FACE_STEP[DME_CLUSTER]
 
 
 @njit(cache=True)
@@ -251,8 +262,15 @@ def contact_step(src_u, src_v, mine, recv, gath, slots, cons, ints, flags, misc,
     ledger = misc[LEDGER:LEDGER + 4]
     done = False
     if rigid:  # a rigid face: two passes (its rare sorted cases go on below)
-        inc, jumped, grew, done = _face_step(code, first, src_u, src_v, recv, gath, slots, cons,
-                                             flags, misc)
+        if code == PENALTY:
+            inc, jumped, grew, done = _face_penalty(first, src_u, src_v, recv, gath, slots, cons,
+                                                    flags, misc)
+        elif code == FILM_FAST:
+            inc, jumped, grew, done = _face_film(first, src_u, src_v, recv, gath, slots, cons,
+                                                 flags, misc)
+        else:
+            inc, jumped, grew, done = _face_cluster(first, src_u, src_v, recv, gath, slots, cons,
+                                                    flags, misc)
     elif recv.size > 0:
         _unpack(recv, gath[0], gath[1], gath[2], u_pred, v_pred)
     else:

@@ -52,7 +52,7 @@ def _make_face_step(code: int):
     def _face_step(first, src_u, src_v, recv, gath, slots, cons, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
         penalty, FILM fast and DME's cluster in two passes over the nodes (and a third for
-        FILM's reference gap, a fourth for its committed gaps): A takes the prediction, forms
+        FILM's reference gap): A takes the prediction, forms
         the gaps and the method's sums; B corrects each node, writes it back, books its work
         and rolls it. The same operations in the same order as detection, the method's
         kernel and _commit, so the same numbers bit for bit. Returns (work increment (J),
@@ -70,11 +70,8 @@ def _make_face_step(code: int):
         kappa = misc[KAPPA]
         n = b.size
         body = n
-        to = gath[5]
-        if recv.size > 0:
-            su, sv, iu, iv = recv, recv, gath[3], gath[4]
-        else:
-            su, sv, iu, iv = src_u, src_v, to, to
+        iu, iv, to = gath[3], gath[4], gath[5]
+        gathered = recv.size > 0
         ut_b, vt_b = u_pred[body], v_pred[body]
         u_b, v_b = ut_b, vt_b  # the body's corrected state (penalty: summed in A; FILM: in B)
         dvb = dt_over_m[body]
@@ -88,8 +85,13 @@ def _make_face_step(code: int):
         total_mass = mass[body]
         v_min = np.inf
         for i in range(n):
-            ut = su[iu[i]]
-            vt = sv[iv[i]]
+            if gathered:
+                ut = recv[iu[i]]
+                vt = recv[iv[i]]
+            else:
+                k = to[i]
+                ut = src_u[k]
+                vt = src_v[k]
             u_pred[i] = ut
             v_pred[i] = vt
             g = b[i] + ut_b - ut
@@ -133,7 +135,6 @@ def _make_face_step(code: int):
         # pass B: correct, write back, book and roll each node
         jumps = code == DME_CLUSTER and misc[JUMPS] != 0.0
         jumped = misc[LEDGER + 2] != 0.0
-        min_known = code != FILM_FAST  # the body's position is final before B
         inc = 0.0
         inc_jump = 0.0
         n_active = 0
@@ -196,11 +197,8 @@ def _make_face_step(code: int):
                     jumped_now = True
             u_now[i] = ui
             v_now[i] = vi
-            if min_known:
-                min_gap = min(min_gap, bi + u_b - ui)
-        if not min_known:
-            for i in range(n):
-                min_gap = min(min_gap, b[i] + u_b - u_now[i])
+            min_gap = min(min_gap, bi - ui)  # + u_b after the loop: rounding is monotonic
+        min_gap += u_b
         # the body's slot, last, as in _commit
         u[body] = u_b
         v[body] = v_b

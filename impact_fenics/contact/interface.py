@@ -253,7 +253,7 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
             n_active += 1
             if not was_active[i]:
                 grew = True
-        min_gap = min(min_gap, b[i] + u[up[i]] - u[lo[i]])
+        min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
     for k in range(m_over_dt.size):
         f = m_over_dt[k] * (v[k] - v_pred[k])
         if not first:
@@ -354,13 +354,13 @@ class ContactSet:
         # per slot: where its predicted u and v are read (the Allgatherv buffer under MPI,
         # the owned arrays in serial) and the owned dof it is written back to (-1: another
         # rank's), for the fused rigid-face pass
-        to = np.full(nd, -1, dtype=np.int64)
+        to = np.full(nd, -1, dtype=np.int32)
         to[pos] = local
         from_u, from_v = to.copy(), to.copy()
         if self.comm.size > 1:
             from_u[all_pos], from_v[all_pos] = recv_u, recv_v
         self._gath = np.array([recv_u, recv_v, all_pos, from_u, from_v, to],
-                              dtype=np.int64).reshape(6, -1)
+                              dtype=np.int32).reshape(6, -1)
         self._recv_u, self._recv_v, self._all_pos = self._gath[:3]
         self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * nd)

@@ -31,11 +31,19 @@ def solve_fast(gap, d, kappa, out, work=None, d_inv=None):
     every penetrating constraint carries force, the usual case under a punch).
     ``work``: an int buffer of length n, ``d_inv``: 1/d (N/m), set-up constants of a
     contact set (each allocated if not given)."""
-    n = gap.size
     if work is None:
-        work = np.empty(n, np.int64)
+        if d_inv is None:
+            return _solve_fast(gap, 1.0 / d, kappa, out, np.empty(gap.size, np.int64))
+        return _solve_fast(gap, d_inv, kappa, out, np.empty(gap.size, np.int64))
     if d_inv is None:
-        d_inv = 1.0 / d
+        return _solve_fast(gap, 1.0 / d, kappa, out, work)
+    return _solve_fast(gap, d_inv, kappa, out, work)
+
+
+@njit(cache=True)
+def _solve_fast(gap, d_inv, kappa, out, work):
+    """solve_fast with 1/d (N/m) and the index buffer given."""
+    n = gap.size
     k = 0
     a = 0.0  # sum of -g~_i / d_i over the candidates
     w = 0.0  # sum of 1 / d_i over them
@@ -151,7 +159,7 @@ class FILM:
 @njit(cache=True)
 def _film_fast(gap, d, d_inv, kappa, force, active, lo, up, dt_over_m, dt, u, v, work):
     """solve_fast, then the forces applied (``dt_over_m`` = dt / m per slot, s/kg)."""
-    solve_fast(gap, d, kappa, force, work, d_inv)
+    _solve_fast(gap, d_inv, kappa, force, work)
     for i in range(gap.size):
         active[i] = force[i] > 0.0
     apply_forces(force, lo, up, dt_over_m, dt, u, v)

@@ -14,17 +14,21 @@ RigidBody.predict/advance's, so the numbers are the same bit for bit.
 
 What it costs is set by memory and the call, not by arithmetic: masses, 1/d and
 the penalty stiffnesses are set-up constants (dt/m, m/dt, 1/d: no division in a
-step), and the set's state is packed so that the call unboxes ten arrays:
+step); a rigid face (the punch, the bit) runs in two passes over its nodes
+(:func:`_face_step`, compiled per method); and the set's state is packed so that
+the call unboxes seven arrays:
 
-- ``slots`` (12 x slots): u, v, u_pred, v_pred, u_now, v_now, mass, f_prev,
-  dt/m, m/dt, ku_prev, jump (the last two over the deformable slots);
-- ``cons`` (6 x constraints): b, gap, force, d, 1/d, p;
-- ``ints`` (lo, up, work), ``flags`` (active, was_active);
+- ``floats`` (18 x slots): the slot rows u, v, u_pred, v_pred, u_now, v_now,
+  mass, f_prev, dt/m, m/dt, ku_prev, jump (the last two over the deformable
+  slots), then the constraint rows b, gap, force, d, 1/d, p (their first n
+  entries, n <= slots);
+- ``ints`` (int32, 11 x deformable slots; layout interface.LO ... POS): lo, up
+  and a scratch row per constraint, the slot maps of the gather and write-back;
+- ``flags`` (active, was_active);
 - ``misc``: the ledger, the stats, the rigid body's work and waves, the
-  constants (layout: interface.LEDGER ... INCIDENT);
-- ``mine`` (local, pos: the owned contact dofs and their slots) and, under MPI,
-  ``recv`` and ``gath`` (recv_u, recv_v, all_pos: where each slot's gathered u
-  and v are).
+  constants (layout: interface.LEDGER ... N_LOCAL);
+- ``recv``: under MPI the Allgatherv buffer (empty in serial), and the owned
+  displacement and velocity.
 
 The attributes of the set are views of these rows.
 """
@@ -35,13 +39,30 @@ from numba import njit
 
 from .dme import _cluster, _pairs
 from .film import _film_fast
-from .interface import (CODE, DT, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER, MASS_WEIGHTED,
-                        N_DEFORMABLE, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK,
-                        STATS, WAVES, _commit, _predicted_gaps, _take, _unpack)
+from .interface import (ALL_POS, CODE, DT, FROM_U, FROM_V, IMPEDANCE, INCIDENT, JUMPS, KAPPA,
+                        LEDGER, LO, LOCAL, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, POS,
+                        RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK,
+                        STATS, TO, UP, WAVES, WORK, _commit, _predicted_gaps, _take, _unpack)
 from .penalty import _penalty
 
 # the methods the fused call runs (ContactSet.method_code); 0: the method's own correct()
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
+
+
+@njit(cache=True)
+def _slot_rows(floats):
+    """The 12 slot rows of the packed floats: u, v, u_pred, v_pred, u_now, v_now, mass,
+    f_prev, dt/m, m/dt, ku_prev, jump."""
+    return (floats[0], floats[1], floats[2], floats[3], floats[4], floats[5], floats[6],
+            floats[7], floats[8], floats[9], floats[10], floats[11])
+
+
+@njit(cache=True)
+def _constraint_rows(floats, n):
+    """The 6 constraint rows of the packed floats (their first n entries): b, gap, force,
+    d, 1/d, p."""
+    return (floats[12][:n], floats[13][:n], floats[14][:n], floats[15][:n], floats[16][:n],
+            floats[17][:n])
 
 
 def _make_face_step(code: int):
@@ -49,7 +70,7 @@ def _make_face_step(code: int):
     constant of the closure: no branch on the method inside the loops)."""
 
     @njit(cache=True)
-    def _face_step(first, src_u, src_v, recv, gath, slots, cons, flags, misc):
+    def _face_step(first, src_u, src_v, recv, floats, ints, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
         penalty, FILM fast and DME's cluster in two passes over the nodes (and a third for
         FILM's reference gap): A takes the prediction, forms
@@ -61,16 +82,15 @@ def _make_face_step(code: int):
         path, nothing else changed. The step's scratch rows of the nodes (u, v, gap,
         was_active) are not written: the committed state is u_now, v_now (and u, v at the
         body's slot)."""
-        u, v, u_pred, v_pred = slots[0], slots[1], slots[2], slots[3]
-        u_now, v_now, mass, f_prev = slots[4], slots[5], slots[6], slots[7]
-        dt_over_m, m_over_dt, ku_prev, jump = slots[8], slots[9], slots[10], slots[11]
-        b, force, d_inv, p = cons[0], cons[2], cons[4], cons[5]
+        u, v, u_pred, v_pred, u_now, v_now, mass, f_prev, dt_over_m, m_over_dt, ku_prev, jump \
+            = _slot_rows(floats)
+        n = int(misc[N_CONS])
+        b, gap, force, d, d_inv, p = _constraint_rows(floats, n)
         active = flags[0]
         dt = misc[DT]
         kappa = misc[KAPPA]
-        n = b.size
         body = n
-        iu, iv, to = gath[3], gath[4], gath[5]
+        iu, iv, to = ints[FROM_U], ints[FROM_V], ints[TO]
         gathered = recv.size > 0
         ut_b, vt_b = u_pred[body], v_pred[body]
         u_b, v_b = ut_b, vt_b  # the body's corrected state (penalty: summed in A; FILM: in B)
@@ -223,8 +243,7 @@ _face_penalty, _face_film, _face_cluster = _FACE_STEP[PENALTY], _FACE_STEP[FILM_
 
 
 @njit(cache=True)
-def contact_step(src_u, src_v, mine, recv, gath, slots, cons, ints, flags, misc, first, f_ext,
-                 f_in):
+def contact_step(src_u, src_v, recv, floats, ints, flags, misc, first, f_ext, f_in):
     """Step n -> n+1 of a contact set: predict the rigid body, detect, correct with the
     method ``misc[CODE]``, write back, book, commit the rigid body.
 
@@ -234,11 +253,13 @@ def contact_step(src_u, src_v, mine, recv, gath, slots, cons, ints, flags, misc,
     ``f_ext``: the rigid body's external force f(t^n) (N, z), ``f_in`` its rod's
     incident wave F_i(t^n) (N, compressive > 0; 0 without). Returns the rigid body's
     (u^{n+1}, v^{n+1}) (m, m/s; zeros without one)."""
-    u, v, u_pred, v_pred = slots[0], slots[1], slots[2], slots[3]
-    u_now, v_now, mass, f_prev = slots[4], slots[5], slots[6], slots[7]
-    dt_over_m, m_over_dt, ku_prev, jump = slots[8], slots[9], slots[10], slots[11]
-    b, gap, force, d, d_inv, p = cons[0], cons[1], cons[2], cons[3], cons[4], cons[5]
-    lo, up, work = ints[0], ints[1], ints[2]
+    u, v, u_pred, v_pred, u_now, v_now, mass, f_prev, dt_over_m, m_over_dt, ku_prev, jump = \
+        _slot_rows(floats)
+    n = int(misc[N_CONS])
+    b, gap, force, d, d_inv, p = _constraint_rows(floats, n)
+    lo, up, work = ints[LO][:n], ints[UP][:n], ints[WORK][:n]
+    n_local = int(misc[N_LOCAL])
+    local, pos = ints[LOCAL][:n_local], ints[POS][:n_local]
     active, was_active = flags[0], flags[1]
     code = int(misc[CODE])
     dt = misc[DT]
@@ -261,18 +282,18 @@ def contact_step(src_u, src_v, mine, recv, gath, slots, cons, ints, flags, misc,
     done = False
     if rigid:  # a rigid face: two passes (its rare sorted cases go on below)
         if code == PENALTY:
-            inc, jumped, grew, done = _face_penalty(first, src_u, src_v, recv, gath, slots, cons,
+            inc, jumped, grew, done = _face_penalty(first, src_u, src_v, recv, floats, ints,
                                                     flags, misc)
         elif code == FILM_FAST:
-            inc, jumped, grew, done = _face_film(first, src_u, src_v, recv, gath, slots, cons,
-                                                 flags, misc)
+            inc, jumped, grew, done = _face_film(first, src_u, src_v, recv, floats, ints, flags,
+                                                 misc)
         else:
-            inc, jumped, grew, done = _face_cluster(first, src_u, src_v, recv, gath, slots, cons,
+            inc, jumped, grew, done = _face_cluster(first, src_u, src_v, recv, floats, ints,
                                                     flags, misc)
     elif recv.size > 0:
-        _unpack(recv, gath[0], gath[1], gath[2], u_pred, v_pred)
+        _unpack(recv, ints[RECV_U], ints[RECV_V], ints[ALL_POS], u_pred, v_pred)
     else:
-        _take(src_u, src_v, mine[0], mine[1], u_pred, v_pred)
+        _take(src_u, src_v, local, pos, u_pred, v_pred)
     if not done:
         _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
         if code == PENALTY:
@@ -285,7 +306,7 @@ def contact_step(src_u, src_v, mine, recv, gath, slots, cons, ints, flags, misc,
                    force, active)
         else:
             _cluster(gap, b, lo, up[0], mass, m_over_dt, dt, u_now, u, v, force, active, work)
-        inc, jumped, grew = _commit(mine[0], mine[1], src_u, src_v, dt, first,
+        inc, jumped, grew = _commit(local, pos, src_u, src_v, dt, first,
                                     int(misc[N_DEFORMABLE]), m_over_dt, u, v, u_pred, v_pred,
                                     u_now, v_now, f_prev, ku_prev, jump, misc[JUMPS] != 0.0,
                                     ledger[2] != 0.0, active, was_active, b, lo, up, force,

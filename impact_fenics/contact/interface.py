@@ -142,8 +142,14 @@ class ContactMethod(Protocol):
 # then the run's constants
 LEDGER, STATS, RIGID_WORK, RIGID_F_PREV, WAVES = 0, 4, 7, 8, 9
 CODE, DT, KAPPA, RESTITUTION, MASS_WEIGHTED, JUMPS, N_DEFORMABLE = 12, 13, 14, 15, 16, 17, 18
-RIGID, RIGID_MASS, IMPEDANCE, INCIDENT = 19, 20, 21, 22
-MISC_SIZE = 23
+RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL = 19, 20, 21, 22, 23, 24
+MISC_SIZE = 25
+# the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
+# slot where its u and v are in the Allgatherv buffer and its slot (recv_u, recv_v,
+# all_pos: in gathered order), where its predicted u and v are read and the owned dof it
+# is written back to (from_u, from_v, to: in slot order); the owned contact dofs and
+# their slots (local, pos)
+LO, UP, WORK, RECV_U, RECV_V, ALL_POS, FROM_U, FROM_V, TO, LOCAL, POS = range(11)
 
 
 @dataclass
@@ -331,23 +337,24 @@ class ContactSet:
         self.n_slots = ns = nd + (1 if rigid else 0)
         # the state, packed in a few arrays for the one compiled call of a step (fused.py);
         # the attributes below are views of their rows (layout: fused.py)
-        self._slots = np.zeros((12, ns))
-        self._cons = np.zeros((6, n))  # b, gap, force, d, 1/d, penalty stiffness
-        self._ints = np.zeros((3, n), dtype=np.int64)  # lo, up, work
+        self._floats = np.zeros((18, ns))  # 12 slot rows, then 6 constraint rows (n <= ns)
+        self._ints = np.zeros((11, nd), dtype=np.int32)  # 3 constraint rows, 8 slot maps
+        self._slots, self._cons = self._floats[:12], self._floats[12:, :n]
         self._flags = np.zeros((2, n), dtype=np.bool_)  # active, was_active
         self._misc = np.zeros(MISC_SIZE)
         (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.mass,
          self.f_prev, self.dt_over_m, self.m_over_dt, self.ku_prev, self.jump) = self._slots
         self.b, self.gap, self.force, self.d, self.d_inv, self.p = self._cons
-        self.lo, self.up, self.work = self._ints  # work: scratch indices for the methods' kernels
+        self.lo, self.up, self.work = self._ints[:3, :n]  # work: scratch for the methods' kernels
         self.active, self.was_active = self._flags
         self.b[:] = constraints.b
         self.lo[:] = np.arange(n)
         self.up[:] = nd if rigid else np.arange(n, 2 * n)
         # which slots this rank owns, and where the gathered values go
         local, pos, all_pos, self._counts, self._displs = owned_slots(model, dofs, self.comm)
-        self._mine = np.array([local, pos], dtype=np.int64).reshape(2, -1)
-        self._local, self._pos = self._mine
+        ints = self._ints
+        ints[LOCAL, :local.size], ints[POS, :local.size] = local, pos
+        self._local, self._pos = ints[LOCAL, :local.size], ints[POS, :local.size]
         counts = self._counts // 2  # slots per rank; each sends (u of them, then v of them)
         recv_u = np.concatenate([s + np.arange(c) for s, c in zip(self._displs, counts)])
         recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(self._displs, counts)])
@@ -359,9 +366,8 @@ class ContactSet:
         from_u, from_v = to.copy(), to.copy()
         if self.comm.size > 1:
             from_u[all_pos], from_v[all_pos] = recv_u, recv_v
-        self._gath = np.array([recv_u, recv_v, all_pos, from_u, from_v, to],
-                              dtype=np.int32).reshape(6, -1)
-        self._recv_u, self._recv_v, self._all_pos = self._gath[:3]
+        ints[RECV_U:TO + 1] = recv_u, recv_v, all_pos, from_u, from_v, to
+        self._recv_u, self._recv_v, self._all_pos = ints[RECV_U:ALL_POS + 1]
         self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * nd)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
@@ -388,14 +394,15 @@ class ContactSet:
             misc = self._misc
             misc[CODE], misc[DT], misc[KAPPA], misc[RESTITUTION] = code, self.dt, self.kappa, e
             misc[MASS_WEIGHTED], misc[JUMPS], misc[N_DEFORMABLE] = mass_weighted, self.jumps, nd
+            misc[N_CONS], misc[N_LOCAL] = n, self._local.size
             if rigid is not None:
                 misc[RIGID], misc[RIGID_MASS], misc[IMPEDANCE] = 1.0, rigid.mass, rigid.impedance
                 misc[INCIDENT] = rigid.incident is not None
         # its arguments but the step's own (first, the rigid body's forces), fixed for the run
         self._fused_call = (None if self._fused is None else
-                            (integrator.u_owned, integrator.v_owned, self._mine,
-                             self._recv if self.comm.size > 1 else np.empty(0), self._gath, self._slots, self._cons, self._ints, self._flags,
-                             self._misc))
+                            (integrator.u_owned, integrator.v_owned,
+                             self._recv if self.comm.size > 1 else np.empty(0), self._floats,
+                             self._ints, self._flags, self._misc))
         self._gathered = self.comm.size > 1
 
     # ------------------------------------------------------------ gather
@@ -499,10 +506,11 @@ class ContactSet:
         Penalty, FILM fast and DME: one compiled call (fused.contact_step: the rigid
         body's prediction, take the predicted contact dofs, form the gaps, correct,
         write back, book, commit the rigid body), under MPI after a compiled pack and
-        the Allgatherv. Its time is booked as ``solve``; ``detection`` holds the Python
-        before it (the rigid body's external force at t^n, the Allgatherv) and
-        ``update`` the copy of the rigid body's state after it. Another method:
-        detection, the method's correct() and the commit as three calls, timed as such."""
+        the Allgatherv. Its time and the copy of the rigid body's state after it are
+        booked as ``solve``; ``detection`` holds the Python before it (the rigid body's
+        external force at t^n, the Allgatherv); ``update`` is 0 (it is in the call).
+        Another method: detection, the method's correct() and the commit as three calls,
+        timed as such."""
         if self._fused is None:
             self._step_unfused()
             return
@@ -520,16 +528,15 @@ class ContactSet:
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
         t1 = clock()
         u_r, v_r = self._contact_step(*self._fused_call, integ.n == 0, f_ext, f_in)
-        t2 = clock()
         if rigid is not None:
             rigid.u, rigid.v = u_r, v_r
             if rigid.impedance > 0.0:
                 misc = self._misc
                 rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
                     float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
-        t3 = clock()
+        t2 = clock()
         times = self.times
-        times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
+        times.detection, times.solve, times.update = t1 - t0, t2 - t1, 0.0
 
     def _step_unfused(self) -> None:
         """The step of a method outside the fused call: detection, correct(), commit."""

@@ -39,30 +39,16 @@ from numba import njit
 
 from .dme import _cluster, _pairs
 from .film import _film_fast
-from .interface import (ALL_POS, CODE, DT, FROM_U, FROM_V, IMPEDANCE, INCIDENT, JUMPS, KAPPA,
-                        LEDGER, LO, LOCAL, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, POS,
-                        RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK,
-                        STATS, TO, UP, WAVES, WORK, _commit, _predicted_gaps, _take, _unpack)
+from .interface import (ALL_POS, B, CODE, D, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
+                        FROM_V, GAP, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV, LEDGER, LO,
+                        LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, P,
+                        POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS,
+                        RIGID_WORK, STATS, TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED, WAVES,
+                        WORK, _commit, _predicted_gaps, _take, _unpack)
 from .penalty import _penalty
 
 # the methods the fused call runs (ContactSet.method_code); 0: the method's own correct()
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
-
-
-@njit(cache=True)
-def _slot_rows(floats):
-    """The 12 slot rows of the packed floats: u, v, u_pred, v_pred, u_now, v_now, mass,
-    f_prev, dt/m, m/dt, ku_prev, jump."""
-    return (floats[0], floats[1], floats[2], floats[3], floats[4], floats[5], floats[6],
-            floats[7], floats[8], floats[9], floats[10], floats[11])
-
-
-@njit(cache=True)
-def _constraint_rows(floats, n):
-    """The 6 constraint rows of the packed floats (their first n entries): b, gap, force,
-    d, 1/d, p."""
-    return (floats[12][:n], floats[13][:n], floats[14][:n], floats[15][:n], floats[16][:n],
-            floats[17][:n])
 
 
 def _make_face_step(code: int):
@@ -70,54 +56,51 @@ def _make_face_step(code: int):
     constant of the closure: no branch on the method inside the loops)."""
 
     @njit(cache=True)
-    def _face_step(first, src_u, src_v, recv, floats, ints, flags, misc):
+    def _face_step(first, src_u, src_v, recv, F, ints, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
         penalty, FILM fast and DME's cluster in two passes over the nodes (and a third for
-        FILM's reference gap): A takes the prediction, forms
-        the gaps and the method's sums; B corrects each node, writes it back, books its work
-        and rolls it. The same operations in the same order as detection, the method's
-        kernel and _commit, so the same numbers bit for bit. Returns (work increment (J),
-        jumped, grew, done); not done (FILM with candidates left unloaded, DME with a node
-        that would pull: the rare sorted cases) leaves u_pred, v_pred set for the general
-        path, nothing else changed. The step's scratch rows of the nodes (u, v, gap,
-        was_active) are not written: the committed state is u_now, v_now (and u, v at the
-        body's slot)."""
-        u, v, u_pred, v_pred, u_now, v_now, mass, f_prev, dt_over_m, m_over_dt, ku_prev, jump \
-            = _slot_rows(floats)
+        FILM's reference gap): A takes the prediction, forms the gaps and the method's
+        sums; B corrects each node, writes it back, books its work and rolls it. The same
+        operations in the same order as detection, the method's kernel and _commit, so the
+        same numbers bit for bit. Returns (work increment (J), jumped, grew, done); not
+        done (FILM with candidates left unloaded, DME with a node that would pull: the
+        rare sorted cases) leaves u_pred, v_pred set for the general path, nothing else
+        changed. The step's scratch rows of the nodes (u, v, gap, was_active) are not
+        written: the committed state is u_now, v_now (and u, v at the body's slot).
+
+        The packed arrays are indexed in place (F[U_NOW, i]): a row view would cost a
+        reference count (an atomic operation) each."""
         n = int(misc[N_CONS])
-        b, gap, force, d, d_inv, p = _constraint_rows(floats, n)
-        active = flags[0]
         dt = misc[DT]
         kappa = misc[KAPPA]
         body = n
-        iu, iv, to = ints[FROM_U], ints[FROM_V], ints[TO]
         gathered = recv.size > 0
-        ut_b, vt_b = u_pred[body], v_pred[body]
+        ut_b, vt_b = F[U_PRED, body], F[V_PRED, body]
         u_b, v_b = ut_b, vt_b  # the body's corrected state (penalty: summed in A; FILM: in B)
-        dvb = dt_over_m[body]
+        dvb = F[DT_OVER_M, body]
         # pass A: the prediction, the gaps and the sums of the method
         n_cand = 0
         a = 0.0
         w = 0.0
         g_max = -np.inf
         g_sum = 0.0
-        momentum = mass[body] * vt_b
-        total_mass = mass[body]
+        momentum = F[MASS, body] * vt_b
+        total_mass = F[MASS, body]
         v_min = np.inf
         for i in range(n):
             if gathered:
-                ut = recv[iu[i]]
-                vt = recv[iv[i]]
+                ut = recv[ints[FROM_U, i]]
+                vt = recv[ints[FROM_V, i]]
             else:
-                k = to[i]
+                k = ints[TO, i]
                 ut = src_u[k]
                 vt = src_v[k]
-            u_pred[i] = ut
-            v_pred[i] = vt
-            g = b[i] + ut_b - ut
+            F[U_PRED, i] = ut
+            F[V_PRED, i] = vt
+            g = F[B, i] + ut_b - ut
             if code == PENALTY:
-                f = -p[i] * g if g < 0.0 else 0.0
-                force[i] = f
+                f = -F[P, i] * g if g < 0.0 else 0.0
+                F[FORCE, i] = f
                 if f != 0.0:
                     dv = f * dvb
                     v_b += dv
@@ -125,13 +108,13 @@ def _make_face_step(code: int):
             elif g < 0.0:
                 n_cand += 1
                 if code == FILM_FAST:
-                    a -= g * d_inv[i]
-                    w += d_inv[i]
+                    a -= g * F[D_INV, i]
+                    w += F[D_INV, i]
                     g_max = max(g_max, g)
                     g_sum += g
                 else:
-                    momentum += mass[i] * vt
-                    total_mass += mass[i]
+                    momentum += F[MASS, i] * vt
+                    total_mass += F[MASS, i]
                     v_min = min(v_min, vt)
         g_ref = 0.0
         base = 0.0
@@ -142,15 +125,15 @@ def _make_face_step(code: int):
             g_ref = g_sum / n_cand
             s = 0.0
             for i in range(n):
-                g = b[i] + ut_b - u_pred[i]
+                g = F[B, i] + ut_b - F[U_PRED, i]
                 if g < 0.0:
-                    s += (g - g_ref) * d_inv[i]
+                    s += (g - g_ref) * F[D_INV, i]
             base = (g_ref - kappa * s) / (1.0 + kappa * w)
         elif code == DME_CLUSTER:
             if not v_min >= momentum / total_mass:
                 return 0.0, False, False, False
             v_c = momentum / total_mass
-            u_b = u_now[body] + dt * v_c
+            u_b = F[U_NOW, body] + dt * v_c
             v_b = v_c
         # pass B: correct, write back, book and roll each node
         jumps = code == DME_CLUSTER and misc[JUMPS] != 0.0
@@ -163,22 +146,22 @@ def _make_face_step(code: int):
         jumped_now = False
         grew = False
         for i in range(n):
-            ut, vt = u_pred[i], v_pred[i]
-            bi = b[i]
+            ut, vt = F[U_PRED, i], F[V_PRED, i]
+            bi = F[B, i]
             g = bi + ut_b - ut
             ui, vi = ut, vt
             if code == PENALTY:
-                f = force[i]
+                f = F[FORCE, i]
                 act = g < 0.0
                 if f != 0.0:
-                    dv = f * dt_over_m[i]
+                    dv = f * F[DT_OVER_M, i]
                     vi = vt - dv
                     ui = ut - dt * dv
             elif code == FILM_FAST:
-                f = max(-(g - g_ref + base) * d_inv[i], 0.0) if g < 0.0 else 0.0
+                f = max(-(g - g_ref + base) * F[D_INV, i], 0.0) if g < 0.0 else 0.0
                 act = f > 0.0
                 if f != 0.0:
-                    dv = f * dt_over_m[i]
+                    dv = f * F[DT_OVER_M, i]
                     vi = vt - dv
                     ui = ut - dt * dv
                     dv = f * dvb
@@ -188,50 +171,50 @@ def _make_face_step(code: int):
                 act = g < 0.0
                 f = 0.0
                 if act:
-                    f = m_over_dt[i] * (vt - v_c)
+                    f = F[M_OVER_DT, i] * (vt - v_c)
                     vi = v_c
                     ui = u_b + bi
-            force[i] = f
-            was = active[i]
-            active[i] = act
+            F[FORCE, i] = f
+            was = flags[0, i]
+            flags[0, i] = act
             total += f
             if act:
                 n_active += 1
                 if not was:
                     grew = True
-            k = to[i]
+            k = ints[TO, i]
             if k >= 0:
                 src_u[k] = ui
                 src_v[k] = vi
-            fb = m_over_dt[i] * (vi - vt)
+            fb = F[M_OVER_DT, i] * (vi - vt)
             if not first:
-                inc += 0.5 * dt * v_now[i] * (f_prev[i] + fb)
-            f_prev[i] = fb
+                inc += 0.5 * dt * F[V_NOW, i] * (F[F_PREV, i] + fb)
+            F[F_PREV, i] = fb
             if jumps:
-                ku = -m_over_dt[i] * (vt - v_now[i])
+                ku = -F[M_OVER_DT, i] * (vt - F[V_NOW, i])
                 if jumped:
-                    inc_jump += 0.5 * jump[i] * (ku_prev[i] + ku)
-                ku_prev[i] = ku
-                jump[i] = ui - u_now[i] - dt * vi
-                if jump[i] != 0.0:
+                    inc_jump += 0.5 * F[JUMP, i] * (F[KU_PREV, i] + ku)
+                F[KU_PREV, i] = ku
+                j = ui - F[U_NOW, i] - dt * vi
+                F[JUMP, i] = j
+                if j != 0.0:
                     jumped_now = True
-            u_now[i] = ui
-            v_now[i] = vi
+            F[U_NOW, i] = ui
+            F[V_NOW, i] = vi
             min_gap = min(min_gap, bi - ui)  # + u_b after the loop: rounding is monotonic
         min_gap += u_b
         # the body's slot, last, as in _commit
-        u[body] = u_b
-        v[body] = v_b
-        fb = m_over_dt[body] * (v_b - vt_b)
+        F[U, body] = u_b
+        F[V, body] = v_b
+        fb = F[M_OVER_DT, body] * (v_b - vt_b)
         if not first:
-            inc += 0.5 * dt * v_now[body] * (f_prev[body] + fb)
-        f_prev[body] = fb
-        u_now[body] = u_b
-        v_now[body] = v_b
-        stats = misc[STATS:STATS + 3]
-        stats[0] = n_active
-        stats[1] = total
-        stats[2] = min_gap
+            inc += 0.5 * dt * F[V_NOW, body] * (F[F_PREV, body] + fb)
+        F[F_PREV, body] = fb
+        F[U_NOW, body] = u_b
+        F[V_NOW, body] = v_b
+        misc[STATS] = n_active
+        misc[STATS + 1] = total
+        misc[STATS + 2] = min_gap
         return inc + inc_jump, jumped_now, grew, True
 
     return _face_step
@@ -243,7 +226,43 @@ _face_penalty, _face_film, _face_cluster = _FACE_STEP[PENALTY], _FACE_STEP[FILM_
 
 
 @njit(cache=True)
-def contact_step(src_u, src_v, recv, floats, ints, flags, misc, first, f_ext, f_in):
+def _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc):
+    """Detection, the method's kernel and the commit on row views of the packed arrays:
+    node pairs, and a rigid face's rare sorted cases. Returns (work increment (J),
+    jumped, grew)."""
+    n = int(misc[N_CONS])
+    u, v, u_pred, v_pred, u_now, v_now = F[U], F[V], F[U_PRED], F[V_PRED], F[U_NOW], F[V_NOW]
+    mass, dt_over_m, m_over_dt = F[MASS], F[DT_OVER_M], F[M_OVER_DT]
+    b, gap, force, d, d_inv, p = F[B][:n], F[GAP][:n], F[FORCE][:n], F[D][:n], F[D_INV][:n], \
+        F[P][:n]
+    lo, up, work = ints[LO][:n], ints[UP][:n], ints[WORK][:n]
+    n_local = int(misc[N_LOCAL])
+    local, pos = ints[LOCAL][:n_local], ints[POS][:n_local]
+    active, was_active = flags[0], flags[1]
+    dt = misc[DT]
+    if misc[RIGID] == 0.0:  # a rigid face has its prediction taken already
+        if recv.size > 0:
+            _unpack(recv, ints[RECV_U], ints[RECV_V], ints[ALL_POS], u_pred, v_pred)
+        else:
+            _take(src_u, src_v, local, pos, u_pred, v_pred)
+    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
+    if code == PENALTY:
+        _penalty(gap, p, force, active, lo, up, dt_over_m, dt, u, v)
+    elif code == FILM_FAST:
+        _film_fast(gap, d, d_inv, misc[KAPPA], force, active, lo, up, dt_over_m, dt, u, v, work)
+    elif code == DME_PAIRS:
+        _pairs(gap, b, lo, up, mass, dt, misc[RESTITUTION], misc[MASS_WEIGHTED] != 0.0, u, v,
+               force, active)
+    else:
+        _cluster(gap, b, lo, up[0], mass, m_over_dt, dt, u_now, u, v, force, active, work)
+    return _commit(local, pos, src_u, src_v, dt, first, int(misc[N_DEFORMABLE]), m_over_dt, u,
+                   v, u_pred, v_pred, u_now, v_now, F[F_PREV], F[KU_PREV], F[JUMP],
+                   misc[JUMPS] != 0.0, misc[LEDGER + 2] != 0.0, active, was_active, b, lo, up,
+                   force, misc[STATS:STATS + 3])
+
+
+@njit(cache=True)
+def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
     """Step n -> n+1 of a contact set: predict the rigid body, detect, correct with the
     method ``misc[CODE]``, write back, book, commit the rigid body.
 
@@ -253,73 +272,44 @@ def contact_step(src_u, src_v, recv, floats, ints, flags, misc, first, f_ext, f_
     ``f_ext``: the rigid body's external force f(t^n) (N, z), ``f_in`` its rod's
     incident wave F_i(t^n) (N, compressive > 0; 0 without). Returns the rigid body's
     (u^{n+1}, v^{n+1}) (m, m/s; zeros without one)."""
-    u, v, u_pred, v_pred, u_now, v_now, mass, f_prev, dt_over_m, m_over_dt, ku_prev, jump = \
-        _slot_rows(floats)
-    n = int(misc[N_CONS])
-    b, gap, force, d, d_inv, p = _constraint_rows(floats, n)
-    lo, up, work = ints[LO][:n], ints[UP][:n], ints[WORK][:n]
-    n_local = int(misc[N_LOCAL])
-    local, pos = ints[LOCAL][:n_local], ints[POS][:n_local]
-    active, was_active = flags[0], flags[1]
     code = int(misc[CODE])
     dt = misc[DT]
     rigid = misc[RIGID] != 0.0
-    body = mass.size - 1
+    body = F.shape[1] - 1
     v_n = 0.0
     drive = 0.0
     if rigid:  # RigidBody.predict: its state without contact at t^n+1
         drive = f_ext - (2.0 * f_in if misc[INCIDENT] != 0.0 else 0.0)
         m_r, z = misc[RIGID_MASS], misc[IMPEDANCE]
-        v_n = v_now[body]
+        v_n = F[V_NOW, body]
         if z == 0.0:
             v_tilde = v_n + dt * drive / m_r
         else:
             half = 0.5 * z * dt
             v_tilde = ((m_r - half) * v_n + dt * drive) / (m_r + half)
-        u_pred[body] = u_now[body] + dt * v_tilde
-        v_pred[body] = v_tilde
-    ledger = misc[LEDGER:LEDGER + 4]
+        F[U_PRED, body] = F[U_NOW, body] + dt * v_tilde
+        F[V_PRED, body] = v_tilde
     done = False
     if rigid:  # a rigid face: two passes (its rare sorted cases go on below)
         if code == PENALTY:
-            inc, jumped, grew, done = _face_penalty(first, src_u, src_v, recv, floats, ints,
-                                                    flags, misc)
+            inc, jumped, grew, done = _face_penalty(first, src_u, src_v, recv, F, ints, flags,
+                                                    misc)
         elif code == FILM_FAST:
-            inc, jumped, grew, done = _face_film(first, src_u, src_v, recv, floats, ints, flags,
-                                                 misc)
+            inc, jumped, grew, done = _face_film(first, src_u, src_v, recv, F, ints, flags, misc)
         else:
-            inc, jumped, grew, done = _face_cluster(first, src_u, src_v, recv, floats, ints,
-                                                    flags, misc)
-    elif recv.size > 0:
-        _unpack(recv, ints[RECV_U], ints[RECV_V], ints[ALL_POS], u_pred, v_pred)
-    else:
-        _take(src_u, src_v, local, pos, u_pred, v_pred)
+            inc, jumped, grew, done = _face_cluster(first, src_u, src_v, recv, F, ints, flags,
+                                                    misc)
     if not done:
-        _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
-        if code == PENALTY:
-            _penalty(gap, p, force, active, lo, up, dt_over_m, dt, u, v)
-        elif code == FILM_FAST:
-            _film_fast(gap, d, d_inv, misc[KAPPA], force, active, lo, up, dt_over_m, dt, u, v,
-                       work)
-        elif code == DME_PAIRS:
-            _pairs(gap, b, lo, up, mass, dt, misc[RESTITUTION], misc[MASS_WEIGHTED] != 0.0, u, v,
-                   force, active)
-        else:
-            _cluster(gap, b, lo, up[0], mass, m_over_dt, dt, u_now, u, v, force, active, work)
-        inc, jumped, grew = _commit(local, pos, src_u, src_v, dt, first,
-                                    int(misc[N_DEFORMABLE]), m_over_dt, u, v, u_pred, v_pred,
-                                    u_now, v_now, f_prev, ku_prev, jump, misc[JUMPS] != 0.0,
-                                    ledger[2] != 0.0, active, was_active, b, lo, up, force,
-                                    misc[STATS:STATS + 3])
-    ledger[0] += inc
-    if grew or ledger[3] != 0.0:
-        ledger[1] -= inc
-    ledger[2] = 1.0 if jumped else 0.0
-    ledger[3] = 1.0 if grew else 0.0
+        inc, jumped, grew = _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc)
+    misc[LEDGER] += inc
+    if grew or misc[LEDGER + 3] != 0.0:
+        misc[LEDGER + 1] -= inc
+    misc[LEDGER + 2] = 1.0 if jumped else 0.0
+    misc[LEDGER + 3] = 1.0 if grew else 0.0
     if not rigid:
         return 0.0, 0.0
     # RigidBody.advance and _ContactWork.book_rigid: the rod's waves, the external work
-    v_next = v[body]
+    v_next = F[V, body]
     f = drive
     z = misc[IMPEDANCE]
     if z > 0.0:
@@ -333,4 +323,4 @@ def contact_step(src_u, src_v, recv, floats, ints, flags, misc, first, f_ext, f_
     if not first:
         misc[RIGID_WORK] += 0.5 * dt * v_n * (misc[RIGID_F_PREV] + f)
     misc[RIGID_F_PREV] = f
-    return u[body], v_next
+    return F[U, body], v_next

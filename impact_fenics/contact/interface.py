@@ -144,6 +144,9 @@ LEDGER, STATS, RIGID_WORK, RIGID_F_PREV, WAVES = 0, 4, 7, 8, 9
 CODE, DT, KAPPA, RESTITUTION, MASS_WEIGHTED, JUMPS, N_DEFORMABLE = 12, 13, 14, 15, 16, 17, 18
 RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL = 19, 20, 21, 22, 23, 24
 MISC_SIZE = 25
+# the rows of ContactSet._floats: per slot, then per constraint (their first n entries)
+U, V, U_PRED, V_PRED, U_NOW, V_NOW, MASS, F_PREV, DT_OVER_M, M_OVER_DT, KU_PREV, JUMP = range(12)
+B, GAP, FORCE, D, D_INV, P = range(12, 18)
 # the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
 # slot where its u and v are in the Allgatherv buffer and its slot (recv_u, recv_v,
 # all_pos: in gathered order), where its predicted u and v are read and the owned dof it

@@ -85,19 +85,22 @@ def _loaded(gap, d_inv, kappa, loaded, out):
     """Forces when exactly the constraints ``loaded`` carry force (``d_inv`` = 1/d, N/m).
 
     There g~_i + kappa F is a small difference of large numbers (a light body's
-    predicted overshoot). With g~_i = g_ref + delta_i it is evaluated as
-    delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d), without that
-    cancellation."""
+    predicted overshoot). With g~_i = g_ref + delta_i, g_ref their mean, it is evaluated
+    as delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d), without that
+    cancellation. sum delta/d is summed in the same pass as g_ref, about the first
+    loaded gap g_0: sum (g~_i - g_0)/d + (g_0 - g_ref) sum 1/d (small terms only)."""
     m = loaded.size
-    g_ref = 0.0
-    for i in loaded:
-        g_ref += gap[i]
-    g_ref /= m
-    s = 0.0
+    g_0 = gap[loaded[0]]
+    g_sum = 0.0
+    s_0 = 0.0
     w = 0.0
     for i in loaded:
-        s += (gap[i] - g_ref) * d_inv[i]
+        g = gap[i]
+        g_sum += g
+        s_0 += (g - g_0) * d_inv[i]
         w += d_inv[i]
+    g_ref = g_sum / m
+    s = s_0 + (g_0 - g_ref) * w
     base = (g_ref - kappa * s) / (1.0 + kappa * w)
     if m < gap.size:
         for i in range(gap.size):

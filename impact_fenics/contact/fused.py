@@ -58,8 +58,7 @@ def _make_face_step(code: int):
     @njit(cache=True)
     def _face_step(first, src_u, src_v, recv, F, ints, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
-        penalty, FILM fast and DME's cluster in two passes over the nodes (and a third for
-        FILM's reference gap): A takes the prediction, forms the gaps and the method's
+        penalty, FILM fast and DME's cluster in two passes over the nodes: A takes the prediction, forms the gaps and the method's
         sums; B corrects each node, writes it back, books its work and rolls it. The same
         operations in the same order as detection, the method's kernel and _commit, so the
         same numbers bit for bit. Returns (work increment (J), jumped, grew, done); not
@@ -84,6 +83,8 @@ def _make_face_step(code: int):
         w = 0.0
         g_max = -np.inf
         g_sum = 0.0
+        g_0 = 0.0
+        s_0 = 0.0
         momentum = F[MASS, body] * vt_b
         total_mass = F[MASS, body]
         v_min = np.inf
@@ -108,10 +109,13 @@ def _make_face_step(code: int):
             elif g < 0.0:
                 n_cand += 1
                 if code == FILM_FAST:
+                    if n_cand == 1:
+                        g_0 = g
                     a -= g * F[D_INV, i]
                     w += F[D_INV, i]
                     g_max = max(g_max, g)
                     g_sum += g
+                    s_0 += (g - g_0) * F[D_INV, i]
                 else:
                     momentum += F[MASS, i] * vt
                     total_mass += F[MASS, i]
@@ -122,12 +126,8 @@ def _make_face_step(code: int):
         if code == FILM_FAST and n_cand > 0:
             if not g_max + kappa * a / (1.0 + kappa * w) <= 0.0:
                 return 0.0, False, False, False
-            g_ref = g_sum / n_cand
-            s = 0.0
-            for i in range(n):
-                g = F[B, i] + ut_b - F[U_PRED, i]
-                if g < 0.0:
-                    s += (g - g_ref) * F[D_INV, i]
+            g_ref = g_sum / n_cand  # film._loaded, its sums taken in A
+            s = s_0 + (g_0 - g_ref) * w
             base = (g_ref - kappa * s) / (1.0 + kappa * w)
         elif code == DME_CLUSTER:
             if not v_min >= momentum / total_mass:

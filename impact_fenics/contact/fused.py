@@ -47,7 +47,7 @@ from .interface import (ALL_POS, B, CODE, D, D_INV, DT, DT_OVER_M, F_PREV, FORCE
                         WORK, _commit, _predicted_gaps, _take, _unpack)
 from .penalty import _penalty
 
-# the methods the fused call runs (ContactSet.method_code); 0: the method's own correct()
+# the methods the fused call runs (misc[CODE]); another method runs its own correct()
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
 
 
@@ -58,14 +58,15 @@ def _make_face_step(code: int):
     @njit(cache=True)
     def _face_step(first, src_u, src_v, recv, F, ints, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
-        penalty, FILM fast and DME's cluster in two passes over the nodes: A takes the prediction, forms the gaps and the method's
-        sums; B corrects each node, writes it back, books its work and rolls it. The same
-        operations in the same order as detection, the method's kernel and _commit, so the
-        same numbers bit for bit. Returns (work increment (J), jumped, grew, done); not
-        done (FILM with candidates left unloaded, DME with a node that would pull: the
-        rare sorted cases) leaves u_pred, v_pred set for the general path, nothing else
-        changed. The step's scratch rows of the nodes (u, v, gap, was_active) are not
-        written: the committed state is u_now, v_now (and u, v at the body's slot).
+        penalty, FILM fast and DME's cluster in two passes over the nodes: A takes the
+        prediction, forms the gaps and the method's sums; B corrects each node, writes it
+        back, books its work and rolls it. The same operations in the same order as
+        detection, the method's kernel and _commit, so the same numbers bit for bit.
+        Returns (work increment (J), jumped, grew, done); not done (FILM with candidates
+        left unloaded, DME with a node that would pull: the rare sorted cases) leaves
+        u_pred, v_pred set for the general path, nothing else changed. The step's scratch
+        rows of the nodes (u, v, gap, was_active) are not written: the committed state is
+        u_now, v_now (and u, v at the body's slot).
 
         The packed arrays are indexed in place (F[U_NOW, i]): a row view would cost a
         reference count (an atomic operation) each."""

@@ -13,10 +13,13 @@ then
    constraints, the total force and the smallest gap for the history).
 
 For penalty, FILM fast and DME the three are one compiled call
-(:mod:`.fused`; under MPI after a compiled pack and the Allgatherv); another
-method (FILM dense, a user's) runs its correct() between a compiled detection
-and a compiled commit. The rigid body's own prediction and commit (its force
-is a Python callable) are the only Python of a step around them.
+(:mod:`.fused`; under MPI after a compiled pack and the Allgatherv), the rigid
+body's prediction and commit included: only its force functions (Python
+callables) are evaluated around it. Another method (FILM dense, a user's) runs
+its correct() between a compiled detection and a compiled commit, with the
+rigid body in Python (RigidBody.predict and advance, the same arithmetic).
+Every kernel takes the set-up constants dt/m, m/dt and 1/d: no division per
+constraint in a step.
 
 State lives in *slots*: one per contact dof (the lower nodes first, then the
 upper nodes of node pairs) and one more for a rigid upper body. Constraint i
@@ -317,7 +320,11 @@ class ContactSet:
     ``mass`` (kg). Constraint arrays (length n): ``lo``, ``up`` their slots,
     ``b`` the initial gaps (m), ``gap`` the predicted gaps, ``force`` (N) and
     ``active``. ``d`` and ``kappa`` describe S = dt^2 G M^-1 G' = diag(d) +
-    kappa 1 1' (m/N): kappa = dt^2 / m_rigid, 0 for node pairs.
+    kappa 1 1' (m/N): kappa = dt^2 / m_rigid, 0 for node pairs. The committed
+    state of a step is ``u_now``, ``v_now`` (the fused step of a rigid face does
+    not write its nodes' scratch rows u, v, gap and was_active). All are rows of
+    a few packed arrays (``_floats``, ``_ints``, ``_flags``, ``_misc``; layout
+    below and in :mod:`.fused`).
     """
 
     def __init__(self, constraints: Constraints, integrator, method: ContactMethod,

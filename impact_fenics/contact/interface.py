@@ -516,11 +516,10 @@ class ContactSet:
         Penalty, FILM fast and DME: one compiled call (fused.contact_step: the rigid
         body's prediction, take the predicted contact dofs, form the gaps, correct,
         write back, book, commit the rigid body), under MPI after a compiled pack and
-        the Allgatherv. Its time and the copy of the rigid body's state after it are
-        booked as ``solve``; ``detection`` holds the Python before it (the rigid body's
-        external force at t^n, the Allgatherv); ``update`` is 0 (it is in the call).
-        Another method: detection, the method's correct() and the commit as three calls,
-        timed as such."""
+        the Allgatherv. Its time is booked as ``solve``; ``detection`` holds the Python
+        before it (the rigid body's external force at t^n, the Allgatherv) and ``update``
+        the copy of the rigid body's state after it. Another method: detection, the
+        method's correct() and the commit as three calls, timed as such."""
         if self._fused is None:
             self._step_unfused()
             return
@@ -538,15 +537,16 @@ class ContactSet:
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
         t1 = clock()
         u_r, v_r = self._contact_step(*self._fused_call, integ.n == 0, f_ext, f_in)
+        t2 = clock()
         if rigid is not None:
             rigid.u, rigid.v = u_r, v_r
             if rigid.impedance > 0.0:
                 misc = self._misc
                 rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
                     float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
-        t2 = clock()
+        t3 = clock()
         times = self.times
-        times.detection, times.solve, times.update = t1 - t0, t2 - t1, 0.0
+        times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
 
     def _step_unfused(self) -> None:
         """The step of a method outside the fused call: detection, correct(), commit."""

@@ -135,9 +135,9 @@ def part_solvers(ctx) -> dict:
     dt = 1e-8
     out, rows = [], []
     one = np.ones(1)
-    # load (or compile) before the timer calibrates; solve_fast with its index buffer,
-    # as the FILM method calls it
-    solve_fast(-one, one, 0.0, np.empty(1), np.empty(1, np.int64))
+    # load (or compile) before the timer calibrates; solve_fast with its index buffer and
+    # 1/d, set-up constants of a contact set as the FILM method passes them
+    solve_fast(-one, one, 0.0, np.empty(1), np.empty(1, np.int32), one)
     _empty_call(-one, one, 0.0, np.empty(1))
     for n in mode.solver_ns:
         m = rng.uniform(0.5e-4, 1.5e-4, n)
@@ -145,10 +145,12 @@ def part_solvers(ctx) -> dict:
         gap = -1e-9 * rng.uniform(0.0, 1.0, n)
         gap[rng.uniform(size=n) < 0.1] *= -1.0  # some open constraints
         f = np.empty(n)
-        work = np.empty(n, np.int64)
+        work = np.empty(n, np.int32)
+        d_inv = 1.0 / d
         for label, kappa in (("pairs", 0.0), ("rigid", dt ** 2 / 0.1)):
             rec = {"n": n, "case": label,
-                   "fast": ctx.median(lambda: solve_fast(gap, d, kappa, f, work), mode.target / 4)}
+                   "fast": ctx.median(lambda: solve_fast(gap, d, kappa, f, work, d_inv),
+                                         mode.target / 4)}
             if n <= mode.dense_cap:
                 rec["dense"] = ctx.median(lambda: solve_dense(gap, d, kappa, f), mode.target / 4,
                                           max(3, mode.repeats // 2))

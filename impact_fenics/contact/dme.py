@@ -60,8 +60,8 @@ class DME:
             _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.dt, self.e, self.positions == "mass_weighted",
                    c.u, c.v, c.force, c.active)
         else:
-            _cluster(c.gap, c.b, c.lo, c.up[0], c.mass, c.dt, c.u_now, c.u, c.v, c.force, c.active,
-                     c.work)
+            _cluster(c.gap, c.b, c.lo, c.up[0], c.mass, c.m_over_dt, c.dt, c.u_now, c.u, c.v,
+                     c.force, c.active, c.work)
 
 
 @njit(cache=True)
@@ -86,9 +86,9 @@ def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
 
 
 @njit(cache=True)
-def _cluster(gap, b, lo, body, mass, dt, u_now, u, v, force, active, work):
+def _cluster(gap, b, lo, body, mass, m_over_dt, dt, u_now, u, v, force, active, work):
     """Case 1: the largest consistent set of penetrating nodes moves with the body.
-    ``work``: an int64 buffer of length n."""
+    ``m_over_dt``: m / dt per slot (kg/s); ``work``: an int buffer of length n."""
     momentum = mass[body] * v[body]
     total = mass[body]
     v_min = np.inf
@@ -121,13 +121,14 @@ def _cluster(gap, b, lo, body, mass, dt, u_now, u, v, force, active, work):
     u_body = u_now[body] + dt * v_c
     v[body] = v_c
     u[body] = u_body
-    for i in range(gap.size):
-        active[i] = False
-        force[i] = 0.0
+    if k < gap.size:
+        for i in range(gap.size):
+            active[i] = False
+            force[i] = 0.0
     for j in range(k):
         i = order[j]
         node = lo[i]
         active[i] = True
-        force[i] = mass[node] * (v[node] - v_c) / dt
+        force[i] = m_over_dt[node] * (v[node] - v_c)
         v[node] = v_c
         u[node] = u_body + b[i]

@@ -26,32 +26,43 @@ from .interface import apply_forces
 
 
 @njit(cache=True)
-def solve_fast(gap, d, kappa, out, work=None):
+def solve_fast(gap, d, kappa, out, work=None, d_inv=None):
     """Exact forces (N) for S = diag(d) + kappa 1 1' (m/N), in O(n log n) (O(n) when
     every penetrating constraint carries force, the usual case under a punch).
-    ``work``: an int64 buffer of length n (allocated if not given)."""
-    n = gap.size
+    ``work``: an int buffer of length n, ``d_inv``: 1/d (N/m), set-up constants of a
+    contact set (each allocated if not given)."""
     if work is None:
-        work = np.empty(n, np.int64)
+        if d_inv is None:
+            return _solve_fast(gap, 1.0 / d, kappa, out, np.empty(gap.size, np.int64))
+        return _solve_fast(gap, d_inv, kappa, out, np.empty(gap.size, np.int64))
+    if d_inv is None:
+        return _solve_fast(gap, 1.0 / d, kappa, out, work)
+    return _solve_fast(gap, d_inv, kappa, out, work)
+
+
+@njit(cache=True)
+def _solve_fast(gap, d_inv, kappa, out, work):
+    """solve_fast with 1/d (N/m) and the index buffer given."""
+    n = gap.size
     k = 0
+    a = 0.0  # sum of -g~_i / d_i over the candidates
+    w = 0.0  # sum of 1 / d_i over them
+    g_max = -np.inf
     for i in range(n):
+        g = gap[i]
         out[i] = 0.0
-        if gap[i] < 0.0:
-            out[i] = -gap[i] / d[i]  # the answer for kappa = 0
+        if g < 0.0:
+            out[i] = -g * d_inv[i]  # the answer for kappa = 0
             work[k] = i
             k += 1
+            a -= g * d_inv[i]
+            w += d_inv[i]
+            g_max = max(g_max, g)
     if kappa == 0.0 or k == 0:
         return out
     cand = work[:k]
-    a = 0.0
-    w = 0.0
-    g_max = -np.inf
-    for i in cand:
-        a -= gap[i] / d[i]
-        w += 1.0 / d[i]
-        g_max = max(g_max, gap[i])
     if g_max + kappa * a / (1.0 + kappa * w) <= 0.0:  # all candidates carry force
-        return _loaded(gap, d, kappa, cand, out)
+        return _loaded(gap, d_inv, kappa, cand, out)
     # candidate i carries force while F < -g~_i / kappa: sort by that break point
     order = cand[np.argsort(gap[cand], kind="mergesort")]  # allocates: the rare path
     a = 0.0
@@ -59,39 +70,43 @@ def solve_fast(gap, d, kappa, out, work=None):
     m = k
     for j in range(k):
         i = order[j]
-        a -= gap[i] / d[i]
-        w += 1.0 / d[i]
+        a -= gap[i] * d_inv[i]
+        w += d_inv[i]
         total = a / (1.0 + kappa * w)  # F if exactly the first j + 1 carry force
         next_break = -gap[order[j + 1]] / kappa if j + 1 < k else 0.0
         if total >= next_break:  # it leaves the others unloaded: the active set
             m = j + 1
             break
-    return _loaded(gap, d, kappa, order[:m], out)
+    return _loaded(gap, d_inv, kappa, order[:m], out)
 
 
 @njit(cache=True)
-def _loaded(gap, d, kappa, loaded, out):
-    """Forces when exactly the constraints ``loaded`` carry force.
+def _loaded(gap, d_inv, kappa, loaded, out):
+    """Forces when exactly the constraints ``loaded`` carry force (``d_inv`` = 1/d, N/m).
 
     There g~_i + kappa F is a small difference of large numbers (a light body's
-    predicted overshoot). With g~_i = g_ref + delta_i it is evaluated as
-    delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d), without that
-    cancellation."""
+    predicted overshoot). With g~_i = g_ref + delta_i, g_ref their mean, it is evaluated
+    as delta_i + (g_ref - kappa sum delta/d) / (1 + kappa sum 1/d), without that
+    cancellation. sum delta/d is summed in the same pass as g_ref, about the first
+    loaded gap g_0: sum (g~_i - g_0)/d + (g_0 - g_ref) sum 1/d (small terms only)."""
     m = loaded.size
-    g_ref = 0.0
-    for i in loaded:
-        g_ref += gap[i]
-    g_ref /= m
-    s = 0.0
+    g_0 = gap[loaded[0]]
+    g_sum = 0.0
+    s_0 = 0.0
     w = 0.0
     for i in loaded:
-        s += (gap[i] - g_ref) / d[i]
-        w += 1.0 / d[i]
+        g = gap[i]
+        g_sum += g
+        s_0 += (g - g_0) * d_inv[i]
+        w += d_inv[i]
+    g_ref = g_sum / m
+    s = s_0 + (g_0 - g_ref) * w
     base = (g_ref - kappa * s) / (1.0 + kappa * w)
-    for i in range(gap.size):
-        out[i] = 0.0
+    if m < gap.size:
+        for i in range(gap.size):
+            out[i] = 0.0
     for i in loaded:
-        out[i] = max(-(gap[i] - g_ref + base) / d[i], 0.0)
+        out[i] = max(-(gap[i] - g_ref + base) * d_inv[i], 0.0)
     return out
 
 
@@ -136,8 +151,8 @@ class FILM:
 
     def correct(self, c) -> None:
         if self.solver == "fast":
-            _film_fast(c.gap, c.d, c.kappa, c.force, c.active, c.lo, c.up, c.mass, c.dt, c.u, c.v,
-                       c.work)
+            _film_fast(c.gap, c.d, c.d_inv, c.kappa, c.force, c.active, c.lo, c.up, c.dt_over_m,
+                       c.dt, c.u, c.v, c.work)
         else:
             solve_dense(c.gap, c.d, c.kappa, c.force)
             np.greater(c.force, 0.0, out=c.active)
@@ -145,8 +160,9 @@ class FILM:
 
 
 @njit(cache=True)
-def _film_fast(gap, d, kappa, force, active, lo, up, mass, dt, u, v, work):
-    solve_fast(gap, d, kappa, force, work)
+def _film_fast(gap, d, d_inv, kappa, force, active, lo, up, dt_over_m, dt, u, v, work):
+    """solve_fast, then the forces applied (``dt_over_m`` = dt / m per slot, s/kg)."""
+    _solve_fast(gap, d_inv, kappa, force, work)
     for i in range(gap.size):
         active[i] = force[i] > 0.0
-    apply_forces(force, lo, up, mass, dt, u, v)
+    apply_forces(force, lo, up, dt_over_m, dt, u, v)

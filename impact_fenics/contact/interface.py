@@ -13,10 +13,13 @@ then
    constraints, the total force and the smallest gap for the history).
 
 For penalty, FILM fast and DME the three are one compiled call
-(:mod:`.fused`; under MPI after a compiled pack and the Allgatherv); another
-method (FILM dense, a user's) runs its correct() between a compiled detection
-and a compiled commit. The rigid body's own prediction and commit (its force
-is a Python callable) are the only Python of a step around them.
+(:mod:`.fused`; under MPI after a compiled pack and the Allgatherv), the rigid
+body's prediction and commit included: only its force functions (Python
+callables) are evaluated around it. Another method (FILM dense, a user's) runs
+its correct() between a compiled detection and a compiled commit, with the
+rigid body in Python (RigidBody.predict and advance, the same arithmetic).
+Every kernel takes the set-up constants dt/m, m/dt and 1/d: no division per
+constraint in a step.
 
 State lives in *slots*: one per contact dof (the lower nodes first, then the
 upper nodes of node pairs) and one more for a rigid upper body. Constraint i
@@ -136,6 +139,25 @@ class ContactMethod(Protocol):
         """Correct ``c.u``, ``c.v`` in place from the predicted state; set ``c.force``, ``c.active``."""
 
 
+# the set's scalars in one float array (ContactSet._misc), read and written by the fused
+# call: the contact-work ledger (work, activation loss, jumped, grew), the stats of a
+# history row, the rigid body's external work and last force, its rod's wave energies,
+# then the run's constants
+LEDGER, STATS, RIGID_WORK, RIGID_F_PREV, WAVES = 0, 4, 7, 8, 9
+CODE, DT, KAPPA, RESTITUTION, MASS_WEIGHTED, JUMPS, N_DEFORMABLE = 12, 13, 14, 15, 16, 17, 18
+RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL = 19, 20, 21, 22, 23, 24
+MISC_SIZE = 25
+# the rows of ContactSet._floats: per slot, then per constraint (their first n entries)
+U, V, U_PRED, V_PRED, U_NOW, V_NOW, MASS, F_PREV, DT_OVER_M, M_OVER_DT, KU_PREV, JUMP = range(12)
+B, GAP, FORCE, D, D_INV, P = range(12, 18)
+# the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
+# slot where its u and v are in the Allgatherv buffer and its slot (recv_u, recv_v,
+# all_pos: in gathered order), where its predicted u and v are read and the owned dof it
+# is written back to (from_u, from_v, to: in slot order); the owned contact dofs and
+# their slots (local, pos)
+LO, UP, WORK, RECV_U, RECV_V, ALL_POS, FROM_U, FROM_V, TO, LOCAL, POS = range(11)
+
+
 @dataclass
 class PhaseTimes:
     """CPU time (s) of the last step's contact phases."""
@@ -148,15 +170,16 @@ class PhaseTimes:
 # ----------------------------------------------------------------------------- kernels
 
 @njit(cache=True)
-def apply_forces(force, lo, up, mass, dt, u, v):
+def apply_forces(force, lo, up, dt_over_m, dt, u, v):
     """Compressive forces (N) move each lower slot down and each upper slot up:
-    velocities by dt F/m, positions by dt^2 F/m (a rigid slot sums its forces)."""
+    velocities by dt F/m, positions by dt^2 F/m (a rigid slot sums its forces).
+    ``dt_over_m``: dt / m of each slot (s/kg), a set-up constant."""
     for i in range(force.size):
         f = force[i]
         if f != 0.0:
             a, b = lo[i], up[i]
-            dv_a = dt * f / mass[a]
-            dv_b = dt * f / mass[b]
+            dv_a = f * dt_over_m[a]
+            dv_b = f * dt_over_m[b]
             v[a] -= dv_a
             u[a] -= dt * dv_a
             v[b] += dv_b
@@ -218,18 +241,19 @@ def _committed_gap(b, u_now, lo, up, out):
 
 
 @njit(cache=True)
-def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pred, v_pred,
+def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, u_pred, v_pred,
             u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
             force, stats):
     """Write the corrected state back to the owned dofs, then book the contact work
     increment of step n (see _ContactWork) and roll the state to n+1 (one call).
-    Returns the increment (J), whether this step jumped and whether the active set
-    grew; ``stats`` receives (number active, total force (N), smallest committed
-    gap (m))."""
+    ``m_over_dt``: m / dt of each slot (kg/s). Returns the increment (J), whether this
+    step jumped and whether the active set grew; ``stats`` receives (number active,
+    total force (N), smallest committed gap (m))."""
     for k in range(local.size):
         dst_u[local[k]] = u[pos[k]]
         dst_v[local[k]] = v[pos[k]]
-    inc = 0.0
+    inc = 0.0  # the work of the slots' forces,
+    inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
     n_active = 0
     total = 0.0
     jumped_now = False
@@ -241,18 +265,18 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pre
             n_active += 1
             if not was_active[i]:
                 grew = True
-        min_gap = min(min_gap, b[i] + u[up[i]] - u[lo[i]])
-    for k in range(mass.size):
-        f = mass[k] * (v[k] - v_pred[k]) / dt
+        min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
+    for k in range(m_over_dt.size):
+        f = m_over_dt[k] * (v[k] - v_pred[k])
         if not first:
             inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
         f_prev[k] = f
     rolled = 0  # slots already rolled to n+1 (in the jump loop, after their last read)
     if jumps:
         for k in range(n_deformable):
-            ku = -mass[k] * (v_pred[k] - v_now[k]) / dt  # K u^n on this dof
+            ku = -m_over_dt[k] * (v_pred[k] - v_now[k])  # K u^n on this dof
             if jumped:
-                inc += 0.5 * jump[k] * (ku_prev[k] + ku)
+                inc_jump += 0.5 * jump[k] * (ku_prev[k] + ku)
             ku_prev[k] = ku
             jump[k] = u[k] - u_now[k] - dt * v[k]
             if jump[k] != 0.0:
@@ -260,13 +284,13 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, mass, u, v, u_pre
             u_now[k] = u[k]
             v_now[k] = v[k]
         rolled = n_deformable
-    for k in range(rolled, mass.size):
+    for k in range(rolled, m_over_dt.size):
         u_now[k] = u[k]
         v_now[k] = v[k]
     stats[0] = n_active
     stats[1] = total
     stats[2] = min_gap
-    return inc, jumped_now, grew
+    return inc + inc_jump, jumped_now, grew
 
 
 # ----------------------------------------------------------------------------- the set
@@ -296,7 +320,11 @@ class ContactSet:
     ``mass`` (kg). Constraint arrays (length n): ``lo``, ``up`` their slots,
     ``b`` the initial gaps (m), ``gap`` the predicted gaps, ``force`` (N) and
     ``active``. ``d`` and ``kappa`` describe S = dt^2 G M^-1 G' = diag(d) +
-    kappa 1 1' (m/N): kappa = dt^2 / m_rigid, 0 for node pairs.
+    kappa 1 1' (m/N): kappa = dt^2 / m_rigid, 0 for node pairs. The committed
+    state of a step is ``u_now``, ``v_now`` (the fused step of a rigid face does
+    not write its nodes' scratch rows u, v, gap and was_active). All are rows of
+    a few packed arrays (``_floats``, ``_ints``, ``_flags``, ``_misc``; layout
+    below and in :mod:`.fused`).
     """
 
     def __init__(self, constraints: Constraints, integrator, method: ContactMethod,
@@ -318,46 +346,74 @@ class ContactSet:
         self.n_deformable = nd = dofs.size
         self.n_slots = ns = nd + (1 if rigid else 0)
         # the state, packed in a few arrays for the one compiled call of a step (fused.py);
-        # the attributes below are views of their rows
-        self._slots = np.zeros((8, ns))  # u, v, u_pred, v_pred, u_now, v_now, mass, f_prev
-        self._cons = np.zeros((4, n))  # b, gap, force, d
-        self._ints = np.zeros((3, n), dtype=np.int64)  # lo, up, work
+        # the attributes below are views of their rows (layout: fused.py)
+        self._floats = np.zeros((18, ns))  # 12 slot rows, then 6 constraint rows (n <= ns)
+        self._ints = np.zeros((11, nd), dtype=np.int32)  # 3 constraint rows, 8 slot maps
+        self._slots, self._cons = self._floats[:12], self._floats[12:, :n]
         self._flags = np.zeros((2, n), dtype=np.bool_)  # active, was_active
-        self._jumps_state = np.zeros((2, nd))  # ku_prev, jump (_ContactWork)
-        self._ledger_state = np.zeros(4)  # work, activation loss, jumped, grew (_ContactWork)
-        self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.mass = \
-            self._slots[:7]
-        self.b, self.gap, self.force, self.d = self._cons
-        self.lo, self.up, self.work = self._ints  # work: scratch indices for the methods' kernels
+        self._misc = np.zeros(MISC_SIZE)
+        (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.mass,
+         self.f_prev, self.dt_over_m, self.m_over_dt, self.ku_prev, self.jump) = self._slots
+        self.b, self.gap, self.force, self.d, self.d_inv, self.p = self._cons
+        self.lo, self.up, self.work = self._ints[:3, :n]  # work: scratch for the methods' kernels
         self.active, self.was_active = self._flags
         self.b[:] = constraints.b
         self.lo[:] = np.arange(n)
         self.up[:] = nd if rigid else np.arange(n, 2 * n)
         # which slots this rank owns, and where the gathered values go
-        (self._local, self._pos, self._all_pos, self._counts,
-         self._displs) = owned_slots(model, dofs, self.comm)
+        local, pos, all_pos, self._counts, self._displs = owned_slots(model, dofs, self.comm)
+        ints = self._ints
+        ints[LOCAL, :local.size], ints[POS, :local.size] = local, pos
+        self._local, self._pos = ints[LOCAL, :local.size], ints[POS, :local.size]
         counts = self._counts // 2  # slots per rank; each sends (u of them, then v of them)
-        self._recv_u = np.concatenate([s + np.arange(c) for s, c in zip(self._displs, counts)]).astype(np.int64)
-        self._recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(self._displs, counts)]).astype(np.int64)
+        recv_u = np.concatenate([s + np.arange(c) for s, c in zip(self._displs, counts)])
+        recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(self._displs, counts)])
+        # per slot: where its predicted u and v are read (the Allgatherv buffer under MPI,
+        # the owned arrays in serial) and the owned dof it is written back to (-1: another
+        # rank's), for the fused rigid-face pass
+        to = np.full(nd, -1, dtype=np.int32)
+        to[pos] = local
+        from_u, from_v = to.copy(), to.copy()
+        if self.comm.size > 1:
+            from_u[all_pos], from_v[all_pos] = recv_u, recv_v
+        ints[RECV_U:TO + 1] = recv_u, recv_v, all_pos, from_u, from_v, to
+        self._recv_u, self._recv_v, self._all_pos = ints[RECV_U:ALL_POS + 1]
         self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * nd)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
         if rigid:
             self.mass[nd] = self._rigid_slot_mass()
+        self.dt_over_m[:] = self.dt / self.mass
+        self.m_over_dt[:] = self.mass / self.dt
         self.kappa = 0.0 if rigid is None else self.dt ** 2 / self.mass[nd]
         self.d[:] = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
+        self.d_inv[:] = 1.0 / self.d
         self.times = PhaseTimes()
         # after each step: number of active constraints, total contact force (N) and the
         # smallest committed gap (m); a history row copies them from here
-        self.stats = np.array([0.0, 0.0, np.inf])
+        self.stats = self._misc[STATS:STATS + 3]
+        self.stats[:] = 0.0, 0.0, np.inf
         self._gap_out = np.empty(n)
         self.jumps = bool(getattr(method, "jumps", False))
         self._ledger = _ContactWork(self)
         method.setup(self)
         self._fused = self._fused_method()
-        # its arguments, fixed for the run: for the first step (n = 0) and for the others
+        if self._fused is not None:
+            code, p, e, mass_weighted = self._fused
+            self.p[:] = p
+            misc = self._misc
+            misc[CODE], misc[DT], misc[KAPPA], misc[RESTITUTION] = code, self.dt, self.kappa, e
+            misc[MASS_WEIGHTED], misc[JUMPS], misc[N_DEFORMABLE] = mass_weighted, self.jumps, nd
+            misc[N_CONS], misc[N_LOCAL] = n, self._local.size
+            if rigid is not None:
+                misc[RIGID], misc[RIGID_MASS], misc[IMPEDANCE] = 1.0, rigid.mass, rigid.impedance
+                misc[INCIDENT] = rigid.incident is not None
+        # its arguments but the step's own (first, the rigid body's forces), fixed for the run
         self._fused_call = (None if self._fused is None else
-                            (self._fused_args(True), self._fused_args(False)))
+                            (integrator.u_owned, integrator.v_owned,
+                             self._recv if self.comm.size > 1 else np.empty(0), self._floats,
+                             self._ints, self._flags, self._misc))
+        self._gathered = self.comm.size > 1
 
     # ------------------------------------------------------------ gather
     def _gather(self, src_u: np.ndarray, src_v: np.ndarray, u_out: np.ndarray,
@@ -375,7 +431,9 @@ class ContactSet:
         integ = self.integrator
         self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
         if self.rigid is not None:
-            self.u_now[-1], self.v_now[-1] = self.rigid.u, self.rigid.v
+            r = self.rigid
+            self.u_now[-1], self.v_now[-1] = r.u, r.v
+            self._misc[WAVES:WAVES + 3] = r.wave_incident, r.wave_reflected, r.wave_delivered
         self._load_kernels()
 
     def _fused_method(self):
@@ -393,9 +451,9 @@ class ContactSet:
         if type(m) is Penalty:
             return fused.PENALTY, m.p, 0.0, False
         if type(m) is FILM and m.solver == "fast":
-            return fused.FILM_FAST, self.d, 0.0, False
+            return fused.FILM_FAST, 0.0, 0.0, False
         if type(m) is DME:
-            return ((fused.DME_CLUSTER if self.rigid is not None else fused.DME_PAIRS), self.d,
+            return ((fused.DME_CLUSTER if self.rigid is not None else fused.DME_PAIRS), 0.0,
                     m.e, m.positions == "mass_weighted")
         return None
 
@@ -411,12 +469,16 @@ class ContactSet:
         integ = self.integrator
 
         def load(fn, *args):
-            fn.compile(tuple(typeof(a) for a in args))
+            return fn.compile(tuple(typeof(a) for a in args))
 
         load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
         load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
         if self._fused is not None:
-            load(contact_step, *self._fused_args(True))
+            # the step calls the compiled entry point itself: the dispatcher's search by
+            # argument types costs ~0.35 us a call; the entry point still refuses an
+            # array of another type (TypeError), and the arguments are fixed for the run
+            entry = load(contact_step, *self._fused_call, True, 0.0, 0.0)
+            self._contact_step = entry if callable(entry) else contact_step
             return
         slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
                  self.active, self.was_active)
@@ -424,9 +486,10 @@ class ContactSet:
         load(_detect_gathered, self._recv, self._recv_u, self._recv_v, self._all_pos, *slots)
         w = self._ledger
         load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt, True,
-             self.n_deformable, self.mass, self.u, self.v, self.u_pred, self.v_pred, self.u_now,
-             self.v_now, w.f_prev, w.ku_prev, w.jump, self.jumps, w.jumped, self.active,
-             self.was_active, self.b, self.lo, self.up, self.force, self.stats)
+             self.n_deformable, self.m_over_dt, self.u, self.v, self.u_pred, self.v_pred,
+             self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump, self.jumps,
+             w.jumped, self.active, self.was_active, self.b, self.lo, self.up, self.force,
+             self.stats)
         self.u[:], self.v[:] = self.u_now, self.v_now
         self.gap[:] = 1.0  # open: no constraint is active
         self.method.correct(self)
@@ -435,19 +498,11 @@ class ContactSet:
 
     def use_separate_calls(self) -> None:
         """Run the step as detection, the method's correct() and the commit (three compiled
-        calls), as before the fused call: the reference it equals bit for bit, for tests and
-        the benchmark. Call before the run."""
+        calls) with the rigid body's prediction and commit in Python, as before the fused
+        call: the reference it equals bit for bit, for tests and the benchmark. Call
+        before the run."""
         self._fused = None
         self._load_kernels()
-
-    def _fused_args(self, first: bool) -> tuple:
-        """The arguments of fused.contact_step for a step (``first``: the step n = 0)."""
-        integ = self.integrator
-        code, p, e, mass_weighted = self._fused
-        return (code, self.comm.size > 1, integ.u_owned, integ.v_owned, self._local, self._pos,
-                self._recv, self._recv_u, self._recv_v, self._all_pos, self._slots, self._cons,
-                self._ints, self._flags, self._jumps_state, p, self.stats, self._ledger_state,
-                self.dt, self.kappa, e, mass_weighted, first, self.n_deformable, self.jumps)
 
     # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:
@@ -456,19 +511,19 @@ class ContactSet:
 
     def apply_forces(self, force: np.ndarray) -> None:
         """Apply compressive contact forces (N) to the predicted state."""
-        apply_forces(force, self.lo, self.up, self.mass, self.dt, self.u, self.v)
+        apply_forces(force, self.lo, self.up, self.dt_over_m, self.dt, self.u, self.v)
 
     # ------------------------------------------------------------ the step
     def step(self) -> None:
         """Detect, solve and update for the step n -> n+1 (after the integrator's predict).
 
-        Penalty, FILM fast and DME: one compiled call (fused.contact_step: take the
-        predicted contact dofs, form the gaps, correct, write back and book; under MPI
-        after a compiled pack and the Allgatherv), with only the rigid body's prediction
-        and commit in Python around it. Its time is booked as ``solve``; ``detection``
-        and ``update`` hold the Python before and after it (the rigid body, the
-        Allgatherv). Another method: detection, the method's correct() and the commit
-        as three calls, timed as such."""
+        Penalty, FILM fast and DME: one compiled call (fused.contact_step: the rigid
+        body's prediction, take the predicted contact dofs, form the gaps, correct,
+        write back, book, commit the rigid body), under MPI after a compiled pack and
+        the Allgatherv. Its time is booked as ``solve``; ``detection`` holds the Python
+        before it (the rigid body's external force at t^n, the Allgatherv) and ``update``
+        the copy of the rigid body's state after it. Another method: detection, the
+        method's correct() and the commit as three calls, timed as such."""
         if self._fused is None:
             self._step_unfused()
             return
@@ -476,19 +531,23 @@ class ContactSet:
         clock = time.perf_counter
         t0 = clock()
         rigid = self.rigid
-        if rigid is not None:
-            self._predict_rigid(integ.t)
-        if self.comm.size > 1:
+        f_ext = f_in = 0.0
+        if rigid is not None:  # the only Python of the body: its force functions at t^n
+            f_ext = float(rigid.force(integ.t))
+            if rigid.incident is not None:
+                f_in = float(rigid.incident(integ.t))
+        if self._gathered:
             _pack(integ.u_owned, integ.v_owned, self._local, self._send)
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
-        args = self._fused_call[integ.n != 0]
         t1 = clock()
-        self._contact_step(*args)
+        u_r, v_r = self._contact_step(*self._fused_call, integ.n == 0, f_ext, f_in)
         t2 = clock()
-        if rigid is not None:  # its commit and the work of its external force
-            v_n = rigid.v
-            self._rigid_f = rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
-            self._ledger.book_rigid(integ.n, v_n, self._rigid_f)
+        if rigid is not None:
+            rigid.u, rigid.v = u_r, v_r
+            if rigid.impedance > 0.0:
+                misc = self._misc
+                rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
+                    float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
@@ -515,8 +574,8 @@ class ContactSet:
         t2 = clock()
         if self.rigid is not None:  # commit the rigid body first: the booking needs its F^n
             v_n = self.rigid.v
-            self._rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
-            self._ledger.book_rigid(integ.n, v_n, self._rigid_f)
+            rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
+            self._ledger.book_rigid(integ.n, v_n, rigid_f)
         self._ledger.book(integ.n)
         t3 = clock()
         times = self.times
@@ -584,16 +643,13 @@ class _ContactWork:
     1/2 j . K (u^n + u^{n+1}) one step later, when K u^{n+1} on the contact dofs
     is known from the free prediction: K u^n = -m (v~^{n+1} - v^n) / dt there.
     Its arrays are rows of the set's packed state, which the fused call
-    (fused.contact_step) books the same way as :meth:`book`.
+    (fused.contact_step) books the same way as :meth:`book` and :meth:`book_rigid`.
     """
 
     def __init__(self, c: ContactSet):
         self.c = c
-        self.f_prev = c._slots[7]
-        self.ku_prev, self.jump = c._jumps_state
-        self._state = c._ledger_state  # work, activation loss, jumped, grew (0/1)
-        self.rigid_external_work = 0.0
-        self._rigid_f_prev = 0.0
+        self._state = c._misc[LEDGER:LEDGER + 4]  # work, activation loss, jumped, grew (0/1)
+        self._misc = c._misc
 
     @property
     def work(self) -> float:
@@ -607,11 +663,16 @@ class _ContactWork:
     def jumped(self) -> bool:
         return bool(self._state[2])
 
+    @property
+    def rigid_external_work(self) -> float:
+        return float(self._misc[RIGID_WORK])
+
     def book_rigid(self, n_step: int, v_n: float, f: float) -> None:
         """Work (J) of the external force on the rigid body in step n: 1/2 dt v^n (F^{n-1} + F^n)."""
+        misc = self._misc
         if n_step > 0:
-            self.rigid_external_work += 0.5 * self.c.dt * v_n * (self._rigid_f_prev + f)
-        self._rigid_f_prev = f
+            misc[RIGID_WORK] += 0.5 * self.c.dt * v_n * (misc[RIGID_F_PREV] + f)
+        misc[RIGID_F_PREV] = f
 
     def book(self, n_step: int) -> None:
         c = self.c
@@ -619,8 +680,8 @@ class _ContactWork:
         state = self._state
         inc, jumped, grew = _commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
-            c.dt, n_step == 0, c.n_deformable, c.mass, c.u, c.v, c.u_pred, c.v_pred, c.u_now,
-            c.v_now, self.f_prev, self.ku_prev, self.jump, c.jumps, self.jumped, c.active,
+            c.dt, n_step == 0, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
+            c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped, c.active,
             c.was_active, c.b, c.lo, c.up, c.force, c.stats)
         state[0] += inc
         if grew or state[3]:

@@ -122,12 +122,14 @@ class Penalty:
                      "beta_max": beta_max, "beta_bound": STABILITY_BOUND}
 
     def correct(self, c) -> None:
-        _penalty(c.gap, self.p, c.force, c.active, c.lo, c.up, c.mass, c.dt, c.u, c.v)
+        _penalty(c.gap, self.p, c.force, c.active, c.lo, c.up, c.dt_over_m, c.dt, c.u, c.v)
 
 
 @njit(cache=True)
-def _penalty(gap, p, force, active, lo, up, mass, dt, u, v):
+def _penalty(gap, p, force, active, lo, up, dt_over_m, dt, u, v):
+    """force_i = p_i max(0, -g~_i) (N), applied (``dt_over_m`` = dt / m per slot, s/kg)."""
     for i in range(gap.size):
-        active[i] = gap[i] < 0.0
-        force[i] = -p[i] * gap[i] if active[i] else 0.0
-    apply_forces(force, lo, up, mass, dt, u, v)
+        g = gap[i]
+        active[i] = g < 0.0
+        force[i] = -p[i] * g if g < 0.0 else 0.0
+    apply_forces(force, lo, up, dt_over_m, dt, u, v)

@@ -182,7 +182,7 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
                 pt._n, pt._rows = 0, 0
             t = clock()
             for _ in range(rows):
-                sim._history_row(tables, probes)
+                sim._history_row()
                 if pairs:
                     sim._pair_rows()
             samples.append((clock() - t) / rows)

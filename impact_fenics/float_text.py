@@ -27,6 +27,7 @@ from numba import njit
 # x from the smallest subnormal (4.9e-324, q = 340) to the largest double (q = -292)
 Q_MIN, Q_MAX = -300, 345
 MAX_CHARS = 24  # "-1.2345678901234567e-308"
+_TENS = np.array([10 ** i for i in range(18)], dtype=np.int64)
 
 
 def _powers() -> tuple[np.ndarray, np.ndarray]:
@@ -98,9 +99,26 @@ def _scaled(m, e2, q, sig, exp):
 
 
 @njit(cache=True)
-def _put(value_bits, out, pos, sig, exp, pow10, digits):
-    """Write the text of the double with bits ``value_bits`` into out[pos:]; return the
-    new position."""
+def _digits(d, nz, point, out, pos):
+    """The nz digits of d into out[pos:], with a '.' after the first ``point`` of them if
+    any follow; returns the new position."""
+    end = pos + nz + (1 if point < nz else 0)
+    p = end
+    ten = np.uint64(10)
+    for i in range(nz - 1, -1, -1):
+        p -= 1
+        out[p] = 48 + np.int64(d % ten)
+        d //= ten
+        if i == point and point < nz:
+            p -= 1
+            out[p] = 46
+    return end
+
+
+@njit(cache=True)
+def _put(x, value_bits, out, pos, sig, exp, pow10):
+    """Write the text of the double ``x`` (its bits ``value_bits``) into out[pos:]; return
+    the new position."""
     neg = (value_bits >> np.uint64(63)) != np.uint64(0)
     biased = np.int64((value_bits >> np.uint64(52)) & np.uint64(0x7FF))
     frac = value_bits & np.uint64(0xFFFFFFFFFFFFF)
@@ -116,17 +134,22 @@ def _put(value_bits, out, pos, sig, exp, pow10, digits):
     if neg:
         out[pos] = 45  # '-'
         pos += 1
-    if biased == 0 and frac == np.uint64(0):
-        out[pos] = 48
-        return pos + 1
+        x = -x
+    if x < 1e16 and x == math.floor(x):  # an integer (0 too): its digits, exact
+        i = np.int64(x)
+        n = 1
+        while n < 17 and i >= _TENS[n]:
+            n += 1
+        for j in range(n - 1, -1, -1):
+            out[pos + j] = 48 + i % 10
+            i //= 10
+        return pos + n
     if biased == 0:
-        m, e2 = frac, np.int64(-1074)
+        m, e2, b = frac, np.int64(-1074), np.int64(math.frexp(x)[1])
     else:
-        m, e2 = frac | np.uint64(1 << 52), biased - 1075
-    x = math.ldexp(float(m), e2)  # |value| (2.0 ** e2 underflows below 2^-1022 here)
-    # k = floor(log10 x): from the binary exponent (x in [2^(b-1), 2^b) gives k_est or
-    # k_est + 1), one comparison with a power of ten, and a retry if that rounded wrong
-    b = math.frexp(x)[1]
+        m, e2, b = frac | np.uint64(1 << 52), biased - 1075, biased - 1022
+    # k = floor(log10 x): x in [2^(b-1), 2^b) gives k_est or k_est + 1; one comparison
+    # with a (rounded) power of ten, then the exact check below
     k = np.int64(math.floor((b - 1) * 0.30102999566398120))
     if x >= pow10[k - P10_MIN + 1]:
         k += 1
@@ -144,46 +167,28 @@ def _put(value_bits, out, pos, sig, exp, pow10, digits):
     if d == hi17:
         k += 1
         d = lo17
-    # 17 digits: the first, then 8 pairs
-    hundred = np.uint64(100)
-    for i in range(8):
-        r = np.int64(d % hundred)
-        d //= hundred
-        digits[16 - 2 * i] = r % 10
-        digits[15 - 2 * i] = r // 10
-    digits[0] = np.int64(d)
+    # drop the trailing zeros: d keeps its nz significant digits
+    ten = np.uint64(10)
     nz = 17
-    while nz > 1 and digits[nz - 1] == 0:
+    while d % ten == np.uint64(0):
+        d //= ten
         nz -= 1
     if -4 <= k < 17:
         if k >= 0:
-            for i in range(k + 1):
-                out[pos] = 48 + digits[i]
-                pos += 1
-            if nz > k + 1:
-                out[pos] = 46
-                pos += 1
-                for i in range(k + 1, nz):
-                    out[pos] = 48 + digits[i]
+            if nz <= k + 1:  # an integer part only, zeros after the digits
+                pos = _digits(d, nz, nz, out, pos)
+                for i in range(k + 1 - nz):
+                    out[pos] = 48
                     pos += 1
-        else:
-            out[pos], out[pos + 1] = 48, 46  # "0."
-            pos += 2
-            for i in range(-k - 1):
-                out[pos] = 48
-                pos += 1
-            for i in range(nz):
-                out[pos] = 48 + digits[i]
-                pos += 1
-        return pos
-    out[pos] = 48 + digits[0]
-    pos += 1
-    if nz > 1:
-        out[pos] = 46
-        pos += 1
-        for i in range(1, nz):
-            out[pos] = 48 + digits[i]
+                return pos
+            return _digits(d, nz, k + 1, out, pos)
+        out[pos], out[pos + 1] = 48, 46  # "0."
+        pos += 2
+        for i in range(-k - 1):
+            out[pos] = 48
             pos += 1
+        return _digits(d, nz, nz, out, pos)
+    pos = _digits(d, nz, 1, out, pos)
     out[pos] = 101  # 'e'
     out[pos + 1] = 45 if k < 0 else 43
     pos += 2
@@ -197,17 +202,16 @@ def _put(value_bits, out, pos, sig, exp, pow10, digits):
 
 
 @njit(cache=True)
-def _rows(bits, out, sig, exp, pow10):
-    """CSV text of the rows of ``bits`` (float64 bits, rows x columns) into ``out``;
-    returns the number of bytes."""
-    digits = np.zeros(17, dtype=np.int64)
+def _rows(values, bits, out, sig, exp, pow10):
+    """CSV text of the rows of ``values`` (rows x columns; ``bits`` the same memory as
+    uint64) into ``out``; returns the number of bytes."""
     pos = 0
     for i in range(bits.shape[0]):
         for j in range(bits.shape[1]):
             if j:
                 out[pos] = 44  # ','
                 pos += 1
-            pos = _put(bits[i, j], out, pos, sig, exp, pow10, digits)
+            pos = _put(values[i, j], bits[i, j], out, pos, sig, exp, pow10)
         out[pos] = 10  # '\n'
         pos += 1
     return pos
@@ -223,7 +227,7 @@ def format_rows(values: np.ndarray, out: np.ndarray) -> memoryview:
     array, written into the byte buffer ``out`` (see :func:`buffer_for`); returns a view
     of the bytes written."""
     values = np.ascontiguousarray(values, dtype=np.float64)
-    n = _rows(values.view(np.uint64), out, POW_SIG, POW_EXP, POW10)
+    n = _rows(values, values.view(np.uint64), out, POW_SIG, POW_EXP, POW10)
     return memoryview(out)[:n]
 
 

@@ -15,6 +15,7 @@ from typing import Sequence
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from . import float_text
 
@@ -152,6 +153,17 @@ class Table:
         return {c: raw[:, k].copy() for k, c in enumerate(self.columns)}
 
 
+@njit(cache=True)
+def _pair_row(clock, state, k, step, t, gap, force, active) -> None:
+    """Row k of the per-pair block: (step, time) and the gaps, forces and active flags."""
+    clock[k, 0] = step
+    clock[k, 1] = t
+    for i in range(gap.size):
+        state[k, 0, i] = gap[i]
+        state[k, 1, i] = force[i]
+        state[k, 2, i] = 1.0 if active[i] else 0.0
+
+
 class PairHistory:
     """Per-pair gap (m), contact force (N) and active flag at every history row, in HDF5
     (``contact_pairs.h5``: ``clock`` (rows x 2: step, time in s), ``r`` (pairs, m) and
@@ -180,18 +192,18 @@ class PairHistory:
                                                chunks=(min(capacity, 64),) + arr.shape[1:])
                         for name, arr in (("clock", self._clock), ("state", self._state))]
 
+    def prepare(self, gap: np.ndarray, force: np.ndarray, active: np.ndarray) -> None:
+        """Load the compiled row copy for these arrays' types now (set-up), not in a step;
+        it writes nothing that a first :meth:`record` does not overwrite."""
+        if self._f is not None:
+            _pair_row(self._clock, self._state, 0, 0, 0.0, gap, force, active)
+
     def record(self, step: int, t: float, gap: np.ndarray, force: np.ndarray,
                active: np.ndarray) -> None:
         """One row: the committed gaps (m), forces (N) and active flags of step ``step``."""
         if self._f is None:
             return
-        k = self._n
-        self._clock[k, 0] = step
-        self._clock[k, 1] = t
-        state = self._state[k]
-        state[0] = gap
-        state[1] = force
-        state[2] = active
+        _pair_row(self._clock, self._state, self._n, step, t, gap, force, active)
         self._n += 1
         if self._n == self._clock.shape[0]:
             self.flush()

@@ -24,6 +24,7 @@ from .cell_fields import (STRESS_NAMES, isotropic_stiffness, stiffness_matrix, s
                           triangle_strain)
 from .compat import cell_dofs, colliding_cells
 from .errors import InputError
+from .jit_watch import direct
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
 QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES
@@ -188,9 +189,10 @@ class Probes:
 
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
         """``record(offset)``: what :meth:`record` writes, into block[offset:] (a flat block
-        of rows), for the u_owned of the run; one compiled call without plastic probe
-        cells (~0.3 us)."""
-        fill = functools.partial(_record_at, u_owned, self._index, block)
+        of rows; ``offset`` a Python int), for the u_owned of the run; one compiled call
+        without plastic probe cells (~0.25 us)."""
+        fill = functools.partial(direct(_record_at, u_owned, self._index, block, 0),
+                                 u_owned, self._index, block)
         if not self._plastic:
             return fill
         plastic = self._plastic

@@ -643,6 +643,7 @@ class Simulation:
                     path(name), c.r, comm, rows=self.n_steps // self.settings.pairs_every + 2)
                 if comm.rank == 0:
                     self._pair_tables.append((c, tables[f"pairs{k}"]))
+                    tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active)
         return tables
 
     def _momentum_columns(self) -> list[str]:

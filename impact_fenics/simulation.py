@@ -291,7 +291,7 @@ class Simulation:
         history_row, linear = self._history_row, not integ.nonlinear
         rows = times.rows if times is not None else None
         rows_end = times.rows_end if times is not None else 0
-        pos = 0  # offset of this step's phase times in rows
+        pos, n_phases = 0, len(PHASES)  # offset of this step's phase times in rows
         progress_due = progress.due
         signal_state = interrupts.STATE
         clock = time.perf_counter
@@ -334,10 +334,9 @@ class Simulation:
                     if not math.isfinite(body.v):
                         self._runaway(n, f"the rigid body '{body.name}' moves at {body.v} m/s")
                 if event:
-                    if is_check:
+                    if is_check and v_check.exceeds(runaway):
                         v_max = v_check.norm_inf()
-                        if not v_max <= runaway:
-                            self._runaway(n, f"a node moves at {v_max:.4g} m/s")
+                        self._runaway(n, f"a node moves at {v_max:.4g} m/s")
                     if is_output:
                         row = self._post_output(pre, buf, ledger, load_work)
                         max_bal = max(max_bal, row["balance_error_rel"])
@@ -353,7 +352,7 @@ class Simulation:
                     if is_fields:
                         self._write_fields(writer)
                 t5 = clock()
-                if rows is not None:
+                if rows is not None:  # this step's times of PHASES, in their order
                     detection = solve = update = 0.0
                     for ct in contact_times:
                         detection += ct.detection
@@ -365,7 +364,7 @@ class Simulation:
                     rows[pos + 3] = update
                     rows[pos + 4] = t4 - t3
                     rows[pos + 5] = t5 - t4
-                    pos += 6
+                    pos += n_phases
                     if pos == rows_end:
                         times.book(pos)
                         pos = 0
@@ -373,8 +372,11 @@ class Simulation:
                     progress_due = progress.update(n + 1)
                 # the flag every step; under MPI the ranks agree every AGREE_EVERY steps
                 # and after the last one (a signal in the last steps is never lost)
-                if (signal_state.signum != 0) if serial else (
-                        event and is_agree and stop.collective(comm)):
+                if serial:
+                    caught = signal_state.signum != 0
+                else:
+                    caught = is_agree and stop.collective(comm)
+                if caught:
                     stop.collective(comm)  # names the signal (serial: no communication)
                     self.status = f"interrupted by {stop.name}"
                     stopped_at = n + 1
@@ -906,14 +908,26 @@ class _StopFlag:
 class _OwnedVec:
     """The largest speed max_i |v_i| over the owned entries of a numpy array on every rank,
     NaN on every rank if any rank holds a NaN (collective; no allocation: one scratch
-    array and one two-value reduction). Read from the array itself, so it sees every
-    write. Not PETSc's NORM_INFINITY: with MPICH (the wheels) its MPI_MAX drops a NaN
-    on some ranks, so the ranks would disagree about a runaway and hang."""
+    array and one two-value reduction), and the cheaper check whether any speed exceeds
+    a limit (or is NaN): one compiled pass and a one-value reduction. Read from the
+    array itself, so it sees every write. Not PETSc's NORM_INFINITY: with MPICH (the
+    wheels) its MPI_MAX drops a NaN on some ranks, so the ranks would disagree about a
+    runaway and hang."""
 
     def __init__(self, array: np.ndarray, comm: MPI.Comm):
         self._array, self._comm = array, comm
         self._abs = np.empty_like(array)
         self._buf = np.zeros(2)  # (largest |v|, 1 if a NaN)
+        self._count = np.zeros(1)
+        _count_beyond(array, np.inf)  # loaded now, not in a step
+
+    def exceeds(self, limit: float) -> bool:
+        """Does any |v_i| on any rank exceed ``limit`` or is it NaN? (the same answer on
+        every rank; about half the time of :meth:`norm_inf`)"""
+        self._count[0] = _count_beyond(self._array, limit)
+        if self._comm.size > 1:
+            self._comm.Allreduce(MPI.IN_PLACE, self._count, op=MPI.MAX)
+        return self._count[0] > 0
 
     def norm_inf(self) -> float:
         np.abs(self._array, out=self._abs)
@@ -926,6 +940,15 @@ class _OwnedVec:
 
     def destroy(self) -> None:
         pass
+
+
+@njit(cache=True)
+def _count_beyond(values, limit) -> int:
+    """The number of entries with |value| > limit or NaN (a branch-free pass)."""
+    count = 0
+    for x in values:
+        count += not (abs(x) <= limit)
+    return count
 
 
 class _Progress:

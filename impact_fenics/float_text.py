@@ -40,15 +40,11 @@ def _powers() -> tuple[np.ndarray, np.ndarray]:
             c = (v + (1 << (b - 1))) >> b if b > 0 else v << -b
         else:
             d = 10 ** -q
-            b = -(d.bit_length() + 64)  # 2^-b / d in [2^63, 2^64]
-            num = 1 << -b
-            c = (2 * num + d) // (2 * d)
-        if c >= 1 << 64:  # rounding carried into a 65th bit
+            b = -(d.bit_length() + 63)  # 2^-b / d in (2^63, 2^64), rounded to nearest
+            c = ((1 << (1 - b)) + d) // (2 * d)
+        if c == 1 << 64:  # rounded up to 2^64: exactly 2^63 x 2
             c >>= 1
             b += 1
-        while c < 1 << 63:
-            c <<= 1
-            b -= 1
         sig[i], exp[i] = c, b
     return sig, exp
 

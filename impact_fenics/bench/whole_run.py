@@ -269,8 +269,8 @@ HEADERS = ["scene", "steps", "loop (s)", "median step (us)", "MatMult (us)",
            "wall/(n x step)", "wall/(n x MatMult)", "set-up (s): mesh, sim, run"]
 
 
-BEYOND_HEADERS = ["scene", "f_int", "contact", "history", "output", "rest", "compiled in loop",
-                  "stability", "operators", "contact set-up", "outputs"]
+BEYOND_HEADERS = ["scene", "f_int", "contact", "history", "output", "rest", "rest/step (us)",
+                  "compiled in loop", "stability", "operators", "contact set-up", "outputs"]
 
 
 def _beyond_row(r: dict) -> list:
@@ -279,7 +279,7 @@ def _beyond_row(r: dict) -> list:
     return [r["scene"]] + [f"{1e3 * v:.1f}" for v in (b.get("f_int", 0.0), contact,
                                                       b.get("history", 0.0), b.get("output", 0.0),
                                                       b["rest"])] + \
-        [", ".join(r["compiled_in_loop"] or []) or "none"] + \
+        [f"{1e6 * b['rest'] / r['n_steps']:.2f}", ", ".join(r["compiled_in_loop"] or []) or "none"] + \
         [f"{s.get(k, 0.0):.2f}" for k in ("stability", "operators", "contact", "outputs")]
 
 

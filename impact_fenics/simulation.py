@@ -634,7 +634,6 @@ class Simulation:
                                           summed=n_raw, finish=finish),
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
                                          + self._momentum_columns(), comm, 16)}
-        self._history_offset = n_raw
         self._history_row = self._history_filler(tables["history"], probes, n_raw)
         # per-pair rows (rank 0 writes them): every pairs_every steps and after the last
         self._pair_tables = []

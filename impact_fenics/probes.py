@@ -14,6 +14,8 @@ D (eps - eps_p) with the elastic D.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from mpi4py import MPI
 from numba import njit
@@ -22,6 +24,7 @@ from .cell_fields import (STRESS_NAMES, isotropic_stiffness, stiffness_matrix, s
                           triangle_strain)
 from .compat import cell_dofs, colliding_cells
 from .errors import InputError
+from .jit_watch import direct
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
 QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES
@@ -65,6 +68,14 @@ def _record(u_owned, index, row) -> None:
     for k in range(index.size):
         if index[k] >= 0:
             row[k] = u_owned[index[k]]
+
+
+@njit(cache=True)
+def _record_at(u_owned, index, block, offset) -> None:
+    """block[offset + k] = u_owned[index[k]] for the dofs this rank owns (index >= 0)."""
+    for k in range(index.size):
+        if index[k] >= 0:
+            block[offset + k] = u_owned[index[k]]
 
 
 @njit(cache=True)
@@ -163,6 +174,7 @@ class Probes:
         self._index = index.ravel()
         # load the compiled calls now, not in the first timed step
         self.record(np.zeros(model.n_owned), np.zeros(self.n_raw))
+        self.recorder(np.zeros(model.n_owned), np.zeros(self.n_raw))(0)
         self.values(np.zeros((1, self.n_raw)))
         # and with ``out`` a column slice of a wider block, as a history table passes it
         # (two rows and a column either side: a view numpy does not call contiguous)
@@ -174,6 +186,22 @@ class Probes:
         _record(u_owned, self._index, row)
         for qs, pos, start in self._plastic:
             _record_plastic(qs.eps_p, qs.state, pos, row, start)
+
+    def recorder(self, u_owned: np.ndarray, block: np.ndarray):
+        """``record(offset)``: what :meth:`record` writes, into block[offset:] (a flat block
+        of rows; ``offset`` a Python int), for the u_owned of the run; one compiled call
+        without plastic probe cells (~0.25 us)."""
+        fill = functools.partial(direct(_record_at, u_owned, self._index, block, 0),
+                                 u_owned, self._index, block)
+        if not self._plastic:
+            return fill
+        plastic = self._plastic
+
+        def record(offset: int) -> None:
+            fill(offset)
+            for qs, pos, start in plastic:
+                _record_plastic(qs.eps_p, qs.state, pos, block, offset + start)
+        return record
 
     def values(self, raw: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Probe values (rows x probes) of summed raw rows (rows x n_raw)."""

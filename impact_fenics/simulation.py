@@ -244,7 +244,6 @@ class Simulation:
         self.history = tables["history"]
         self.energy = tables["energy"]
         self._v_start = self._mean_velocities()
-        pairs_tables = bool(self._pair_tables)
         # the set-up made many Python objects (forms, compiled kernels): collect them now
         # and keep them out of later collections, so no collection of them lands in a step
         gc.collect()
@@ -262,89 +261,128 @@ class Simulation:
         runaway = self._runaway_speed()
         v_check = _OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
-        serial = comm.size == 1
-        track = {"max_penetration": 0.0, "first_contact": None, "last_contact": None,
-                 "contact_steps": 0, "reversals": 0, "gain": 0.0, "budget": 0.0,
-                 "penalty": [k for k, c in enumerate(self.contacts) if c.method.name == "penalty"],
-                 "n_prev": [0] * len(self.contacts), "d_prev": [0] * len(self.contacts)}
+        track = _ContactTrack(self.contacts)
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
         stopped_at = n_steps
+        # The common step is short: the schedules are step counters (the next step of
+        # each, see _Schedule), locals stand for attributes, the phase times go through
+        # a memoryview into the timers' block (booked by one compiled call per block),
+        # progress is looked at only when a line may be due, the signal flag is one
+        # attribute. Everything else happens on the steps an event is due.
+        last = n_steps - 1
+        output_at = _Schedule(0, s.output_every, last)  # energy rows (and their history rows)
+        fields_at = (_Schedule(s.output_every - 1, s.output_every, last)  # state n + 1 written
+                     if writer is not None else _Schedule.never(last))
+        pairs_at = _Schedule(0, s.pairs_every, last) if self._pair_tables else _Schedule.never(last)
+        check_at = _Schedule(DIVERGENCE_EVERY - 1, DIVERGENCE_EVERY, last)
+        serial = comm.size == 1
+        agree_at = (_Schedule.never(last) if serial else
+                    _Schedule(interrupts.AGREE_EVERY - 1, interrupts.AGREE_EVERY, last))
+        history_every = s.history_every
+        next_history = 0
+        next_event = min(output_at.next, fields_at.next, pairs_at.next, check_at.next, agree_at.next)
+        is_output = is_fields = is_pairs = is_check = is_agree = event = False
+        step_contacts = [c.step for c in self.contacts]
+        contact_times = [c.times for c in self.contacts]
+        track_step = track.step if self.contacts else None
+        accumulate = load_work.accumulate if self.loads else None
+        predict, advance = integ.predict, integ.advance
+        history_row, linear = self._history_row, not integ.nonlinear
+        rows = times.rows if times is not None else None
+        rows_end = times.rows_end if times is not None else 0
+        pos, n_phases = 0, len(PHASES)  # offset of this step's phase times in rows
+        progress_due = progress.due
+        signal_state = interrupts.STATE
         clock = time.perf_counter
         jit_before = signature_counts()
         t_run = clock()
         try:
             for n in range(n_steps):
-                is_output = (n % s.output_every == 0) or (n == n_steps - 1)
-                is_history = (n % s.history_every == 0) or is_output
-                is_pairs = pairs_tables and ((n % s.pairs_every == 0) or n == n_steps - 1)
-                is_fields = writer is not None and ((n + 1) % s.output_every == 0
-                                                    or n + 1 == n_steps)
+                if n == next_event:
+                    is_output, is_fields = output_at.due(n), fields_at.due(n)
+                    is_pairs, is_check, is_agree = pairs_at.due(n), check_at.due(n), agree_at.due(n)
+                    next_event = min(output_at.next, fields_at.next, pairs_at.next, check_at.next,
+                                     agree_at.next)
+                    event = True
+                elif event:  # the step after an event: none due
+                    is_output = is_fields = is_pairs = is_check = is_agree = event = False
+                is_history = n == next_history or is_output
+                if n == next_history:
+                    next_history += history_every
                 t0 = clock()
                 if is_output:
                     pre = self._pre_output(buf, Ku)
-                load_work.accumulate(integ)
-                integ.predict()
-                if is_output and not integ.nonlinear:
+                if accumulate is not None:
+                    accumulate(integ)
+                predict()
+                if is_output and linear:
                     self._internal_force_from_prediction(buf)
                 t1 = clock()
-                for c in self.contacts:
-                    c.step()
-                self._track_contact(track, n)
-                integ.advance()
+                for step in step_contacts:
+                    step()
+                if track_step is not None:
+                    track_step(n)
+                advance()
                 t3 = clock()
                 if is_history:
-                    self._history_row(tables, probes)
+                    history_row()
                 if is_pairs:
                     self._pair_rows()
                 t4 = clock()
                 for body in rigid:
                     if not math.isfinite(body.v):
                         self._runaway(n, f"the rigid body '{body.name}' moves at {body.v} m/s")
-                if n % DIVERGENCE_EVERY == DIVERGENCE_EVERY - 1 or n == n_steps - 1:
-                    v_max = v_check.norm_inf()
-                    if not v_max <= runaway:
+                if event:
+                    if is_check and v_check.exceeds(runaway):
+                        v_max = v_check.norm_inf()
                         self._runaway(n, f"a node moves at {v_max:.4g} m/s")
-                if is_output:
-                    row = self._post_output(pre, buf, ledger, load_work)
-                    max_bal = max(max_bal, row["balance_error_rel"])
-                    last_energy = row
-                    if track["penalty"]:
-                        track["budget"] = max(track["budget"], abs(ledger.E0 or 0.0),
-                                              abs(row["external_work"]))
-                        if track["first_contact"] is not None and not any(
-                                c.any_active for c in self.contacts):  # springs all released
-                            track["gain"] = max(track["gain"], row["contact_work"])
-                    tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
-                    self._check_stability(row, ledger, n)
-                if is_fields:
-                    self._write_fields(writer)
+                    if is_output:
+                        row = self._post_output(pre, buf, ledger, load_work)
+                        max_bal = max(max_bal, row["balance_error_rel"])
+                        last_energy = row
+                        if track.penalty:
+                            track.budget = max(track.budget, abs(ledger.E0 or 0.0),
+                                               abs(row["external_work"]))
+                            if track.first is not None and not any(
+                                    c.any_active for c in self.contacts):  # springs all released
+                                track.gain = max(track.gain, row["contact_work"])
+                        tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
+                        self._check_stability(row, ledger, n)
+                    if is_fields:
+                        self._write_fields(writer)
                 t5 = clock()
-                if times is not None:
-                    now = times.current
-                    now[0] = t1 - t0
-                    for c in self.contacts:
-                        now[1] += c.times.detection
-                        now[2] += c.times.solve
-                        now[3] += c.times.update
-                    now[4] = t4 - t3
-                    now[5] = t5 - t4
-                    times.record()
-                progress.update(n + 1)
+                if rows is not None:  # this step's times of PHASES, in their order
+                    detection = solve = update = 0.0
+                    for ct in contact_times:
+                        detection += ct.detection
+                        solve += ct.solve
+                        update += ct.update
+                    rows[pos] = t1 - t0
+                    rows[pos + 1] = detection
+                    rows[pos + 2] = solve
+                    rows[pos + 3] = update
+                    rows[pos + 4] = t4 - t3
+                    rows[pos + 5] = t5 - t4
+                    pos += n_phases
+                    if pos == rows_end:
+                        times.book(pos)
+                        pos = 0
+                if n + 1 >= progress_due:
+                    progress_due = progress.update(n + 1)
                 # the flag every step; under MPI the ranks agree every AGREE_EVERY steps
                 # and after the last one (a signal in the last steps is never lost)
                 if serial:
-                    caught = interrupts.STATE.signum != 0
+                    caught = signal_state.signum != 0
                 else:
-                    caught = (((n + 1) % interrupts.AGREE_EVERY == 0 or n + 1 == n_steps)
-                              and stop.collective(comm))
+                    caught = is_agree and stop.collective(comm)
                 if caught:
                     stop.collective(comm)  # names the signal (serial: no communication)
                     self.status = f"interrupted by {stop.name}"
                     stopped_at = n + 1
                     break
             else:
-                self.status = "completed" + self._penalty_trouble(track)
+                self.status = "completed" + self._penalty_trouble(track.as_dict())
         except UnstableRunError as exc:
             self.status = "diverged"
             stopped_at = integ.n
@@ -353,9 +391,11 @@ class Simulation:
             stop.restore()
             raise
         finally:
+            wall = clock() - t_run
+            if times is not None:
+                times.book(pos)  # the steps of the last, partial block
             gc.unfreeze()
             progress.done()
-            wall = clock() - t_run
             # kernels compiled inside the loop (a signature not loaded at set-up): none
             self.compiled_in_loop = gained(jit_before, signature_counts())
             v_check.destroy()
@@ -365,7 +405,8 @@ class Simulation:
                 writer.close()
         try:
             comm.barrier()  # every table is on disk: any rank may read it back
-            summary = self._summary(times, stopped_at, wall, last_energy, max_bal, track)
+            summary = self._summary(times, stopped_at, wall, last_energy, max_bal,
+                                    track.as_dict())
             self.summary = summary
             if extra is not None and self.status.startswith("completed"):
                 summary.update(extra(self))
@@ -510,30 +551,6 @@ class Simulation:
         return (f"run diverged at step {n} (t = {n * self.settings.dt:.6g} s): {what}; "
                 f"dt = {self.settings.dt:.4g} s, stable dt <= {self.dt_critical:.4g} s{extra}")
 
-    def _track_contact(self, track: dict, n: int) -> None:
-        """Largest committed penetration (m), the first and last steps with contact, and
-        the reversals of the number of active penalty constraints (chatter)."""
-        touching = False
-        for c in self.contacts:
-            st = c.stats  # (number active, total force, smallest gap)
-            if -st[2] > track["max_penetration"]:
-                track["max_penetration"] = float(-st[2])
-            if st[0] > 0:
-                touching = True
-        if touching:
-            if track["first_contact"] is None:
-                track["first_contact"] = n
-            track["last_contact"] = n
-            track["contact_steps"] += 1
-        for k in track["penalty"]:  # reversals of the number of active penalty constraints
-            n_active = int(self.contacts[k].stats[0])
-            d = n_active - track["n_prev"][k]
-            if d * track["d_prev"][k] < 0:
-                track["reversals"] += 1
-            track["n_prev"][k] = n_active
-            if d:
-                track["d_prev"][k] = d
-
     # ------------------------------------------------------------ outputs
     def cell_fields(self) -> dict[str, np.ndarray]:
         """The plastic cell fields now, {name: values over this rank's owned cells}:
@@ -617,13 +634,7 @@ class Simulation:
                                           summed=n_raw, finish=finish),
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
                                          + self._momentum_columns(), comm, 16)}
-        self._history_offset = n_raw
-        # per contact: its set, the raw column of its first entry, its rigid body, pair table
-        # per contact: its set, the raw column of its first entry, its rigid body
-        self._history_layout, k = [], n_raw + 2
-        for i, c in enumerate(self.contacts):
-            self._history_layout.append((c, k, c.rigid))
-            k += 6 + (2 if c.rigid is not None else 0)
+        self._history_row = self._history_filler(tables["history"], probes, n_raw)
         # per-pair rows (rank 0 writes them): every pairs_every steps and after the last
         self._pair_tables = []
         for k, c in enumerate(self.contacts):
@@ -633,34 +644,48 @@ class Simulation:
                     path(name), c.r, comm, rows=self.n_steps // self.settings.pairs_every + 2)
                 if comm.rank == 0:
                     self._pair_tables.append((c, tables[f"pairs{k}"]))
+                    tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active)
         return tables
 
     def _momentum_columns(self) -> list[str]:
         names = list(self._body_z) + [c.rigid.name for c in self.contacts if c.rigid is not None]
         return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
 
-    def _history_row(self, tables, probes) -> None:
-        """One history row of the state after the step (step integ.n): no communication,
-        no allocation."""
-        integ = self.integrator
-        n = integ.n
-        t = n * self.settings.dt
-        row = tables["history"].row()
-        if probes is not None:
-            probes.record(integ.u_owned, row)
-        k = self._history_offset
-        row[k] = n
-        row[k + 1] = t
-        for c, k, rigid in self._history_layout:
-            row[k: k + 3] = c.stats
-            if rigid is not None:
-                row[k + 3] = rigid.u
-                row[k + 4] = rigid.v
-                k += 2
-            times = c.times
-            row[k + 3] = times.detection
-            row[k + 4] = times.solve
-            row[k + 5] = times.update
+    def _history_filler(self, table: output.Table, probes, offset: int):
+        """``history_row()``: one history row of the state after the step (step integ.n) into
+        ``table``'s block through its memoryview: no communication, no allocation, what
+        it reads bound as locals (about 1 us a row with a probe and a contact set)."""
+        integ, dt = self.integrator, self.settings.dt
+        next_row, cells = table.next_row, table.cells
+        record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
+        # per contact: its stats (number active, total force, smallest gap; updated in place
+        # by its step), its phase times, its rigid body and its first raw column
+        layout, k = [], offset + 2
+        for c in self.contacts:
+            layout.append((memoryview(c.stats), c.times, c.rigid, k))
+            k += 6 + (2 if c.rigid is not None else 0)
+
+        def history_row() -> None:
+            j = next_row()
+            if record is not None:
+                record(j)
+            n = integ.n
+            k = j + offset
+            cells[k] = float(n)
+            cells[k + 1] = n * dt
+            for stats, times, rigid, k in layout:
+                k += j
+                cells[k] = stats[0]
+                cells[k + 1] = stats[1]
+                cells[k + 2] = stats[2]
+                if rigid is not None:
+                    cells[k + 3] = rigid.u
+                    cells[k + 4] = rigid.v
+                    k += 2
+                cells[k + 3] = times.detection
+                cells[k + 4] = times.solve
+                cells[k + 5] = times.update
+        return history_row
 
     def _pair_rows(self) -> None:
         """One per-pair row of every contact set (rank 0; the state of step integ.n): the
@@ -882,14 +907,26 @@ class _StopFlag:
 class _OwnedVec:
     """The largest speed max_i |v_i| over the owned entries of a numpy array on every rank,
     NaN on every rank if any rank holds a NaN (collective; no allocation: one scratch
-    array and one two-value reduction). Read from the array itself, so it sees every
-    write. Not PETSc's NORM_INFINITY: with MPICH (the wheels) its MPI_MAX drops a NaN
-    on some ranks, so the ranks would disagree about a runaway and hang."""
+    array and one two-value reduction), and the cheaper check whether any speed exceeds
+    a limit (or is NaN): one compiled pass and a one-value reduction. Read from the
+    array itself, so it sees every write. Not PETSc's NORM_INFINITY: with MPICH (the
+    wheels) its MPI_MAX drops a NaN on some ranks, so the ranks would disagree about a
+    runaway and hang."""
 
     def __init__(self, array: np.ndarray, comm: MPI.Comm):
         self._array, self._comm = array, comm
         self._abs = np.empty_like(array)
         self._buf = np.zeros(2)  # (largest |v|, 1 if a NaN)
+        self._count = np.zeros(1)
+        _count_beyond(array, np.inf)  # loaded now, not in a step
+
+    def exceeds(self, limit: float) -> bool:
+        """Does any |v_i| on any rank exceed ``limit`` or is it NaN? (the same answer on
+        every rank; about half the time of :meth:`norm_inf`)"""
+        self._count[0] = _count_beyond(self._array, limit)
+        if self._comm.size > 1:
+            self._comm.Allreduce(MPI.IN_PLACE, self._count, op=MPI.MAX)
+        return self._count[0] > 0
 
     def norm_inf(self) -> float:
         np.abs(self._array, out=self._abs)
@@ -904,29 +941,118 @@ class _OwnedVec:
         pass
 
 
+@njit(cache=True)
+def _count_beyond(values, limit) -> int:
+    """The number of entries with |value| > limit or NaN (a branch-free pass)."""
+    count = 0
+    for x in values:
+        count += not (abs(x) <= limit)
+    return count
+
+
 class _Progress:
-    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal."""
+    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal.
+
+    The loop calls :meth:`update` only at step :attr:`due` (which it returns anew): a
+    line is due every 0.5 s, so the next look is about 0.1 s of steps ahead at the rate
+    so far; never when disabled (due past the last step)."""
 
     def __init__(self, n_steps: int, dt: float, quiet: bool):
         self.n_steps, self.dt = n_steps, dt
         self.enabled = (not quiet) and console.on_terminal()
         self.t0 = time.perf_counter()
         self.last = self.t0
+        self.due = 1 if self.enabled else n_steps + 1
 
-    def update(self, n: int) -> None:
+    def update(self, n: int) -> int:
+        """Print the line of step ``n`` if one is due; return the step to look again."""
         if not self.enabled:
-            return
+            return self.n_steps + 1
         now = time.perf_counter()
-        if now - self.last < 0.5 and n < self.n_steps:
-            return
-        self.last = now
         rate = n / max(now - self.t0, 1e-9)
+        self.due = min(self.n_steps, n + max(1, int(0.1 * rate)))
+        if now - self.last < 0.5 and n < self.n_steps:
+            return self.due
+        self.last = now
         eta = (self.n_steps - n) / max(rate, 1e-9)
         sys.stdout.write(f"\rstep {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
                          f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
         sys.stdout.flush()
+        return self.due
 
     def done(self) -> None:
         if self.enabled:
             sys.stdout.write("\n")
             sys.stdout.flush()
+
+
+class _Schedule:
+    """The steps offset, offset + every, offset + 2 every, ... and the last step, as a
+    counter: :attr:`next` is the next of them; :meth:`due` says whether step n is one
+    (call it at every step that may be one, in order)."""
+
+    __slots__ = ("next", "every", "last")
+
+    def __init__(self, offset: int, every: int, last: int):
+        self.every, self.last = every, last
+        self.next = min(offset, last)
+
+    @classmethod
+    def never(cls, last: int) -> "_Schedule":
+        sched = cls(0, 1, last)
+        sched.next = last + 1
+        return sched
+
+    def due(self, n: int) -> bool:
+        if n != self.next:
+            return False
+        self.next = min(n + self.every, self.last) if n < self.last else self.last + 1
+        return True
+
+
+class _ContactTrack:
+    """Per step, from the contact sets' stats (number active, total force, smallest gap;
+    updated in place by their steps, read here through memoryviews): the largest committed
+    penetration (m), the first and last steps with contact, the steps in contact and the
+    reversals of the number of active penalty constraints (chatter); at output steps the
+    loop books the penalty's energy gain and budget (J, see CHATTER_MIN)."""
+
+    __slots__ = ("_stats", "_penalty", "penalty", "lowest", "first", "last", "steps",
+                 "reversals", "gain", "budget")
+
+    def __init__(self, contacts: list):
+        self._stats = [memoryview(c.stats) for c in contacts]
+        # per penalty set: its stats, the last number active and the last nonzero change
+        self._penalty = [[memoryview(c.stats), 0.0, 0.0] for c in contacts
+                         if c.method.name == "penalty"]
+        self.penalty = bool(self._penalty)
+        self.lowest = 0.0  # the smallest committed gap (m) so far, or 0: -max penetration
+        self.first = self.last = None
+        self.steps = self.reversals = 0
+        self.gain = self.budget = 0.0
+
+    def step(self, n: int) -> None:
+        touching = False
+        for st in self._stats:
+            if st[2] < self.lowest:
+                self.lowest = st[2]
+            if st[0] > 0.0:
+                touching = True
+        if touching:
+            if self.first is None:
+                self.first = n
+            self.last = n
+            self.steps += 1
+        for p in self._penalty:  # reversals of the number of active penalty constraints
+            n_active = p[0][0]
+            d = n_active - p[1]
+            if d * p[2] < 0.0:
+                self.reversals += 1
+            p[1] = n_active
+            if d:
+                p[2] = d
+
+    def as_dict(self) -> dict:
+        return {"max_penetration": max(0.0, -self.lowest), "first_contact": self.first,
+                "last_contact": self.last, "contact_steps": self.steps,
+                "reversals": self.reversals, "gain": self.gain, "budget": self.budget}

@@ -23,6 +23,7 @@ from mpi4py import MPI
 from conftest import clean_mpi_env
 from impact_fenics import interrupts, plotting, scenes
 from impact_fenics.compat import launcher_ctrl_c_signal, launcher_rank_variable
+from impact_fenics.integrator import Integrator
 from impact_fenics.simulation import Settings, Simulation
 from scene_texts import BAR, ROOT, replace
 from test_failure import LONG, _wait_for_loop
@@ -44,15 +45,16 @@ def _signal_self(sig=signal.SIGINT, rank=None) -> None:
 
 
 def _at_step(monkeypatch, step: int) -> None:
-    """Send SIGINT to the last rank when the loop reaches ``step``."""
-    real = Simulation._track_contact
+    """Send SIGINT to the last rank when the loop reaches ``step`` (in its contact phase:
+    the step is taken, the state is n + 1 when the integrator accepts it)."""
+    real = Integrator.advance
 
-    def track(self, track_, n):
-        if n == step:
+    def advance(self):
+        if self.n == step:
             _signal_self()
-        return real(self, track_, n)
+        return real(self)
 
-    monkeypatch.setattr(Simulation, "_track_contact", track)
+    monkeypatch.setattr(Integrator, "advance", advance)
 
 
 def _summary(out: str) -> dict:

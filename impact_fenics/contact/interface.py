@@ -464,6 +464,7 @@ class ContactSet:
         force: it changes nothing that the next detection does not overwrite)."""
         from numba import typeof
 
+        from ..jit_watch import direct
         from .fused import contact_step
 
         integ = self.integrator
@@ -474,11 +475,9 @@ class ContactSet:
         load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
         load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
         if self._fused is not None:
-            # the step calls the compiled entry point itself: the dispatcher's search by
-            # argument types costs ~0.35 us a call; the entry point still refuses an
-            # array of another type (TypeError), and the arguments are fixed for the run
-            entry = load(contact_step, *self._fused_call, True, 0.0, 0.0)
-            self._contact_step = entry if callable(entry) else contact_step
+            # the step calls the compiled entry point itself (the arguments' types are
+            # fixed for the run)
+            self._contact_step = direct(contact_step, *self._fused_call, True, 0.0, 0.0)
             return
         slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
                  self.active, self.was_active)

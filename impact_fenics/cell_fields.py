@@ -78,20 +78,6 @@ def triangle_strain(r1, z1, r2, z2, r3, z3, ur1, uz1, ur2, uz2, ur3, uz3):
 
 
 @njit(cache=True)
-def cell_strain(cell_dofs, xy, u, cells, out) -> None:
-    """Strain (rr, tt, zz, rz) at the centroid of each of ``cells`` into ``out`` (n, 4).
-
-    ``cell_dofs`` (n_cells, 3) node (block) indices; ``xy`` (n_nodes, 2) their (r, z) in m;
-    ``u`` the unrolled displacement (m) of the nodes (2 per node)."""
-    for k in range(cells.size):
-        c = cells[k]
-        a, b, d = cell_dofs[c, 0], cell_dofs[c, 1], cell_dofs[c, 2]
-        e = triangle_strain(xy[a, 0], xy[a, 1], xy[b, 0], xy[b, 1], xy[d, 0], xy[d, 1],
-                            u[2 * a], u[2 * a + 1], u[2 * b], u[2 * b + 1], u[2 * d], u[2 * d + 1])
-        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = e[0], e[1], e[2], e[3]
-
-
-@njit(cache=True)
 def stress_outputs(D, e0, e1, e2, e3):
     """(sigma_rr, sigma_zz, sigma_tt, sigma_rz, von Mises) in Pa of sigma = D eps, for the
     strain (e0, e1, e2, e3) = (rr, tt, zz, rz) with tensor shear."""
@@ -105,35 +91,101 @@ def stress_outputs(D, e0, e1, e2, e3):
 
 
 @njit(cache=True)
-def linear_stress(D, eps, out, columns) -> None:
-    """The five stress outputs of strains ``eps`` (n, 4) into out[:, columns[k]]."""
-    for k in range(eps.shape[0]):
-        s = stress_outputs(D, eps[k, 0], eps[k, 1], eps[k, 2], eps[k, 3])
-        j = columns[k]
-        for i in range(5):
-            out[i, j] = s[i]
+def gradient_factors(nodes, xy, g) -> None:
+    """Per P1 triangle with node (block) indices ``nodes`` (n, 3) and nodes at ``xy`` (r, z
+    in m): g (n, 5) such that, with d_k = u_k - u_1 the nodal differences,
+    du/dr = d_2 g0 + d_3 g1, du/dz = d_2 g2 + d_3 g3 (the inverse Jacobian of
+    :func:`triangle_strain`, 1/m) and u_r / r at the centroid = (u_r1 + u_r2 + u_r3) g4."""
+    for k in range(nodes.shape[0]):
+        a, b, d = nodes[k, 0], nodes[k, 1], nodes[k, 2]
+        r21, z21 = xy[b, 0] - xy[a, 0], xy[b, 1] - xy[a, 1]
+        r31, z31 = xy[d, 0] - xy[a, 0], xy[d, 1] - xy[a, 1]
+        det = r21 * z31 - r31 * z21
+        g[k, 0] = z31 / det
+        g[k, 1] = -z21 / det
+        g[k, 2] = -r31 / det
+        g[k, 3] = r21 / det
+        g[k, 4] = 1.0 / (xy[a, 0] + xy[b, 0] + xy[d, 0])
+
+
+@njit(cache=True)
+def cell_stress(nodes, g, u, D, eps_p, cells, out, peaks) -> None:
+    """The five stress outputs (Pa) of sigma = D (eps - eps_p) at the centroid of each of
+    ``cells`` into out[:, cells[k]], in one pass, and the running extremes of the outputs
+    into ``peaks`` = (max von Mises, max sigma_zz, -min sigma_zz).
+
+    ``nodes`` (n, 3) the cells' node (block) indices, ``g`` (n, 5) their
+    :func:`gradient_factors`, ``u`` the unrolled displacement (m); ``eps_p`` (n, 4) a
+    strain (rr, tt, zz, rz) to subtract per cell (the mean plastic strain), or an empty
+    (0, 4) array. The strain is :func:`triangle_strain`'s, with the inverse Jacobian
+    computed once."""
+    plastic = eps_p.shape[0] > 0
+    vm_max, zz_max, zz_neg = peaks[0], peaks[1], peaks[2]
+    for k in range(cells.size):
+        a, b, d = nodes[k, 0], nodes[k, 1], nodes[k, 2]
+        ur1, uz1 = u[2 * a], u[2 * a + 1]
+        ur2, uz2, ur3, uz3 = u[2 * b], u[2 * b + 1], u[2 * d], u[2 * d + 1]
+        dur2, duz2, dur3, duz3 = ur2 - ur1, uz2 - uz1, ur3 - ur1, uz3 - uz1
+        e0 = dur2 * g[k, 0] + dur3 * g[k, 1]
+        e1 = (ur1 + ur2 + ur3) * g[k, 4]
+        e2 = duz2 * g[k, 2] + duz3 * g[k, 3]
+        e3 = 0.5 * (dur2 * g[k, 2] + dur3 * g[k, 3] + duz2 * g[k, 0] + duz3 * g[k, 1])
+        if plastic:
+            e0 -= eps_p[k, 0]
+            e1 -= eps_p[k, 1]
+            e2 -= eps_p[k, 2]
+            e3 -= eps_p[k, 3]
+        s_rr, s_zz, s_tt, s_rz, vm = stress_outputs(D, e0, e1, e2, e3)
+        c = cells[k]
+        out[0, c] = s_rr
+        out[1, c] = s_zz
+        out[2, c] = s_tt
+        out[3, c] = s_rz
+        out[4, c] = vm
+        vm_max = max(vm_max, vm)
+        zz_max = max(zz_max, s_zz)
+        zz_neg = max(zz_neg, -s_zz)
+    peaks[0], peaks[1], peaks[2] = vm_max, zz_max, zz_neg
+
+
+@njit(cache=True)
+def extremes(von_mises, sigma_zz, peaks) -> None:
+    """Running (max von Mises, max sigma_zz, -min sigma_zz) (Pa) of the given values into
+    ``peaks`` (start from -inf)."""
+    for k in range(von_mises.size):
+        peaks[0] = max(peaks[0], von_mises[k])
+    for k in range(sigma_zz.size):
+        peaks[1] = max(peaks[1], sigma_zz[k])
+        peaks[2] = max(peaks[2], -sigma_zz[k])
 
 
 class CellStress:
     """The five stress outputs (Pa) of every owned cell, body by body.
 
     ``evaluate(u)`` takes the unrolled displacement of the local nodes (owned and
-    ghosts, m) and returns a (5, n_owned_cells) array in STRESS_NAMES order."""
+    ghosts, m) and returns a (5, n_owned_cells) array in STRESS_NAMES order (``out``: the
+    array to fill instead of its own); :attr:`peaks` then holds (max von Mises, max
+    sigma_zz, -min sigma_zz) (Pa) over this rank's owned cells."""
 
     def __init__(self, model, plastic_forces=()):
         V = model.V
         mesh = model.mesh
         self.model = model
         self.n_cells = mesh.topology.index_map(2).size_local
-        self.cell_dofs = cell_dofs(V).astype(np.int64)
+        dofs = cell_dofs(V)
         self.xy = np.ascontiguousarray(model.node_xy)
         self.values = np.zeros((len(STRESS_NAMES), self.n_cells))
-        self._linear = []  # (owned cells, D, strain buffer)
+        self.peaks = np.full(3, -np.inf)
+        no_plastic = np.empty((0, 4))
+        # per body of a constant D: (owned cells, their nodes, gradient factors, D, plastic
+        # force or None)
+        self._kernel = []
         self._ufl = []  # (owned cells, [compiled Expression per output])
         # path-dependent bodies: C : (eps - mean eps_p of the cell's points)
-        self._plastic = [(f.cells.astype(np.int64), isotropic_stiffness(f.material.lmbda,
-                                                                         f.material.mu),
-                          np.empty((f.cells.size, 4)), f) for f in plastic_forces]
+        for f in plastic_forces:
+            cells = f.cells.astype(np.int64)
+            self._kernel.append((cells, *self._geometry(dofs[cells]),
+                                 isotropic_stiffness(f.material.lmbda, f.material.mu), f))
         plastic = {f.body for f in plastic_forces}
         for body in model.bodies.values():
             if body.name in plastic:
@@ -142,10 +194,18 @@ class CellStress:
             cells = np.sort(cells[cells < self.n_cells]).astype(np.int64)
             D = stiffness_matrix(body.material)
             if D is not None:
-                self._linear.append((cells, D, np.empty((cells.size, 4))))
+                self._kernel.append((cells, *self._geometry(dofs[cells]), D, None))
             else:
                 self._ufl.append((cells.astype(np.int32), self._expressions(body.material)))
+        self._no_plastic = no_plastic
         self._u_fn = None
+
+    def _geometry(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(nodes, gradient factors) of cells with the node indices ``nodes`` (n, 3)."""
+        nodes = np.ascontiguousarray(nodes)
+        g = np.empty((nodes.shape[0], 5))
+        gradient_factors(nodes, self.xy, g)
+        return nodes, g
 
     def _expressions(self, material):
         from dolfinx import fem
@@ -158,18 +218,22 @@ class CellStress:
         points = np.array([[1.0 / 3.0, 1.0 / 3.0]])
         return [fem.Expression(comps[name], points) for name in STRESS_NAMES]
 
-    def evaluate(self, u: np.ndarray) -> np.ndarray:
-        """Stresses (Pa) of the owned cells for the local displacement ``u`` (ghosts current)."""
-        for cells, D, eps in self._linear:
-            cell_strain(self.cell_dofs, self.xy, u, cells, eps)
-            linear_stress(D, eps, self.values, cells)
-        for cells, D, eps, force in self._plastic:
-            cell_strain(self.cell_dofs, self.xy, u, cells, eps)
-            eps -= force.cell_values()[0]
-            linear_stress(D, eps, self.values, cells)
+    def evaluate(self, u: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Stresses (Pa) of the owned cells for the local displacement ``u`` (ghosts current),
+        into ``out`` (5, n_owned_cells) if given; the extremes into :attr:`peaks`."""
+        values = self.values if out is None else out
+        peaks = self.peaks
+        peaks[:] = -np.inf
+        for cells, nodes, g, D, force in self._kernel:
+            eps_p = self._no_plastic if force is None else force.cell_values()[0]
+            cell_stress(nodes, g, u, D, eps_p, cells, values, peaks)
         if self._ufl:
             self._u_fn.x.array[:] = u
             for cells, exprs in self._ufl:
                 for k, expr in enumerate(exprs):
-                    self.values[k, cells] = eval_expression(expr, self.model.mesh, cells)[:, 0]
-        return self.values
+                    values[k, cells] = eval_expression(expr, self.model.mesh, cells)[:, 0]
+                extremes(values[_VM, cells], values[_ZZ, cells], peaks)
+        return values
+
+
+_VM, _ZZ = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")

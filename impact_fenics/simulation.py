@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
-from numba import njit
 
 from . import interrupts, output, plotting, rundir
 from .cell_fields import STRESS_NAMES, CellStress
@@ -550,26 +549,34 @@ class Simulation:
         self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
         self._peak_buf = np.empty(3)
         extra = [name for p in self._cell_field_providers for name in p()]
-        return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
-                           cell_fields=list(STRESS_NAMES) + extra)
+        # the initial state, then every output_every steps and the last step
+        n_frames = 1 + -(-self.n_steps // self.settings.output_every)
+        writer = FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
+                             cell_fields=list(STRESS_NAMES) + extra, n_frames=n_frames)
+        # the stresses are computed straight into the writer's frame buffer
+        self._stress_block = writer.cell_block(STRESS_NAMES)
+        return writer
 
     def _write_fields(self, writer: FieldWriter) -> None:
         """u, v (state of step integ.n), the stresses and the extra cell fields."""
         integ = self.integrator
         u = writer.ghosted(integ.u_owned, 0)
         v = writer.ghosted(integ.v_owned, 1)
-        stresses = self._cell_stress.evaluate(u)
-        cells = dict(zip(STRESS_NAMES, stresses))
-        self._track_peaks(stresses, integ.n * self.settings.dt)
+        self._cell_stress.evaluate(u, out=self._stress_block)
+        self._track_peaks(integ.n * self.settings.dt)
+        cells = writer.cell_values
         for provider in self._cell_field_providers:
-            cells.update(provider())
+            for key, values in provider().items():
+                cells[key][:] = values[: writer.n_cells]
         writer.write(integ.n * self.settings.dt, integ.n, u, v, cells)
 
-    def _track_peaks(self, stresses: np.ndarray, t: float) -> None:
-        """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when."""
+    def _track_peaks(self, t: float) -> None:
+        """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when
+        (the cell stresses' extremes of this output, reduced over the ranks)."""
         local = self._peak_buf
-        _extremes(stresses[_K_VM], stresses[_K_ZZ], local)
-        self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        local[:] = self._cell_stress.peaks
+        if self.comm.size > 1:
+            self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
         p = self._peaks
         if not p:
             p.update(von_mises=-np.inf, von_mises_time=t, sigma_zz_max=-np.inf,
@@ -819,22 +826,6 @@ class Simulation:
                 summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                     ("contact_detection", "contact_solve", "contact_update"), self.comm)
         return summary
-
-
-_K_VM, _K_ZZ = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")
-
-
-@njit(cache=True)
-def _extremes(von_mises, sigma_zz, out) -> None:
-    """out = (max von Mises, max sigma_zz, -min sigma_zz) (Pa; -inf of an empty array)."""
-    out[0] = -np.inf
-    out[1] = -np.inf
-    out[2] = -np.inf
-    for k in range(von_mises.size):
-        out[0] = max(out[0], von_mises[k])
-    for k in range(sigma_zz.size):
-        out[1] = max(out[1], sigma_zz[k])
-        out[2] = max(out[2], -sigma_zz[k])
 
 
 def _provenance() -> dict:

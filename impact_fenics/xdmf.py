@@ -58,21 +58,17 @@ def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precis
             f'Format="HDF">{h5}:{path}</DataItem>')
 
 
-def _dataset(group, name: str, values: np.ndarray) -> None:
-    """A float64 dataset ``name`` in ``group`` holding the C-contiguous ``values``."""
-    import h5py
+def _slab(dims: Sequence[int], h5: str, path: str, start: Sequence[int], count: Sequence[int],
+          shape: Sequence[int]) -> str:
+    """A float64 DataItem of ``dims`` read from the block ``start`` + ``count`` (unit stride) of
+    the dataset ``path`` of shape ``shape``: Xdmf3's heavy-data hyperslab, the content
+    'file:/path|start:stride:count:shape'."""
+    def j(v):
+        return " ".join(str(int(k)) for k in v)
 
-    space = h5py.h5s.create_simple(values.shape)
-    ds = h5py.h5d.create(group, name.encode(), h5py.h5t.NATIVE_DOUBLE, space)
-    _write(ds, values)
-
-
-def _write(ds, values: np.ndarray) -> None:
-    """The C-contiguous float64 ``values`` into dataset ``ds`` (the memory type given:
-    h5py would otherwise derive it from the dtype at every call, ~10 us)."""
-    import h5py
-
-    ds.write(h5py.h5s.ALL, h5py.h5s.ALL, values, mtype=h5py.h5t.NATIVE_DOUBLE)
+    d = j(dims)
+    return (f'<DataItem Dimensions="{d}" NumberType="Float" Precision="8" Format="HDF">'
+            f'{h5}:{path}|{j(start)}:{j([1] * len(start))}:{j(count)}:{j(shape)}</DataItem>')
 
 
 @njit(cache=True)
@@ -86,17 +82,47 @@ def _point_vectors(u, v, nodes, out) -> None:
         out[1, k, 1] = v[i + 1]
 
 
+class _Block:
+    """One block of frames in a rank's file: ``/frames/points_<b>`` (capacity, 2, nodes, 3)
+    and ``/frames/cells_<b>`` (capacity, fields, cells), float64, contiguous, allocated when
+    first written and never filled (rows not yet written are never named by the XML)."""
+
+    def __init__(self, h5, b: int, capacity: int, n_nodes: int, n_fields: int, n_cells: int):
+        import h5py
+
+        dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+        dcpl.set_fill_time(h5py.h5d.FILL_TIME_NEVER)
+        dcpl.set_obj_track_times(False)
+        self.capacity = capacity
+        self.points_path, self.cells_path = f"/frames/points_{b}", f"/frames/cells_{b}"
+        self.points_shape = (capacity, 2, n_nodes, 3)
+        self.cells_shape = (capacity, n_fields, n_cells)
+        self.points = h5py.h5d.create(h5.id, self.points_path.encode(), h5py.h5t.NATIVE_DOUBLE,
+                                      h5py.h5s.create_simple(self.points_shape), dcpl=dcpl)
+        self.points_space = self.points.get_space()
+        self.cells = None
+        if n_fields:
+            self.cells = h5py.h5d.create(h5.id, self.cells_path.encode(), h5py.h5t.NATIVE_DOUBLE,
+                                         h5py.h5s.create_simple(self.cells_shape), dcpl=dcpl)
+            self.cells_space = self.cells.get_space()
+
+
 class FieldWriter:
     """XDMF + HDF5 fields of a :class:`~impact_fenics.bodies.DeformableModel`.
 
     ``cell_fields``: names of the cell fields handed to every :meth:`write` (besides
     the five stresses, e.g. a plastic strain); ``static_cell_fields``: cell fields
     written once (``body_id`` is always one: the index of the cell's body in the
-    model's order). Cell arrays are over this rank's owned cells, in local order."""
+    model's order). Cell arrays are over this rank's owned cells, in local order.
+    ``n_frames``: how many writes the run will make, if known (the frames' datasets are
+    made that long at the first write; more writes, or an unknown count, add blocks
+    of frames as they go, each as long as all before it, at least ``BLOCK``)."""
+
+    BLOCK = 16
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
-                 flush_every: int = 8):
+                 flush_every: int = 8, n_frames: int | None = None):
         import h5py
 
         self.comm: MPI.Comm = model.comm
@@ -135,16 +161,27 @@ class FieldWriter:
         self._h5.create_dataset("/mesh/topology", data=topology)
         for key, values in static.items():
             self._h5.create_dataset(f"/mesh/{key}", data=np.asarray(values)[:n_cells])
-        self._vec = np.zeros((2, self.n_nodes, 3))
+        self._h5.create_group("/frames")
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
+        # a frame's data: the point vectors and every cell field, written from these buffers
+        # (a caller may compute into cell_values' arrays: they are then not copied)
+        self._vec = np.zeros((2, self.n_nodes, 3))
+        self._cells = np.zeros((len(self.cell_fields), n_cells))
+        self.cell_values = {key: self._cells[k] for k, key in enumerate(self.cell_fields)}
+        self._rows = list(self.cell_values.values())
+        self._points_memory = h5py.h5s.create_simple((1, 2, self.n_nodes, 3))
+        self._cells_memory = h5py.h5s.create_simple((1, len(self.cell_fields), n_cells))
+        self._first_capacity = max(1, int(n_frames)) if n_frames else self.BLOCK
+        self._blocks: list[_Block] = []
+        self._row = 0  # the next row of the last block
         # every rank's piece sizes and file, for the XML on rank 0
         self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
         self._xml = None
         self._tail_at = 0
         self.n_writes = 0
         self.flush_every = max(1, int(flush_every))
-        self._pending: list[tuple[float, int]] = []  # (t, step) written, not yet in the XML
+        self._pending: list[tuple[float, int, int, int]] = []  # (t, step, block, row) not in the XML
         _point_vectors(np.zeros(2), np.zeros(2), np.zeros(1, np.int64), np.zeros((2, 1, 3)))
         if comm.rank == 0:
             self._xml = open(path, "w")
@@ -169,26 +206,53 @@ class FieldWriter:
         fn.x.scatter_forward()
         return fn.x.array
 
+    def cell_block(self, names: Sequence[str]) -> np.ndarray:
+        """The rows of :attr:`cell_values` of ``names`` (consecutive in ``cell_fields``) as one
+        (len(names), n_cells) array, to compute a frame's cell fields in place."""
+        i = self.cell_fields.index(names[0])
+        if self.cell_fields[i: i + len(names)] != list(names):
+            raise ValueError(f"{list(names)} are not consecutive cell fields of the writer")
+        return self._cells[i: i + len(names)]
+
+    def _slot(self) -> tuple[int, int]:
+        """(block, row) of the next frame, adding a block when the last one is full."""
+        if not self._blocks or self._row == self._blocks[-1].capacity:
+            total = sum(b.capacity for b in self._blocks)
+            capacity = max(total, self.BLOCK) if self._blocks else self._first_capacity
+            self._blocks.append(_Block(self._h5, len(self._blocks), capacity, self.n_nodes,
+                                       len(self.cell_fields), self.n_cells))
+            self._row = 0
+        self._row += 1
+        return len(self._blocks) - 1, self._row - 1
+
     def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
               cell_values: Mapping[str, np.ndarray]) -> None:
         """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
         local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
-        of ``cell_fields``."""
+        of ``cell_fields`` (the arrays of :attr:`cell_values`, filled in place, are not copied)."""
         import h5py
 
-        missing = [k for k in self.cell_fields if k not in cell_values]
-        if missing:
-            raise ValueError(f"cell fields {missing} missing: every write holds every field")
-        vec = self._vec
-        _point_vectors(u, v, self._nodes, vec)
-        group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
-        for name, values in (("displacement", vec[0]), ("velocity", vec[1])):
-            _dataset(group, name, values)
-        for key in self.cell_fields:
-            _dataset(group, key, np.ascontiguousarray(cell_values[key][: self.n_cells],
-                                                      dtype=np.float64))
+        if cell_values is not self.cell_values:
+            missing = [k for k in self.cell_fields if k not in cell_values]
+            if missing:
+                raise ValueError(f"cell fields {missing} missing: every write holds every field")
+            for row, key in zip(self._rows, self.cell_fields):
+                values = cell_values[key]
+                if values is not row:
+                    row[:] = values[: self.n_cells]
+        _point_vectors(u, v, self._nodes, self._vec)
+        b, row = self._slot()
+        block = self._blocks[b]
+        double = h5py.h5t.NATIVE_DOUBLE
+        space = block.points_space
+        space.select_hyperslab((row, 0, 0, 0), (1, 2, self.n_nodes, 3))
+        block.points.write(self._points_memory, space, self._vec, mtype=double)
+        if block.cells is not None:
+            space = block.cells_space
+            space.select_hyperslab((row, 0, 0), (1, len(self.cell_fields), self.n_cells))
+            block.cells.write(self._cells_memory, space, self._cells, mtype=double)
         self.n_writes += 1
-        self._pending.append((t, step))
+        self._pending.append((t, step, b, row))
         if len(self._pending) >= self.flush_every:
             self.flush()
 
@@ -200,15 +264,16 @@ class FieldWriter:
         self.comm.barrier()  # every piece is on disk before the XML points at it
         if self._xml is not None:
             self._xml.seek(self._tail_at)
-            self._xml.write("".join(self._step_xml(t, step) for t, step in self._pending))
+            self._xml.write("".join(self._step_xml(*frame) for frame in self._pending))
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
         self._pending.clear()
 
-    def _step_xml(self, t: float, step: int) -> str:
-        group = f"/step_{step}"
+    def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
+        block = self._blocks[b]
         npc = 4 if self._cell_type == "Quadrilateral" else 3
+        n_fields = len(self.cell_fields)
         lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
                  f'        <Time Value="{t!r}"/>']
         for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
@@ -219,12 +284,16 @@ class FieldWriter:
                 '</Topology>',
                 f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
                 '</Geometry>']
-            for key in ("displacement", "velocity"):
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" Center="Node">'
-                             f'{_item((n_nodes, 3), h5, f"{group}/{key}")}</Attribute>')
-            for key in self.cell_fields:
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
-                             f'{_item((n_cells,), h5, f"{group}/{key}")}</Attribute>')
+            for j, key in enumerate(("displacement", "velocity")):
+                item = _slab((n_nodes, 3), h5, block.points_path, (row, j, 0, 0),
+                             (1, 1, n_nodes, 3), (block.capacity, 2, n_nodes, 3))
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" '
+                             f'Center="Node">{item}</Attribute>')
+            for j, key in enumerate(self.cell_fields):
+                item = _slab((n_cells,), h5, block.cells_path, (row, j, 0), (1, 1, n_cells),
+                             (block.capacity, n_fields, n_cells))
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" '
+                             f'Center="Cell">{item}</Attribute>')
             for key, dtype in self._static.items():
                 kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
@@ -237,6 +306,7 @@ class FieldWriter:
         """Flush the last frames (collective) and close the files."""
         if self._h5 is not None:
             self.flush()
+            self._blocks.clear()
             self._h5.close()
             self._h5 = None
         if self._xml is not None:
@@ -258,9 +328,15 @@ def data_item(item, xdmf_dir: str) -> np.ndarray:
         with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
             data = f[dataset][index]
     elif item.get("Format") == "HDF":
-        filename, _, dataset = item.text.strip().partition(":")
+        source, _, slab = item.text.strip().partition("|")
+        filename, _, dataset = source.partition(":")
+        index = ...
+        if slab:  # Xdmf3's 'file:/path|start:stride:count:shape'
+            start, stride, count = (np.array(s.split(), dtype=np.int64)
+                                    for s in slab.split(":")[:3])
+            index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
         with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
-            data = f[dataset][...]
+            data = f[dataset][index]
     else:
         data = np.array(item.text.split(), dtype=float)
     dims = [int(d) for d in item.get("Dimensions").split()]

@@ -62,17 +62,25 @@ def run(tmp_path_factory):
 
 
 def _item(item, base):
-    """An XDMF DataItem (HDF or a HyperSlab of one) as an array, read with h5py."""
+    """An XDMF DataItem (HDF, Xdmf3's hyperslab of one, or an XDMF HyperSlab) as an array,
+    read with h5py."""
     if item.get("ItemType") == "HyperSlab":
         sel, src = item.findall("DataItem")
         start, stride, count = np.array(sel.text.split(), dtype=int).reshape(3, -1)
         name, _, ds = src.text.strip().partition(":")
         with h5py.File(os.path.join(base, name), "r") as f:
             data = f[ds][tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))]
-    else:
-        name, _, ds = item.text.strip().partition(":")
+    else:  # 'file:/path', or Xdmf3's hyperslab 'file:/path|start:stride:count:shape'
+        source, _, slab = item.text.strip().partition("|")
+        name, _, ds = source.partition(":")
+        index = ...
+        if slab:
+            start, stride, count, shape = (np.array(p.split(), dtype=int) for p in slab.split(":"))
+            index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
+            with h5py.File(os.path.join(base, name), "r") as f:
+                assert f[ds].shape == tuple(shape)  # the dataset the XML declares
         with h5py.File(os.path.join(base, name), "r") as f:
-            data = f[ds][...]
+            data = f[ds][index]
     return data.reshape([int(d) for d in item.get("Dimensions").split()])
 
 

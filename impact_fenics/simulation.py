@@ -22,7 +22,7 @@ from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
-from .energy import Ledger, LoadWork, deformable_energy
+from .energy import Ledger, LoadWork, OutputSums
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
 from .jit_watch import gained, signature_counts
@@ -422,10 +422,20 @@ class Simulation:
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         integ = self.integrator
-        integ.velocity(buf["v_next"])
-        kinetic, strain = deformable_energy(integ.mass, buf["v"], buf["v_next"], buf["u"],
-                                            buf["ku"], self.comm, buf["mv"])
-        ext = load_work.total()
+        nonlinear = integ.nonlinear
+        sums = getattr(self, "_output_sums", None)
+        if sums is None:  # the masses, the bodies' z dofs: fixed for the run
+            sums = self._output_sums = OutputSums(integ.mass, list(self._body_z.values()),
+                                                  self.comm, 4 if nonlinear else 1)
+        extra = [load_work.local]
+        if nonlinear:  # stored elastic energy, plastic and deformation work (J)
+            extra += [sum(f.elastic_energy_local() for f in nonlinear),
+                      sum(f.plastic_work_local for f in nonlinear),
+                      sum(f.deformation_work_local for f in nonlinear)]
+        total = sums.reduce(buf["v"], integ.v_owned, buf["u"], buf["ku"], extra)
+        kinetic, strain = float(total[0]), float(total[1])
+        k = 3 + sums.n_bodies
+        ext = float(total[k])
         work_c = 0.0
         for c, v_now in zip(self.contacts, pre["rigid_v"]):
             if c.rigid is not None:
@@ -433,33 +443,23 @@ class Simulation:
                 ext += c.rigid_external_work
             work_c += c.contact_work
         plastic = deformation = 0.0
-        if integ.nonlinear:  # stored elastic energy, plastic and deformation work (J)
-            local = np.array([sum(f.elastic_energy_local() for f in integ.nonlinear),
-                              sum(f.plastic_work_local for f in integ.nonlinear),
-                              sum(f.deformation_work_local for f in integ.nonlinear)])
-            total = np.zeros(3)
-            self.comm.Allreduce(local, total)
-            strain += float(total[0])
-            plastic, deformation = float(total[1]), float(total[2])
+        if nonlinear:
+            strain += float(total[k + 1])
+            plastic, deformation = float(total[k + 2]), float(total[k + 3])
         row = ledger.record(kinetic, strain, ext, work_c, plastic, deformation)
         row["activation_loss"] = sum(c.activation_loss for c in self.contacts)
         row["step"] = integ.n - 1
         row["time"] = (integ.n - 1) * self.settings.dt
         # z momentum (kg m/s) of v^{n+1}: in total (every node once) and per body
         # (a node that two bonded bodies share counts in both)
-        v = buf["v_next"]
-        local = np.array([float(np.dot(integ.mass[1::2], v[1::2]))] +
-                         [float(np.dot(m, np.take(v, d, out=vd))) for m, vd, d in self._body_momentum])
-        momenta = np.zeros_like(local)
-        self.comm.Allreduce(local, momenta)
-        total = float(momenta[0])
-        for name, p in zip(self._body_z, momenta[1:]):
+        p_total = float(total[2])
+        for name, p in zip(self._body_z, total[3:k]):
             row[f"momentum_z_{name}"] = float(p)
         for c in self.contacts:
             if c.rigid is not None:
                 row[f"momentum_z_{c.rigid.name}"] = c.rigid.mass * c.rigid.v
-                total += c.rigid.mass * c.rigid.v
-        row["momentum_z"] = total
+                p_total += c.rigid.mass * c.rigid.v
+        row["momentum_z"] = p_total
         return row
 
     @staticmethod

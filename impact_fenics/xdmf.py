@@ -15,11 +15,29 @@ Layout (what ``fields.xdmf`` describes):
 * at each output time one temporal step: a spatial collection of the pieces,
   each with ``displacement`` (m) and ``velocity`` (m/s) as point vectors
   padded to three components (ParaView's Warp By Vector takes them as they
-  are) and every cell field (Pa for stresses) as cell scalars, in the
-  datasets ``/step_<n>/<name>`` of the piece's file (created with HDF5's
-  low-level calls: a frame costs its data, not Python bookkeeping). Plain
-  datasets, no HyperSlabs: both of ParaView's XDMF readers (the default
-  Xdmf3 reader and the older XDMF reader) read them.
+  are) and every cell field (Pa for stresses) as cell scalars;
+* a frame's data is one row of two datasets per block of frames,
+  ``/frames/points_<b>`` (frames, 2, nodes, 3: displacement, velocity) and
+  ``/frames/cells_<b>`` (frames, fields, cells), so writing a frame is two
+  hyperslab writes of its buffers, nothing created. The first block is as long
+  as the run's known number of frames (``n_frames``); more frames, or an
+  unknown count (the finite-strain driver), add blocks, each as long as all
+  before it (at least ``BLOCK``). Rows are allocated, never filled: the
+  rows of a run stopped early are in the file but never in the XML.
+
+Why so: an HDF5 dataset costs about 25 us to create (HDF5 1.10, whatever the
+layout or property list), so a frame of seven datasets and a group cost a small
+mesh's frame several times over (bars: 0.31 ms a frame against 0.07 ms now).
+
+Each attribute names its row with Xdmf3's heavy-data hyperslab,
+``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
+what ParaView's default reader for .xdmf (Xdmf3ReaderS, and Xdmf3ReaderT) reads;
+it skips an XDMF ``ItemType="HyperSlab"`` item ("unrecognized array type": it asks
+the array's type before reading it, and a HyperSlab has none until read). The
+older "XDMF Reader" (Xdmf2) reads only that HyperSlab form, not the Xdmf3 one:
+choose one of the Xdmf3 readers when ParaView asks. (Both forms side by side
+make both readers show every array, but each reader then prints an error per
+array and time: not done.) :func:`data_item` reads all three forms.
 
 ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
@@ -30,11 +48,7 @@ costs the same however many came before. The frames reach the disk in
 batches: every ``flush_every`` writes (and at close) each rank flushes its HDF5
 file, the ranks meet, and only then rank 0 appends the XML of the frames of the
 batch, so the XML never names data that is not on disk and a run stopped at any
-point, even killed, leaves a readable series of the frames flushed so far. (An
-HDF5 flush writes the file's changed metadata in a dozen small writes, 0.05-0.3
-ms, as much as a small mesh's whole frame; creating a frame's datasets ahead, at
-set-up, does not pay: a flush then walks every object of the file, and
-reopening a dataset costs half of creating it.)
+point, even killed, leaves a readable series of the frames flushed so far.
 """
 from __future__ import annotations
 
@@ -317,7 +331,8 @@ class FieldWriter:
 # ----------------------------------------------------------------------------- reading back
 
 def data_item(item, xdmf_dir: str) -> np.ndarray:
-    """The array of an XDMF DataItem: HDF ('file.h5:/path'), XML text, or a HyperSlab of one."""
+    """The array of an XDMF DataItem: HDF ('file.h5:/path', or Xdmf3's hyperslab of one,
+    'file.h5:/path|start:stride:count:shape'), XML text, or an XDMF HyperSlab item."""
     import h5py
 
     if item.get("ItemType") == "HyperSlab":

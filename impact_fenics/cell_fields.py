@@ -85,7 +85,7 @@ def stress_outputs(D, e0, e1, e2, e3):
     s1 = D[1, 0] * e0 + D[1, 1] * e1 + D[1, 2] * e2 + D[1, 3] * e3
     s2 = D[2, 0] * e0 + D[2, 1] * e1 + D[2, 2] * e2 + D[2, 3] * e3
     s3 = D[3, 0] * e0 + D[3, 1] * e1 + D[3, 2] * e2 + D[3, 3] * e3
-    m = (s0 + s1 + s2) / 3.0
+    m = (s0 + s1 + s2) * (1.0 / 3.0)
     d0, d1, d2 = s0 - m, s1 - m, s2 - m
     return s0, s2, s1, s3, math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
 

@@ -149,6 +149,8 @@ class OutputSums:
         self._start = np.cumsum([0] + [d.size for d in body_z]).astype(np.int64)
         self._local = np.zeros(3 + self.n_bodies + n_extra)
         self._total = np.zeros_like(self._local)
+        zero = np.zeros_like(mass)  # compile (or load) the kernel now, not at the first output
+        _output_sums(mass, zero, zero, zero, zero, self._dofs, self._start, self._local)
 
     def reduce(self, v_now: np.ndarray, v_next: np.ndarray, u_now: np.ndarray,
                Ku_now: np.ndarray, extra=()) -> np.ndarray:

@@ -155,6 +155,9 @@ class Simulation:
         self._body_z = {name: model.body_dofs(name, 1).astype(np.intp) for name in model.bodies}
         self.body_mass = {name: self.comm.allreduce(float(self.integrator.mass[d].sum()))
                           for name, d in self._body_z.items()}
+        # the sums of an output step (energy, momenta; frames lane)
+        self._output_sums = OutputSums(self.integrator.mass, list(self._body_z.values()),
+                                       self.comm, 4 if self.integrator.nonlinear else 1)
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
@@ -423,10 +426,7 @@ class Simulation:
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         integ = self.integrator
         nonlinear = integ.nonlinear
-        sums = getattr(self, "_output_sums", None)
-        if sums is None:  # the masses, the bodies' z dofs: fixed for the run
-            sums = self._output_sums = OutputSums(integ.mass, list(self._body_z.values()),
-                                                  self.comm, 4 if nonlinear else 1)
+        sums = self._output_sums
         extra = [load_work.local]
         if nonlinear:  # stored elastic energy, plastic and deformation work (J)
             extra += [sum(f.elastic_energy_local() for f in nonlinear),

@@ -59,6 +59,8 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
+# markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
+_T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 # XDMF topology of P1 cells by nodes per cell; dolfinx numbers a quadrilateral's vertices
 # (0, 0), (1, 0), (0, 1), (1, 1), XDMF (like VTK) goes round the cell: 0, 1, 3, 2
@@ -77,8 +79,8 @@ def _slab(dims: Sequence[int], h5: str, path: str, start: Sequence[int], count: 
     """A float64 DataItem of ``dims`` read from the block ``start`` + ``count`` (unit stride) of
     the dataset ``path`` of shape ``shape``: Xdmf3's heavy-data hyperslab, the content
     'file:/path|start:stride:count:shape'."""
-    def j(v):
-        return " ".join(str(int(k)) for k in v)
+    def j(v):  # (a marker entry stays as it is)
+        return " ".join(str(k) for k in v)
 
     d = j(dims)
     return (f'<DataItem Dimensions="{d}" NumberType="Float" Precision="8" Format="HDF">'
@@ -188,6 +190,7 @@ class FieldWriter:
         self._cells_memory = h5py.h5s.create_simple((1, len(self.cell_fields), n_cells))
         self._first_capacity = max(1, int(n_frames)) if n_frames else self.BLOCK
         self._blocks: list[_Block] = []
+        self._templates: list[str] = []  # per block, the XML of a frame (rank 0)
         self._row = 0  # the next row of the last block
         # every rank's piece sizes and file, for the XML on rank 0
         self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
@@ -285,11 +288,20 @@ class FieldWriter:
         self._pending.clear()
 
     def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
+        """The XML of one frame: its block's template with the time, step and row."""
+        while len(self._templates) <= b:
+            self._templates.append(self._template(len(self._templates)))
+        return (self._templates[b].replace(_T, repr(t)).replace(_STEP, str(step))
+                .replace(_ROW, str(row)))
+
+    def _template(self, b: int) -> str:
+        """The XML of a frame of block ``b``, with the time, step and row left to fill
+        (the markers _T, _STEP, _ROW)."""
         block = self._blocks[b]
         npc = 4 if self._cell_type == "Quadrilateral" else 3
         n_fields = len(self.cell_fields)
-        lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
-                 f'        <Time Value="{t!r}"/>']
+        lines = [f'      <Grid Name="step_{_STEP}" GridType="Collection" CollectionType="Spatial">',
+                 f'        <Time Value="{_T}"/>']
         for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
             lines += [
                 f'        <Grid Name="piece_{p}" GridType="Uniform">',
@@ -299,12 +311,12 @@ class FieldWriter:
                 f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
                 '</Geometry>']
             for j, key in enumerate(("displacement", "velocity")):
-                item = _slab((n_nodes, 3), h5, block.points_path, (row, j, 0, 0),
+                item = _slab((n_nodes, 3), h5, block.points_path, (_ROW, j, 0, 0),
                              (1, 1, n_nodes, 3), (block.capacity, 2, n_nodes, 3))
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" '
                              f'Center="Node">{item}</Attribute>')
             for j, key in enumerate(self.cell_fields):
-                item = _slab((n_cells,), h5, block.cells_path, (row, j, 0), (1, 1, n_cells),
+                item = _slab((n_cells,), h5, block.cells_path, (_ROW, j, 0), (1, 1, n_cells),
                              (block.capacity, n_fields, n_cells))
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" '
                              f'Center="Cell">{item}</Attribute>')

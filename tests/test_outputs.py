@@ -352,6 +352,7 @@ def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
         shutil.copy(os.path.join(live, "fields.xdmf"), copy)
     comm.barrier()
     writer.close()
+    comm.barrier()  # every piece closed before any rank reads them
     _check_frames(copy, 2)
     with h5py.File(os.path.join(copy, h5), "r") as f:
         assert f["/frames/points_0"].shape[0] == 6  # preallocated rows, not shown
@@ -366,6 +367,7 @@ def test_more_frames_than_announced_go_to_a_new_block(tmp_path_factory):
     out = comm.bcast(str(tmp_path_factory.mktemp("grown")), root=0)
     model = _bar_model()
     _write_frames(model, out, 5, n_frames=2, flush_every=3).close()
+    comm.barrier()  # every piece closed before any rank reads them
     frames = _check_frames(out, 5)
     h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
     with h5py.File(os.path.join(out, h5), "r") as f:

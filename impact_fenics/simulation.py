@@ -493,7 +493,7 @@ class Simulation:
     def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
         values = [row["kinetic"], row["strain"], row["external_work"], row["contact_work"]]
         budget = max(abs(ledger.E0 or 0.0), abs(row["external_work"]), 1e-300)
-        if not all(np.isfinite(values)):
+        if not all(math.isfinite(x) for x in values):
             raise UnstableRunError(self._diagnosis(n, "the energy is not finite"))
         limit = self.settings.energy_growth_limit
         if row["total"] > limit * budget and (ledger.E0 or row["external_work"]):

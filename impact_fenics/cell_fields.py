@@ -176,7 +176,7 @@ class CellStress:
         self.xy = np.ascontiguousarray(model.node_xy)
         self.values = np.zeros((len(STRESS_NAMES), self.n_cells))
         self.peaks = np.full(3, -np.inf)
-        no_plastic = np.empty((0, 4))
+        self._no_plastic = np.empty((0, 4))  # eps_p of a body that has none
         # per body of a constant D: (owned cells, their nodes, gradient factors, D, plastic
         # force or None)
         self._kernel = []
@@ -197,7 +197,6 @@ class CellStress:
                 self._kernel.append((cells, *self._geometry(dofs[cells]), D, None))
             else:
                 self._ufl.append((cells.astype(np.int32), self._expressions(body.material)))
-        self._no_plastic = no_plastic
         self._u_fn = None
 
     def _geometry(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -155,7 +155,7 @@ class Simulation:
         self._body_z = {name: model.body_dofs(name, 1).astype(np.intp) for name in model.bodies}
         self.body_mass = {name: self.comm.allreduce(float(self.integrator.mass[d].sum()))
                           for name, d in self._body_z.items()}
-        # the sums of an output step (energy, momenta; frames lane)
+        # the sums of an output step: energies, momenta (its kernel loaded now)
         self._output_sums = OutputSums(self.integrator.mass, list(self._body_z.values()),
                                        self.comm, 4 if self.integrator.nonlinear else 1)
         self.contacts: list[ContactSet] = []

@@ -78,16 +78,29 @@ def triangle_strain(r1, z1, r2, z2, r3, z3, ur1, uz1, ur2, uz2, ur3, uz3):
 
 
 @njit(cache=True)
+def stress_components(D, e0, e1, e2, e3):
+    """(sigma_rr, sigma_tt, sigma_zz, sigma_rz) in Pa of sigma = D eps, for the strain
+    (e0, e1, e2, e3) = (rr, tt, zz, rz) with tensor shear."""
+    return (D[0, 0] * e0 + D[0, 1] * e1 + D[0, 2] * e2 + D[0, 3] * e3,
+            D[1, 0] * e0 + D[1, 1] * e1 + D[1, 2] * e2 + D[1, 3] * e3,
+            D[2, 0] * e0 + D[2, 1] * e1 + D[2, 2] * e2 + D[2, 3] * e3,
+            D[3, 0] * e0 + D[3, 1] * e1 + D[3, 2] * e2 + D[3, 3] * e3)
+
+
+@njit(cache=True)
+def von_mises(s_rr, s_tt, s_zz, s_rz):
+    """sqrt(3/2 dev(sigma) : dev(sigma)) (Pa) of the axisymmetric stress (shear s_rz)."""
+    m = (s_rr + s_tt + s_zz) * (1.0 / 3.0)
+    d0, d1, d2 = s_rr - m, s_tt - m, s_zz - m
+    return math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s_rz * s_rz))
+
+
+@njit(cache=True)
 def stress_outputs(D, e0, e1, e2, e3):
     """(sigma_rr, sigma_zz, sigma_tt, sigma_rz, von Mises) in Pa of sigma = D eps, for the
     strain (e0, e1, e2, e3) = (rr, tt, zz, rz) with tensor shear."""
-    s0 = D[0, 0] * e0 + D[0, 1] * e1 + D[0, 2] * e2 + D[0, 3] * e3
-    s1 = D[1, 0] * e0 + D[1, 1] * e1 + D[1, 2] * e2 + D[1, 3] * e3
-    s2 = D[2, 0] * e0 + D[2, 1] * e1 + D[2, 2] * e2 + D[2, 3] * e3
-    s3 = D[3, 0] * e0 + D[3, 1] * e1 + D[3, 2] * e2 + D[3, 3] * e3
-    m = (s0 + s1 + s2) * (1.0 / 3.0)
-    d0, d1, d2 = s0 - m, s1 - m, s2 - m
-    return s0, s2, s1, s3, math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    s_rr, s_tt, s_zz, s_rz = stress_components(D, e0, e1, e2, e3)
+    return s_rr, s_zz, s_tt, s_rz, von_mises(s_rr, s_tt, s_zz, s_rz)
 
 
 @njit(cache=True)
@@ -109,10 +122,11 @@ def gradient_factors(nodes, xy, g) -> None:
 
 
 @njit(cache=True)
-def cell_stress(nodes, g, u, D, eps_p, cells, out, peaks) -> None:
-    """The five stress outputs (Pa) of sigma = D (eps - eps_p) at the centroid of each of
-    ``cells`` into out[:, cells[k]], in one pass, and the running extremes of the outputs
-    into ``peaks`` = (max von Mises, max sigma_zz, -min sigma_zz).
+def cell_stress(nodes, g, u, D, eps_p, cells, out) -> None:
+    """sigma_rr, sigma_zz, sigma_tt, sigma_rz (Pa) of sigma = D (eps - eps_p) at the centroid
+    of each of ``cells`` into out[0:4, cells[k]] (von Mises follows in a pass of its own,
+    :func:`von_mises_rows`, which the compiler vectorizes: this loop's gathers keep it
+    scalar).
 
     ``nodes`` (n, 3) the cells' node (block) indices, ``g`` (n, 5) their
     :func:`gradient_factors`, ``u`` the unrolled displacement (m); ``eps_p`` (n, 4) a
@@ -120,7 +134,6 @@ def cell_stress(nodes, g, u, D, eps_p, cells, out, peaks) -> None:
     (0, 4) array. The strain is :func:`triangle_strain`'s, with the inverse Jacobian
     computed once."""
     plastic = eps_p.shape[0] > 0
-    vm_max, zz_max, zz_neg = peaks[0], peaks[1], peaks[2]
     for k in range(cells.size):
         a, b, d = nodes[k, 0], nodes[k, 1], nodes[k, 2]
         ur1, uz1 = u[2 * a], u[2 * a + 1]
@@ -135,28 +148,27 @@ def cell_stress(nodes, g, u, D, eps_p, cells, out, peaks) -> None:
             e1 -= eps_p[k, 1]
             e2 -= eps_p[k, 2]
             e3 -= eps_p[k, 3]
-        s_rr, s_zz, s_tt, s_rz, vm = stress_outputs(D, e0, e1, e2, e3)
+        s_rr, s_tt, s_zz, s_rz = stress_components(D, e0, e1, e2, e3)
         c = cells[k]
         out[0, c] = s_rr
         out[1, c] = s_zz
         out[2, c] = s_tt
         out[3, c] = s_rz
-        out[4, c] = vm
-        vm_max = max(vm_max, vm)
-        zz_max = max(zz_max, s_zz)
-        zz_neg = max(zz_neg, -s_zz)
-    peaks[0], peaks[1], peaks[2] = vm_max, zz_max, zz_neg
 
 
 @njit(cache=True)
-def extremes(von_mises, sigma_zz, peaks) -> None:
-    """Running (max von Mises, max sigma_zz, -min sigma_zz) (Pa) of the given values into
-    ``peaks`` (start from -inf)."""
-    for k in range(von_mises.size):
-        peaks[0] = max(peaks[0], von_mises[k])
-    for k in range(sigma_zz.size):
-        peaks[1] = max(peaks[1], sigma_zz[k])
-        peaks[2] = max(peaks[2], -sigma_zz[k])
+def von_mises_rows(s_rr, s_zz, s_tt, s_rz, out) -> None:
+    """out[k] = von Mises (Pa) of the k-th stresses (contiguous rows: a SIMD loop)."""
+    for k in range(out.size):
+        out[k] = von_mises(s_rr[k], s_tt[k], s_zz[k], s_rz[k])
+
+
+@njit(cache=True)
+def von_mises_cells(values, cells) -> None:
+    """values[4, c] = von Mises (Pa) of values[0:4, c] for each of ``cells``."""
+    for k in range(cells.size):
+        c = cells[k]
+        values[4, c] = von_mises(values[0, c], values[2, c], values[1, c], values[3, c])
 
 
 class CellStress:
@@ -178,14 +190,15 @@ class CellStress:
         self.peaks = np.full(3, -np.inf)
         self._no_plastic = np.empty((0, 4))  # eps_p of a body that has none
         # per body of a constant D: (owned cells, their nodes, gradient factors, D, plastic
-        # force or None)
+        # force or None, (first, end) when the cells are the range first..end-1)
         self._kernel = []
         self._ufl = []  # (owned cells, [compiled Expression per output])
         # path-dependent bodies: C : (eps - mean eps_p of the cell's points)
         for f in plastic_forces:
             cells = f.cells.astype(np.int64)
             self._kernel.append((cells, *self._geometry(dofs[cells]),
-                                 isotropic_stiffness(f.material.lmbda, f.material.mu), f))
+                                 isotropic_stiffness(f.material.lmbda, f.material.mu), f,
+                                 _range(cells)))
         plastic = {f.body for f in plastic_forces}
         for body in model.bodies.values():
             if body.name in plastic:
@@ -194,7 +207,8 @@ class CellStress:
             cells = np.sort(cells[cells < self.n_cells]).astype(np.int64)
             D = stiffness_matrix(body.material)
             if D is not None:
-                self._kernel.append((cells, *self._geometry(dofs[cells]), D, None))
+                self._kernel.append((cells, *self._geometry(dofs[cells]), D, None,
+                                     _range(cells)))
             else:
                 self._ufl.append((cells.astype(np.int32), self._expressions(body.material)))
         self._u_fn = None
@@ -221,18 +235,34 @@ class CellStress:
         """Stresses (Pa) of the owned cells for the local displacement ``u`` (ghosts current),
         into ``out`` (5, n_owned_cells) if given; the extremes into :attr:`peaks`."""
         values = self.values if out is None else out
-        peaks = self.peaks
-        peaks[:] = -np.inf
-        for cells, nodes, g, D, force in self._kernel:
+        for cells, nodes, g, D, force, run in self._kernel:
             eps_p = self._no_plastic if force is None else force.cell_values()[0]
-            cell_stress(nodes, g, u, D, eps_p, cells, values, peaks)
+            cell_stress(nodes, g, u, D, eps_p, cells, values)
+            if run is None:
+                von_mises_cells(values, cells)
+            else:
+                a, b = run
+                von_mises_rows(values[0, a:b], values[1, a:b], values[2, a:b], values[3, a:b],
+                               values[4, a:b])
         if self._ufl:
             self._u_fn.x.array[:] = u
             for cells, exprs in self._ufl:
                 for k, expr in enumerate(exprs):
                     values[k, cells] = eval_expression(expr, self.model.mesh, cells)[:, 0]
-                extremes(values[_VM, cells], values[_ZZ, cells], peaks)
+        peaks = self.peaks
+        if self.n_cells:
+            zz = values[_ZZ]
+            peaks[0], peaks[1], peaks[2] = values[_VM].max(), zz.max(), -zz.min()
+        else:
+            peaks[:] = -np.inf
         return values
+
+
+def _range(cells: np.ndarray) -> tuple[int, int] | None:
+    """(first, end) when the sorted ``cells`` are first, first + 1, ..., end - 1; else None."""
+    if cells.size and cells[-1] - cells[0] + 1 == cells.size:
+        return int(cells[0]), int(cells[-1]) + 1
+    return None
 
 
 _VM, _ZZ = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")

@@ -23,7 +23,8 @@ Layout (what ``fields.xdmf`` describes):
   as the run's known number of frames (``n_frames``); more frames, or an
   unknown count (the finite-strain driver), add blocks, each as long as all
   before it (at least ``BLOCK``). Rows are allocated, never filled: the
-  rows of a run stopped early are in the file but never in the XML.
+  rows of a run stopped early are in the file (as holes of a sparse file)
+  but never in the XML.
 
 Why so: an HDF5 dataset costs about 25 us to create (HDF5 1.10, whatever the
 layout or property list), so a frame of seven datasets and a group cost a small

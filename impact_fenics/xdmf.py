@@ -132,7 +132,7 @@ class FieldWriter:
     written once (``body_id`` is always one: the index of the cell's body in the
     model's order). Cell arrays are over this rank's owned cells, in local order.
     ``n_frames``: how many writes the run will make, if known (the frames' datasets are
-    made that long at the first write; more writes, or an unknown count, add blocks
+    made that long at set-up; more writes, or an unknown count, add blocks
     of frames as they go, each as long as all before it, at least ``BLOCK``)."""
 
     BLOCK = 16
@@ -189,7 +189,6 @@ class FieldWriter:
         self._rows = list(self.cell_values.values())
         self._points_memory = h5py.h5s.create_simple((1, 2, self.n_nodes, 3))
         self._cells_memory = h5py.h5s.create_simple((1, len(self.cell_fields), n_cells))
-        self._first_capacity = max(1, int(n_frames)) if n_frames else self.BLOCK
         self._blocks: list[_Block] = []
         self._templates: list[str] = []  # per block, the XML of a frame (rank 0)
         self._row = 0  # the next row of the last block
@@ -212,6 +211,7 @@ class FieldWriter:
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
+        self._add_block(max(1, int(n_frames)) if n_frames else self.BLOCK)
 
     # ------------------------------------------------------------ writing
     def ghosted(self, owned: np.ndarray, k: int = 0) -> np.ndarray:
@@ -232,14 +232,18 @@ class FieldWriter:
             raise ValueError(f"{list(names)} are not consecutive cell fields of the writer")
         return self._cells[i: i + len(names)]
 
+    def _add_block(self, capacity: int) -> None:
+        """A new block of ``capacity`` frames (and, on rank 0, the XML template of its frames)."""
+        self._blocks.append(_Block(self._h5, len(self._blocks), capacity, self.n_nodes,
+                                   len(self.cell_fields), self.n_cells))
+        if self._xml is not None:
+            self._templates.append(self._template(len(self._blocks) - 1))
+        self._row = 0
+
     def _slot(self) -> tuple[int, int]:
         """(block, row) of the next frame, adding a block when the last one is full."""
-        if not self._blocks or self._row == self._blocks[-1].capacity:
-            total = sum(b.capacity for b in self._blocks)
-            capacity = max(total, self.BLOCK) if self._blocks else self._first_capacity
-            self._blocks.append(_Block(self._h5, len(self._blocks), capacity, self.n_nodes,
-                                       len(self.cell_fields), self.n_cells))
-            self._row = 0
+        if self._row == self._blocks[-1].capacity:
+            self._add_block(max(sum(b.capacity for b in self._blocks), self.BLOCK))
         self._row += 1
         return len(self._blocks) - 1, self._row - 1
 
@@ -290,8 +294,6 @@ class FieldWriter:
 
     def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
         """The XML of one frame: its block's template with the time, step and row."""
-        while len(self._templates) <= b:
-            self._templates.append(self._template(len(self._templates)))
         return (self._templates[b].replace(_T, repr(t)).replace(_STEP, str(step))
                 .replace(_ROW, str(row)))
 

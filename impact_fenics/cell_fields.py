@@ -15,6 +15,12 @@ evaluated with a compiled UFL Expression per body instead (slower, the same valu
 
 Output components (Pa): sigma_rr, sigma_zz, sigma_tt, sigma_rz and von Mises,
 sqrt(3/2 dev(sigma) : dev(sigma)).
+
+Per output (:class:`CellStress`), with each cell's inverse Jacobian computed once at
+set-up: one pass gathers the nodal displacements and writes the four components
+(straight into a field writer's frame, when given its rows), a second computes von
+Mises over the body's contiguous cells (a loop the compiler vectorizes; 0.22 ms
+against 0.41 ms in one fused pass on the punch's 21,792 cells).
 """
 from __future__ import annotations
 

@@ -19,8 +19,9 @@ sqrt(3/2 dev(sigma) : dev(sigma)).
 Per output (:class:`CellStress`), with each cell's inverse Jacobian computed once at
 set-up: one pass gathers the nodal displacements and writes the four components
 (straight into a field writer's frame, when given its rows), a second computes von
-Mises over the body's contiguous cells (a loop the compiler vectorizes; 0.22 ms
-against 0.41 ms in one fused pass on the punch's 21,792 cells).
+Mises over the body's contiguous cells, a loop the compiler vectorizes (on the punch's
+21,792 cells 0.22 ms, against 0.26 ms with von Mises in the gather pass and 0.41 ms
+when each output recomputed the Jacobians).
 """
 from __future__ import annotations
 

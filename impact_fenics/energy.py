@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from .loads import SurfaceLoad
 
@@ -51,6 +52,11 @@ class LoadWork:
                 continue
             integrator.take_velocity(dofs, v)
             self._local += 0.5 * self.dt * s * float(np.dot(ld.force, v))
+
+    @property
+    def local(self) -> float:
+        """This rank's part of W_n (J)."""
+        return self._local
 
     def total(self) -> float:
         """W_n (J), summed over ranks."""
@@ -86,13 +92,76 @@ class Ledger:
                 "balance_error": balance, "balance_error_rel": rel}
 
 
-def deformable_energy(mass: np.ndarray, v_now: np.ndarray, v_next: np.ndarray,
-                      u_now: np.ndarray, Ku_now: np.ndarray, comm: MPI.Comm,
-                      scratch: np.ndarray | None = None) -> tuple[float, float]:
-    """Kinetic 1/2 v^n' M v^{n+1} and strain 1/2 u^n' K u^n (J), summed over ranks
-    (``scratch``: a buffer like ``mass`` for M v^n, else one is allocated)."""
-    mv = np.multiply(mass, v_now, out=scratch)
-    local = np.array([0.5 * float(np.dot(mv, v_next)), 0.5 * float(np.dot(u_now, Ku_now))])
-    total = np.empty(2)
-    comm.Allreduce(local, total)
-    return float(total[0]), float(total[1])
+@njit(cache=True)
+def _output_sums(mass, v_now, v_next, u, ku, body_dofs, body_start, out) -> None:
+    """out[0] = 1/2 v_now' M v_next, out[1] = 1/2 u' ku (J), out[2] = sum of m v_next over the
+    z dofs (odd entries; kg m/s), out[3 + b] = sum of m v_next over body_dofs[body_start[b]:
+    body_start[b + 1]]: one pass over the owned dofs (2 per node, r then z), two nodes at
+    a time into separate partial sums (independent additions pipeline)."""
+    k0 = k1 = s0 = s1 = p0 = p1 = 0.0
+    n = mass.size
+    i = 0
+    while i + 3 < n:
+        k0 += mass[i] * v_now[i] * v_next[i] + mass[i + 1] * v_now[i + 1] * v_next[i + 1]
+        k1 += mass[i + 2] * v_now[i + 2] * v_next[i + 2] + mass[i + 3] * v_now[i + 3] * v_next[i + 3]
+        s0 += u[i] * ku[i] + u[i + 1] * ku[i + 1]
+        s1 += u[i + 2] * ku[i + 2] + u[i + 3] * ku[i + 3]
+        p0 += mass[i + 1] * v_next[i + 1]
+        p1 += mass[i + 3] * v_next[i + 3]
+        i += 4
+    while i < n:
+        k0 += mass[i] * v_now[i] * v_next[i]
+        s0 += u[i] * ku[i]
+        if i % 2 == 1:
+            p0 += mass[i] * v_next[i]
+        i += 1
+    out[0] = 0.5 * (k0 + k1)
+    out[1] = 0.5 * (s0 + s1)
+    out[2] = p0 + p1
+    for b in range(body_start.size - 1):
+        q0 = q1 = 0.0
+        j = body_start[b]
+        end = body_start[b + 1]
+        while j + 1 < end:
+            q0 += mass[body_dofs[j]] * v_next[body_dofs[j]]
+            q1 += mass[body_dofs[j + 1]] * v_next[body_dofs[j + 1]]
+            j += 2
+        if j < end:
+            q0 += mass[body_dofs[j]] * v_next[body_dofs[j]]
+        out[3 + b] = q0 + q1
+
+
+class OutputSums:
+    """The sums of an output step over the owned dofs, in one compiled pass and one
+    reduction over the ranks: kinetic 1/2 (v^n)' M v^{n+1} and strain 1/2 (u^n)' K u^n (J),
+    the z momentum of v^{n+1} in total and per body (kg m/s), and any further local
+    numbers handed in (summed with them).
+
+    ``mass`` the lumped masses (kg) of the owned dofs; ``body_z`` per body the indices of
+    its owned z dofs."""
+
+    def __init__(self, mass: np.ndarray, body_z: list[np.ndarray], comm: MPI.Comm,
+                 n_extra: int = 0):
+        self.mass = mass
+        self.comm = comm
+        self.n_bodies = len(body_z)
+        self._dofs = (np.concatenate(body_z) if body_z else np.zeros(0)).astype(np.int64)
+        self._start = np.cumsum([0] + [d.size for d in body_z]).astype(np.int64)
+        self._local = np.zeros(3 + self.n_bodies + n_extra)
+        self._total = np.zeros_like(self._local)
+        zero = np.zeros_like(mass)  # compile (or load) the kernel now, not at the first output
+        _output_sums(mass, zero, zero, zero, zero, self._dofs, self._start, self._local)
+
+    def reduce(self, v_now: np.ndarray, v_next: np.ndarray, u_now: np.ndarray,
+               Ku_now: np.ndarray, extra=()) -> np.ndarray:
+        """(kinetic, strain, p_z, p_z per body..., extra...) summed over the ranks (a view,
+        valid until the next call)."""
+        local = self._local
+        _output_sums(self.mass, v_now, v_next, u_now, Ku_now, self._dofs, self._start, local)
+        k = 3 + self.n_bodies
+        for i, x in enumerate(extra):
+            local[k + i] = x
+        if self.comm.size == 1:
+            return local
+        self.comm.Allreduce(local, self._total)
+        return self._total

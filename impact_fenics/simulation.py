@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
-from numba import njit
 
 from . import console, interrupts, output, plotting, rundir
 from .cell_fields import STRESS_NAMES, CellStress
@@ -23,7 +22,7 @@ from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
-from .energy import Ledger, LoadWork, deformable_energy
+from .energy import Ledger, LoadWork, OutputSums
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
 from .jit_watch import gained, signature_counts
@@ -156,6 +155,9 @@ class Simulation:
         self._body_z = {name: model.body_dofs(name, 1).astype(np.intp) for name in model.bodies}
         self.body_mass = {name: self.comm.allreduce(float(self.integrator.mass[d].sum()))
                           for name, d in self._body_z.items()}
+        # the sums of an output step: energies, momenta (its kernel loaded now)
+        self._output_sums = OutputSums(self.integrator.mass, list(self._body_z.values()),
+                                       self.comm, 4 if self.integrator.nonlinear else 1)
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
@@ -464,10 +466,17 @@ class Simulation:
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         integ = self.integrator
-        integ.velocity(buf["v_next"])
-        kinetic, strain = deformable_energy(integ.mass, buf["v"], buf["v_next"], buf["u"],
-                                            buf["ku"], self.comm, buf["mv"])
-        ext = load_work.total()
+        nonlinear = integ.nonlinear
+        sums = self._output_sums
+        extra = [load_work.local]
+        if nonlinear:  # stored elastic energy, plastic and deformation work (J)
+            extra += [sum(f.elastic_energy_local() for f in nonlinear),
+                      sum(f.plastic_work_local for f in nonlinear),
+                      sum(f.deformation_work_local for f in nonlinear)]
+        total = sums.reduce(buf["v"], integ.v_owned, buf["u"], buf["ku"], extra)
+        kinetic, strain = float(total[0]), float(total[1])
+        k = 3 + sums.n_bodies
+        ext = float(total[k])
         work_c = 0.0
         for c, v_now in zip(self.contacts, pre["rigid_v"]):
             if c.rigid is not None:
@@ -475,33 +484,23 @@ class Simulation:
                 ext += c.rigid_external_work
             work_c += c.contact_work
         plastic = deformation = 0.0
-        if integ.nonlinear:  # stored elastic energy, plastic and deformation work (J)
-            local = np.array([sum(f.elastic_energy_local() for f in integ.nonlinear),
-                              sum(f.plastic_work_local for f in integ.nonlinear),
-                              sum(f.deformation_work_local for f in integ.nonlinear)])
-            total = np.zeros(3)
-            self.comm.Allreduce(local, total)
-            strain += float(total[0])
-            plastic, deformation = float(total[1]), float(total[2])
+        if nonlinear:
+            strain += float(total[k + 1])
+            plastic, deformation = float(total[k + 2]), float(total[k + 3])
         row = ledger.record(kinetic, strain, ext, work_c, plastic, deformation)
         row["activation_loss"] = sum(c.activation_loss for c in self.contacts)
         row["step"] = integ.n - 1
         row["time"] = (integ.n - 1) * self.settings.dt
         # z momentum (kg m/s) of v^{n+1}: in total (every node once) and per body
         # (a node that two bonded bodies share counts in both)
-        v = buf["v_next"]
-        local = np.array([float(np.dot(integ.mass[1::2], v[1::2]))] +
-                         [float(np.dot(m, np.take(v, d, out=vd))) for m, vd, d in self._body_momentum])
-        momenta = np.zeros_like(local)
-        self.comm.Allreduce(local, momenta)
-        total = float(momenta[0])
-        for name, p in zip(self._body_z, momenta[1:]):
+        p_total = float(total[2])
+        for name, p in zip(self._body_z, total[3:k]):
             row[f"momentum_z_{name}"] = float(p)
         for c in self.contacts:
             if c.rigid is not None:
                 row[f"momentum_z_{c.rigid.name}"] = c.rigid.mass * c.rigid.v
-                total += c.rigid.mass * c.rigid.v
-        row["momentum_z"] = total
+                p_total += c.rigid.mass * c.rigid.v
+        row["momentum_z"] = p_total
         return row
 
     @staticmethod
@@ -535,7 +534,7 @@ class Simulation:
     def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
         values = [row["kinetic"], row["strain"], row["external_work"], row["contact_work"]]
         budget = max(abs(ledger.E0 or 0.0), abs(row["external_work"]), 1e-300)
-        if not all(np.isfinite(values)):
+        if not all(math.isfinite(x) for x in values):
             raise UnstableRunError(self._diagnosis(n, "the energy is not finite"))
         limit = self.settings.energy_growth_limit
         if row["total"] > limit * budget and (ledger.E0 or row["external_work"]):
@@ -567,26 +566,34 @@ class Simulation:
         self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
         self._peak_buf = np.empty(3)
         extra = [name for p in self._cell_field_providers for name in p()]
-        return FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
-                           cell_fields=list(STRESS_NAMES) + extra)
+        # the initial state, then every output_every steps and the last step
+        n_frames = 1 + -(-self.n_steps // self.settings.output_every)
+        writer = FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
+                             cell_fields=list(STRESS_NAMES) + extra, n_frames=n_frames)
+        # the stresses are computed straight into the writer's frame buffer
+        self._stress_block = writer.cell_block(STRESS_NAMES)
+        return writer
 
     def _write_fields(self, writer: FieldWriter) -> None:
         """u, v (state of step integ.n), the stresses and the extra cell fields."""
         integ = self.integrator
         u = writer.ghosted(integ.u_owned, 0)
         v = writer.ghosted(integ.v_owned, 1)
-        stresses = self._cell_stress.evaluate(u)
-        cells = dict(zip(STRESS_NAMES, stresses))
-        self._track_peaks(stresses, integ.n * self.settings.dt)
+        self._cell_stress.evaluate(u, out=self._stress_block)
+        self._track_peaks(integ.n * self.settings.dt)
+        cells = writer.cell_values
         for provider in self._cell_field_providers:
-            cells.update(provider())
+            for key, values in provider().items():
+                cells[key][:] = values[: writer.n_cells]
         writer.write(integ.n * self.settings.dt, integ.n, u, v, cells)
 
-    def _track_peaks(self, stresses: np.ndarray, t: float) -> None:
-        """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when."""
+    def _track_peaks(self, t: float) -> None:
+        """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when
+        (the cell stresses' extremes of this output, reduced over the ranks)."""
         local = self._peak_buf
-        _extremes(stresses[_K_VM], stresses[_K_ZZ], local)
-        self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        local[:] = self._cell_stress.peaks
+        if self.comm.size > 1:
+            self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
         p = self._peaks
         if not p:
             p.update(von_mises=-np.inf, von_mises_time=t, sigma_zz_max=-np.inf,
@@ -844,22 +851,6 @@ class Simulation:
                 summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                     ("contact_detection", "contact_solve", "contact_update"), self.comm)
         return summary
-
-
-_K_VM, _K_ZZ = STRESS_NAMES.index("von_mises"), STRESS_NAMES.index("sigma_zz")
-
-
-@njit(cache=True)
-def _extremes(von_mises, sigma_zz, out) -> None:
-    """out = (max von Mises, max sigma_zz, -min sigma_zz) (Pa; -inf of an empty array)."""
-    out[0] = -np.inf
-    out[1] = -np.inf
-    out[2] = -np.inf
-    for k in range(von_mises.size):
-        out[0] = max(out[0], von_mises[k])
-    for k in range(sigma_zz.size):
-        out[1] = max(out[1], sigma_zz[k])
-        out[2] = max(out[2], -sigma_zz[k])
 
 
 def _provenance() -> dict:

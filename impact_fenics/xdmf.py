@@ -15,11 +15,30 @@ Layout (what ``fields.xdmf`` describes):
 * at each output time one temporal step: a spatial collection of the pieces,
   each with ``displacement`` (m) and ``velocity`` (m/s) as point vectors
   padded to three components (ParaView's Warp By Vector takes them as they
-  are) and every cell field (Pa for stresses) as cell scalars, in the
-  datasets ``/step_<n>/<name>`` of the piece's file (created with HDF5's
-  low-level calls: a frame costs its data, not Python bookkeeping). Plain
-  datasets, no HyperSlabs: both of ParaView's XDMF readers (the default
-  Xdmf3 reader and the older XDMF reader) read them.
+  are) and every cell field (Pa for stresses) as cell scalars;
+* a frame's data is one row of two datasets per block of frames,
+  ``/frames/points_<b>`` (frames, 2, nodes, 3: displacement, velocity) and
+  ``/frames/cells_<b>`` (frames, fields, cells), so writing a frame is two
+  hyperslab writes of its buffers, nothing created. The first block is as long
+  as the run's known number of frames (``n_frames``); more frames, or an
+  unknown count (the finite-strain driver), add blocks, each as long as all
+  before it (at least ``BLOCK``). Rows are allocated, never filled: the
+  rows of a run stopped early are in the file (as holes of a sparse file)
+  but never in the XML.
+
+Why so: an HDF5 dataset costs about 25 us to create (HDF5 1.10, whatever the
+layout or property list), so a frame of seven datasets and a group cost a small
+mesh's frame several times over (bars: 0.31 ms a frame against 0.07 ms now).
+
+Each attribute names its row with Xdmf3's heavy-data hyperslab,
+``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
+what ParaView's default reader for .xdmf (Xdmf3ReaderS, and Xdmf3ReaderT) reads;
+it skips an XDMF ``ItemType="HyperSlab"`` item ("unrecognized array type": it asks
+the array's type before reading it, and a HyperSlab has none until read). The
+older "XDMF Reader" (Xdmf2) reads only that HyperSlab form, not the Xdmf3 one:
+choose one of the Xdmf3 readers when ParaView asks. (Both forms side by side
+make both readers show every array, but each reader then prints an error per
+array and time: not done.) :func:`data_item` reads all three forms.
 
 ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
@@ -30,11 +49,7 @@ costs the same however many came before. The frames reach the disk in
 batches: every ``flush_every`` writes (and at close) each rank flushes its HDF5
 file, the ranks meet, and only then rank 0 appends the XML of the frames of the
 batch, so the XML never names data that is not on disk and a run stopped at any
-point, even killed, leaves a readable series of the frames flushed so far. (An
-HDF5 flush writes the file's changed metadata in a dozen small writes, 0.05-0.3
-ms, as much as a small mesh's whole frame; creating a frame's datasets ahead, at
-set-up, does not pay: a flush then walks every object of the file, and
-reopening a dataset costs half of creating it.)
+point, even killed, leaves a readable series of the frames flushed so far.
 """
 from __future__ import annotations
 
@@ -45,6 +60,8 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
+# markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
+_T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 # XDMF topology of P1 cells by nodes per cell; dolfinx numbers a quadrilateral's vertices
 # (0, 0), (1, 0), (0, 1), (1, 1), XDMF (like VTK) goes round the cell: 0, 1, 3, 2
@@ -58,21 +75,17 @@ def _item(dims: Sequence[int], h5: str, path: str, number: str = "Float", precis
             f'Format="HDF">{h5}:{path}</DataItem>')
 
 
-def _dataset(group, name: str, values: np.ndarray) -> None:
-    """A float64 dataset ``name`` in ``group`` holding the C-contiguous ``values``."""
-    import h5py
+def _slab(dims: Sequence[int], h5: str, path: str, start: Sequence[int], count: Sequence[int],
+          shape: Sequence[int]) -> str:
+    """A float64 DataItem of ``dims`` read from the block ``start`` + ``count`` (unit stride) of
+    the dataset ``path`` of shape ``shape``: Xdmf3's heavy-data hyperslab, the content
+    'file:/path|start:stride:count:shape'."""
+    def j(v):  # (a marker entry stays as it is)
+        return " ".join(str(k) for k in v)
 
-    space = h5py.h5s.create_simple(values.shape)
-    ds = h5py.h5d.create(group, name.encode(), h5py.h5t.NATIVE_DOUBLE, space)
-    _write(ds, values)
-
-
-def _write(ds, values: np.ndarray) -> None:
-    """The C-contiguous float64 ``values`` into dataset ``ds`` (the memory type given:
-    h5py would otherwise derive it from the dtype at every call, ~10 us)."""
-    import h5py
-
-    ds.write(h5py.h5s.ALL, h5py.h5s.ALL, values, mtype=h5py.h5t.NATIVE_DOUBLE)
+    d = j(dims)
+    return (f'<DataItem Dimensions="{d}" NumberType="Float" Precision="8" Format="HDF">'
+            f'{h5}:{path}|{j(start)}:{j([1] * len(start))}:{j(count)}:{j(shape)}</DataItem>')
 
 
 @njit(cache=True)
@@ -86,17 +99,47 @@ def _point_vectors(u, v, nodes, out) -> None:
         out[1, k, 1] = v[i + 1]
 
 
+class _Block:
+    """One block of frames in a rank's file: ``/frames/points_<b>`` (capacity, 2, nodes, 3)
+    and ``/frames/cells_<b>`` (capacity, fields, cells), float64, contiguous, allocated when
+    first written and never filled (rows not yet written are never named by the XML)."""
+
+    def __init__(self, h5, b: int, capacity: int, n_nodes: int, n_fields: int, n_cells: int):
+        import h5py
+
+        dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+        dcpl.set_fill_time(h5py.h5d.FILL_TIME_NEVER)
+        dcpl.set_obj_track_times(False)
+        self.capacity = capacity
+        self.points_path, self.cells_path = f"/frames/points_{b}", f"/frames/cells_{b}"
+        self.points_shape = (capacity, 2, n_nodes, 3)
+        self.cells_shape = (capacity, n_fields, n_cells)
+        self.points = h5py.h5d.create(h5.id, self.points_path.encode(), h5py.h5t.NATIVE_DOUBLE,
+                                      h5py.h5s.create_simple(self.points_shape), dcpl=dcpl)
+        self.points_space = self.points.get_space()
+        self.cells = None
+        if n_fields:
+            self.cells = h5py.h5d.create(h5.id, self.cells_path.encode(), h5py.h5t.NATIVE_DOUBLE,
+                                         h5py.h5s.create_simple(self.cells_shape), dcpl=dcpl)
+            self.cells_space = self.cells.get_space()
+
+
 class FieldWriter:
     """XDMF + HDF5 fields of a :class:`~impact_fenics.bodies.DeformableModel`.
 
     ``cell_fields``: names of the cell fields handed to every :meth:`write` (besides
     the five stresses, e.g. a plastic strain); ``static_cell_fields``: cell fields
     written once (``body_id`` is always one: the index of the cell's body in the
-    model's order). Cell arrays are over this rank's owned cells, in local order."""
+    model's order). Cell arrays are over this rank's owned cells, in local order.
+    ``n_frames``: how many writes the run will make, if known (the frames' datasets are
+    made that long at set-up; more writes, or an unknown count, add blocks
+    of frames as they go, each as long as all before it, at least ``BLOCK``)."""
+
+    BLOCK = 16
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
-                 flush_every: int = 8):
+                 flush_every: int = 8, n_frames: int | None = None):
         import h5py
 
         self.comm: MPI.Comm = model.comm
@@ -135,16 +178,27 @@ class FieldWriter:
         self._h5.create_dataset("/mesh/topology", data=topology)
         for key, values in static.items():
             self._h5.create_dataset(f"/mesh/{key}", data=np.asarray(values)[:n_cells])
-        self._vec = np.zeros((2, self.n_nodes, 3))
+        self._h5.create_group("/frames")
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
+        # a frame's data: the point vectors and every cell field, written from these buffers
+        # (a caller may compute into cell_values' arrays: they are then not copied)
+        self._vec = np.zeros((2, self.n_nodes, 3))
+        self._cells = np.zeros((len(self.cell_fields), n_cells))
+        self.cell_values = {key: self._cells[k] for k, key in enumerate(self.cell_fields)}
+        self._rows = list(self.cell_values.values())
+        self._points_memory = h5py.h5s.create_simple((1, 2, self.n_nodes, 3))
+        self._cells_memory = h5py.h5s.create_simple((1, len(self.cell_fields), n_cells))
+        self._blocks: list[_Block] = []
+        self._templates: list[str] = []  # per block, the XML of a frame (rank 0)
+        self._row = 0  # the next row of the last block
         # every rank's piece sizes and file, for the XML on rank 0
         self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
         self._xml = None
         self._tail_at = 0
         self.n_writes = 0
         self.flush_every = max(1, int(flush_every))
-        self._pending: list[tuple[float, int]] = []  # (t, step) written, not yet in the XML
+        self._pending: list[tuple[float, int, int, int]] = []  # (t, step, block, row) not in the XML
         _point_vectors(np.zeros(2), np.zeros(2), np.zeros(1, np.int64), np.zeros((2, 1, 3)))
         if comm.rank == 0:
             self._xml = open(path, "w")
@@ -157,6 +211,7 @@ class FieldWriter:
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
+        self._add_block(max(1, int(n_frames)) if n_frames else self.BLOCK)
 
     # ------------------------------------------------------------ writing
     def ghosted(self, owned: np.ndarray, k: int = 0) -> np.ndarray:
@@ -169,26 +224,57 @@ class FieldWriter:
         fn.x.scatter_forward()
         return fn.x.array
 
+    def cell_block(self, names: Sequence[str]) -> np.ndarray:
+        """The rows of :attr:`cell_values` of ``names`` (consecutive in ``cell_fields``) as one
+        (len(names), n_cells) array, to compute a frame's cell fields in place."""
+        i = self.cell_fields.index(names[0])
+        if self.cell_fields[i: i + len(names)] != list(names):
+            raise ValueError(f"{list(names)} are not consecutive cell fields of the writer")
+        return self._cells[i: i + len(names)]
+
+    def _add_block(self, capacity: int) -> None:
+        """A new block of ``capacity`` frames (and, on rank 0, the XML template of its frames)."""
+        self._blocks.append(_Block(self._h5, len(self._blocks), capacity, self.n_nodes,
+                                   len(self.cell_fields), self.n_cells))
+        if self._xml is not None:
+            self._templates.append(self._template(len(self._blocks) - 1))
+        self._row = 0
+
+    def _slot(self) -> tuple[int, int]:
+        """(block, row) of the next frame, adding a block when the last one is full."""
+        if self._row == self._blocks[-1].capacity:
+            self._add_block(max(sum(b.capacity for b in self._blocks), self.BLOCK))
+        self._row += 1
+        return len(self._blocks) - 1, self._row - 1
+
     def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
               cell_values: Mapping[str, np.ndarray]) -> None:
         """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
         local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
-        of ``cell_fields``."""
+        of ``cell_fields`` (the arrays of :attr:`cell_values`, filled in place, are not copied)."""
         import h5py
 
-        missing = [k for k in self.cell_fields if k not in cell_values]
-        if missing:
-            raise ValueError(f"cell fields {missing} missing: every write holds every field")
-        vec = self._vec
-        _point_vectors(u, v, self._nodes, vec)
-        group = h5py.h5g.create(self._h5.id, f"step_{step}".encode())
-        for name, values in (("displacement", vec[0]), ("velocity", vec[1])):
-            _dataset(group, name, values)
-        for key in self.cell_fields:
-            _dataset(group, key, np.ascontiguousarray(cell_values[key][: self.n_cells],
-                                                      dtype=np.float64))
+        if cell_values is not self.cell_values:
+            missing = [k for k in self.cell_fields if k not in cell_values]
+            if missing:
+                raise ValueError(f"cell fields {missing} missing: every write holds every field")
+            for row, key in zip(self._rows, self.cell_fields):
+                values = cell_values[key]
+                if values is not row:
+                    row[:] = values[: self.n_cells]
+        _point_vectors(u, v, self._nodes, self._vec)
+        b, row = self._slot()
+        block = self._blocks[b]
+        double = h5py.h5t.NATIVE_DOUBLE
+        space = block.points_space
+        space.select_hyperslab((row, 0, 0, 0), (1, 2, self.n_nodes, 3))
+        block.points.write(self._points_memory, space, self._vec, mtype=double)
+        if block.cells is not None:
+            space = block.cells_space
+            space.select_hyperslab((row, 0, 0), (1, len(self.cell_fields), self.n_cells))
+            block.cells.write(self._cells_memory, space, self._cells, mtype=double)
         self.n_writes += 1
-        self._pending.append((t, step))
+        self._pending.append((t, step, b, row))
         if len(self._pending) >= self.flush_every:
             self.flush()
 
@@ -200,17 +286,25 @@ class FieldWriter:
         self.comm.barrier()  # every piece is on disk before the XML points at it
         if self._xml is not None:
             self._xml.seek(self._tail_at)
-            self._xml.write("".join(self._step_xml(t, step) for t, step in self._pending))
+            self._xml.write("".join(self._step_xml(*frame) for frame in self._pending))
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
         self._pending.clear()
 
-    def _step_xml(self, t: float, step: int) -> str:
-        group = f"/step_{step}"
+    def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
+        """The XML of one frame: its block's template with the time, step and row."""
+        return (self._templates[b].replace(_T, repr(t)).replace(_STEP, str(step))
+                .replace(_ROW, str(row)))
+
+    def _template(self, b: int) -> str:
+        """The XML of a frame of block ``b``, with the time, step and row left to fill
+        (the markers _T, _STEP, _ROW)."""
+        block = self._blocks[b]
         npc = 4 if self._cell_type == "Quadrilateral" else 3
-        lines = [f'      <Grid Name="step_{step}" GridType="Collection" CollectionType="Spatial">',
-                 f'        <Time Value="{t!r}"/>']
+        n_fields = len(self.cell_fields)
+        lines = [f'      <Grid Name="step_{_STEP}" GridType="Collection" CollectionType="Spatial">',
+                 f'        <Time Value="{_T}"/>']
         for p, (n_nodes, n_cells, h5) in enumerate(self._pieces):
             lines += [
                 f'        <Grid Name="piece_{p}" GridType="Uniform">',
@@ -219,12 +313,16 @@ class FieldWriter:
                 '</Topology>',
                 f'          <Geometry GeometryType="XY">{_item((n_nodes, 2), h5, "/mesh/geometry")}'
                 '</Geometry>']
-            for key in ("displacement", "velocity"):
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" Center="Node">'
-                             f'{_item((n_nodes, 3), h5, f"{group}/{key}")}</Attribute>')
-            for key in self.cell_fields:
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
-                             f'{_item((n_cells,), h5, f"{group}/{key}")}</Attribute>')
+            for j, key in enumerate(("displacement", "velocity")):
+                item = _slab((n_nodes, 3), h5, block.points_path, (_ROW, j, 0, 0),
+                             (1, 1, n_nodes, 3), (block.capacity, 2, n_nodes, 3))
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Vector" '
+                             f'Center="Node">{item}</Attribute>')
+            for j, key in enumerate(self.cell_fields):
+                item = _slab((n_cells,), h5, block.cells_path, (_ROW, j, 0), (1, 1, n_cells),
+                             (block.capacity, n_fields, n_cells))
+                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" '
+                             f'Center="Cell">{item}</Attribute>')
             for key, dtype in self._static.items():
                 kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
@@ -237,6 +335,7 @@ class FieldWriter:
         """Flush the last frames (collective) and close the files."""
         if self._h5 is not None:
             self.flush()
+            self._blocks.clear()
             self._h5.close()
             self._h5 = None
         if self._xml is not None:
@@ -247,7 +346,8 @@ class FieldWriter:
 # ----------------------------------------------------------------------------- reading back
 
 def data_item(item, xdmf_dir: str) -> np.ndarray:
-    """The array of an XDMF DataItem: HDF ('file.h5:/path'), XML text, or a HyperSlab of one."""
+    """The array of an XDMF DataItem: HDF ('file.h5:/path', or Xdmf3's hyperslab of one,
+    'file.h5:/path|start:stride:count:shape'), XML text, or an XDMF HyperSlab item."""
     import h5py
 
     if item.get("ItemType") == "HyperSlab":
@@ -258,9 +358,15 @@ def data_item(item, xdmf_dir: str) -> np.ndarray:
         with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
             data = f[dataset][index]
     elif item.get("Format") == "HDF":
-        filename, _, dataset = item.text.strip().partition(":")
+        source, _, slab = item.text.strip().partition("|")
+        filename, _, dataset = source.partition(":")
+        index = ...
+        if slab:  # Xdmf3's 'file:/path|start:stride:count:shape'
+            start, stride, count = (np.array(s.split(), dtype=np.int64)
+                                    for s in slab.split(":")[:3])
+            index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
         with h5py.File(os.path.join(xdmf_dir, filename), "r") as f:
-            data = f[dataset][...]
+            data = f[dataset][index]
     else:
         data = np.array(item.text.split(), dtype=float)
     dims = [int(d) for d in item.get("Dimensions").split()]

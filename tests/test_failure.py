@@ -43,7 +43,8 @@ def _xdmf_steps(path) -> dict[str, list[float]]:
         t = float(step.find("Time").get("Value"))
         for piece in step.findall("Grid"):
             for attr in piece.findall("Attribute"):
-                filename, _, dataset = attr.find("DataItem").text.strip().partition(":")
+                source = attr.find("DataItem").text.strip().partition("|")[0]  # Xdmf3 slab
+                filename, _, dataset = source.partition(":")
                 h5 = os.path.join(os.path.dirname(path), filename)
                 h5_files.add(h5)
                 with h5py.File(h5, "r") as f:

@@ -75,9 +75,15 @@ FIELDS = {"displacement", "velocity", "sigma_rr", "sigma_zz", "sigma_tt", "sigma
 
 
 def _item(item, base):
-    name, _, ds = item.text.strip().partition(":")
+    """An HDF DataItem, 'file:/path' or Xdmf3's hyperslab 'file:/path|start:stride:count:shape'."""
+    source, _, slab = item.text.strip().partition("|")
+    name, _, ds = source.partition(":")
+    index = ...
+    if slab:
+        start, stride, count = (np.array(p.split(), dtype=int) for p in slab.split(":")[:3])
+        index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
     with h5py.File(os.path.join(base, name), "r") as f:
-        return f[ds][...].reshape([int(d) for d in item.get("Dimensions").split()])
+        return f[ds][index].reshape([int(d) for d in item.get("Dimensions").split()])
 
 
 @pytest.fixture(scope="module")

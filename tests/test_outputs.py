@@ -62,17 +62,25 @@ def run(tmp_path_factory):
 
 
 def _item(item, base):
-    """An XDMF DataItem (HDF or a HyperSlab of one) as an array, read with h5py."""
+    """An XDMF DataItem (HDF, Xdmf3's hyperslab of one, or an XDMF HyperSlab) as an array,
+    read with h5py."""
     if item.get("ItemType") == "HyperSlab":
         sel, src = item.findall("DataItem")
         start, stride, count = np.array(sel.text.split(), dtype=int).reshape(3, -1)
         name, _, ds = src.text.strip().partition(":")
         with h5py.File(os.path.join(base, name), "r") as f:
             data = f[ds][tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))]
-    else:
-        name, _, ds = item.text.strip().partition(":")
+    else:  # 'file:/path', or Xdmf3's hyperslab 'file:/path|start:stride:count:shape'
+        source, _, slab = item.text.strip().partition("|")
+        name, _, ds = source.partition(":")
+        index = ...
+        if slab:
+            start, stride, count, shape = (np.array(p.split(), dtype=int) for p in slab.split(":"))
+            index = tuple(slice(a, a + s * c, s) for a, s, c in zip(start, stride, count))
+            with h5py.File(os.path.join(base, name), "r") as f:
+                assert f[ds].shape == tuple(shape)  # the dataset the XML declares
         with h5py.File(os.path.join(base, name), "r") as f:
-            data = f[ds][...]
+            data = f[ds][index]
     return data.reshape([int(d) for d in item.get("Dimensions").split()])
 
 
@@ -266,3 +274,119 @@ def test_paraview_default_reader_sees_every_array(run):
     assert np.allclose(result["sigma_zz_colour_range"], [zz_last.min(), zz_last.max()],
                        rtol=1e-12, atol=0)
     assert result["warped_points"] == sum(p["points"].shape[0] for p in frames[-1][1])
+
+
+# ----------------------------------------------------------------------------- the writer alone
+# Frames of known values: u = (k + 1) (f_r, f_z)(x) at the nodes, every cell field a function
+# of the cell's centroid plus k. Read back with h5py and ElementTree (above), each rank
+# checks its own piece: the values are the same arithmetic on the same coordinates, so
+# they match to round-off of the centroid (the piece's cells list the nodes in the
+# model's order).
+
+def _bar_model():
+    sim = scenes.bar_impact(Settings(dt=1e-7, n_steps=1, quiet=True), FILM(), h=0.02, nu=0.3,
+                            radius=A, striker_length=L, target_length=L, structured=True,
+                            observe=None)
+    return sim.model
+
+
+def _nodal(xy, k):
+    return (k + 1) * np.stack([1e-3 * xy[:, 0] * xy[:, 1], -2e-3 * xy[:, 1] ** 2], axis=1)
+
+
+def _cellular(centroids, j, k):
+    return (j + 1) * 1e6 * np.sin(40 * centroids[:, 0] + 7 * centroids[:, 1]) + k
+
+
+def _write_frames(model, directory, n_writes, **kw):
+    from impact_fenics.compat import cell_dofs
+    from impact_fenics.xdmf import FieldWriter
+
+    writer = FieldWriter(os.path.join(directory, "fields.xdmf"), model,
+                         cell_fields=list(STRESS_NAMES), **kw)
+    xy = model.node_xy
+    n_cells = writer.n_cells
+    centroids = xy[cell_dofs(model.V)[:n_cells]].mean(axis=1)
+    for k in range(n_writes):
+        u = _nodal(xy, k).ravel()
+        v = -u
+        cells = {name: _cellular(centroids, j, k) for j, name in enumerate(STRESS_NAMES)}
+        writer.write(1e-6 * k, 10 * k, u, v, cells)
+    return writer
+
+
+def _check_frames(directory, n_frames):
+    frames = _frames(directory)
+    assert [t for t, _ in frames] == [1e-6 * k for k in range(n_frames)]
+    for k, (_, pieces) in enumerate(frames):
+        p = pieces[MPI.COMM_WORLD.rank]  # this rank's piece
+        xy = p["points"]
+        expected = np.zeros((xy.shape[0], 3))
+        expected[:, :2] = _nodal(xy, k)
+        assert np.array_equal(p["arrays"]["displacement"][1], expected)
+        assert np.array_equal(p["arrays"]["velocity"][1], -expected)
+        centroids = xy[p["cells"]].mean(axis=1)
+        for j, name in enumerate(STRESS_NAMES):
+            ref = _cellular(centroids, j, k)
+            assert np.allclose(p["arrays"][name][1], ref, rtol=0, atol=1e-9 * 5e6), (k, name)
+    return frames
+
+
+def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
+    """Frames reach the XML in flushed batches: a copy of the files taken after three writes
+    with flush_every = 2 (what a killed run leaves: the third frame's data may be in the
+    file, its XML not) reads as two frames, though the datasets hold six rows."""
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path_factory.mktemp("killed")), root=0)
+    live, copy = os.path.join(base, "live"), os.path.join(base, "copy")
+    if comm.rank == 0:
+        os.makedirs(live)
+        os.makedirs(copy)
+    comm.barrier()
+    model = _bar_model()
+    writer = _write_frames(model, live, 3, n_frames=6, flush_every=2)
+    comm.barrier()
+    h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
+    shutil.copy(os.path.join(live, h5), copy)
+    if comm.rank == 0:
+        shutil.copy(os.path.join(live, "fields.xdmf"), copy)
+    comm.barrier()
+    writer.close()
+    comm.barrier()  # every piece closed before any rank reads them
+    _check_frames(copy, 2)
+    with h5py.File(os.path.join(copy, h5), "r") as f:
+        assert f["/frames/points_0"].shape[0] == 6  # preallocated rows, not shown
+    _check_frames(live, 3)
+
+
+def test_more_frames_than_announced_go_to_a_new_block(tmp_path_factory):
+    """n_frames = 2 and five writes: a second block of frames (each item names its block and
+    the block's declared shape, checked against the file); every frame reads back, and
+    ParaView's default reader sees every array at every time across the blocks."""
+    comm = MPI.COMM_WORLD
+    out = comm.bcast(str(tmp_path_factory.mktemp("grown")), root=0)
+    model = _bar_model()
+    _write_frames(model, out, 5, n_frames=2, flush_every=3).close()
+    comm.barrier()  # every piece closed before any rank reads them
+    frames = _check_frames(out, 5)
+    h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
+    with h5py.File(os.path.join(out, h5), "r") as f:
+        assert sorted(f["/frames"]) == ["cells_0", "cells_1", "points_0", "points_1"]
+        assert f["/frames/cells_0"].shape[0] == 2 and f["/frames/cells_1"].shape[0] == 16
+    result = _pvbatch(os.path.join(out, "fields.xdmf")) if comm.rank == 0 else None
+    result = comm.bcast(result, root=0)
+    if result is None:
+        pytest.skip("pvbatch (ParaView) is not installed: the files were checked with h5py")
+    assert result["reader"] == "Xdmf3ReaderS"
+    assert np.allclose(result["times"], [t for t, _ in frames], rtol=1e-12, atol=0)
+    for step, (_, pieces) in zip(result["steps"], frames):
+        assert len(step["blocks"]) == comm.size
+        for block, p in zip(step["blocks"], pieces):
+            assert set(block["arrays"]) == {"displacement", "velocity"} | CELL_FIELDS
+            zz = p["arrays"]["sigma_zz"][1]
+            assert block["arrays"]["sigma_zz"]["range"] == [zz.min(), zz.max()]
+            size = np.linalg.norm(p["arrays"]["displacement"][1], axis=1)
+            assert block["arrays"]["displacement"]["components"] == 3
+            assert block["points"] == p["points"].shape[0]
+            assert np.allclose(block["arrays"]["displacement"]["range"], [size.min(), size.max()],
+                               rtol=1e-12, atol=0)

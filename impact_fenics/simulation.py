@@ -254,9 +254,7 @@ class Simulation:
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm)
         times = PhaseTimers(PHASES) if s.timers else None
-        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "v_next", "ku", "mv")}
-        # per body: the masses of its z dofs (constant) and a buffer for their velocities
-        self._body_momentum = [(integ.mass[d], np.empty(d.size), d) for d in self._body_z.values()]
+        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "ku")}
         self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
         last_energy, max_bal = None, 0.0

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from . import console, interrupts, output, plotting, rundir
 from .cell_fields import STRESS_NAMES, CellStress

@@ -173,7 +173,11 @@ def agree(comm) -> int:
     from mpi4py import MPI
 
     signum = comm.allreduce(STATE.signum, op=MPI.MAX) if comm.size > 1 else STATE.signum
-    STATE.signum = signum
+    # a signal may arrive on this rank while it waits in the reduction (its handler can run
+    # before the reduction returns, after this rank's flag was read): the flag is raised to
+    # what the ranks agreed, never lowered, so such a signal is agreed on the next time
+    if signum:
+        STATE.signum = signum
     return signum
 
 

@@ -184,6 +184,26 @@ def _mpirun(args, tag):
                             env=env, cwd=ROOT)
 
 
+def test_a_signal_during_the_agreement_is_kept_for_the_next():
+    """A signal that reaches a rank while it waits in the agreement's reduction (after its
+    flag was read as 0) must stay pending: the ranks agree on it the next time. The
+    reduction is replaced by one that delivers the signal inside it, as happens when a
+    rank waits there for a slower one (a lost SIGINT let a 'stopped' run go on)."""
+    class SignalInside:
+        size = 2
+
+        def allreduce(self, value, op=None):
+            interrupts.STATE.signum = signal.SIGINT  # the handler runs inside the wait
+            return value  # every rank's flag was 0 when read
+
+    interrupts.clear()
+    try:
+        assert interrupts.agree(SignalInside()) == 0
+        assert interrupts.pending() == signal.SIGINT
+    finally:
+        interrupts.clear()
+
+
 @serial_only
 @pytest.mark.parametrize("to", ["both", "rank1"])
 def test_signal_to_the_ranks_under_mpirun(tmp_path, to):

@@ -253,7 +253,7 @@ class Simulation:
         gc.freeze()
         self.probes = probes
         ledger = Ledger(comm)
-        load_work = LoadWork(self.loads, s.dt, comm)
+        load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "ku")}
         self._minus_m_over_dt = -integ.mass / s.dt

@@ -354,7 +354,9 @@ class Simulation:
                         self._check_stability(row, ledger, n)
                     if is_fields:
                         self._write_fields(writer)
-                t5 = clock()
+                    t5 = clock()
+                else:  # no output phase: no clock call (the rigid check above is rest)
+                    t5 = t4
                 if rows is not None:  # this step's times of PHASES, in their order
                     rows[pos] = t1 - t0
                     if one_contact is not None:

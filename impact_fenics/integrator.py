@@ -163,10 +163,6 @@ class Integrator:
             axpy(dt, v)
         return predict
 
-    def take_velocity(self, dofs: np.ndarray, out: np.ndarray) -> None:
-        """v on owned ``dofs`` (m/s): v^n before :meth:`predict`."""
-        np.take(self.v_owned, dofs, out=out)
-
     def advance(self) -> None:
         """Accept the step: the corrected state becomes (u^{n+1}, v^{n+1})."""
         self.n += 1

@@ -26,19 +26,33 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
+from .jit_watch import direct
 from .loads import SurfaceLoad
+
+
+@njit(cache=True)
+def _load_power(force, v, dofs) -> float:
+    """sum force[i] v[dofs[i]] (N m/s per unit of the load's history): one compiled pass."""
+    s = 0.0
+    for i in range(dofs.size):
+        s += force[i] * v[dofs[i]]
+    return s
 
 
 class LoadWork:
     """Work (J) of the surface loads, accumulated every step on their few dofs."""
 
-    def __init__(self, loads: list[SurfaceLoad], dt: float, comm: MPI.Comm):
+    def __init__(self, loads: list[SurfaceLoad], dt: float, comm: MPI.Comm,
+                 v: np.ndarray | None = None):
+        """``v``: the integrator's owned velocities (m/s), the array :meth:`accumulate` reads
+        (its compiled kernel is loaded for it now, not in the loop)."""
         self.loads = loads
         self.dt = dt
         self.comm = comm
         self._dofs = [ld.dofs.astype(np.intp) for ld in loads]
-        self._v = [np.empty(ld.dofs.size) for ld in loads]
         self._local = 0.0
+        self._power = (direct(_load_power, loads[0].force, v if v is not None else np.zeros(1),
+                              self._dofs[0]) if loads else None)
 
     def accumulate(self, integrator) -> None:
         """Add 1/2 dt (v^n)' (F^{n-1} + F^n) for step n (call before predict, n >= 1)."""
@@ -46,12 +60,12 @@ class LoadWork:
         if n == 0:
             return
         t_now, t_prev = n * self.dt, (n - 1) * self.dt
-        for ld, dofs, v in zip(self.loads, self._dofs, self._v):
+        v, power = integrator.v_owned, self._power
+        for ld, dofs in zip(self.loads, self._dofs):
             s = ld.history(t_prev) + ld.history(t_now)
             if s == 0.0:
                 continue
-            integrator.take_velocity(dofs, v)
-            self._local += 0.5 * self.dt * s * float(np.dot(ld.force, v))
+            self._local += 0.5 * self.dt * s * power(ld.force, v, dofs)
 
     @property
     def local(self) -> float:

@@ -20,14 +20,24 @@ and velocities of their own dofs back into them.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from petsc4py import PETSc
 
 from . import compat
 from .bodies import DeformableModel
 from .errors import InputError
 from .internal_force import LinearForce, QuadratureForce
+from .jit_watch import direct
 from .loads import SurfaceLoad
 from .operators import lumped_mass
+
+
+@njit(cache=True)
+def _add_load(v, dofs, coef, value) -> None:
+    """v[dofs] += coef * value: a load's velocity increment dt M^-1 f^n (m/s) on its free
+    dofs, ``value`` its history at t^n (Pa), in one compiled pass."""
+    for i in range(dofs.size):
+        v[dofs[i]] += coef[i] * value
 
 
 class Integrator:
@@ -85,7 +95,11 @@ class Integrator:
         self._load_dofs = [ld.dofs[k].astype(np.intp) for ld, k in zip(self.loads, free)]
         self._load_coef = [self.dt * ld.force[k] / self.mass[ld.dofs[k]]
                            for ld, k in zip(self.loads, free)]
-        self._load_buf = [(np.empty(d.size), np.empty(d.size)) for d in self._load_dofs]
+        # the loads' compiled increment, its entry taken now (no dispatch in the loop)
+        self._add_load = (direct(_add_load, self.v_owned, self._load_dofs[0], self._load_coef[0],
+                                 1.0) if self.loads else None)
+        # serial: u has no ghosts, the scatter before the quadrature forces is not needed
+        self._scatter = (self._u_fn is not None and model.comm.size > 1)
 
     # ------------------------------------------------------------ state
     @property
@@ -121,24 +135,33 @@ class Integrator:
         if self.A is not None:
             self.A.multAdd(self._u, self._v, self._v)
         if self.nonlinear:
-            self._u_fn.x.scatter_forward()
+            if self._scatter:
+                self._u_fn.x.scatter_forward()
             for force in self.nonlinear:
                 force.add_velocity_increment(self.u_owned, self.v_owned)
         if self.loads:
             t = self.t
-            for ld, dofs, coef, (buf, inc) in zip(self.loads, self._load_dofs,
-                                                  self._load_coef, self._load_buf):
-                value = ld.history(t)
+            v, add_load = self.v_owned, self._add_load
+            for ld, dofs, coef in zip(self.loads, self._load_dofs, self._load_coef):
+                value = float(ld.history(t))
                 if value != 0.0:
-                    np.take(self.v_owned, dofs, out=buf)
-                    np.multiply(coef, value, out=inc)
-                    buf += inc
-                    self.v_owned[dofs] = buf
+                    add_load(v, dofs, coef, value)
         self._u.axpy(self.dt, self._v)
 
-    def take_velocity(self, dofs: np.ndarray, out: np.ndarray) -> None:
-        """v on owned ``dofs`` (m/s): v^n before :meth:`predict`."""
-        np.take(self.v_owned, dofs, out=out)
+    def predictor(self):
+        """:meth:`predict` as a function for the loop: when every body is linear and no
+        load is applied, the step's two PETSc calls (MatMultAdd, VecAXPY) bound as locals
+        of a closure (about 0.15 us a step less than the method's attribute look-ups and
+        tests); otherwise the method itself. Same operations, same results."""
+        if self.A is None or self.nonlinear or self.loads:
+            return self.predict
+        mult_add, axpy = self.A.multAdd, self._u.axpy
+        u, v, dt = self._u, self._v, self.dt
+
+        def predict() -> None:
+            mult_add(u, v, v)
+            axpy(dt, v)
+        return predict
 
     def advance(self) -> None:
         """Accept the step: the corrected state becomes (u^{n+1}, v^{n+1})."""

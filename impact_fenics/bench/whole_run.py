@@ -4,7 +4,10 @@ came before.
 A run is not its median step: outputs, history rows, energy at outputs and
 anything compiled late add to the loop. For the punch Sim3 (610 constraints,
 DME, fields every 20 steps, history every step) and the bar impact (FILM, fields
-every 25 steps), with the default outputs into a scratch directory, this part
+every 25 steps; the demo's mesh, h = 0.02 m, and the same scene at h = 0.01 and
+0.005 m: the same 500 steps and output schedule with dt scaled with h, so the
+ratios compare the same loop at 4x and 16x the dofs over a shorter physical
+time), with the default outputs into a scratch directory, this part
 reports the loop's wall time over (steps x median step) and over (steps x a bare
 MatMult of K), where the time beyond the median steps went (each phase's total
 over the loop minus steps x its median; rest: the loop's own Python; under MPI
@@ -30,6 +33,8 @@ from mpi4py import MPI
 
 PUNCH_DT, PUNCH_STEPS, PUNCH_EVERY = 3.64e-7, 400, 20
 BAR_DT, BAR_T_END, BAR_EVERY = 1e-6, 5e-4, 25
+BAR_H = 0.02  # the demo's element size (m); BAR_DT is for it
+BAR_FINER = (0.01, 0.005)  # finer meshes (m): 4x and 16x the dofs, dt = BAR_DT h / BAR_H
 
 
 def _matmult_median(integ, comm, repeats: int = 7, inner: int = 50) -> float:
@@ -47,8 +52,10 @@ def _matmult_median(integ, comm, repeats: int = 7, inner: int = 50) -> float:
     return float(np.median(samples))
 
 
-def _scene(kind: str, out: str, comm):
-    """(simulation, set-up seconds by phase) of a scene with its demo's default outputs."""
+def _scene(kind: str, out: str, comm, h: float = BAR_H):
+    """(simulation, set-up seconds by phase) of a scene with its demo's default outputs;
+    ``h`` (m) the bars' element size: at a finer one dt shrinks with h and the run keeps
+    the demo's number of steps (BAR_T_END / BAR_DT) and output schedule."""
     from .. import meshing, scenes
     from ..simulation import Settings
 
@@ -58,7 +65,7 @@ def _scene(kind: str, out: str, comm):
     if kind == "punch_sim3":
         tmesh = meshing.punch_block(comm=comm)
     else:
-        tmesh = meshing.coaxial_bars(radius=0.1, striker_length=0.8, target_length=0.85, h=0.02,
+        tmesh = meshing.coaxial_bars(radius=0.1, striker_length=0.8, target_length=0.85, h=h,
                                      structured=False, comm=comm)
     setup["mesh"] = clock() - t
     t = clock()
@@ -73,8 +80,8 @@ def _scene(kind: str, out: str, comm):
         from ..materials import STEEL
         from ..simulation import Simulation
 
-        settings = Settings(dt=BAR_DT, t_end=BAR_T_END, out=out, output_every=BAR_EVERY,
-                            quiet=True, plots=False)
+        settings = Settings(dt=BAR_DT * h / BAR_H, n_steps=round(BAR_T_END / BAR_DT), out=out,
+                            output_every=BAR_EVERY, quiet=True, plots=False)
         model = DeformableModel(tmesh, [Body("striker", STEEL), Body("target", STEEL)])
         sim = Simulation(model, settings, initial_velocity={"striker": (0.0, 5.0)})
         sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
@@ -84,11 +91,12 @@ def _scene(kind: str, out: str, comm):
     return sim, setup
 
 
-def measure(kind: str, comm: MPI.Comm) -> dict:
-    """One whole run of scene ``kind`` ('punch_sim3' or 'bars'): its ratios and set-up."""
+def measure(kind: str, comm: MPI.Comm, h: float = BAR_H) -> dict:
+    """One whole run of scene ``kind`` ('punch_sim3' or 'bars', the bars at element size
+    ``h``, m): its ratios and set-up."""
     scratch = tempfile.mkdtemp(prefix="ifx_whole_") if comm.rank == 0 else None
     scratch = comm.bcast(scratch, root=0)
-    sim, setup = _scene(kind, os.path.join(scratch, kind), comm)
+    sim, setup = _scene(kind, os.path.join(scratch, kind), comm, h)
     t = time.perf_counter()
     summary = sim.run()
     total = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
@@ -104,7 +112,8 @@ def measure(kind: str, comm: MPI.Comm) -> dict:
     # what no phase timer holds (timers, progress, checks, the loop's Python)
     beyond = {k: totals[k] - n * medians.get(k, 0.0) for k in totals}
     beyond["rest"] = wall - sum(totals.values())
-    res = {"scene": kind, "n_ranks": comm.size, "n_steps": n, "n_dofs": summary["n_dofs"],
+    label = kind if kind != "bars" or h == BAR_H else f"bars h={h:g}"
+    res = {"scene": label, "h": h if kind == "bars" else None, "n_ranks": comm.size, "n_steps": n, "n_dofs": summary["n_dofs"],
            "loop_wall": wall, "step_median": median, "matmult": matmult,
            "wall_over_steps_median": wall / (n * median),
            "wall_over_steps_matmult": wall / (n * matmult),
@@ -235,14 +244,15 @@ def contact_share(comm: MPI.Comm, steps: int = PUNCH_STEPS) -> list[dict]:
 def part_whole_run(ctx) -> dict:
     """The whole-run table (both scenes), the contact share at Sim3 and the cost per
     field write and history row."""
-    rows, res = [], {}
-    for kind in ("punch_sim3", "bars"):
-        r = measure(kind, ctx.comm)
-        res[kind] = r
-        rows.append(_row(r))
-    ctx.table(f"Whole run vs its steps ({ctx.comm.size} rank(s); default outputs)", HEADERS, rows)
+    res, runs = {}, []
+    for kind, h in _RUNS:
+        r = measure(kind, ctx.comm, h)
+        res[r["scene"]] = r
+        runs.append(r)
+    ctx.table(f"Whole run vs its steps ({ctx.comm.size} rank(s); default outputs; the finer "
+              "bars: the demo's 500 steps, dt scaled with h)", HEADERS, [_row(r) for r in runs])
     ctx.table("   where the loop went beyond steps x median (ms), by phase; set-up (s) by phase",
-              BEYOND_HEADERS, [_beyond_row(res[k]) for k in ("punch_sim3", "bars")])
+              BEYOND_HEADERS, [_beyond_row(r) for r in runs])
     res["contact_share"] = contact_share(ctx.comm)
     ctx.table("Contact share of the step at Sim3 (punch R_z = 6 m, no outputs; medians in us)",
               ["method", "constraints", "contact", "step", "share", "compiled in loop"],
@@ -265,7 +275,11 @@ def part_whole_run(ctx) -> dict:
     return res
 
 
-HEADERS = ["scene", "steps", "loop (s)", "median step (us)", "MatMult (us)",
+# (scene, the bars' element size in m) of the whole-run table
+_RUNS = (("punch_sim3", BAR_H), ("bars", BAR_H)) + tuple(("bars", h) for h in BAR_FINER)
+
+
+HEADERS = ["scene", "dofs", "steps", "loop (s)", "median step (us)", "MatMult (us)",
            "wall/(n x step)", "wall/(n x MatMult)", "set-up (s): mesh, sim, run"]
 
 
@@ -285,7 +299,7 @@ def _beyond_row(r: dict) -> list:
 
 def _row(r: dict) -> list:
     s = r["setup"]
-    return [r["scene"], r["n_steps"], f"{r['loop_wall']:.3f}", f"{1e6 * r['step_median']:.1f}",
+    return [r["scene"], r["n_dofs"], r["n_steps"], f"{r['loop_wall']:.3f}", f"{1e6 * r['step_median']:.1f}",
             f"{1e6 * r['matmult']:.1f}", f"{r['wall_over_steps_median']:.2f}",
             f"{r['wall_over_steps_matmult']:.2f}",
             f"{s['mesh']:.2f}, {s['simulation']:.2f}, {s['run_outside_loop']:.2f}"]
@@ -296,7 +310,7 @@ if __name__ == "__main__":
     import sys
 
     comm = MPI.COMM_WORLD
-    results = [measure(k, comm) for k in ("punch_sim3", "bars")]
+    results = [measure(k, comm, h) for k, h in _RUNS]
     if comm.rank == 0:
         from .tables import format_table
 

@@ -80,7 +80,10 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
     """Check the scene file in full, build it, run it; returns the exit code."""
     from mpi4py import MPI
 
-    from . import scene_file
+    from . import interrupts
+
+    with interrupts.whole():  # the compiled modules a run needs (dolfinx, PETSc, numba)
+        from . import meshing, scene_file, simulation  # noqa: F401
 
     comm = MPI.COMM_WORLD
     if out is not None and not out.strip():

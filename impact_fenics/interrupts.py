@@ -106,6 +106,22 @@ def deferred() -> Iterator[None]:
 
 
 @contextmanager
+def whole() -> Iterator[None]:
+    """Run the block whole (the imports of compiled modules): a signal inside it only sets
+    the flag, and is acted on as :func:`install`'s handler would (one line, stop) when
+    the block ends. An exception raised by the handler inside a compiled module's
+    initialisation would come out as that module's ImportError, with a traceback."""
+    before = STATE.signum
+    STATE.deferred += 1
+    try:
+        yield
+    finally:
+        STATE.deferred -= 1
+    if STATE.installed and not STATE.deferred and STATE.signum and STATE.signum != before:
+        _handler(STATE.signum, None)
+
+
+@contextmanager
 def kept() -> Iterator[None]:
     """Keep the SIGINT/SIGTERM handlers across a block: importing gmsh's module sets
     SIGINT to SIG_DFL (so that Ctrl-C kills its GUI) and its finalize() sets it back.

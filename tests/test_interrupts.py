@@ -134,18 +134,34 @@ def _cli(args, env=None):
                             env=env or clean_mpi_env(), cwd=ROOT)
 
 
+def _wait_for_mpi(proc, timeout=60.0) -> None:
+    """Wait until the process has MPI's library mapped: it is importing the package (a
+    signal before Python runs any of its code is Python's, not the program's)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with open(f"/proc/{proc.pid}/maps") as f:
+                if "libmpi" in f.read():
+                    return
+        except OSError:
+            pass
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.005)
+
+
 @serial_only
-@pytest.mark.parametrize("sig, delay", [(signal.SIGINT, 0.3), (signal.SIGTERM, 0.8)],
+@pytest.mark.parametrize("sig, delay", [(signal.SIGINT, 0.0), (signal.SIGTERM, 0.5)],
                          ids=["SIGINT_imports", "SIGTERM_set_up"])
 def test_signal_before_the_run_prints_one_line(tmp_path, sig, delay):
     """A signal while the package is imported (MPI starts) or the scene is built: one
-    line, exit 128 + signum, the older run untouched. (The delays land before the run
-    on a quiet machine, where the whole run takes about 1.5 s, and earlier on a loaded
-    one; the message names the phase.)"""
+    line, exit 128 + signum, the older run untouched. (The signal goes once MPI's
+    library is loaded, at once or ``delay`` s later: before the run, which takes about
+    1.5 s on a quiet machine; the message names the phase.)"""
     (tmp_path / "bar.toml").write_text(BAR)
     out = str(tmp_path / "run")
     _old_run(out)
     proc = _cli(["run", tmp_path / "bar.toml", "--out", out, "--quiet"])
+    _wait_for_mpi(proc)
     time.sleep(delay)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
@@ -182,6 +198,29 @@ def _mpirun(args, tag):
                              sys.executable, "-m", "impact_fenics", *map(str, args)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env, cwd=ROOT)
+
+
+@serial_only
+def test_a_signal_inside_a_whole_block_is_acted_on_after_it():
+    """interrupts.whole() around the compiled modules' imports: the handler does not raise
+    inside (an exception in a compiled module's initialisation comes out as an
+    ImportError with a traceback), and the signal stops the program when the block ends."""
+    old = {sig: signal.getsignal(sig) for sig in interrupts.SIGNALS}
+    installed = interrupts.STATE.installed
+    interrupts.clear()
+    reached = False
+    try:
+        interrupts.install()
+        with pytest.raises(interrupts.Interrupted) as stop:
+            with interrupts.whole():
+                signal.raise_signal(signal.SIGTERM)
+                reached = True  # the handler ran and only set the flag
+        assert reached and stop.value.signum == signal.SIGTERM
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        interrupts.STATE.installed = installed
+        interrupts.clear()
 
 
 def test_a_signal_during_the_agreement_is_kept_for_the_next():

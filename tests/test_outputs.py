@@ -200,7 +200,9 @@ def test_history_rows_one_per_step(run):
 
 def test_cell_stress_equals_the_ufl_expression():
     """A displacement with every strain component (u_r = a r + b z^2, u_z = c z + d r z +
-    e r^2): the compiled cell stresses against the UFL Expression at the DG0 point."""
+    e r^2): the compiled cell stresses against the UFL Expression at the DG0 point, to
+    1e-12 of the largest: round-off (the kernel sums the same terms in another order:
+    lambda tr(eps) + 2 mu eps for an isotropic D, a few 1e-16 apart)."""
     from dolfinx import fem
 
     from impact_fenics.forms import stress_components

@@ -337,7 +337,9 @@ def _check_frames(directory, n_frames):
 def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     """Frames reach the XML in flushed batches: a copy of the files taken after three writes
     with flush_every = 2 (what a killed run leaves: the third frame's data may be in the
-    file, its XML not) reads as two frames, though the datasets hold six rows."""
+    file, its XML not) reads as two frames, though the datasets hold six rows. (The copy
+    reads what the OS holds: it fails if HDF5 keeps a write's rows in its sieve buffer or
+    allocates a block's file space at the first write, in metadata not yet flushed.)"""
     comm = MPI.COMM_WORLD
     base = comm.bcast(str(tmp_path_factory.mktemp("killed")), root=0)
     live, copy = os.path.join(base, "live"), os.path.join(base, "copy")

@@ -131,6 +131,22 @@ def _output_sums(mass, v_now, v_next, u, ku, body_dofs, body_start, out) -> None
         out[3 + b] = q0 + q1
 
 
+@njit(cache=True)
+def copy_state(u, v, u_out, v_out) -> None:
+    """u_out = u, v_out = v (the state u^n, m, and v^n, m/s, an output step keeps): one pass."""
+    for i in range(u.size):
+        u_out[i] = u[i]
+        v_out[i] = v[i]
+
+
+@njit(cache=True)
+def force_from_velocity_change(v_pred, v_now, minus_m_over_dt, out) -> None:
+    """out = -m / dt (v~ - v^n) (N): f^n - K u^n from the predicted velocity v~ = v^n +
+    dt M^-1 (f^n - K u^n) (m/s), i.e. K u^n where no force acts; one pass."""
+    for i in range(out.size):
+        out[i] = (v_pred[i] - v_now[i]) * minus_m_over_dt[i]
+
+
 class OutputSums:
     """The sums of an output step over the owned dofs, in one compiled pass and one
     reduction over the ranks: kinetic 1/2 (v^n)' M v^{n+1} and strain 1/2 (u^n)' K u^n (J),
@@ -149,8 +165,10 @@ class OutputSums:
         self._start = np.cumsum([0] + [d.size for d in body_z]).astype(np.int64)
         self._local = np.zeros(3 + self.n_bodies + n_extra)
         self._total = np.zeros_like(self._local)
-        zero = np.zeros_like(mass)  # compile (or load) the kernel now, not at the first output
+        zero = np.zeros_like(mass)  # compile (or load) the kernels of an output step now,
         _output_sums(mass, zero, zero, zero, zero, self._dofs, self._start, self._local)
+        copy_state(zero, zero, zero.copy(), zero.copy())  # not at the first output
+        force_from_velocity_change(zero, zero, zero, zero.copy())
 
     def reduce(self, v_now: np.ndarray, v_next: np.ndarray, u_now: np.ndarray,
                Ku_now: np.ndarray, extra=()) -> np.ndarray:

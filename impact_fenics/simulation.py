@@ -23,7 +23,7 @@ from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
-from .energy import Ledger, LoadWork, OutputSums
+from .energy import Ledger, LoadWork, OutputSums, copy_state, force_from_velocity_change
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
 from .jit_watch import gained, signature_counts
@@ -437,8 +437,7 @@ class Simulation:
     # ------------------------------------------------------------ pieces of the loop
     def _pre_output(self, buf, Ku) -> dict:
         integ = self.integrator
-        integ.displacement(buf["u"])
-        integ.velocity(buf["v"])
+        copy_state(integ.u_owned, integ.v_owned, buf["u"], buf["v"])  # u^n, v^n
         if integ.nonlinear:  # K u^n of the linear bodies (the others book psi_e, W_p)
             if integ.K is not None:
                 integ.K.mult(integ.u_vec, Ku)
@@ -455,8 +454,7 @@ class Simulation:
         the motion has lasted a few steps)."""
         integ = self.integrator
         ku = buf["ku"]
-        np.subtract(integ.v_owned, buf["v"], out=ku)
-        ku *= self._minus_m_over_dt
+        force_from_velocity_change(integ.v_owned, buf["v"], self._minus_m_over_dt, ku)
         t = integ.t
         for ld, dofs, coef in zip(integ.loads, integ._load_dofs, integ._load_coef):
             value = ld.history(t)

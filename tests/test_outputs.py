@@ -228,6 +228,31 @@ def test_cell_stress_equals_the_ufl_expression():
             assert np.abs(values[k, mine] - ref).max(initial=0.0) <= 1e-12 * scale, name
 
 
+def test_isotropic_cell_stress_is_d_times_the_elastic_strain():
+    """The isotropic kernel (lambda tr(eps) I + 2 mu eps, the shear taken as 2 eps_rz)
+    against sigma = D (eps - eps_p) with the 4x4 D of the same material, with a plastic
+    strain to subtract and cells out of order: the same sum in another order, so equal to
+    1e-14 of the largest stress (a few ulps of each term)."""
+    from impact_fenics.cell_fields import (cell_stress, isotropic_cell_stress,
+                                           isotropic_lame, isotropic_stiffness)
+
+    rng = np.random.default_rng(7)
+    n_cells, n_nodes = 400, 250
+    nodes = rng.integers(0, n_nodes, (n_cells, 3))
+    g = rng.standard_normal((n_cells, 5)) * 50.0  # inverse Jacobians of ~2 cm cells (1/m)
+    u = rng.standard_normal(2 * n_nodes) * 1e-4
+    eps_p = rng.standard_normal((n_cells, 4)) * 1e-3
+    cells = rng.permutation(n_cells).astype(np.int64)
+    D = isotropic_stiffness(1.15e11, 7.7e10)
+    lame = isotropic_lame(D)
+    assert lame is not None and isotropic_lame(D + np.diag([0.0, 0.0, 0.0, 1e9])) is None
+    ref, got = np.zeros((5, n_cells)), np.zeros((5, n_cells))
+    for plastic in (eps_p, np.empty((0, 4))):
+        cell_stress(nodes, g, u, D, plastic, cells, ref)
+        isotropic_cell_stress(nodes, g, u, *lame, plastic, cells, got)
+        assert np.abs(got[:4] - ref[:4]).max() <= 1e-14 * np.abs(ref[:4]).max()
+
+
 def _pvbatch(xdmf: str):
     """pvbatch's JSON of tests/pvbatch_fields.py, or None without ParaView."""
     if not shutil.which("pvbatch"):

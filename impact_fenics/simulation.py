@@ -594,15 +594,17 @@ class Simulation:
         local[:] = self._cell_stress.peaks
         if self.comm.size > 1:
             self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        vm, zz_max, zz_neg = local.tolist()
         p = self._peaks
         if not p:
-            p.update(von_mises=-np.inf, von_mises_time=t, sigma_zz_max=-np.inf,
-                     sigma_zz_max_time=t, sigma_zz_min=np.inf, sigma_zz_min_time=t)
-        for key, value in (("von_mises", local[0]), ("sigma_zz_max", local[1])):
-            if value > p[key]:
-                p[key], p[f"{key}_time"] = float(value), t
-        if -local[2] < p["sigma_zz_min"]:
-            p["sigma_zz_min"], p["sigma_zz_min_time"] = float(-local[2]), t
+            p.update(von_mises=-math.inf, von_mises_time=t, sigma_zz_max=-math.inf,
+                     sigma_zz_max_time=t, sigma_zz_min=math.inf, sigma_zz_min_time=t)
+        if vm > p["von_mises"]:
+            p["von_mises"], p["von_mises_time"] = vm, t
+        if zz_max > p["sigma_zz_max"]:
+            p["sigma_zz_max"], p["sigma_zz_max_time"] = zz_max, t
+        if -zz_neg < p["sigma_zz_min"]:
+            p["sigma_zz_min"], p["sigma_zz_min_time"] = -zz_neg, t
 
     def _tables(self, staging: str | None, probes) -> dict:
         """History, energy and per-pair tables (on disk with an output directory, written in

@@ -23,11 +23,12 @@ Layout (what ``fields.xdmf`` describes):
   as the run's known number of frames (``n_frames``); more frames, or an
   unknown count (the finite-strain driver), add blocks, each as long as all
   before it (at least ``BLOCK``). The first block is written with zeros
-  when it is made, at set-up: the file's pages are then in the OS's cache and a
-  frame's write costs the copy, not the page faults (punch: 0.24 ms a write against
-  0.48, and less set-up + writes in all; bars 24 us against 43). Blocks added later
-  are allocated, never filled (a fill would stall the loop): rows a run did not
-  reach are in the file, as zeros or holes of a sparse file, but never in the XML.
+  when it is made, at set-up (up to ``FILL_LIMIT``): the file's pages are then
+  in the OS's cache and a frame's write costs the copy, not the page faults
+  (punch: 0.24 ms a write against 0.48, and less set-up + writes in all; bars
+  24 us against 43). Blocks added later are allocated, never filled (a fill
+  would stall the loop): rows a run did not reach are in the file, as zeros or
+  holes of a sparse file, but never in the XML.
 
 Why so: an HDF5 dataset costs about 25 us to create (HDF5 1.10, whatever the
 layout or property list), so a frame of seven datasets and a group cost a small
@@ -146,6 +147,7 @@ class FieldWriter:
     of frames as they go, each as long as all before it, at least ``BLOCK``)."""
 
     BLOCK = 16
+    FILL_LIMIT = 64 * 2**20  # bytes: a larger first block is not written with zeros
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
@@ -224,8 +226,12 @@ class FieldWriter:
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
-        # the run's known frames: written with zeros now, at set-up
-        self._add_block(max(1, int(n_frames)) if n_frames else self.BLOCK, fill=bool(n_frames))
+        # the run's known frames: written with zeros now, at set-up, up to FILL_LIMIT (a
+        # long run's gigabytes of zeros would cost the set-up more, and fill the disk
+        # before the run has written anything)
+        capacity = max(1, int(n_frames)) if n_frames else self.BLOCK
+        size = 8 * capacity * (6 * self.n_nodes + len(self.cell_fields) * n_cells)
+        self._add_block(capacity, fill=bool(n_frames) and size <= self.FILL_LIMIT)
 
     # ------------------------------------------------------------ writing
     def ghosted(self, owned: np.ndarray, k: int = 0) -> np.ndarray:

@@ -107,30 +107,27 @@ class Ledger:
 
 
 @njit(cache=True)
-def _output_sums(mass, v_now, v_next, u, ku, body_dofs, body_start, out) -> None:
-    """out[0] = 1/2 v_now' M v_next, out[1] = 1/2 u' ku (J), out[2] = sum of m v_next over the
-    z dofs (odd entries; kg m/s), out[3 + b] = sum of m v_next over body_dofs[body_start[b]:
+def _output_sums(mass, v_now, v_next, body_dofs, body_start, out) -> None:
+    """out[0] = 1/2 v_now' M v_next (J), out[2] = sum of m v_next over the z dofs (odd
+    entries; kg m/s), out[3 + b] = sum of m v_next over body_dofs[body_start[b]:
     body_start[b + 1]]: one pass over the owned dofs (2 per node, r then z), two nodes at
-    a time into separate partial sums (independent additions pipeline)."""
-    k0 = k1 = s0 = s1 = p0 = p1 = 0.0
+    a time into separate partial sums (independent additions pipeline). out[1] is left
+    to the caller (the strain energy, :func:`half_dot`)."""
+    k0 = k1 = p0 = p1 = 0.0
     n = mass.size
     i = 0
     while i + 3 < n:
         k0 += mass[i] * v_now[i] * v_next[i] + mass[i + 1] * v_now[i + 1] * v_next[i + 1]
         k1 += mass[i + 2] * v_now[i + 2] * v_next[i + 2] + mass[i + 3] * v_now[i + 3] * v_next[i + 3]
-        s0 += u[i] * ku[i] + u[i + 1] * ku[i + 1]
-        s1 += u[i + 2] * ku[i + 2] + u[i + 3] * ku[i + 3]
         p0 += mass[i + 1] * v_next[i + 1]
         p1 += mass[i + 3] * v_next[i + 3]
         i += 4
     while i < n:
         k0 += mass[i] * v_now[i] * v_next[i]
-        s0 += u[i] * ku[i]
         if i % 2 == 1:
             p0 += mass[i] * v_next[i]
         i += 1
     out[0] = 0.5 * (k0 + k1)
-    out[1] = 0.5 * (s0 + s1)
     out[2] = p0 + p1
     for b in range(body_start.size - 1):
         q0 = q1 = 0.0
@@ -145,10 +142,56 @@ def _output_sums(mass, v_now, v_next, u, ku, body_dofs, body_start, out) -> None
         out[3 + b] = q0 + q1
 
 
+@njit(cache=True)
+def half_dot(u, ku) -> float:
+    """1/2 u' ku (J for u in m and ku = K u in N), two nodes at a time into separate
+    partial sums."""
+    s0 = s1 = 0.0
+    n = u.size
+    i = 0
+    while i + 3 < n:
+        s0 += u[i] * ku[i] + u[i + 1] * ku[i + 1]
+        s1 += u[i + 2] * ku[i + 2] + u[i + 3] * ku[i + 3]
+        i += 4
+    while i < n:
+        s0 += u[i] * ku[i]
+        i += 1
+    return 0.5 * (s0 + s1)
+
+
+@njit(cache=True)
+def copy_state(u, v, u_out, v_out) -> None:
+    """u_out = u, v_out = v (the state u^n, m, and v^n, m/s, an output step keeps): one pass."""
+    for i in range(u.size):
+        u_out[i] = u[i]
+        v_out[i] = v[i]
+
+
+@njit(cache=True)
+def strain_from_prediction(u, v_pred, v_now, minus_m_over_dt) -> float:
+    """1/2 u' K u (J) with K u = -m / dt (v~ - v^n) (N), where v~ = v^n + dt M^-1 (f^n -
+    K u^n) is the predicted velocity (m/s) and no force f acts: :func:`half_dot` of u and
+    that K u, the same sums in the same order, in one pass that stores no K u."""
+    s0 = s1 = 0.0
+    n = u.size
+    i = 0
+    while i + 3 < n:
+        s0 += (u[i] * ((v_pred[i] - v_now[i]) * minus_m_over_dt[i])
+               + u[i + 1] * ((v_pred[i + 1] - v_now[i + 1]) * minus_m_over_dt[i + 1]))
+        s1 += (u[i + 2] * ((v_pred[i + 2] - v_now[i + 2]) * minus_m_over_dt[i + 2])
+               + u[i + 3] * ((v_pred[i + 3] - v_now[i + 3]) * minus_m_over_dt[i + 3]))
+        i += 4
+    while i < n:
+        s0 += u[i] * ((v_pred[i] - v_now[i]) * minus_m_over_dt[i])
+        i += 1
+    return 0.5 * (s0 + s1)
+
+
 class OutputSums:
     """The sums of an output step over the owned dofs, in one compiled pass and one
-    reduction over the ranks: kinetic 1/2 (v^n)' M v^{n+1} and strain 1/2 (u^n)' K u^n (J),
-    the z momentum of v^{n+1} in total and per body (kg m/s), and any further local
+    reduction over the ranks: kinetic 1/2 (v^n)' M v^{n+1} (J), the z momentum of v^{n+1}
+    in total and per body (kg m/s), with the strain energy 1/2 (u^n)' K u^n (J, this
+    rank's part: :func:`strain_from_prediction` or :func:`half_dot`) and any further local
     numbers handed in (summed with them).
 
     ``mass`` the lumped masses (kg) of the owned dofs; ``body_z`` per body the indices of
@@ -163,15 +206,19 @@ class OutputSums:
         self._start = np.cumsum([0] + [d.size for d in body_z]).astype(np.int64)
         self._local = np.zeros(3 + self.n_bodies + n_extra)
         self._total = np.zeros_like(self._local)
-        zero = np.zeros_like(mass)  # compile (or load) the kernel now, not at the first output
-        _output_sums(mass, zero, zero, zero, zero, self._dofs, self._start, self._local)
+        zero = np.zeros_like(mass)  # compile (or load) the kernels of an output step now,
+        _output_sums(mass, zero, zero, self._dofs, self._start, self._local)
+        copy_state(zero, zero, zero.copy(), zero.copy())  # not at the first output
+        strain_from_prediction(zero, zero, zero, zero)
+        half_dot(zero, zero)
 
-    def reduce(self, v_now: np.ndarray, v_next: np.ndarray, u_now: np.ndarray,
-               Ku_now: np.ndarray, extra=()) -> np.ndarray:
+    def reduce(self, v_now: np.ndarray, v_next: np.ndarray, strain: float,
+               extra=()) -> np.ndarray:
         """(kinetic, strain, p_z, p_z per body..., extra...) summed over the ranks (a view,
-        valid until the next call)."""
+        valid until the next call); ``strain`` this rank's 1/2 (u^n)' K u^n (J)."""
         local = self._local
-        _output_sums(self.mass, v_now, v_next, u_now, Ku_now, self._dofs, self._start, local)
+        _output_sums(self.mass, v_now, v_next, self._dofs, self._start, local)
+        local[1] = strain
         k = 3 + self.n_bodies
         for i, x in enumerate(extra):
             local[k + i] = x

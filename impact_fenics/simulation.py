@@ -23,7 +23,8 @@ from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
-from .energy import Ledger, LoadWork, OutputSums
+from .energy import (Ledger, LoadWork, OutputSums, copy_state, half_dot,
+                     strain_from_prediction)
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
 from .jit_watch import gained, signature_counts
@@ -449,31 +450,31 @@ class Simulation:
     # ------------------------------------------------------------ pieces of the loop
     def _pre_output(self, buf, Ku) -> dict:
         integ = self.integrator
-        integ.displacement(buf["u"])
-        integ.velocity(buf["v"])
-        if integ.nonlinear:  # K u^n of the linear bodies (the others book psi_e, W_p)
+        copy_state(integ.u_owned, integ.v_owned, buf["u"], buf["v"])  # u^n, v^n
+        if integ.nonlinear:  # 1/2 u'Ku of the linear bodies (the others book psi_e, W_p)
             if integ.K is not None:
                 integ.K.mult(integ.u_vec, Ku)
-                buf["ku"][:] = Ku.array
+                self._strain_local = half_dot(buf["u"], Ku.array)
             else:
-                buf["ku"][:] = 0.0
+                self._strain_local = 0.0
         return {"rigid_v": [c.rigid.v if c.rigid else 0.0 for c in self.contacts]}
 
     def _internal_force_from_prediction(self, buf) -> None:
-        """K u^n (N) on the free dofs from the step just predicted, without a MatMult:
-        v~ = v^n + dt M^-1 (f^n - K u^n), so K u^n = f^n - M (v~ - v^n) / dt. On fixed dofs
-        it reads 0, where u^n = 0: the strain energy 1/2 u.Ku is exact (to round-off;
+        """The strain energy 1/2 u^n.K u^n (J, this rank's part) from the step just
+        predicted, without a MatMult: v~ = v^n + dt M^-1 (f^n - K u^n), so
+        K u^n = f^n - M (v~ - v^n) / dt (one compiled pass, no K u stored). On fixed
+        dofs K u reads 0, where u^n = 0: the strain energy is exact (to round-off;
         the difference loses eps |v| m / dt, less than K u's own eps |K| |u| once
         the motion has lasted a few steps)."""
         integ = self.integrator
-        ku = buf["ku"]
-        np.subtract(integ.v_owned, buf["v"], out=ku)
-        ku *= self._minus_m_over_dt
+        u = buf["u"]
+        strain = strain_from_prediction(u, integ.v_owned, buf["v"], self._minus_m_over_dt)
         t = integ.t
         for ld, dofs, coef in zip(integ.loads, integ._load_dofs, integ._load_coef):
             value = ld.history(t)
             if value != 0.0:  # f on the free loaded dofs: m coef / dt per unit of the pulse
-                ku[dofs] -= self._minus_m_over_dt[dofs] * coef * value
+                strain -= 0.5 * value * float(np.dot(u[dofs], self._minus_m_over_dt[dofs] * coef))
+        self._strain_local = strain
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         integ = self.integrator
@@ -484,7 +485,7 @@ class Simulation:
             extra += [sum(f.elastic_energy_local() for f in nonlinear),
                       sum(f.plastic_work_local for f in nonlinear),
                       sum(f.deformation_work_local for f in nonlinear)]
-        total = sums.reduce(buf["v"], integ.v_owned, buf["u"], buf["ku"], extra)
+        total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, extra)
         kinetic, strain = float(total[0]), float(total[1])
         k = 3 + sums.n_bodies
         ext = float(total[k])
@@ -605,15 +606,17 @@ class Simulation:
         local[:] = self._cell_stress.peaks
         if self.comm.size > 1:
             self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        vm, zz_max, zz_neg = local.tolist()
         p = self._peaks
         if not p:
-            p.update(von_mises=-np.inf, von_mises_time=t, sigma_zz_max=-np.inf,
-                     sigma_zz_max_time=t, sigma_zz_min=np.inf, sigma_zz_min_time=t)
-        for key, value in (("von_mises", local[0]), ("sigma_zz_max", local[1])):
-            if value > p[key]:
-                p[key], p[f"{key}_time"] = float(value), t
-        if -local[2] < p["sigma_zz_min"]:
-            p["sigma_zz_min"], p["sigma_zz_min_time"] = float(-local[2]), t
+            p.update(von_mises=-math.inf, von_mises_time=t, sigma_zz_max=-math.inf,
+                     sigma_zz_max_time=t, sigma_zz_min=math.inf, sigma_zz_min_time=t)
+        if vm > p["von_mises"]:
+            p["von_mises"], p["von_mises_time"] = vm, t
+        if zz_max > p["sigma_zz_max"]:
+            p["sigma_zz_max"], p["sigma_zz_max_time"] = zz_max, t
+        if -zz_neg < p["sigma_zz_min"]:
+            p["sigma_zz_min"], p["sigma_zz_min_time"] = -zz_neg, t
 
     def _tables(self, staging: str | None, probes) -> dict:
         """History, energy and per-pair tables (on disk with an output directory, written in

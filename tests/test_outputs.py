@@ -200,7 +200,9 @@ def test_history_rows_one_per_step(run):
 
 def test_cell_stress_equals_the_ufl_expression():
     """A displacement with every strain component (u_r = a r + b z^2, u_z = c z + d r z +
-    e r^2): the compiled cell stresses against the UFL Expression at the DG0 point."""
+    e r^2): the compiled cell stresses against the UFL Expression at the DG0 point, to
+    1e-12 of the largest: round-off (the kernel sums the same terms in another order:
+    lambda tr(eps) + 2 mu eps for an isotropic D, a few 1e-16 apart)."""
     from dolfinx import fem
 
     from impact_fenics.forms import stress_components
@@ -224,6 +226,31 @@ def test_cell_stress_equals_the_ufl_expression():
             ref = eval_expression(fem.Expression(comps[name], points), model.mesh, mine)[:, 0]
             scale = MPI.COMM_WORLD.allreduce(float(np.abs(ref).max(initial=0.0)), op=MPI.MAX)
             assert np.abs(values[k, mine] - ref).max(initial=0.0) <= 1e-12 * scale, name
+
+
+def test_isotropic_cell_stress_is_d_times_the_elastic_strain():
+    """The isotropic kernel (lambda tr(eps) I + 2 mu eps, the shear taken as 2 eps_rz)
+    against sigma = D (eps - eps_p) with the 4x4 D of the same material, with a plastic
+    strain to subtract and cells out of order: the same sum in another order, so equal to
+    1e-14 of the largest stress (a few ulps of each term)."""
+    from impact_fenics.cell_fields import (cell_stress, isotropic_cell_stress,
+                                           isotropic_lame, isotropic_stiffness)
+
+    rng = np.random.default_rng(7)
+    n_cells, n_nodes = 400, 250
+    nodes = rng.integers(0, n_nodes, (n_cells, 3))
+    g = rng.standard_normal((n_cells, 5)) * 50.0  # inverse Jacobians of ~2 cm cells (1/m)
+    u = rng.standard_normal(2 * n_nodes) * 1e-4
+    eps_p = rng.standard_normal((n_cells, 4)) * 1e-3
+    cells = rng.permutation(n_cells).astype(np.int64)
+    D = isotropic_stiffness(1.15e11, 7.7e10)
+    lame = isotropic_lame(D)
+    assert lame is not None and isotropic_lame(D + np.diag([0.0, 0.0, 0.0, 1e9])) is None
+    ref, got = np.zeros((5, n_cells)), np.zeros((5, n_cells))
+    for plastic in (eps_p, np.empty((0, 4))):
+        cell_stress(nodes, g, u, D, plastic, cells, ref)
+        isotropic_cell_stress(nodes, g, u, *lame, plastic, cells, got)
+        assert np.abs(got[:4] - ref[:4]).max() <= 1e-14 * np.abs(ref[:4]).max()
 
 
 def _pvbatch(xdmf: str):
@@ -335,7 +362,9 @@ def _check_frames(directory, n_frames):
 def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     """Frames reach the XML in flushed batches: a copy of the files taken after three writes
     with flush_every = 2 (what a killed run leaves: the third frame's data may be in the
-    file, its XML not) reads as two frames, though the datasets hold six rows."""
+    file, its XML not) reads as two frames, though the datasets hold six rows. (The copy
+    reads what the OS holds: it fails if HDF5 keeps a write's rows in its sieve buffer or
+    allocates a block's file space at the first write, in metadata not yet flushed.)"""
     comm = MPI.COMM_WORLD
     base = comm.bcast(str(tmp_path_factory.mktemp("killed")), root=0)
     live, copy = os.path.join(base, "live"), os.path.join(base, "copy")

@@ -256,7 +256,7 @@ class Simulation:
         ledger = Ledger(comm)
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         times = PhaseTimers(PHASES) if s.timers else None
-        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "ku")}
+        buf = {k: np.empty(model.n_owned) for k in ("u", "v")}
         self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
         last_energy, max_bal = None, 0.0

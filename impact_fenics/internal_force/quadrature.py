@@ -289,6 +289,30 @@ class QuadratureForce:
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Compile (or load from the cache) every kernel of a step and of an output for the
+        types of this body's arrays, now at set-up, without running them: the fused cell
+        kernel is specialised on the material's update (a closure, compiled once per
+        process, ~1 s), which would otherwise compile inside the first timed step."""
+        from numba import typeof
+
+        def load(fn, *args):
+            fn.compile(tuple(typeof(a) for a in args))
+
+        g, qs, n = self.geometry, self.qs, self.model.n_owned
+        if self.path == "fast":
+            load(self._fused, self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
+                 self.u.x.array, self.f.x.array, qs.eps_p, qs.state, qs.sigma, self._work)
+        else:
+            load(self._points, self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
+                 qs.sigma, self._qdofs, self._sigma_q.x.array, self._work)
+        owned = self.u.x.array[:n]
+        load(velocity_update, self.coef, self.f_owned, owned, owned, self._f_prev, self._u_prev)
+        load(elastic_energy, self.material.lmbda, self.material.mu, qs.sigma, g.w)
+        load(cell_means, self._all, qs.eps_p, qs.state, self._cell_eps_p, self._cell_eps_bar,
+             self._cell_yielded)
 
     # ------------------------------------------------------------ generic path
     def _setup_generic(self) -> None:

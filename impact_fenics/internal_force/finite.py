@@ -285,6 +285,27 @@ class FiniteStrainForce:
         self.plastic_work_local = 0.0
         self.j_min = 1.0
         self._force, self._stored = kernels(material.update, material.energy)
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Compile (or load from the cache) the step's and the outputs' kernels for the types
+        of these arrays, now at set-up, without running them: the force and the stored
+        energy are specialised on the material (closures, compiled once per process, about
+        a second), which would otherwise compile inside the first timed step."""
+        from numba import typeof
+
+        def load(fn, *args):
+            fn.compile(tuple(typeof(a) for a in args))
+
+        g, u = self.geometry, self.u.x.array
+        load(self._force, self.params, 1.0, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
+             self.f.x.array, self.state, self.tau, self._Fq, self._Jq, self._fbar, self._work)
+        load(self._stored, self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
+             self.state, self._Fq, self._Jq, self._fbar, self._work)
+        load(cell_length_min, g.dofs, self.node_xy, u)
+        n = g.dofs.shape[0]
+        load(cell_means, self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
+             u, self._Fq, self._Jq, np.zeros((n, 4)), np.zeros(n), np.zeros(n), -1)
 
     def compute(self, dt: float) -> np.ndarray:
         """f_int(u^n) (N), owned view; the state moves to the current u. Raises

@@ -60,6 +60,7 @@ from . import compat, console, interrupts, output, rundir
 from .contact.wall import RigidWall
 from .errors import InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
+from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
 
 HISTORY_COLUMNS = ("step", "time", "dt", "dt_limit", "kinetic", "internal_work", "activation_loss",
@@ -322,6 +323,25 @@ class FiniteRun:
     def has_temperature(self) -> bool:
         return getattr(self.material, "temperature_index", -1) >= 0
 
+    def _load_kernels(self, dt: float) -> None:
+        """Compile (or load from the cache) the loop's module-level kernels for its argument
+        types now, without running them (the force's kernels load with the force)."""
+        from numba import typeof
+
+        from .contact.wall import _CODE, correct
+
+        def load(fn, *args):
+            fn.compile(tuple(typeof(a) for a in args))
+
+        f = self.force.f_owned
+        load(trapezoid_work, f, self.u_owned, self._f_prev, self._u_prev)
+        load(velocity_update, self.coef, f, self.v, dt)
+        load(advance_positions, self.u_owned, self.v, dt)
+        w = self.wall
+        if w is not None:
+            load(correct, w.nodes, w.Z, w.mass, w.z_wall, dt, dt, _CODE[w.method], w.p, f,
+                 self.u_owned, self.v, w.impulse)
+
     # ------------------------------------------------------------ the run
     def run(self, history_csv: str | None = None, fields_path: str | None = None) -> dict:
         """Step to t_end and return the summary. With ``settings.out`` the run directory gets
@@ -361,6 +381,9 @@ class FiniteRun:
             stop.restore()
             raise
         self.setup_time = {"outputs": time.perf_counter() - t_setup}
+        t_load = time.perf_counter()
+        self._load_kernels(dt0)
+        self.setup_time["kernels"] = time.perf_counter() - t_load
         timers = PhaseTimers(PHASES) if s.timers else None
         progress = _TimeProgress(s.t_end, not s.quiet and comm.rank == 0)
         cap = 4096
@@ -376,6 +399,7 @@ class FiniteRun:
         failure = None
         clock = time.perf_counter
         self.status = "running"
+        jit_before = signature_counts()
         t_run = clock()
         try:
             while t < s.t_end * (1.0 - 1e-12):
@@ -463,6 +487,8 @@ class FiniteRun:
         finally:
             progress.close()
         wall_time = comm.allreduce(clock() - t_run, op=MPI.MAX)
+        # kernels compiled inside the loop (a signature not loaded at set-up): none
+        self.compiled_in_loop = gained(jit_before, signature_counts())
         try:
             # the final state: force at u^N so that the state and the stored energy are current
             if self.status != "diverged":
@@ -574,4 +600,5 @@ class FiniteRun:
         summary["setup_time"] = dict(getattr(self, "setup_time", {}))
         if timers is not None and timers.n_steps > 0:
             summary.update(timers.summary(comm, wall_time))
+            summary["timing"]["compiled_in_loop"] = list(getattr(self, "compiled_in_loop", []))
         return summary

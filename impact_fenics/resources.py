@@ -62,6 +62,15 @@ def generator_cells(generator: str, p: dict) -> tuple[float, float]:
         cells = sum(_rect_cells(p["radius"], length, p["h"], p["structured"])
                     for length in (p["striker_length"], p["target_length"]))
         return cells, p["h"]
+    if generator == "coaxial_bars_sized":
+        cells = (_rect_cells(p["radius"], p["striker_length"], p["h_striker"], p["structured"])
+                 + _rect_cells(p["radius"], p["target_length"], p["h_target"], p["structured"]))
+        return cells, min(p["h_striker"], p["h_target"])
+    if generator == "nosed_striker_on_block":  # a quarter-disc nose and its shank; the block
+        a = p["nose_radius"]
+        striker = (0.25 * math.pi * a * a + a * p["shank_length"]) / (EQUILATERAL * p["h_striker"] ** 2)
+        block = p["block_width"] * p["block_depth"] / (EQUILATERAL * p["h_block"] ** 2)
+        return striker + block, min(p["h_striker"], p["h_block"])
     if generator == "quad_bar":  # n_r x round(n_r length / radius) quadrilaterals
         return p["n_r"] * max(1, round(p["n_r"] * p["length"] / p["radius"])), p["radius"] / p["n_r"]
     if generator == "punch_block":

@@ -195,6 +195,30 @@ class NodeToSegmentSet:
         self._work = 0.0
         self._activation_loss = 0.0
         self.method.setup(self)
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Compile (or load from the cache) every compiled call of a step for its argument
+        types now, at set-up, without running it: none loads inside the timed loop."""
+        from numba import typeof
+
+        integ = self.integrator
+        calls = [(_predict, (self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs,
+                             self.cc, self.gap, self.active, self.was_active)),
+                 (_take, (self.u, self.v, self._pos_mine, self._local, integ.u_owned,
+                          integ.v_owned)),
+                 (_book, (self.dt, True, self.mass, self.u, self.v, self.u_pred, self.v_pred,
+                          self.u_now, self.v_now, self._f_prev, self._ku_prev, self._jump,
+                          self.jumps, self._jumped, self.active, self.was_active, self.g0,
+                          self.cs, self.cc, self._gap_buf))]
+        if self.comm.size == 1:
+            calls.append((_take, (integ.u_owned, integ.v_owned, self._local, self._pos_mine,
+                                  self.u_pred, self.v_pred)))
+        else:
+            calls += [(_pack_pairs, (integ.u_owned, integ.v_owned, self._local, self._send)),
+                      (_unpack_pairs, (self._recv, self._pos, self.u_pred, self.v_pred))]
+        for fn, args in calls + self.method.kernel_calls(self):
+            fn.compile(tuple(typeof(a) for a in args))
 
     # ------------------------------------------------------------ gather
     def _gather(self, src_u, src_v, u_out, v_out) -> None:

@@ -71,6 +71,14 @@ class _Pivoting:
         self.iterations = 0
         self.info.update({"bandwidth": int(c.bw), "iterations_max": 0, "iterations_total": 0})
 
+    def _solver_calls(self, c) -> list:
+        """(kernel, arguments) of the position problem's solver, for loading at set-up."""
+        ws = self.ws
+        if self.solver == "dense":
+            return [(lcp_dense, (self.S, c.gap, ws.lam, self.max_iter))]
+        return [(lcp_bpp, (c.band, c.bw, c.gap, ws.lam, ws.w, ws.free, ws.idx, ws.rhs, ws.sol,
+                           ws.L, self.max_iter, ws.factored, ws.everywhere))]
+
     def _solve(self, c) -> np.ndarray:
         ws = self.ws
         if self.solver == "dense":
@@ -105,6 +113,11 @@ class FILM(_Pivoting):
         self.solver = solver
         self.info: dict = {"solver": solver}
 
+    def kernel_calls(self, c) -> list:
+        """(kernel, arguments) of every compiled call of :meth:`correct`."""
+        return self._solver_calls(c) + [
+            (apply_multipliers, (c.force, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v))]
+
     def correct(self, c) -> None:
         lam = self._solve(c)
         c.force[:] = lam
@@ -131,6 +144,16 @@ class DME(_Pivoting):
         self.vgap = np.zeros(c.n)
         self.vfree = np.zeros(c.n, dtype=np.bool_)
         self.vw = np.zeros(c.n)
+
+    def kernel_calls(self, c) -> list:
+        """(kernel, arguments) of every compiled call of :meth:`correct`."""
+        ws = self.ws
+        return self._solver_calls(c) + [
+            (_velocity_gaps, (ws.free, c.cs, c.cc, c.v_pred, self.e, c.dt, self.vgap, self.vfree)),
+            (lcp_bpp, (c.band, c.bw, self.vgap, self.phi, self.vw, self.vfree, ws.idx, ws.rhs,
+                       ws.sol, ws.L, self.max_iter, ws.factored, ws.free)),
+            (_dme_update, (ws.lam, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.u,
+                           c.v, c.force, c.active))]
 
     def correct(self, c) -> None:
         nu = self._solve(c)
@@ -204,6 +227,11 @@ class Penalty:
         self.info = {"p_choice": str(self.choice), "p_min": float(self.p.min()),
                      "p_max": float(self.p.max()), "beta_max": beta,
                      "beta_bound": STABILITY_BOUND}
+
+    def kernel_calls(self, c) -> list:
+        """(kernel, arguments) of every compiled call of :meth:`correct`."""
+        return [(_penalty, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free, c.dt,
+                            c.u, c.v))]
 
     def correct(self, c) -> None:
         _penalty(c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v)

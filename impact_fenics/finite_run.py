@@ -326,12 +326,8 @@ class FiniteRun:
     def _load_kernels(self, dt: float) -> None:
         """Compile (or load from the cache) the loop's module-level kernels for its argument
         types now, without running them (the force's kernels load with the force)."""
-        from numba import typeof
-
         from .contact.wall import _CODE, correct
-
-        def load(fn, *args):
-            fn.compile(tuple(typeof(a) for a in args))
+        from .jit_watch import load
 
         f = self.force.f_owned
         load(trapezoid_work, f, self.u_owned, self._f_prev, self._u_prev)

@@ -32,6 +32,14 @@ def gained(before: dict[str, int], after: dict[str, int]) -> list[str]:
     return sorted(k for k, n in after.items() if n > before.get(k, 0))
 
 
+def load(kernel, *args) -> None:
+    """Compile (or load from the cache) numba ``kernel`` for the types of ``args`` now, at
+    set-up, without running it: the loop's first call finds it ready."""
+    from numba import typeof
+
+    kernel.compile(tuple(typeof(a) for a in args))
+
+
 def direct(kernel, *args):
     """The compiled entry of numba ``kernel`` for the types of ``args``, compiled (or loaded
     from the cache) now, without running it: callable with arguments of exactly those

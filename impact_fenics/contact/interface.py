@@ -462,16 +462,10 @@ class ContactSet:
         compiles inside the first timed step: by their argument types the fused step
         (or detection and commit), and a method outside it by one call on open gaps (no
         force: it changes nothing that the next detection does not overwrite)."""
-        from numba import typeof
-
-        from ..jit_watch import direct
+        from ..jit_watch import direct, load
         from .fused import contact_step
 
         integ = self.integrator
-
-        def load(fn, *args):
-            return fn.compile(tuple(typeof(a) for a in args))
-
         load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
         load(_committed_gap, self.b, self.u_now, self.lo, self.up, self._gap_out)
         if self._fused is not None:

@@ -200,7 +200,7 @@ class NodeToSegmentSet:
     def _load_kernels(self) -> None:
         """Compile (or load from the cache) every compiled call of a step for its argument
         types now, at set-up, without running it: none loads inside the timed loop."""
-        from numba import typeof
+        from ..jit_watch import load
 
         integ = self.integrator
         calls = [(_predict, (self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs,
@@ -218,7 +218,7 @@ class NodeToSegmentSet:
             calls += [(_pack_pairs, (integ.u_owned, integ.v_owned, self._local, self._send)),
                       (_unpack_pairs, (self._recv, self._pos, self.u_pred, self.v_pred))]
         for fn, args in calls + self.method.kernel_calls(self):
-            fn.compile(tuple(typeof(a) for a in args))
+            load(fn, *args)
 
     # ------------------------------------------------------------ gather
     def _gather(self, src_u, src_v, u_out, v_out) -> None:

@@ -292,10 +292,7 @@ class FiniteStrainForce:
         of these arrays, now at set-up, without running them: the force and the stored
         energy are specialised on the material (closures, compiled once per process, about
         a second), which would otherwise compile inside the first timed step."""
-        from numba import typeof
-
-        def load(fn, *args):
-            fn.compile(tuple(typeof(a) for a in args))
+        from ..jit_watch import load
 
         g, u = self.geometry, self.u.x.array
         load(self._force, self.params, 1.0, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,

@@ -296,10 +296,7 @@ class QuadratureForce:
         types of this body's arrays, now at set-up, without running them: the fused cell
         kernel is specialised on the material's update (a closure, compiled once per
         process, ~1 s), which would otherwise compile inside the first timed step."""
-        from numba import typeof
-
-        def load(fn, *args):
-            fn.compile(tuple(typeof(a) for a in args))
+        from ..jit_watch import load
 
         g, qs, n = self.geometry, self.qs, self.model.n_owned
         if self.path == "fast":

@@ -26,7 +26,7 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
-from .jit_watch import direct
+from .jit_watch import direct, load
 from .loads import SurfaceLoad
 
 
@@ -206,11 +206,8 @@ class OutputSums:
         self._start = np.cumsum([0] + [d.size for d in body_z]).astype(np.int64)
         self._local = np.zeros(3 + self.n_bodies + n_extra)
         self._total = np.zeros_like(self._local)
-        zero = np.zeros_like(mass)  # compile (or load) the kernels of an output step now,
-        _output_sums(mass, zero, zero, self._dofs, self._start, self._local)
-        copy_state(zero, zero, zero.copy(), zero.copy())  # not at the first output
-        strain_from_prediction(zero, zero, zero, zero)
-        half_dot(zero, zero)
+        # its kernel compiled (or loaded) now, not at the first output
+        load(_output_sums, mass, mass, mass, self._dofs, self._start, self._local)
 
     def reduce(self, v_now: np.ndarray, v_next: np.ndarray, strain: float,
                extra=()) -> np.ndarray:

@@ -63,14 +63,6 @@ def _midpoints(mesh, cells: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _record(u_owned, index, row) -> None:
-    """row[k] = u_owned[index[k]] for the dofs this rank owns (index >= 0)."""
-    for k in range(index.size):
-        if index[k] >= 0:
-            row[k] = u_owned[index[k]]
-
-
-@njit(cache=True)
 def _record_at(u_owned, index, block, offset) -> None:
     """block[offset + k] = u_owned[index[k]] for the dofs this rank owns (index >= 0)."""
     for k in range(index.size):
@@ -173,23 +165,16 @@ class Probes:
         index[:, :6] = np.where(owned, dofs - model.offset, -1).reshape(n, 6)
         self._index = index.ravel()
         # load the compiled calls now, not in the first timed step
-        self.record(np.zeros(model.n_owned), np.zeros(self.n_raw))
         self.recorder(np.zeros(model.n_owned), np.zeros(self.n_raw))(0)
         self.values(np.zeros((1, self.n_raw)))
         # and with ``out`` a column slice of a wider block, as a history table passes it
         # (two rows and a column either side: a view numpy does not call contiguous)
         self.values(np.zeros((2, self.n_raw)), np.zeros((2, n + 2))[:, 1: n + 1])
 
-    def record(self, u_owned: np.ndarray, row: np.ndarray) -> None:
-        """Copy the probe dofs this rank owns (m), and the plastic state of the probe cells
-        it owns, into ``row`` (n_raw entries, zero elsewhere)."""
-        _record(u_owned, self._index, row)
-        for qs, pos, start in self._plastic:
-            _record_plastic(qs.eps_p, qs.state, pos, row, start)
-
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
-        """``record(offset)``: what :meth:`record` writes, into block[offset:] (a flat block
-        of rows; ``offset`` a Python int), for the u_owned of the run; one compiled call
+        """``record(offset)``: the probe dofs this rank owns (m), and the plastic state of
+        the probe cells it owns, into block[offset: offset + n_raw] (a flat block of rows,
+        zero elsewhere; ``offset`` a Python int), for the u_owned of the run; one compiled call
         without plastic probe cells (~0.25 us)."""
         fill = functools.partial(direct(_record_at, u_owned, self._index, block, 0),
                                  u_owned, self._index, block)

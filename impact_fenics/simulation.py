@@ -27,7 +27,7 @@ from .energy import (Ledger, LoadWork, OutputSums, copy_state, half_dot,
                      strain_from_prediction)
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
-from .jit_watch import gained, signature_counts
+from .jit_watch import gained, load, signature_counts
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
@@ -160,6 +160,10 @@ class Simulation:
         # the sums of an output step: energies, momenta (its kernel loaded now)
         self._output_sums = OutputSums(self.integrator.mass, list(self._body_z.values()),
                                        self.comm, 4 if self.integrator.nonlinear else 1)
+        mass = self.integrator.mass  # the other kernels of an output step, for arrays like it
+        load(copy_state, mass, mass, mass, mass)
+        load(strain_from_prediction, mass, mass, mass, mass)
+        load(half_dot, mass, mass)
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
@@ -412,7 +416,6 @@ class Simulation:
             progress.done()
             # kernels compiled inside the loop (a signature not loaded at set-up): none
             self.compiled_in_loop = gained(jit_before, signature_counts())
-            v_check.destroy()
             for tbl in tables.values():
                 tbl.close()
             if writer is not None:
@@ -941,9 +944,6 @@ class _OwnedVec:
         if self._comm.size > 1:
             self._comm.Allreduce(MPI.IN_PLACE, self._buf, op=MPI.MAX)
         return math.nan if self._buf[1] else float(self._buf[0])
-
-    def destroy(self) -> None:
-        pass
 
 
 @njit(cache=True)

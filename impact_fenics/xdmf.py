@@ -69,6 +69,8 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
+from .jit_watch import load
+
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
 _T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
@@ -217,7 +219,7 @@ class FieldWriter:
         self.n_writes = 0
         self.flush_every = max(1, int(flush_every))
         self._pending: list[tuple[float, int, int, int]] = []  # (t, step, block, row) not in the XML
-        _point_vectors(np.zeros(2), np.zeros(2), np.zeros(1, np.int64), np.zeros((2, 1, 3)))
+        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._vec)
         if comm.rank == 0:
             self._xml = open(path, "w")
             names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))

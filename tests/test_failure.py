@@ -187,4 +187,3 @@ def test_the_velocity_check_sees_every_write():
             v[k] = value
         norm = vec.norm_inf()
         assert (np.isnan(norm) if np.isnan(value) else norm == value)
-    vec.destroy()

@@ -151,7 +151,7 @@ class FILM:
 
     def correct(self, c) -> None:
         if self.solver == "fast":
-            _film_fast(c.gap, c.d, c.d_inv, c.kappa, c.force, c.active, c.lo, c.up, c.dt_over_m,
+            _film_fast(c.gap, c.d_inv, c.kappa, c.force, c.active, c.lo, c.up, c.dt_over_m,
                        c.dt, c.u, c.v, c.work)
         else:
             solve_dense(c.gap, c.d, c.kappa, c.force)
@@ -160,7 +160,7 @@ class FILM:
 
 
 @njit(cache=True)
-def _film_fast(gap, d, d_inv, kappa, force, active, lo, up, dt_over_m, dt, u, v, work):
+def _film_fast(gap, d_inv, kappa, force, active, lo, up, dt_over_m, dt, u, v, work):
     """solve_fast, then the forces applied (``dt_over_m`` = dt / m per slot, s/kg)."""
     _solve_fast(gap, d_inv, kappa, force, work)
     for i in range(gap.size):

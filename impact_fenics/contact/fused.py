@@ -250,7 +250,7 @@ def _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc):
     if code == PENALTY:
         _penalty(gap, p, force, active, lo, up, dt_over_m, dt, u, v)
     elif code == FILM_FAST:
-        _film_fast(gap, d, d_inv, misc[KAPPA], force, active, lo, up, dt_over_m, dt, u, v, work)
+        _film_fast(gap, d_inv, misc[KAPPA], force, active, lo, up, dt_over_m, dt, u, v, work)
     elif code == DME_PAIRS:
         _pairs(gap, b, lo, up, mass, dt, misc[RESTITUTION], misc[MASS_WEIGHTED] != 0.0, u, v,
                force, active)

@@ -104,6 +104,22 @@ class Table:
         self._n = n + 1
         return n * self.width
 
+    @property
+    def capacity(self) -> int:
+        """Rows of the block."""
+        return self._buf.shape[0]
+
+    def room(self) -> int:
+        """The number of rows filled in the block, after writing it out if it was full:
+        for a compiled caller that fills rows itself from there (:meth:`filled` after)."""
+        if self._n == self._buf.shape[0]:
+            self.flush()
+        return self._n
+
+    def filled(self, n: int) -> None:
+        """The block holds ``n`` filled rows (a compiled caller filled them)."""
+        self._n = n
+
     def flush(self) -> None:
         """Finish the rows of the block and append them to the file (collective when
         ``summed`` columns exist: call it on every rank)."""
@@ -206,6 +222,26 @@ class PairHistory:
         _pair_row(self._clock, self._state, self._n, step, t, gap, force, active)
         self._n += 1
         if self._n == self._clock.shape[0]:
+            self.flush()
+
+    @property
+    def capacity(self) -> int:
+        """Rows of the block (0 on ranks that write nothing)."""
+        return self._clock.shape[0] if self._f is not None else 0
+
+    def block(self) -> tuple[np.ndarray, np.ndarray]:
+        """(clock, state): the block's arrays, for a compiled caller that fills rows itself
+        (from :meth:`room` on, then :meth:`filled`); rank 0 only."""
+        return self._clock, self._state
+
+    def room(self) -> int:
+        """The rows filled in the block (never full: a full block is written at once)."""
+        return self._n
+
+    def filled(self, n: int) -> None:
+        """The block holds ``n`` rows (a compiled caller filled them); written if full."""
+        self._n = n
+        if self._f is not None and n == self._clock.shape[0]:
             self.flush()
 
     def flush(self) -> None:

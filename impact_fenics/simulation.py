@@ -33,6 +33,7 @@ from .loads import SurfaceLoad
 from .operators import assemble_stiffness
 from .probes import Probes
 from .xdmf import FieldWriter
+from .step_block import StepBlock, count_beyond as _count_beyond
 from .stability import converged_omega_max, critical_dt, element_omega_bound
 from .timers import PhaseTimers
 
@@ -87,6 +88,7 @@ class Settings:
     timers: bool = True
     plots: bool = True  # history.png and energy.png in the output directory (rank 0)
     f_int_path: str = "fast"  # path-dependent bodies: "fast" (fused cell kernel) or "generic"
+    compiled_steps: bool = True  # the steps between events as compiled blocks where they apply
 
     def steps(self) -> int:
         """Number of steps to run."""
@@ -267,7 +269,7 @@ class Simulation:
         runaway = self._runaway_speed()
         v_check = _OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
-        track = _ContactTrack(self.contacts)
+        self.track = track = _ContactTrack(self.contacts)
         progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
         stopped_at = n_steps
@@ -303,10 +305,46 @@ class Simulation:
         progress_due = progress.due
         signal_state = interrupts.STATE
         clock = time.perf_counter
+        # one rank, linear bodies: the steps between events run as compiled blocks
+        t_block = clock()
+        block = (StepBlock.for_run(self, tables["history"], times, probes, (check_at, pairs_at),
+                                   self._pair_tables, runaway, last, track.state)
+                 if s.compiled_steps else None)
+        self.setup_time["kernels"] = clock() - t_block
+        self.compiled_steps = block is not None
         jit_before = signature_counts()
         t_run = clock()
+        n = 0
         try:
-            for n in range(n_steps):
+            while n < n_steps:
+                if block is not None and n != next_event:
+                    # the steps up to the next event (or the next look at the progress
+                    # line, or a full history block) in one compiled call
+                    if event:  # the step after an event: none due
+                        is_output = is_fields = is_pairs = is_check = is_agree = event = False
+                    if pos:
+                        times.book(pos)
+                        pos = 0
+                    # (the block runs the divergence checks and pair rows of its steps)
+                    n, next_history = block.run(
+                        n, min(output_at.next, fields_at.next, agree_at.next, progress_due,
+                               n_steps), next_history)
+                    next_event = min(output_at.next, fields_at.next, pairs_at.next,
+                                     check_at.next, agree_at.next)
+                    if block.runaway >= 0:
+                        self._runaway(block.runaway, f"the rigid body '{block.rigid.name}' "
+                                      f"moves at {block.rigid.v} m/s")
+                    if block.diverged >= 0:
+                        v_max = v_check.norm_inf()
+                        self._runaway(block.diverged, f"a node moves at {v_max:.4g} m/s")
+                    if n >= progress_due:
+                        progress_due = progress.update(n)
+                    if signal_state.signum != 0:
+                        stop.collective(comm)
+                        self.status = f"interrupted by {stop.name}"
+                        stopped_at = n
+                        break
+                    continue
                 if n == next_event:  # advance only the schedules due (a call costs ~0.15 us)
                     is_output = output_at.next == n and output_at.due(n)
                     is_fields = fields_at.next == n and fields_at.due(n)
@@ -399,6 +437,7 @@ class Simulation:
                     self.status = f"interrupted by {stop.name}"
                     stopped_at = n + 1
                     break
+                n += 1
             else:
                 self.status = "completed" + self._penalty_trouble(track.as_dict())
         except UnstableRunError as exc:
@@ -826,10 +865,13 @@ class Simulation:
                 "rest_share": max(0.0, 1.0 - sum(share.values())),
                 "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
                 "compiled_in_loop": list(self.compiled_in_loop),
+                "compiled_steps": self.compiled_steps,
                 "definition": "total and median: the slowest rank's (s); share: the phase's "
                               "total over the loop's wall time, both averaged over the ranks; "
                               "rest: the loop's own Python, progress and signal checks; "
-                              "compiled_in_loop: numba kernels that compiled inside the loop"}
+                              "compiled_in_loop: numba kernels that compiled inside the loop; "
+                              "compiled_steps: the steps between events ran as compiled "
+                              "blocks (one rank, linear bodies: step_block.py)"}
         summary["bodies"] = self._body_figures()
         if self.contacts:
             summary["impact"] = self._impact_figures()
@@ -946,15 +988,6 @@ class _OwnedVec:
         return math.nan if self._buf[1] else float(self._buf[0])
 
 
-@njit(cache=True)
-def _count_beyond(values, limit) -> int:
-    """The number of entries with |value| > limit or NaN (a branch-free pass)."""
-    count = 0
-    for x in values:
-        count += not (abs(x) <= limit)
-    return count
-
-
 class _Progress:
     """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal.
 
@@ -1022,11 +1055,12 @@ class _ContactTrack:
     reversals of the number of active penalty constraints (chatter); at output steps the
     loop books the penalty's energy gain and budget (J, see CHATTER_MIN).
 
-    :attr:`step` is a closure over its counters (a cell read costs less than an attribute:
-    about 0.14 us a step for one contact set against 0.3 us as a method); one contact set
-    without penalty, the common case, gets a version without loops."""
+    The counters are :attr:`state` (the compiled steps of step_block update it too);
+    :attr:`step` is a closure over a memoryview of it (an item costs less than an
+    attribute: about 0.15 us a step for one contact set against 0.3 us as a method); one
+    contact set, the common case, gets a version without loops."""
 
-    __slots__ = ("step", "_counters", "penalty", "gain", "budget")
+    __slots__ = ("step", "state", "penalty", "gain", "budget")
 
     def __init__(self, contacts: list):
         stats = [memoryview(c.stats) for c in contacts]
@@ -1035,56 +1069,64 @@ class _ContactTrack:
                    if c.method.name == "penalty"]
         self.penalty = bool(penalty)
         self.gain = self.budget = 0.0
-        lowest = 0.0  # the smallest committed gap (m) so far, or 0: -max penetration
-        first = last = None
-        steps = reversals = 0
+        # the counters (layout step_block.T_*, which updates them in its compiled steps):
+        # the smallest committed gap (m) so far, or 0 (-max penetration); the first and
+        # last steps with contact (-1: none yet); the steps in contact; the reversals; one
+        # penalty set's last number active and last nonzero change
+        self.state = np.array([0.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0])
+        s = memoryview(self.state)
 
-        def counters() -> tuple:
-            return lowest, first, last, steps, reversals
-
-        if len(stats) == 1 and not penalty:
+        if len(stats) == 1 and len(penalty) <= 1:
             st = stats[0]
+            one_penalty = bool(penalty)
 
             def step(n: int) -> None:
-                nonlocal lowest, first, last, steps
-                if st[2] < lowest:
-                    lowest = st[2]
-                if st[0] > 0.0:
-                    if first is None:
-                        first = n
-                    last = n
-                    steps += 1
+                active = st[0]
+                if st[2] < s[0]:
+                    s[0] = st[2]
+                if active > 0.0:
+                    if s[1] < 0.0:
+                        s[1] = n
+                    s[2] = n
+                    s[3] += 1.0
+                if one_penalty:  # reversals of its number of active constraints
+                    d = active - s[5]
+                    if d * s[6] < 0.0:
+                        s[4] += 1.0
+                    s[5] = active
+                    if d:
+                        s[6] = d
         else:
             def step(n: int) -> None:
-                nonlocal lowest, first, last, steps, reversals
                 touching = False
                 for st in stats:
-                    if st[2] < lowest:
-                        lowest = st[2]
+                    if st[2] < s[0]:
+                        s[0] = st[2]
                     if st[0] > 0.0:
                         touching = True
                 if touching:
-                    if first is None:
-                        first = n
-                    last = n
-                    steps += 1
+                    if s[1] < 0.0:
+                        s[1] = n
+                    s[2] = n
+                    s[3] += 1.0
                 for p in penalty:  # reversals of the number of active penalty constraints
                     n_active = p[0][0]
                     d = n_active - p[1]
                     if d * p[2] < 0.0:
-                        reversals += 1
+                        s[4] += 1.0
                     p[1] = n_active
                     if d:
                         p[2] = d
-        self.step, self._counters = step, counters
+        self.step = step
 
     @property
     def first(self) -> int | None:
         """The first step with contact (None before it)."""
-        return self._counters()[1]
+        return int(self.state[1]) if self.state[1] >= 0.0 else None
 
     def as_dict(self) -> dict:
-        lowest, first, last, steps, reversals = self._counters()
-        return {"max_penetration": max(0.0, -lowest), "first_contact": first,
-                "last_contact": last, "contact_steps": steps,
-                "reversals": reversals, "gain": self.gain, "budget": self.budget}
+        lowest, first, last, steps, reversals = self.state[:5].tolist()
+        return {"max_penetration": max(0.0, -lowest),
+                "first_contact": int(first) if first >= 0.0 else None,
+                "last_contact": int(last) if last >= 0.0 else None, "contact_steps": int(steps),
+                "reversals": int(reversals), "gain": self.gain, "budget": self.budget}

@@ -93,6 +93,11 @@ class PhaseTimers:
         """Book ``current`` as one step's phase times, then zero it."""
         _record(self.current, self.totals, self._sample, self._state)
 
+    def booking(self) -> tuple:
+        """(current, totals, sample, state): the arrays that :func:`_book` books a step into,
+        for a compiled caller that books its steps itself."""
+        return self.current, self.totals, self._sample, self._state
+
     def book(self, filled: int) -> None:
         """Book the steps written into :attr:`rows` up to offset ``filled`` (whole rows, in
         step order); the rows are zeroed for the next block."""

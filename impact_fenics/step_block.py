@@ -1,0 +1,314 @@
+"""The steps between two events in one compiled call (one rank, linear bodies).
+
+Between outputs a step of linear bodies is the predictor of paper eq. (1)
+(v <- A u + v by MatMultAdd, A = -dt M^-1 K; u <- u + dt v by VecAXPY), the
+contact set's step and a history row. The loop of :class:`~.simulation.Simulation`
+runs these in Python, about 2 us a step around the PETSc calls, which is a fifth
+of a step on a mesh of ~1,000 dofs. Here :func:`run_steps` runs a block of such
+steps in one call: PETSc's MatMultAdd and VecAXPY by address on the same objects
+(:mod:`.native`), the contact set's :func:`~.contact.fused.contact_step`, the
+contact track, the history row and the phase timers, each the operations of the
+Python step in the same order on the same arrays, so the numbers are the same
+bit for bit (tests/test_step_block.py). The loop keeps everything else: events
+(outputs, pair rows, checks) run as Python steps, and a block ends before the
+next event, when the history block is full, when a progress line may be due, or
+after :data:`MAX_STEPS` steps (the signal flag is looked at between blocks).
+
+It applies (:meth:`StepBlock.for_run`) on one rank when every body is linear, no
+surface load acts, and at most one contact set runs by the fused call, with or
+without a rigid body (whose force functions are evaluated in Python for the
+block's steps first). Otherwise, and where the PETSc library cannot be reached
+by address, the Python step runs.
+
+The phase times of a compiled step: f_int the predictor, contact_solve the whole
+contact step (detection and update are inside it: 0), history the row.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import native
+from .contact.fused import contact_step
+from .contact.interface import (B, FORCE, LO, MISC_SIZE, N_CONS, STATS, U, U_NOW, UP, V,
+                                WAVES, ContactSet, _committed_gap)
+from .output import _pair_row
+from .probes import _record_at
+from .timers import _book
+
+MAX_STEPS = 256  # a block's steps at most (the signal flag is looked at between blocks)
+
+# ints (int64) of a block: in
+I_N, I_STOP, I_STEP, I_NEXT_HISTORY, I_EVERY, I_ROW, I_CAPACITY, I_WIDTH, I_OFFSET = range(9)
+# ... flags: contact, rigid, penalty, probes, timed
+I_CONTACT, I_RIGID, I_PENALTY, I_PROBES, I_TIMED = range(9, 14)
+# ... handles: MatMultAdd, VecAXPY, clock_gettime, A, u, v
+I_MULT_ADD, I_AXPY, I_CLOCK, I_A, I_U, I_V = range(14, 20)
+# ... the divergence check (next step, every, the last step) and the per-pair rows (on,
+# next step, every, rows filled, rows of the block)
+I_NEXT_CHECK, I_CHECK_EVERY, I_LAST = range(20, 23)
+I_PAIRS, I_NEXT_PAIRS, I_PAIRS_EVERY, I_PAIR_ROW, I_PAIR_CAPACITY = range(23, 28)
+# ... and out: the step reached, the PETSc error code, the step whose rigid body ran away,
+# the step after which a speed exceeded the runaway limit (-1: none)
+I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED = range(28, 32)
+N_INTS = 32
+# the contact track (floats): lowest gap, first and last step in contact (-1: none),
+# steps in contact, reversals, the penalty's last number active and last nonzero change
+T_LOWEST, T_FIRST, T_LAST, T_STEPS, T_REVERSALS, T_ACTIVE, T_CHANGE = range(7)
+
+
+@njit(cache=True)
+def count_beyond(values, limit) -> int:
+    """The number of entries with |value| > limit or NaN (a branch-free pass)."""
+    count = 0
+    for x in values:
+        count += not (abs(x) <= limit)
+    return count
+
+
+@njit(cache=True)
+def _next(k, every, last):
+    """The step after k of a schedule (simulation._Schedule.due)."""
+    return min(k + every, last) if k < last else last + 1
+
+
+@njit(cache=True)
+def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext, f_in, track,
+              history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
+              timespec) -> None:
+    """Steps ints[I_N] .. ints[I_STOP] - 1 of the loop (integrator step ints[I_STEP] for the
+    first), each as the Python step does it: predictor, contact step, track, history row
+    (when the step is ints[I_NEXT_HISTORY]: then the next is ``ints[I_EVERY]`` on), phase
+    times booked. ``f_ext``, ``f_in``: the rigid body's forces (N) at each step's t^n.
+    Stops early after a step that fills the history block (ints[I_ROW] == capacity), a
+    PETSc error (ints[I_ERROR]) or a rigid body moving at a non-finite speed
+    (ints[I_RUNAWAY] = that step). The divergence check at its steps (a speed of v above
+    ``limit``, m/s, or NaN: stops with ints[I_DIVERGED] = that step) and the per-pair
+    rows at theirs (a full block of them stops the block too). ints[I_DONE]: the loop's
+    next step."""
+    n0, stop, step0 = ints[I_N], ints[I_STOP], ints[I_STEP]
+    contact, rigid = ints[I_CONTACT] != 0, ints[I_RIGID] != 0
+    penalty, probes, timed = ints[I_PENALTY] != 0, ints[I_PROBES] != 0, ints[I_TIMED] != 0
+    mult_add, axpy, clock = ints[I_MULT_ADD], ints[I_AXPY], ints[I_CLOCK]
+    A, u, v = ints[I_A], ints[I_U], ints[I_V]
+    width, offset, capacity = ints[I_WIDTH], ints[I_OFFSET], ints[I_CAPACITY]
+    row, next_history, every = ints[I_ROW], ints[I_NEXT_HISTORY], ints[I_EVERY]
+    last, next_check, check_every = ints[I_LAST], ints[I_NEXT_CHECK], ints[I_CHECK_EVERY]
+    pairs, next_pairs, pairs_every = ints[I_PAIRS] != 0, ints[I_NEXT_PAIRS], ints[I_PAIRS_EVERY]
+    pair_row, pair_capacity = ints[I_PAIR_ROW], ints[I_PAIR_CAPACITY]
+    ints[I_ERROR] = 0
+    ints[I_RUNAWAY] = -1
+    ints[I_DIVERGED] = -1
+    body = F.shape[1] - 1
+    n = int(misc[N_CONS])
+    b, u_now, lo, up = F[B, :n], F[U_NOW], c_ints[LO, :n], c_ints[UP, :n]
+    force, active_flags = F[FORCE, :n], flags[0, :n]
+    k = n0
+    while k < stop:
+        step = step0 + k - n0
+        t0 = native.now(clock, timespec)
+        err = native.mat_mult_add(mult_add, A, u, v, v)
+        if err == 0:
+            err = native.vec_axpy(axpy, u, dt, v)
+        if err != 0:
+            ints[I_ERROR] = err
+            break
+        t1 = native.now(clock, timespec)
+        t2 = t1
+        u_r = v_r = 0.0
+        if contact:
+            u_r, v_r = contact_step(src_u, src_v, recv, F, c_ints, flags, misc, step == 0,
+                                    f_ext[k - n0], f_in[k - n0])
+            t2 = native.now(clock, timespec)
+            # the track (simulation._ContactTrack.step) of this step k
+            active = misc[STATS]
+            if misc[STATS + 2] < track[T_LOWEST]:
+                track[T_LOWEST] = misc[STATS + 2]
+            if active > 0.0:
+                if track[T_FIRST] < 0.0:
+                    track[T_FIRST] = k
+                track[T_LAST] = k
+                track[T_STEPS] += 1.0
+            if penalty:
+                d = active - track[T_ACTIVE]
+                if d * track[T_CHANGE] < 0.0:
+                    track[T_REVERSALS] += 1.0
+                track[T_ACTIVE] = active
+                if d != 0.0:
+                    track[T_CHANGE] = d
+        t3 = native.now(clock, timespec)
+        k += 1
+        if k - 1 == next_history:  # the history row of the state after the step
+            next_history += every
+            j = row * width
+            row += 1
+            if probes:
+                _record_at(src_u, probe_index, history, j)
+            c = j + offset
+            history[c] = float(step + 1)
+            history[c + 1] = (step + 1) * dt
+            if contact:
+                history[c + 2] = misc[STATS]
+                history[c + 3] = misc[STATS + 1]
+                history[c + 4] = misc[STATS + 2]
+                if rigid:
+                    history[c + 5] = u_r
+                    history[c + 6] = v_r
+                    c += 2
+                history[c + 5] = 0.0
+                history[c + 6] = t2 - t1
+                history[c + 7] = 0.0
+        if pairs and k - 1 == next_pairs:  # simulation._pair_rows of the state after the step
+            next_pairs = _next(k - 1, pairs_every, last)
+            _committed_gap(b, u_now, lo, up, gap)
+            _pair_row(pair_clock, pair_state, pair_row, step + 1, (step + 1) * dt, gap, force,
+                      active_flags)
+            pair_row += 1
+        t4 = native.now(clock, timespec)
+        if timed:
+            current[0] = t1 - t0
+            current[2] = t2 - t1
+            current[4] = t4 - t3
+            _book(current, totals, sample, state)
+        if rigid and not math.isfinite(F[V, body]):
+            ints[I_RUNAWAY] = k - 1
+            break
+        if k - 1 == next_check:
+            next_check = _next(k - 1, check_every, last)
+            if count_beyond(src_v, limit) > 0:
+                ints[I_DIVERGED] = k - 1
+                break
+        if row == capacity or pair_row == pair_capacity:
+            break
+    ints[I_DONE] = k
+    ints[I_ROW] = row
+    ints[I_NEXT_HISTORY] = next_history
+    ints[I_NEXT_CHECK] = next_check
+    ints[I_NEXT_PAIRS] = next_pairs
+    ints[I_PAIR_ROW] = pair_row
+
+
+class StepBlock:
+    """The compiled steps of one run (see the module docstring); build it by :meth:`for_run`.
+
+    ``schedules``: the loop's (check, pairs) schedules (simulation._Schedule: their
+    ``next`` advances with the block's steps); ``pairs``: the contact set's per-pair
+    table (output.PairHistory) or None; ``limit``: the runaway speed (m/s); ``last``: the
+    run's last step; ``track``: the contact track's counters (layout T_*)."""
+
+    def __init__(self, integ, contact, table, times, probes, every: int, addresses,
+                 schedules, pairs, limit: float, last: int, track: np.ndarray):
+        self.integ, self.contact, self.table, self.times = integ, contact, table, times
+        self.rigid = contact.rigid if contact is not None else None
+        self.check_at, self.pairs_at = schedules
+        self.pairs = pairs
+        ints = np.zeros(N_INTS, dtype=np.int64)
+        ints[I_MULT_ADD:I_CLOCK + 1] = addresses
+        ints[I_A], ints[I_U], ints[I_V] = integ.A.handle, integ.u_vec.handle, integ._v.handle
+        ints[I_EVERY], ints[I_WIDTH], ints[I_CAPACITY] = every, table.width, table.capacity
+        ints[I_OFFSET] = probes.n_raw if probes is not None else 0
+        ints[I_PROBES] = probes is not None
+        ints[I_TIMED] = times is not None
+        ints[I_CONTACT] = contact is not None
+        ints[I_RIGID] = self.rigid is not None
+        ints[I_PENALTY] = contact is not None and contact.method.name == "penalty"
+        ints[I_CHECK_EVERY], ints[I_LAST] = self.check_at.every, last
+        ints[I_PAIRS] = pairs is not None
+        ints[I_PAIRS_EVERY] = self.pairs_at.every
+        self.ints = ints
+        self._f_ext, self._f_in = np.zeros(MAX_STEPS), np.zeros(MAX_STEPS)
+        if contact is not None:
+            call = contact._fused_call
+        else:  # arrays of the same types (one compiled version serves both)
+            call = (integ.u_owned, integ.v_owned, np.empty(0), np.zeros((18, 1)),
+                    np.zeros((11, 1), dtype=np.int32), np.zeros((2, 1), dtype=np.bool_),
+                    np.zeros(MISC_SIZE))
+        index = probes._index if probes is not None else np.empty(0, dtype=np.int64)
+        if pairs is not None:
+            ints[I_PAIR_CAPACITY] = pairs.capacity
+            pair_arrays = (*pairs.block(), np.empty(contact.n))
+        else:  # (never filled)
+            ints[I_PAIR_CAPACITY] = -1
+            pair_arrays = (np.zeros((1, 2)), np.zeros((1, 3, 1)), np.zeros(1))
+        self.track = track  # simulation._ContactTrack.state: the block updates it too
+        if times is not None:
+            clocks = times.booking()
+        else:
+            clocks = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.array([0, 0, 1]))
+        self._args = (ints, integ.dt, float(limit), *call, self._f_ext, self._f_in, self.track,
+                      table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64))
+        from .jit_watch import direct
+
+        self._run = direct(run_steps, *self._args)
+
+    @classmethod
+    def for_run(cls, sim, table, times, probes, schedules, pair_tables, limit: float,
+                last: int, track: np.ndarray) -> "StepBlock | None":
+        """The block of ``sim``'s run, or None where the Python step must run."""
+        integ = sim.integrator
+        if (sim.comm.size != 1 or integ.A is None or integ.nonlinear or integ.loads
+                or len(sim.contacts) > 1):
+            return None
+        contact = sim.contacts[0] if sim.contacts else None
+        if contact is not None and (type(contact) is not ContactSet or contact._fused is None):
+            return None
+        if probes is not None and probes._plastic:
+            return None
+        addresses = native.addresses()
+        if addresses is None:
+            return None
+        pairs = pair_tables[0][1] if pair_tables else None
+        return cls(integ, contact, table, times, probes, sim.settings.history_every, addresses,
+                   schedules, pairs, limit, last, track)
+
+    def run(self, n: int, stop: int, next_history: int) -> tuple[int, int]:
+        """Run the loop's steps n .. stop - 1 (or fewer: see :func:`run_steps`); returns (the
+        loop's next step, the next history step). Raises RuntimeError on a PETSc error;
+        a runaway is left for the caller in :attr:`runaway` and :attr:`diverged` (the
+        step after which it was seen, or -1)."""
+        ints, integ, rigid = self.ints, self.integ, self.rigid
+        stop = min(stop, n + MAX_STEPS)
+        if rigid is not None:  # its force functions at each step's t^n, in Python
+            dt, step0 = integ.dt, integ.n
+            f_ext, f_in, incident = self._f_ext, self._f_in, rigid.incident
+            for i in range(stop - n):
+                t = (step0 + i) * dt
+                f_ext[i] = float(rigid.force(t))
+                if incident is not None:
+                    f_in[i] = float(incident(t))
+        ints[I_N], ints[I_STOP], ints[I_STEP] = n, stop, integ.n
+        ints[I_NEXT_HISTORY], ints[I_ROW] = next_history, self.table.room()
+        ints[I_NEXT_CHECK], ints[I_NEXT_PAIRS] = self.check_at.next, self.pairs_at.next
+        if self.pairs is not None:
+            ints[I_PAIR_ROW] = self.pairs.room()
+        self._run(*self._args)
+        done = int(ints[I_DONE])
+        integ.n += done - n
+        self.table.filled(int(ints[I_ROW]))
+        self.check_at.next, self.pairs_at.next = int(ints[I_NEXT_CHECK]), int(ints[I_NEXT_PAIRS])
+        if self.pairs is not None:
+            self.pairs.filled(int(ints[I_PAIR_ROW]))
+        if rigid is not None and done > n:
+            c = self.contact
+            body = c._floats.shape[1] - 1
+            rigid.u, rigid.v = float(c._floats[U, body]), float(c._floats[V, body])
+            if rigid.impedance > 0.0:
+                misc = c._misc
+                rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
+                    float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
+        if ints[I_ERROR]:
+            raise RuntimeError(f"PETSc error {int(ints[I_ERROR])} in the step "
+                               f"{integ.n} -> {integ.n + 1}")
+        return done, int(ints[I_NEXT_HISTORY])
+
+    @property
+    def runaway(self) -> int:
+        """The loop step after which the rigid body moved at a non-finite speed, or -1."""
+        return int(self.ints[I_RUNAWAY])
+
+    @property
+    def diverged(self) -> int:
+        """The loop step after which a speed exceeded the runaway limit (or was NaN), or -1."""
+        return int(self.ints[I_DIVERGED])

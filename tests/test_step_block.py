@@ -1,0 +1,165 @@
+"""The compiled steps between events equal the Python steps, bit for bit.
+
+On one rank with linear bodies, the loop runs the steps between events as compiled
+blocks (impact_fenics/step_block.py): PETSc's MatMultAdd and VecAXPY called by
+address, the fused contact step, the contact track, history and per-pair rows, the
+divergence check. The oracle is the Python step (``Settings(compiled_steps=False)``),
+which the wave, impact and energy tests validated against closed forms: the same
+C functions and kernels on the same arrays in the same order, so every number a
+run writes must be identical (no tolerance), apart from the CPU-time columns.
+
+Scenes: a rigid punch (penalty, FILM, DME: rigid slot, the penalty's reversals),
+two bars with node pairs and a probe, one bar with no contact, and two runs that
+fail: a rigid body driven to a non-finite speed and a step above the stable limit.
+Under MPI the blocks do not apply; the same comparisons then hold trivially.
+"""
+import os
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import meshing, scenes
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.contact import pair_surfaces
+from impact_fenics.errors import UnstableRunError
+from impact_fenics.materials import STEEL
+from impact_fenics.output import read_pairs
+from impact_fenics.simulation import Settings, Simulation
+from impact_fenics.xdmf import FieldSeries
+
+COMM = MPI.COMM_WORLD
+SERIAL = COMM.size == 1
+
+
+def _settings(out, compiled, **kw):
+    base = dict(cfl=0.9, n_steps=240, output_every=25, pairs_every=3, quiet=True, plots=False,
+                out=out, compiled_steps=compiled)
+    base.update(kw)
+    return Settings(**base)
+
+
+@pytest.fixture(scope="module")
+def punch_mesh():
+    return meshing.punch_block(width=1.5, depth=0.5, h_surface=0.05, grading=1.0, h_max=0.25,
+                               breaks=((1.0, 20),))
+
+
+@pytest.fixture(scope="module")
+def bars_mesh():
+    return meshing.coaxial_bars(radius=0.1, striker_length=0.4, target_length=0.4, h=0.04,
+                                structured=False)
+
+
+def _scratch(tmp_path_factory, name):
+    path = str(tmp_path_factory.mktemp(name)) if COMM.rank == 0 else None
+    return COMM.bcast(path, root=0)
+
+
+def _written(sim) -> dict:
+    """Everything the run wrote that is not a CPU time: the tables, the per-pair rows, the
+    frames, the summary's physics and the final state."""
+    out = sim.out_dir
+    h = sim.history.data()
+    got = {f"history.{k}": v for k, v in h.items() if not k.endswith(("cpu_detection",
+                                                                       "cpu_solve", "cpu_update"))}
+    got.update({f"energy.{k}": v for k, v in sim.energy.data().items()})
+    pairs = os.path.join(out, "contact_pairs.h5")
+    if os.path.exists(pairs):
+        got.update({f"pairs.{k}": v for k, v in read_pairs(pairs).items()})
+    if os.path.exists(os.path.join(out, "fields.xdmf")):
+        series = FieldSeries(os.path.join(out, "fields.xdmf"))
+        got["fields.times"] = np.asarray(series.times)
+        for name in series.center:
+            for k in range(len(series.times)):
+                got[f"fields.{name}.{k}"] = series.values(name, k)
+    s = sim.summary
+    for key in ("status", "stopped_at_step", "contact", "impact", "energy", "peak_stress",
+                "bodies"):
+        got[f"summary.{key}"] = repr(s.get(key))
+    got["track"] = repr(sim.track.as_dict())  # contact steps, penalty reversals
+    integ = sim.integrator
+    got["u"], got["v"] = integ.u_owned.copy(), integ.v_owned.copy()
+    for c in sim.contacts:
+        if c.rigid is not None:
+            got["rigid"] = np.array([c.rigid.u, c.rigid.v])
+    return got
+
+
+def _same(make, tmp_path_factory, name, expect_contact=True):
+    """Run the scene make(out, compiled) both ways; everything written is identical."""
+    runs = {}
+    for compiled in (True, False):
+        sim = make(os.path.join(_scratch(tmp_path_factory, name), "run"), compiled)
+        sim.run()
+        assert sim.summary["timing"]["compiled_steps"] == (compiled and SERIAL)
+        assert sim.summary["timing"]["compiled_in_loop"] == []
+        runs[compiled] = _written(sim)
+    a, b = runs[True], runs[False]
+    assert a.keys() == b.keys()
+    for key in a:
+        assert np.array_equal(a[key], b[key]), key
+    if expect_contact:
+        assert max(a["history.n_active"]) > 0  # the scene has contact
+    return a
+
+
+@pytest.mark.parametrize("method", ["penalty", "film", "dme"])
+def test_punch_compiled_steps_equal_python_steps(punch_mesh, tmp_path_factory, method):
+    def make(out, compiled):
+        return scenes.punch_indentation(_settings(out, compiled), scenes.make_method(method),
+                                        radius=1.0, tmesh=punch_mesh)
+    got = _same(make, tmp_path_factory, f"punch_{method}")
+    assert "pairs.gap" in got and "fields.sigma_zz.3" in got
+
+
+def test_bars_compiled_steps_equal_python_steps(bars_mesh, tmp_path_factory):
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        sim = Simulation(model, _settings(out, compiled, output_every=7, history_every=2),
+                         initial_velocity={"striker": (0.0, 5.0)})
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
+                        scenes.make_method("film"))
+        sim.add_probe("sigma_zz_obs", (0.05, 0.2), "sigma_zz")
+        return sim
+    got = _same(make, tmp_path_factory, "bars")
+    assert "history.sigma_zz_obs" in got
+
+
+def test_no_contact_compiled_steps_equal_python_steps(bars_mesh, tmp_path_factory):
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        return Simulation(model, _settings(out, compiled, n_steps=60),
+                          initial_velocity={"striker": (0.0, 5.0), "target": (0.0, -1.0)})
+    _same(make, tmp_path_factory, "free", expect_contact=False)
+
+
+def _failure(make, tmp_path_factory, name) -> list[str]:
+    messages = []
+    for compiled in (True, False):
+        sim = make(os.path.join(_scratch(tmp_path_factory, name), "run"), compiled)
+        with pytest.raises(UnstableRunError) as err:
+            sim.run()
+        messages.append(str(err.value))
+    return messages
+
+
+def test_a_runaway_rigid_body_stops_both_at_the_same_step(punch_mesh, tmp_path_factory):
+    def make(out, compiled):
+        sim = scenes.punch_indentation(_settings(out, compiled), scenes.make_method("dme"),
+                                       radius=1.0, tmesh=punch_mesh)
+        body = sim.contacts[0].rigid
+        body.force = lambda t: np.inf if t > 40 * sim.settings.dt else 0.0
+        return sim
+    a, b = _failure(make, tmp_path_factory, "runaway")
+    assert a == b and "rigid body" in a
+
+
+def test_a_diverging_run_stops_both_at_the_same_step(bars_mesh, tmp_path_factory):
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        return Simulation(model, _settings(out, compiled, cfl=3.0, force_dt=True,
+                                           n_steps=2000, output_every=500),
+                          initial_velocity={"striker": (0.0, 5.0)})
+    a, b = _failure(make, tmp_path_factory, "diverged")
+    assert a == b and "a node moves at" in a

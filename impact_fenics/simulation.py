@@ -325,18 +325,25 @@ class Simulation:
                     if pos:
                         times.book(pos)
                         pos = 0
-                    # (the block runs the divergence checks and pair rows of its steps)
-                    n, next_history = block.run(
-                        n, min(output_at.next, fields_at.next, agree_at.next, progress_due,
-                               n_steps), next_history)
-                    next_event = min(output_at.next, fields_at.next, pairs_at.next,
-                                     check_at.next, agree_at.next)
+                    # (the block runs the divergence checks and pair rows of its steps, and
+                    # a fields step: its frame is written after it, here)
+                    end = min(output_at.next, fields_at.next + 1, agree_at.next, progress_due,
+                              n_steps)
+                    n, next_history = block.run(n, end, next_history,
+                                                hold=end == fields_at.next + 1)
                     if block.runaway >= 0:
                         self._runaway(block.runaway, f"the rigid body '{block.rigid.name}' "
                                       f"moves at {block.rigid.v} m/s")
                     if block.diverged >= 0:
                         v_max = v_check.norm_inf()
                         self._runaway(block.diverged, f"a node moves at {v_max:.4g} m/s")
+                    if block.held:  # the block ended with a fields step: its frame
+                        fields_at.due(n - 1)
+                        t4 = clock()
+                        self._write_fields(writer)
+                        block.book_held(clock() - t4)
+                    next_event = min(output_at.next, fields_at.next, pairs_at.next,
+                                     check_at.next, agree_at.next)
                     if n >= progress_due:
                         progress_due = progress.update(n)
                     if signal_state.signum != 0:

@@ -39,6 +39,8 @@ from .probes import _record_at
 from .timers import _book
 
 MAX_STEPS = 256  # a block's steps at most (the signal flag is looked at between blocks)
+# where a step's phase times go in simulation.PHASES (detection, update: 0, inside solve)
+F_INT, SOLVE, HISTORY, OUTPUT = 0, 2, 4, 5
 
 # ints (int64) of a block: in
 I_N, I_STOP, I_STEP, I_NEXT_HISTORY, I_EVERY, I_ROW, I_CAPACITY, I_WIDTH, I_OFFSET = range(9)
@@ -50,10 +52,14 @@ I_MULT_ADD, I_AXPY, I_CLOCK, I_A, I_U, I_V = range(14, 20)
 # next step, every, rows filled, rows of the block)
 I_NEXT_CHECK, I_CHECK_EVERY, I_LAST = range(20, 23)
 I_PAIRS, I_NEXT_PAIRS, I_PAIRS_EVERY, I_PAIR_ROW, I_PAIR_CAPACITY = range(23, 28)
+# ... hold the last step's phase times (its output follows in Python: its time is added
+# before booking them)
+I_HOLD = 28
 # ... and out: the step reached, the PETSc error code, the step whose rigid body ran away,
-# the step after which a speed exceeded the runaway limit (-1: none)
-I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED = range(28, 32)
-N_INTS = 32
+# the step after which a speed exceeded the runaway limit (-1: none), the last step's
+# times held in ``current`` (1) or booked (0)
+I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD = range(29, 34)
+N_INTS = 34
 # the contact track (floats): lowest gap, first and last step in contact (-1: none),
 # steps in contact, reversals, the penalty's last number active and last nonzero change
 T_LOWEST, T_FIRST, T_LAST, T_STEPS, T_REVERSALS, T_ACTIVE, T_CHANGE = range(7)
@@ -101,6 +107,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     ints[I_ERROR] = 0
     ints[I_RUNAWAY] = -1
     ints[I_DIVERGED] = -1
+    ints[I_HELD] = 0
     body = F.shape[1] - 1
     n = int(misc[N_CONS])
     b, u_now, lo, up = F[B, :n], F[U_NOW], c_ints[LO, :n], c_ints[UP, :n]
@@ -168,10 +175,13 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             pair_row += 1
         t4 = native.now(clock, timespec)
         if timed:
-            current[0] = t1 - t0
-            current[2] = t2 - t1
-            current[4] = t4 - t3
-            _book(current, totals, sample, state)
+            current[F_INT] = t1 - t0
+            current[SOLVE] = t2 - t1
+            current[HISTORY] = t4 - t3
+            if k == stop and ints[I_HOLD] != 0:
+                ints[I_HELD] = 1
+            else:
+                _book(current, totals, sample, state)
         if rigid and not math.isfinite(F[V, body]):
             ints[I_RUNAWAY] = k - 1
             break
@@ -263,13 +273,17 @@ class StepBlock:
         return cls(integ, contact, table, times, probes, sim.settings.history_every, addresses,
                    schedules, pairs, limit, last, track)
 
-    def run(self, n: int, stop: int, next_history: int) -> tuple[int, int]:
+    def run(self, n: int, stop: int, next_history: int, hold: bool = False) -> tuple[int, int]:
         """Run the loop's steps n .. stop - 1 (or fewer: see :func:`run_steps`); returns (the
         loop's next step, the next history step). Raises RuntimeError on a PETSc error;
         a runaway is left for the caller in :attr:`runaway` and :attr:`diverged` (the
-        step after which it was seen, or -1)."""
+        step after which it was seen, or -1). ``hold``: if step stop - 1 is reached, its
+        phase times are not booked: :meth:`book_held` books them with the time of what
+        the caller does after it (:attr:`held`)."""
         ints, integ, rigid = self.ints, self.integ, self.rigid
-        stop = min(stop, n + MAX_STEPS)
+        if stop > n + MAX_STEPS:
+            stop, hold = n + MAX_STEPS, False
+        ints[I_HOLD] = hold
         if rigid is not None:  # its force functions at each step's t^n, in Python
             dt, step0 = integ.dt, integ.n
             f_ext, f_in, incident = self._f_ext, self._f_in, rigid.incident
@@ -302,6 +316,17 @@ class StepBlock:
             raise RuntimeError(f"PETSc error {int(ints[I_ERROR])} in the step "
                                f"{integ.n} -> {integ.n + 1}")
         return done, int(ints[I_NEXT_HISTORY])
+
+    @property
+    def held(self) -> bool:
+        """Did the last block reach its last step with ``hold`` (its times not booked)?"""
+        return self.ints[I_HELD] != 0
+
+    def book_held(self, output: float) -> None:
+        """Book the held step's phase times with ``output`` (s) as its output phase."""
+        if self.times is not None:
+            self.times.current[OUTPUT] = output
+            self.times.record()
 
     @property
     def runaway(self) -> int:

@@ -52,10 +52,12 @@ def _matmult_median(integ, comm, repeats: int = 7, inner: int = 50) -> float:
     return float(np.median(samples))
 
 
-def _scene(kind: str, out: str, comm, h: float = BAR_H):
+def _scene(kind: str, out: str, comm, h: float = BAR_H, compiled: bool = True):
     """(simulation, set-up seconds by phase) of a scene with its demo's default outputs;
     ``h`` (m) the bars' element size: at a finer one dt shrinks with h and the run keeps
-    the demo's number of steps (BAR_T_END / BAR_DT) and output schedule."""
+    the demo's number of steps (BAR_T_END / BAR_DT) and output schedule; ``compiled``
+    False: the Python step throughout (Settings.compiled_steps)."""
+    python_steps = {} if compiled else {"compiled_steps": False}
     from .. import meshing, scenes
     from ..simulation import Settings
 
@@ -71,7 +73,7 @@ def _scene(kind: str, out: str, comm, h: float = BAR_H):
     t = clock()
     if kind == "punch_sim3":
         settings = Settings(dt=PUNCH_DT, n_steps=PUNCH_STEPS, out=out, output_every=PUNCH_EVERY,
-                            quiet=True, plots=False)
+                            quiet=True, plots=False, **python_steps)
         sim = scenes.punch_indentation(settings, scenes.make_method("dme"),
                                        radius=scenes.PUNCH_RADII[6], tmesh=tmesh, comm=comm)
     else:
@@ -81,7 +83,7 @@ def _scene(kind: str, out: str, comm, h: float = BAR_H):
         from ..simulation import Simulation
 
         settings = Settings(dt=BAR_DT * h / BAR_H, n_steps=round(BAR_T_END / BAR_DT), out=out,
-                            output_every=BAR_EVERY, quiet=True, plots=False)
+                            output_every=BAR_EVERY, quiet=True, plots=False, **python_steps)
         model = DeformableModel(tmesh, [Body("striker", STEEL), Body("target", STEEL)])
         sim = Simulation(model, settings, initial_velocity={"striker": (0.0, 5.0)})
         sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
@@ -91,12 +93,12 @@ def _scene(kind: str, out: str, comm, h: float = BAR_H):
     return sim, setup
 
 
-def measure(kind: str, comm: MPI.Comm, h: float = BAR_H) -> dict:
+def measure(kind: str, comm: MPI.Comm, h: float = BAR_H, compiled: bool = True) -> dict:
     """One whole run of scene ``kind`` ('punch_sim3' or 'bars', the bars at element size
-    ``h``, m): its ratios and set-up."""
+    ``h``, m; ``compiled`` False: with the Python step throughout): its ratios and set-up."""
     scratch = tempfile.mkdtemp(prefix="ifx_whole_") if comm.rank == 0 else None
     scratch = comm.bcast(scratch, root=0)
-    sim, setup = _scene(kind, os.path.join(scratch, kind), comm, h)
+    sim, setup = _scene(kind, os.path.join(scratch, kind), comm, h, compiled)
     t = time.perf_counter()
     summary = sim.run()
     total = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
@@ -113,13 +115,16 @@ def measure(kind: str, comm: MPI.Comm, h: float = BAR_H) -> dict:
     beyond = {k: totals[k] - n * medians.get(k, 0.0) for k in totals}
     beyond["rest"] = wall - sum(totals.values())
     label = kind if kind != "bars" or h == BAR_H else f"bars h={h:g}"
+    if not compiled:
+        label += " (Python steps)"
     res = {"scene": label, "h": h if kind == "bars" else None, "n_ranks": comm.size, "n_steps": n, "n_dofs": summary["n_dofs"],
            "loop_wall": wall, "step_median": median, "matmult": matmult,
            "wall_over_steps_median": wall / (n * median),
            "wall_over_steps_matmult": wall / (n * matmult),
            "setup": setup, "phase_totals": totals, "phase_medians": medians,
            "beyond_median": beyond,
-           "compiled_in_loop": summary.get("timing", {}).get("compiled_in_loop")}
+           "compiled_in_loop": summary.get("timing", {}).get("compiled_in_loop"),
+           "compiled_steps": summary.get("timing", {}).get("compiled_steps", False)}
     if comm.rank == 0:
         import shutil
         shutil.rmtree(scratch, ignore_errors=True)
@@ -245,8 +250,8 @@ def part_whole_run(ctx) -> dict:
     """The whole-run table (both scenes), the contact share at Sim3 and the cost per
     field write and history row."""
     res, runs = {}, []
-    for kind, h in _RUNS:
-        r = measure(kind, ctx.comm, h)
+    for kind, h, compiled in _RUNS:
+        r = measure(kind, ctx.comm, h, compiled)
         res[r["scene"]] = r
         runs.append(r)
     ctx.table(f"Whole run vs its steps ({ctx.comm.size} rank(s); default outputs; the finer "
@@ -275,16 +280,20 @@ def part_whole_run(ctx) -> dict:
     return res
 
 
-# (scene, the bars' element size in m) of the whole-run table
-_RUNS = (("punch_sim3", BAR_H), ("bars", BAR_H)) + tuple(("bars", h) for h in BAR_FINER)
+# (scene, the bars' element size in m, compiled steps) of the whole-run table: the demo's
+# bars also with the Python step throughout, the ratio the compiled steps gain
+_RUNS = ((("punch_sim3", BAR_H, True), ("bars", BAR_H, True), ("bars", BAR_H, False))
+         + tuple(("bars", h, True) for h in BAR_FINER))
 
 
 HEADERS = ["scene", "dofs", "steps", "loop (s)", "median step (us)", "MatMult (us)",
-           "wall/(n x step)", "wall/(n x MatMult)", "set-up (s): mesh, sim, run"]
+           "wall/(n x step)", "wall/(n x MatMult)", "steps between events",
+           "set-up (s): mesh, sim, run"]
 
 
 BEYOND_HEADERS = ["scene", "f_int", "contact", "history", "output", "rest", "rest/step (us)",
-                  "compiled in loop", "stability", "operators", "contact set-up", "outputs"]
+                  "compiled in loop", "stability", "operators", "contact set-up", "outputs",
+                  "kernels"]
 
 
 def _beyond_row(r: dict) -> list:
@@ -294,7 +303,8 @@ def _beyond_row(r: dict) -> list:
                                                       b.get("history", 0.0), b.get("output", 0.0),
                                                       b["rest"])] + \
         [f"{1e6 * b['rest'] / r['n_steps']:.2f}", ", ".join(r["compiled_in_loop"] or []) or "none"] + \
-        [f"{s.get(k, 0.0):.2f}" for k in ("stability", "operators", "contact", "outputs")]
+        [f"{s.get(k, 0.0):.2f}" for k in ("stability", "operators", "contact", "outputs",
+                                          "kernels")]
 
 
 def _row(r: dict) -> list:
@@ -302,6 +312,7 @@ def _row(r: dict) -> list:
     return [r["scene"], r["n_dofs"], r["n_steps"], f"{r['loop_wall']:.3f}", f"{1e6 * r['step_median']:.1f}",
             f"{1e6 * r['matmult']:.1f}", f"{r['wall_over_steps_median']:.2f}",
             f"{r['wall_over_steps_matmult']:.2f}",
+            "compiled" if r.get("compiled_steps") else "Python",
             f"{s['mesh']:.2f}, {s['simulation']:.2f}, {s['run_outside_loop']:.2f}"]
 
 
@@ -310,7 +321,7 @@ if __name__ == "__main__":
     import sys
 
     comm = MPI.COMM_WORLD
-    results = [measure(k, comm, h) for k, h in _RUNS]
+    results = [measure(k, comm, h) for k, h, compiled in _RUNS if compiled]
     if comm.rank == 0:
         from .tables import format_table
 

@@ -15,7 +15,8 @@ kernel, not constants compiled into it, so numba caches the kernel across runs.
 from __future__ import annotations
 
 import ctypes
-import os
+import functools
+import re
 
 import numpy as np
 from llvmlite import ir
@@ -84,23 +85,18 @@ def _loaded(stem: str) -> str | None:
     """Path of the shared library named ``stem``* mapped into this process, if any."""
     try:
         with open("/proc/self/maps") as maps:
-            for line in maps:
-                path = line.split()[-1]
-                if path.startswith("/") and os.path.basename(path).startswith(stem):
-                    return path
+            found = re.search(r"(/\S*/" + re.escape(stem) + r"[^/\s]*)$", maps.read(), re.M)
     except OSError:
-        pass
-    return None
+        return None
+    return found.group(1) if found else None
 
 
 def _address(fn) -> int:
     return ctypes.cast(fn, ctypes.c_void_p).value
 
 
-def addresses() -> np.ndarray | None:
-    """int64 [MatMultAdd, VecAXPY, clock_gettime] of this process, or None where they
-    cannot be had (no /proc, a PETSc whose scalars are not real doubles): the caller
-    then stays with petsc4py."""
+@functools.lru_cache(maxsize=None)
+def _addresses() -> tuple | None:
     from petsc4py import PETSc
 
     if np.dtype(PETSc.ScalarType) != np.float64:
@@ -111,7 +107,15 @@ def addresses() -> np.ndarray | None:
     try:
         petsc = ctypes.CDLL(path)
         libc = ctypes.CDLL(None)
-        return np.array([_address(petsc.MatMultAdd), _address(petsc.VecAXPY),
-                         _address(libc.clock_gettime)], dtype=np.int64)
+        return (_address(petsc.MatMultAdd), _address(petsc.VecAXPY),
+                _address(libc.clock_gettime))
     except (OSError, AttributeError):
         return None
+
+
+def addresses() -> np.ndarray | None:
+    """int64 [MatMultAdd, VecAXPY, clock_gettime] of this process, or None where they
+    cannot be had (no /proc, a PETSc whose scalars are not real doubles): the caller
+    then stays with petsc4py. Looked up once per process."""
+    found = _addresses()
+    return None if found is None else np.array(found, dtype=np.int64)

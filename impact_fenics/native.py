@@ -1,5 +1,5 @@
-"""C functions that a compiled kernel calls by address: PETSc's MatMultAdd and VecAXPY, and
-the monotonic clock.
+"""C functions that a compiled kernel calls by address: PETSc's MatMultAdd and VecAXPY,
+MPI's Allgatherv and Allreduce, and the monotonic clock.
 
 A kernel that runs many steps in one call (:mod:`.step_block`) cannot go through
 petsc4py, so it calls the PETSc library that petsc4py loaded into this process
@@ -8,6 +8,10 @@ handles (``Mat.handle``, ``Vec.handle``) as integers: the same C functions on th
 same objects as ``A.multAdd(u, v, v)`` and ``u.axpy(dt, v)``, so the same numbers
 bit for bit, without petsc4py's ~0.2 us a call. The addresses are arguments of the
 kernel, not constants compiled into it, so numba caches the kernel across runs.
+
+MPI is called the same way, from the library mpi4py loaded, with mpi4py's handles
+of the communicator, MPI_DOUBLE and MPI_MAX: pointers in Open MPI, ``int`` in
+MPICH (:func:`mpi_addresses` says which; the kernels call the matching form).
 
 :func:`now` reads CLOCK_MONOTONIC, the clock of ``time.perf_counter`` on Linux
 (s; ~25 ns a read).
@@ -24,6 +28,9 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 CLOCK_MONOTONIC = 1  # Linux <time.h>
+# mpi_addresses(): MPI_Allgatherv, MPI_Allreduce, handles 64-bit (1) or 32-bit (0), and the
+# handles of the communicator, MPI_DOUBLE and MPI_MAX
+M_ALLGATHERV, M_ALLREDUCE, M_WIDE, M_COMM, M_DOUBLE, M_MAX = range(6)
 
 
 @intrinsic
@@ -60,6 +67,79 @@ def _call_ip(typingctx, address, i, p):
         fn = builder.inttoptr(args[0], fnty.as_pointer())
         return builder.call(fn, args[1:])
     return sig, codegen
+
+
+def _allgatherv_call(wide: bool):
+    """An intrinsic calling MPI_Allgatherv(send, count, dtype, recv, counts, displs, dtype,
+    comm) at an address, the handles (dtype, comm) passed 64-bit if ``wide`` else 32-bit."""
+
+    @intrinsic
+    def call(typingctx, address, send, count, dtype, recv, counts, displs, comm):
+        sig = types.int32(types.int64, types.int64, types.int32, types.int64, types.int64,
+                          types.int64, types.int64, types.int64)
+
+        def codegen(context, builder, signature, args):
+            i32, i64 = ir.IntType(32), ir.IntType(64)
+            h = i64 if wide else i32
+            fnty = ir.FunctionType(i32, [i64, i32, h, i64, i64, i64, h, h])
+            fn = builder.inttoptr(args[0], fnty.as_pointer())
+            send_, count_, dtype_, recv_, counts_, displs_, comm_ = args[1:]
+            if not wide:
+                dtype_, comm_ = builder.trunc(dtype_, i32), builder.trunc(comm_, i32)
+            return builder.call(fn, [send_, count_, dtype_, recv_, counts_, displs_, dtype_,
+                                     comm_])
+        return sig, codegen
+    return call
+
+
+def _allreduce_call(wide: bool):
+    """An intrinsic calling MPI_Allreduce(send, recv, count, dtype, op, comm) at an address,
+    the handles passed 64-bit if ``wide`` else 32-bit."""
+
+    @intrinsic
+    def call(typingctx, address, send, recv, count, dtype, op, comm):
+        sig = types.int32(types.int64, types.int64, types.int64, types.int32, types.int64,
+                          types.int64, types.int64)
+
+        def codegen(context, builder, signature, args):
+            i32, i64 = ir.IntType(32), ir.IntType(64)
+            h = i64 if wide else i32
+            fnty = ir.FunctionType(i32, [i64, i64, i32, h, h, h])
+            fn = builder.inttoptr(args[0], fnty.as_pointer())
+            send_, recv_, count_, dtype_, op_, comm_ = args[1:]
+            if not wide:
+                dtype_, op_, comm_ = (builder.trunc(dtype_, i32), builder.trunc(op_, i32),
+                                      builder.trunc(comm_, i32))
+            return builder.call(fn, [send_, recv_, count_, dtype_, op_, comm_])
+        return sig, codegen
+    return call
+
+
+_allgatherv_64, _allgatherv_32 = _allgatherv_call(True), _allgatherv_call(False)
+_allreduce_64, _allreduce_32 = _allreduce_call(True), _allreduce_call(False)
+
+
+@njit(cache=True)
+def allgatherv(mpi, send, recv, counts, displs) -> int:
+    """MPI_Allgatherv of the doubles ``send`` into ``recv`` (``counts``, ``displs``: int32
+    arrays) over the communicator of ``mpi`` (:func:`mpi_addresses`' layout)."""
+    if mpi[M_WIDE] != 0:
+        return _allgatherv_64(mpi[M_ALLGATHERV], send.ctypes.data, np.int32(send.size),
+                              mpi[M_DOUBLE], recv.ctypes.data, counts.ctypes.data,
+                              displs.ctypes.data, mpi[M_COMM])
+    return _allgatherv_32(mpi[M_ALLGATHERV], send.ctypes.data, np.int32(send.size),
+                          mpi[M_DOUBLE], recv.ctypes.data, counts.ctypes.data,
+                          displs.ctypes.data, mpi[M_COMM])
+
+
+@njit(cache=True)
+def allreduce_max(mpi, send, recv) -> int:
+    """MPI_Allreduce(MPI_MAX) of the doubles ``send`` into ``recv``."""
+    if mpi[M_WIDE] != 0:
+        return _allreduce_64(mpi[M_ALLREDUCE], send.ctypes.data, recv.ctypes.data,
+                             np.int32(send.size), mpi[M_DOUBLE], mpi[M_MAX], mpi[M_COMM])
+    return _allreduce_32(mpi[M_ALLREDUCE], send.ctypes.data, recv.ctypes.data,
+                         np.int32(send.size), mpi[M_DOUBLE], mpi[M_MAX], mpi[M_COMM])
 
 
 @njit(cache=True)
@@ -119,3 +199,29 @@ def addresses() -> np.ndarray | None:
     then stays with petsc4py. Looked up once per process."""
     found = _addresses()
     return None if found is None else np.array(found, dtype=np.int64)
+
+
+def _signed(handle: int, bits: int) -> int:
+    """An MPI handle as mpi4py gives it (unsigned) as the signed integer of its width."""
+    handle &= (1 << bits) - 1
+    return handle - (1 << bits) if handle >= 1 << (bits - 1) else handle
+
+
+def mpi_addresses(comm) -> np.ndarray | None:
+    """int64 [MPI_Allgatherv, MPI_Allreduce, wide, comm, MPI_DOUBLE, MPI_MAX] for ``comm``
+    (layout M_*), or None where they cannot be had (the caller then stays with mpi4py)."""
+    from mpi4py import MPI
+
+    bits = 8 * MPI._sizeof(MPI.Comm)
+    if bits not in (32, 64) or {8 * MPI._sizeof(t) for t in (MPI.Datatype, MPI.Op)} != {bits}:
+        return None
+    path = _loaded("libmpi.so")
+    if path is None:
+        return None
+    try:
+        lib = ctypes.CDLL(path)
+        functions = [_address(lib.MPI_Allgatherv), _address(lib.MPI_Allreduce)]
+    except (OSError, AttributeError):
+        return None
+    handles = [_signed(MPI._handleof(h), bits) for h in (comm, MPI.DOUBLE, MPI.MAX)]
+    return np.array(functions + [bits == 64] + handles, dtype=np.int64)

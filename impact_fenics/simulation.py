@@ -305,7 +305,7 @@ class Simulation:
         progress_due = progress.due
         signal_state = interrupts.STATE
         clock = time.perf_counter
-        # one rank, linear bodies: the steps between events run as compiled blocks
+        # linear bodies: the steps between events run as compiled blocks
         t_block = clock()
         block = (StepBlock.for_run(self, tables["history"], times, probes, (check_at, pairs_at),
                                    self._pair_tables, runaway, last, track.state)
@@ -346,7 +346,9 @@ class Simulation:
                                      check_at.next, agree_at.next)
                     if n >= progress_due:
                         progress_due = progress.update(n)
-                    if signal_state.signum != 0:
+                    # the flag between blocks (under MPI the ranks agree at agree_at's
+                    # steps, which are Python steps)
+                    if serial and signal_state.signum != 0:
                         stop.collective(comm)
                         self.status = f"interrupted by {stop.name}"
                         stopped_at = n

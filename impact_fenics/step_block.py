@@ -33,7 +33,7 @@ from numba import njit
 from . import native
 from .contact.fused import contact_step
 from .contact.interface import (B, FORCE, LO, MISC_SIZE, N_CONS, STATS, U, U_NOW, UP, V,
-                                WAVES, ContactSet, _committed_gap)
+                                WAVES, ContactSet, _committed_gap, _pack)
 from .output import _pair_row
 from .probes import _record_at
 from .timers import _book
@@ -83,7 +83,7 @@ def _next(k, every, last):
 @njit(cache=True)
 def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext, f_in, track,
               history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
-              timespec) -> None:
+              timespec, mpi, local, send, counts, displs, reduce) -> None:
     """Steps ints[I_N] .. ints[I_STOP] - 1 of the loop (integrator step ints[I_STEP] for the
     first), each as the Python step does it: predictor, contact step, track, history row
     (when the step is ints[I_NEXT_HISTORY]: then the next is ``ints[I_EVERY]`` on), phase
@@ -93,7 +93,11 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     (ints[I_RUNAWAY] = that step). The divergence check at its steps (a speed of v above
     ``limit``, m/s, or NaN: stops with ints[I_DIVERGED] = that step) and the per-pair
     rows at theirs (a full block of them stops the block too). ints[I_DONE]: the loop's
-    next step."""
+    next step. Under MPI (``recv`` not empty: the contact set's Allgatherv buffer) the
+    contact dofs are packed (``local`` -> ``send``) and gathered (``counts``, ``displs``)
+    before the contact step, and the check's count is reduced (``reduce``: 2 doubles),
+    by the MPI library itself (``mpi``: native.mpi_addresses), as the Python step does
+    through mpi4py; every rank calls them at the same steps."""
     n0, stop, step0 = ints[I_N], ints[I_STOP], ints[I_STEP]
     contact, rigid = ints[I_CONTACT] != 0, ints[I_RIGID] != 0
     penalty, probes, timed = ints[I_PENALTY] != 0, ints[I_PROBES] != 0, ints[I_TIMED] != 0
@@ -109,6 +113,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     ints[I_DIVERGED] = -1
     ints[I_HELD] = 0
     body = F.shape[1] - 1
+    gathered = recv.size > 0
+    parallel = mpi[native.M_ALLREDUCE] != 0
     n = int(misc[N_CONS])
     b, u_now, lo, up = F[B, :n], F[U_NOW], c_ints[LO, :n], c_ints[UP, :n]
     force, active_flags = F[FORCE, :n], flags[0, :n]
@@ -126,6 +132,12 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         t2 = t1
         u_r = v_r = 0.0
         if contact:
+            if gathered:  # ContactSet.step under MPI: pack, Allgatherv
+                _pack(src_u, src_v, local, send)
+                err = native.allgatherv(mpi, send, recv, counts, displs)
+                if err != 0:
+                    ints[I_ERROR] = err
+                    break
             u_r, v_r = contact_step(src_u, src_v, recv, F, c_ints, flags, misc, step == 0,
                                     f_ext[k - n0], f_in[k - n0])
             t2 = native.now(clock, timespec)
@@ -187,7 +199,12 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             break
         if k - 1 == next_check:
             next_check = _next(k - 1, check_every, last)
-            if count_beyond(src_v, limit) > 0:
+            count = count_beyond(src_v, limit)
+            if parallel:  # the largest count of the ranks (simulation._OwnedVec.exceeds)
+                reduce[0] = count
+                native.allreduce_max(mpi, reduce[0:1], reduce[1:2])
+                count = reduce[1]
+            if count > 0:
                 ints[I_DIVERGED] = k - 1
                 break
         if row == capacity or pair_row == pair_capacity:
@@ -209,7 +226,8 @@ class StepBlock:
     run's last step; ``track``: the contact track's counters (layout T_*)."""
 
     def __init__(self, integ, contact, table, times, probes, every: int, addresses,
-                 schedules, pairs, limit: float, last: int, track: np.ndarray):
+                 schedules, pairs, limit: float, last: int, track: np.ndarray,
+                 mpi: np.ndarray | None = None):
         self.integ, self.contact, self.table, self.times = integ, contact, table, times
         self.rigid = contact.rigid if contact is not None else None
         self.check_at, self.pairs_at = schedules
@@ -247,8 +265,19 @@ class StepBlock:
             clocks = times.booking()
         else:
             clocks = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.array([0, 0, 1]))
+        if mpi is not None:  # the contact set's pack and Allgatherv, the check's reduction
+            comm = (np.zeros(0, dtype=np.int32), np.zeros(0), np.zeros(0, dtype=np.int32),
+                    np.zeros(0, dtype=np.int32))
+            if contact is not None:
+                comm = (contact._local, contact._send, contact._counts.astype(np.int32),
+                        contact._displs.astype(np.int32))
+            comm = (mpi, *comm, np.zeros(2))
+        else:  # (never used)
+            comm = (np.zeros(6, dtype=np.int64), np.zeros(0, dtype=np.int32), np.zeros(0),
+                    np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(2))
         self._args = (ints, integ.dt, float(limit), *call, self._f_ext, self._f_in, self.track,
-                      table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64))
+                      table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64),
+                      *comm)
         from .jit_watch import direct
 
         self._run = direct(run_steps, *self._args)
@@ -258,8 +287,7 @@ class StepBlock:
                 last: int, track: np.ndarray) -> "StepBlock | None":
         """The block of ``sim``'s run, or None where the Python step must run."""
         integ = sim.integrator
-        if (sim.comm.size != 1 or integ.A is None or integ.nonlinear or integ.loads
-                or len(sim.contacts) > 1):
+        if integ.A is None or integ.nonlinear or integ.loads or len(sim.contacts) > 1:
             return None
         contact = sim.contacts[0] if sim.contacts else None
         if contact is not None and (type(contact) is not ContactSet or contact._fused is None):
@@ -267,11 +295,12 @@ class StepBlock:
         if probes is not None and probes._plastic:
             return None
         addresses = native.addresses()
-        if addresses is None:
+        mpi = native.mpi_addresses(sim.comm) if sim.comm.size > 1 else None
+        if addresses is None or (sim.comm.size > 1 and mpi is None):
             return None
         pairs = pair_tables[0][1] if pair_tables else None
         return cls(integ, contact, table, times, probes, sim.settings.history_every, addresses,
-                   schedules, pairs, limit, last, track)
+                   schedules, pairs, limit, last, track, mpi)
 
     def run(self, n: int, stop: int, next_history: int, hold: bool = False) -> tuple[int, int]:
         """Run the loop's steps n .. stop - 1 (or fewer: see :func:`run_steps`); returns (the

@@ -153,6 +153,7 @@ class FieldWriter:
 
     BLOCK = 16
     FILL_LIMIT = 64 * 2**20  # bytes of the first block (written with zeros at set-up)
+    BATCH_LIMIT = 2**20  # bytes of the frames held in memory between writes to the file
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
@@ -201,14 +202,24 @@ class FieldWriter:
         self._h5.create_group("/frames")
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
-        # a frame's data: the point vectors and every cell field, written from these buffers
-        # (a caller may compute into cell_values' arrays: they are then not copied)
-        self._vec = np.zeros((2, self.n_nodes, 3))
-        self._cells = np.zeros((len(self.cell_fields), n_cells))
+        # the batch: the frames written but not yet in the file, ``depth`` deep (see
+        # BATCH_LIMIT), their point vectors (component 2 stays 0) and cell fields; a caller
+        # computes a frame's cell fields into the staging row (cell_values, cell_block),
+        # copied into the batch by write (at depth 1 the staging row is the batch's row)
+        self.flush_every = max(1, int(flush_every))
+        n_fields = len(self.cell_fields)
+        frame_bytes = 8 * (6 * self.n_nodes + n_fields * n_cells)
+        self.depth = max(1, min(self.flush_every, self.BATCH_LIMIT // max(frame_bytes, 1)))
+        self._batch_points = np.zeros((self.depth, 2, self.n_nodes, 3))
+        self._batch_cells = np.zeros((self.depth, n_fields, n_cells))
+        self._point_rows = list(self._batch_points)
+        self._cell_rows = list(self._batch_cells)
+        self._cells = self._cell_rows[0] if self.depth == 1 else np.zeros((n_fields, n_cells))
         self.cell_values = {key: self._cells[k] for k, key in enumerate(self.cell_fields)}
         self._rows = list(self.cell_values.values())
-        self._points_memory = h5py.h5s.create_simple((1, 2, self.n_nodes, 3))
-        self._cells_memory = h5py.h5s.create_simple((1, len(self.cell_fields), n_cells))
+        self._points_memory = h5py.h5s.create_simple(self._batch_points.shape)
+        self._cells_memory = h5py.h5s.create_simple(self._batch_cells.shape)
+        self._held = 0  # frames in the batch (the last ones of the pending frames)
         self._blocks: list[_Block] = []
         self._templates: list[str] = []  # per block, the XML of a frame (rank 0)
         self._row = 0  # the next row of the last block
@@ -217,9 +228,11 @@ class FieldWriter:
         self._xml = None
         self._tail_at = 0
         self.n_writes = 0
-        self.flush_every = max(1, int(flush_every))
-        self._pending: list[tuple[float, int, int, int]] = []  # (t, step, block, row) not in the XML
-        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._vec)
+        # the frames not yet in the XML: time (s), step, block and row
+        self._n_pending = 0
+        self._times = np.zeros(self.flush_every)
+        self._where = np.zeros((self.flush_every, 3), dtype=np.int64)  # step, block, row
+        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._point_rows[0])
         if comm.rank == 0:
             self._xml = open(path, "w")
             names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))
@@ -235,7 +248,6 @@ class FieldWriter:
         # set-up (a long run's gigabytes of zeros would cost the set-up more, and a run
         # stopped early would leave a file sized for frames it never wrote)
         self._n_frames = max(1, int(n_frames)) if n_frames else None
-        frame_bytes = 8 * (6 * self.n_nodes + len(self.cell_fields) * n_cells)
         if self._n_frames:
             self._add_block(max(1, min(self._n_frames, self.FILL_LIMIT // max(frame_bytes, 1))),
                             fill=True)
@@ -284,51 +296,84 @@ class FieldWriter:
 
     def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
               cell_values: Mapping[str, np.ndarray]) -> None:
-        """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
-        local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
-        of ``cell_fields`` (the arrays of :attr:`cell_values`, filled in place, are not copied)."""
-        import h5py
-
-        if cell_values is not self.cell_values:
+        """Take the fields at time t (s) of step ``step`` into the batch: u (m) and v (m/s)
+        unrolled over the local nodes (see :meth:`ghosted`), and an array over the owned
+        cells for every name of ``cell_fields`` (e.g. the arrays of :attr:`cell_values`,
+        filled in place: they are free for the next frame when write returns). The batch
+        goes to the file when full, and into the XML every ``flush_every`` writes."""
+        i = self._held
+        cells = self._cell_rows[i]
+        if cell_values is self.cell_values:
+            if cells is not self._cells:
+                cells[:] = self._cells
+        else:
             missing = [k for k in self.cell_fields if k not in cell_values]
             if missing:
                 raise ValueError(f"cell fields {missing} missing: every write holds every field")
-            for row, key in zip(self._rows, self.cell_fields):
+            for j, key in enumerate(self.cell_fields):
                 values = cell_values[key]
-                if values is not row:
-                    row[:] = values[: self.n_cells]
-        _point_vectors(u, v, self._nodes, self._vec)
+                if values is not self._rows[j] or cells is not self._cells:
+                    cells[j] = values[: self.n_cells]
+        _point_vectors(u, v, self._nodes, self._point_rows[i])
         b, row = self._slot()
-        block = self._blocks[b]
-        double = h5py.h5t.NATIVE_DOUBLE
-        space = block.points_space
-        space.select_hyperslab((row, 0, 0, 0), (1, 2, self.n_nodes, 3))
-        block.points.write(self._points_memory, space, self._vec, mtype=double)
-        if block.cells is not None:
-            space = block.cells_space
-            space.select_hyperslab((row, 0, 0), (1, len(self.cell_fields), self.n_cells))
-            block.cells.write(self._cells_memory, space, self._cells, mtype=double)
+        k = self._n_pending
+        self._times[k] = t
+        self._where[k] = step, b, row
+        self._n_pending += 1
+        self._held += 1
         self.n_writes += 1
-        self._pending.append((t, step, b, row))
-        if len(self._pending) >= self.flush_every:
+        if self._n_pending >= self.flush_every:
             self.flush()
+        elif self._held == self.depth:
+            self._write_batch()
+
+    def _write_batch(self) -> None:
+        """Write the batch's frames into their rows of the file: one hyperslab write per
+        dataset for each run of consecutive rows of a block (two when the batch straddles
+        a full block and the next). Local to the rank."""
+        import h5py
+
+        held, double = self._held, h5py.h5t.NATIVE_DOUBLE
+        where = self._where[self._n_pending - held: self._n_pending]
+        n_fields = len(self.cell_fields)
+        first = 0
+        while first < held:
+            b, row = int(where[first, 1]), int(where[first, 2])
+            last = first + 1
+            while last < held and where[last, 1] == b and where[last, 2] == row + last - first:
+                last += 1
+            count, block = last - first, self._blocks[b]
+            self._points_memory.select_hyperslab((first, 0, 0, 0), (count, 2, self.n_nodes, 3))
+            block.points_space.select_hyperslab((row, 0, 0, 0), (count, 2, self.n_nodes, 3))
+            block.points.write(self._points_memory, block.points_space, self._batch_points,
+                               mtype=double)
+            if block.cells is not None:
+                self._cells_memory.select_hyperslab((first, 0, 0), (count, n_fields, self.n_cells))
+                block.cells_space.select_hyperslab((row, 0, 0), (count, n_fields, self.n_cells))
+                block.cells.write(self._cells_memory, block.cells_space, self._batch_cells,
+                                  mtype=double)
+            first = last
+        self._held = 0
 
     def flush(self) -> None:
-        """Put the frames written so far on disk and into the XML (collective)."""
-        if not self._pending:
+        """Put the frames written so far into the file and the XML (collective)."""
+        self._write_batch()
+        if not self._n_pending:
             return
-        # no H5Fflush: each write put its rows into the OS (no sieve buffer), and a write
-        # changes no metadata (the blocks' file space was allocated and flushed at their
-        # creation), so the OS holds every frame written, which a killed process does not
-        # lose; the ranks meet so that every piece is there before the XML names it
+        # no H5Fflush: the batch's rows went to the OS just now (no sieve buffer) and a
+        # write changes no metadata (the blocks' file space was allocated and flushed at
+        # their creation), so the OS holds every frame the XML will name, which a killed
+        # process does not lose; the ranks meet so that every piece is there before the
+        # XML names it
         self.comm.barrier()
         if self._xml is not None:
             self._xml.seek(self._tail_at)
-            self._xml.write("".join(self._step_xml(*frame) for frame in self._pending))
+            self._xml.write("".join(self._step_xml(float(self._times[k]), *self._where[k].tolist())
+                                    for k in range(self._n_pending)))
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
-        self._pending.clear()
+        self._n_pending = 0
 
     def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
         """The XML of one frame: its block's template with the time, step and row."""

@@ -18,23 +18,47 @@ Layout (what ``fields.xdmf`` describes):
   are) and every cell field (Pa for stresses) as cell scalars;
 * a frame's data is one row of two datasets per block of frames,
   ``/frames/points_<b>`` (frames, 2, nodes, 3: displacement, velocity) and
-  ``/frames/cells_<b>`` (frames, fields, cells), so writing a frame is two
-  hyperslab writes of its buffers, nothing created. The first block holds
+  ``/frames/cells_<b>`` (frames, fields, cells), nothing created per frame
+  (see Batches below for when the rows are written). The first block holds
   the run's known number of frames (``n_frames``), or as many of them as
   ``FILL_LIMIT`` bytes hold; more frames, or an unknown count (the
   finite-strain driver), add blocks, each as long as all before it (at least
   ``BLOCK``, at most the announced frames still to come), so a run stopped
   early leaves a file at most twice what it wrote. The first block is written
   with zeros when it is made, at set-up: the file's pages are then
-  in the OS's cache and a frame's write costs the copy, not the page faults
-  (punch: 0.24 ms a write against 0.48, and less set-up + writes in all; bars
-  24 us against 43). Blocks added later are allocated, never filled (a fill
+  in the OS's cache and writing rows costs the copy, not the page faults
+  (figures measured when the fill came, a frame written at a time: punch
+  0.24 ms a write against 0.48, and less set-up + writes in all; bars 24 us
+  against 43). Blocks added later are allocated, never filled (a fill
   would stall the loop): rows a run did not reach are in the file, as zeros or
   holes of a sparse file, but never in the XML.
 
 Why so: an HDF5 dataset costs about 25 us to create (HDF5 1.10, whatever the
 layout or property list), so a frame of seven datasets and a group cost a small
-mesh's frame several times over (bars: 0.31 ms a frame against 0.07 ms now).
+mesh's frame several times over (figures of that change: bars 0.31 ms a frame
+against 0.07 ms).
+
+Batches: HDF5 costs a write call about 5 us through h5py before any byte (a
+64-byte hyperslab write, loaded machine), as much as a small mesh's frame costs in
+bytes (bars: two calls a frame against ~12 us for its 69 kB), so :meth:`FieldWriter.write`
+only copies the frame into an in-memory batch, ``depth`` frames deep, preallocated
+at set-up: the point vectors straight from u and v, the cell fields from the
+staging row (:attr:`FieldWriter.cell_values`, :meth:`FieldWriter.cell_block`:
+callers compute into it, and it is free for the next frame when write returns).
+When the batch is full, and at every flush, its frames go to the file with one
+hyperslab write per dataset for each run of consecutive rows of a block (two
+runs when the batch straddles the end of a block). ``depth`` is ``flush_every``,
+or fewer frames when those would pass ``BATCH_LIMIT`` (1 MiB) a rank: a batch
+pays for a copy per frame to save calls, which is a gain only while a frame's
+bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a large
+mesh's frames are best written one at a time (the punch's 1.4 MB frame:
+1 deep, where the staging row is the batch's row and nothing is copied; 2 deep
+cost 0.31 ms a frame against 0.27). A batch fuller than that also holds memory
+for nothing. Costs per frame, writes with their flushes amortised (loaded
+machine, bars mesh 1,198 dofs, 8 deep: 25 us against 33 a frame written at a
+time; write alone 7 us, the flush of 8 frames 145 us, of which the rows' bytes
+to the OS 97 us, as a raw pwrite of the same bytes; punch 22,660 dofs, 1 deep:
+0.27 ms as before).
 
 Each attribute names its row with Xdmf3's heavy-data hyperslab,
 ``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
@@ -52,13 +76,19 @@ every block with every array at every time; colour by sigma_zz, Warp By Vector.
 The XML is appended, never rewritten: rank 0 keeps the file open, writes each
 new step where the closing tags were and puts them back after it, so a write
 costs the same however many came before. The frames reach the XML in
-batches: every ``flush_every`` writes (and at close) the ranks meet and only then
-rank 0 appends the XML of the frames of the batch. A write hands its rows to the OS
-at once (the file has no sieve buffer) and changes no HDF5 metadata (a block's
-file space is allocated, and its metadata flushed, when the block is made), so the
-XML never names data the OS does not hold, and a run stopped at any point, even
-killed (the OS keeps what a killed process wrote), leaves a readable series of the
-frames of the batches so far. (An H5Fflush per batch cost ~0.1 ms and added nothing.)
+batches: every ``flush_every`` writes (and at close) each rank writes its batch
+into its file, the ranks meet and only then rank 0 appends the XML of the frames
+written since the last flush (the batch's depth may differ between ranks: a batch
+written when full, between flushes, is the rank's own business; flushes are
+collective and counted in writes, the same on every rank). Rows go to the OS in
+the call that writes them (the file has no sieve buffer) and change no HDF5
+metadata (a block's file space is allocated, and its metadata flushed, when the
+block is made), so the XML never names data the OS does not hold, and a run
+stopped at any point, even killed (the OS keeps what a killed process wrote),
+leaves a readable series of the frames of the flushes so far; the frames in the
+batch when it was killed are lost, at most ``flush_every`` frames, as the XML of
+the frames since the last flush always was. (An H5Fflush per flush cost ~0.1 ms
+and added nothing.)
 """
 from __future__ import annotations
 
@@ -149,11 +179,13 @@ class FieldWriter:
     ``n_frames``: how many writes the run will make, if known (the first block of frames
     is made that long at set-up, or as long as ``FILL_LIMIT`` bytes allow; more writes,
     or an unknown count, add blocks of frames as they go, each as long as all before
-    it, at least ``BLOCK``)."""
+    it, at least ``BLOCK``). ``flush_every``: writes between flushes into the XML; the
+    frames are held in a batch of :attr:`depth` frames (``flush_every``, fewer if they would
+    pass ``BATCH_LIMIT`` bytes) and reach the file when it is full or at a flush."""
 
     BLOCK = 16
     FILL_LIMIT = 64 * 2**20  # bytes of the first block (written with zeros at set-up)
-    BATCH_LIMIT = 2**20  # bytes of the frames held in memory between writes to the file
+    BATCH_LIMIT = 2**20  # bytes a rank's batch of frames may hold (see the module's Batches)
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,

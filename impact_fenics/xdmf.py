@@ -93,6 +93,7 @@ and added nothing.)
 from __future__ import annotations
 
 import os
+import re
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -103,6 +104,7 @@ from .jit_watch import load
 
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
 _T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
+_MARKERS = re.compile("(\x00(?:t|step|row)\x00)")
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 # XDMF topology of P1 cells by nodes per cell; dolfinx numbers a quadrilateral's vertices
 # (0, 0), (1, 0), (0, 1), (1, 1), XDMF (like VTK) goes round the cell: 0, 1, 3, 2
@@ -253,7 +255,9 @@ class FieldWriter:
         self._cells_memory = h5py.h5s.create_simple(self._batch_cells.shape)
         self._held = 0  # frames in the batch (the last ones of the pending frames)
         self._blocks: list[_Block] = []
-        self._templates: list[str] = []  # per block, the XML of a frame (rank 0)
+        # per block, the XML of a frame (rank 0): its text split at the markers, and where
+        # each marker was (see _step_xml)
+        self._templates: list[tuple[list[str], list[int], list[int], list[int]]] = []
         self._row = 0  # the next row of the last block
         # every rank's piece sizes and file, for the XML on rank 0
         self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
@@ -312,7 +316,9 @@ class FieldWriter:
                                    len(self.cell_fields), self.n_cells, fill))
         self._h5.flush()  # the block's metadata (its datasets, their file space) on disk
         if self._xml is not None:
-            self._templates.append(self._template(len(self._blocks) - 1))
+            parts = _MARKERS.split(self._template(len(self._blocks) - 1))
+            self._templates.append((parts, *([i for i, p in enumerate(parts) if p == m]
+                                             for m in (_T, _STEP, _ROW))))
         self._row = 0
 
     def _slot(self) -> tuple[int, int]:
@@ -408,9 +414,14 @@ class FieldWriter:
         self._n_pending = 0
 
     def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
-        """The XML of one frame: its block's template with the time, step and row."""
-        return (self._templates[b].replace(_T, repr(t)).replace(_STEP, str(step))
-                .replace(_ROW, str(row)))
+        """The XML of one frame: its block's template with the time, step and row (put in
+        the places of the markers and joined: three str.replace of the bars' 2.3 kB
+        template cost 2.6 us a frame)."""
+        parts, at_t, at_step, at_row = self._templates[b]
+        for places, value in ((at_t, repr(t)), (at_step, str(step)), (at_row, str(row))):
+            for i in places:
+                parts[i] = value
+        return "".join(parts)
 
     def _template(self, b: int) -> str:
         """The XML of a frame of block ``b``, with the time, step and row left to fill

@@ -53,12 +53,13 @@ pays for a copy per frame to save calls, which is a gain only while a frame's
 bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a large
 mesh's frames are best written one at a time (the punch's 1.4 MB frame:
 1 deep, where the staging row is the batch's row and nothing is copied; 2 deep
-cost 0.31 ms a frame against 0.27). A batch fuller than that also holds memory
-for nothing. Costs per frame, writes with their flushes amortised (loaded
-machine, bars mesh 1,198 dofs, 8 deep: 25 us against 33 a frame written at a
-time; write alone 7 us, the flush of 8 frames 145 us, of which the rows' bytes
-to the OS 97 us, as a raw pwrite of the same bytes; punch 22,660 dofs, 1 deep:
-0.27 ms as before).
+cost 0.31 ms a frame against 0.27, loaded machine). A batch fuller than that also holds memory
+for nothing. Costs per frame, writes with their flushes amortised, a run's 21
+frames (n_frames = 21), interleaved with main's writer of a frame at a time
+(loaded machine, median of 60): bars mesh (1,198 dofs), 8 deep, 23 us against 31.5
+on 1 rank and 21 against 31.5 on 2; a write alone 7.6 us, a flush of 8 frames
+0.15 ms, of which the rows' bytes to the OS 0.10 ms (as a raw pwrite of the same
+bytes) and their XML 18 us; punch mesh (22,660 dofs), 1 deep: 0.26 ms as before.
 
 Each attribute names its row with Xdmf3's heavy-data hyperslab,
 ``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
@@ -225,7 +226,7 @@ class FieldWriter:
         name = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
         self._h5_name = os.path.basename(os.path.splitext(path)[0]) + name[len("fields"):]
         h5_path = os.path.join(os.path.dirname(os.path.abspath(path)), self._h5_name)
-        # no sieve buffer: a frame's data goes to the OS (pwrite) in the write call itself
+        # no sieve buffer: rows go to the OS (pwrite) in the HDF5 call that writes them
         fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
         fapl.set_sieve_buf_size(0)
         self._h5 = h5py.File(h5py.h5f.create(h5_path.encode(), h5py.h5f.ACC_TRUNC, fapl=fapl))

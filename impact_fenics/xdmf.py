@@ -18,23 +18,48 @@ Layout (what ``fields.xdmf`` describes):
   are) and every cell field (Pa for stresses) as cell scalars;
 * a frame's data is one row of two datasets per block of frames,
   ``/frames/points_<b>`` (frames, 2, nodes, 3: displacement, velocity) and
-  ``/frames/cells_<b>`` (frames, fields, cells), so writing a frame is two
-  hyperslab writes of its buffers, nothing created. The first block holds
+  ``/frames/cells_<b>`` (frames, fields, cells), nothing created per frame
+  (see Batches below for when the rows are written). The first block holds
   the run's known number of frames (``n_frames``), or as many of them as
   ``FILL_LIMIT`` bytes hold; more frames, or an unknown count (the
   finite-strain driver), add blocks, each as long as all before it (at least
   ``BLOCK``, at most the announced frames still to come), so a run stopped
   early leaves a file at most twice what it wrote. The first block is written
   with zeros when it is made, at set-up: the file's pages are then
-  in the OS's cache and a frame's write costs the copy, not the page faults
-  (punch: 0.24 ms a write against 0.48, and less set-up + writes in all; bars
-  24 us against 43). Blocks added later are allocated, never filled (a fill
+  in the OS's cache and writing rows costs the copy, not the page faults
+  (figures measured when the fill came, a frame written at a time: punch
+  0.24 ms a write against 0.48, and less set-up + writes in all; bars 24 us
+  against 43). Blocks added later are allocated, never filled (a fill
   would stall the loop): rows a run did not reach are in the file, as zeros or
   holes of a sparse file, but never in the XML.
 
 Why so: an HDF5 dataset costs about 25 us to create (HDF5 1.10, whatever the
 layout or property list), so a frame of seven datasets and a group cost a small
-mesh's frame several times over (bars: 0.31 ms a frame against 0.07 ms now).
+mesh's frame several times over (figures of that change: bars 0.31 ms a frame
+against 0.07 ms).
+
+Batches: HDF5 costs a write call about 5 us through h5py before any byte (a
+64-byte hyperslab write, loaded machine), as much as a small mesh's frame costs in
+bytes (bars: two calls a frame against ~12 us for its 69 kB), so :meth:`FieldWriter.write`
+only copies the frame into an in-memory batch, ``depth`` frames deep, preallocated
+at set-up: the point vectors straight from u and v, the cell fields from the
+staging row (:attr:`FieldWriter.cell_values`, :meth:`FieldWriter.cell_block`:
+callers compute into it, and it is free for the next frame when write returns).
+When the batch is full, and at every flush, its frames go to the file with one
+hyperslab write per dataset for each run of consecutive rows of a block (two
+runs when the batch straddles the end of a block). ``depth`` is ``flush_every``,
+or fewer frames when those would pass ``BATCH_LIMIT`` (1 MiB) a rank: a batch
+pays for a copy per frame to save calls, which is a gain only while a frame's
+bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a large
+mesh's frames are best written one at a time (the punch's 1.4 MB frame:
+1 deep, where the staging row is the batch's row and nothing is copied; 2 deep
+cost 0.31 ms a frame against 0.27, loaded machine). A batch fuller than that also holds memory
+for nothing. Costs per frame, writes with their flushes amortised, a run's 21
+frames (n_frames = 21), interleaved with main's writer of a frame at a time
+(loaded machine, median of 60): bars mesh (1,198 dofs), 8 deep, 23 us against 31.5
+on 1 rank and 21 against 31.5 on 2; a write alone 7.6 us, a flush of 8 frames
+0.15 ms, of which the rows' bytes to the OS 0.10 ms (as a raw pwrite of the same
+bytes) and their XML 18 us; punch mesh (22,660 dofs), 1 deep: 0.26 ms as before.
 
 Each attribute names its row with Xdmf3's heavy-data hyperslab,
 ``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
@@ -52,17 +77,24 @@ every block with every array at every time; colour by sigma_zz, Warp By Vector.
 The XML is appended, never rewritten: rank 0 keeps the file open, writes each
 new step where the closing tags were and puts them back after it, so a write
 costs the same however many came before. The frames reach the XML in
-batches: every ``flush_every`` writes (and at close) the ranks meet and only then
-rank 0 appends the XML of the frames of the batch. A write hands its rows to the OS
-at once (the file has no sieve buffer) and changes no HDF5 metadata (a block's
-file space is allocated, and its metadata flushed, when the block is made), so the
-XML never names data the OS does not hold, and a run stopped at any point, even
-killed (the OS keeps what a killed process wrote), leaves a readable series of the
-frames of the batches so far. (An H5Fflush per batch cost ~0.1 ms and added nothing.)
+batches: every ``flush_every`` writes (and at close) each rank writes its batch
+into its file, the ranks meet and only then rank 0 appends the XML of the frames
+written since the last flush (the batch's depth may differ between ranks: a batch
+written when full, between flushes, is the rank's own business; flushes are
+collective and counted in writes, the same on every rank). Rows go to the OS in
+the call that writes them (the file has no sieve buffer) and change no HDF5
+metadata (a block's file space is allocated, and its metadata flushed, when the
+block is made), so the XML never names data the OS does not hold, and a run
+stopped at any point, even killed (the OS keeps what a killed process wrote),
+leaves a readable series of the frames of the flushes so far; the frames in the
+batch when it was killed are lost, at most ``flush_every`` frames, as the XML of
+the frames since the last flush always was. (An H5Fflush per flush cost ~0.1 ms
+and added nothing.)
 """
 from __future__ import annotations
 
 import os
+import re
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -73,6 +105,7 @@ from .jit_watch import load
 
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
 _T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
+_MARKERS = re.compile("(\x00(?:t|step|row)\x00)")
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 # XDMF topology of P1 cells by nodes per cell; dolfinx numbers a quadrilateral's vertices
 # (0, 0), (1, 0), (0, 1), (1, 1), XDMF (like VTK) goes round the cell: 0, 1, 3, 2
@@ -149,10 +182,13 @@ class FieldWriter:
     ``n_frames``: how many writes the run will make, if known (the first block of frames
     is made that long at set-up, or as long as ``FILL_LIMIT`` bytes allow; more writes,
     or an unknown count, add blocks of frames as they go, each as long as all before
-    it, at least ``BLOCK``)."""
+    it, at least ``BLOCK``). ``flush_every``: writes between flushes into the XML; the
+    frames are held in a batch of :attr:`depth` frames (``flush_every``, fewer if they would
+    pass ``BATCH_LIMIT`` bytes) and reach the file when it is full or at a flush."""
 
     BLOCK = 16
     FILL_LIMIT = 64 * 2**20  # bytes of the first block (written with zeros at set-up)
+    BATCH_LIMIT = 2**20  # bytes a rank's batch of frames may hold (see the module's Batches)
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
@@ -190,7 +226,7 @@ class FieldWriter:
         name = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
         self._h5_name = os.path.basename(os.path.splitext(path)[0]) + name[len("fields"):]
         h5_path = os.path.join(os.path.dirname(os.path.abspath(path)), self._h5_name)
-        # no sieve buffer: a frame's data goes to the OS (pwrite) in the write call itself
+        # no sieve buffer: rows go to the OS (pwrite) in the HDF5 call that writes them
         fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
         fapl.set_sieve_buf_size(0)
         self._h5 = h5py.File(h5py.h5f.create(h5_path.encode(), h5py.h5f.ACC_TRUNC, fapl=fapl))
@@ -201,25 +237,39 @@ class FieldWriter:
         self._h5.create_group("/frames")
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
-        # a frame's data: the point vectors and every cell field, written from these buffers
-        # (a caller may compute into cell_values' arrays: they are then not copied)
-        self._vec = np.zeros((2, self.n_nodes, 3))
-        self._cells = np.zeros((len(self.cell_fields), n_cells))
+        # the batch: the frames written but not yet in the file, ``depth`` deep (see
+        # BATCH_LIMIT), their point vectors (component 2 stays 0) and cell fields; a caller
+        # computes a frame's cell fields into the staging row (cell_values, cell_block),
+        # copied into the batch by write (at depth 1 the staging row is the batch's row)
+        self.flush_every = max(1, int(flush_every))
+        n_fields = len(self.cell_fields)
+        frame_bytes = 8 * (6 * self.n_nodes + n_fields * n_cells)
+        self.depth = max(1, min(self.flush_every, self.BATCH_LIMIT // max(frame_bytes, 1)))
+        self._batch_points = np.zeros((self.depth, 2, self.n_nodes, 3))
+        self._batch_cells = np.zeros((self.depth, n_fields, n_cells))
+        self._point_rows = list(self._batch_points)
+        self._cell_rows = list(self._batch_cells)
+        self._cells = self._cell_rows[0] if self.depth == 1 else np.zeros((n_fields, n_cells))
         self.cell_values = {key: self._cells[k] for k, key in enumerate(self.cell_fields)}
         self._rows = list(self.cell_values.values())
-        self._points_memory = h5py.h5s.create_simple((1, 2, self.n_nodes, 3))
-        self._cells_memory = h5py.h5s.create_simple((1, len(self.cell_fields), n_cells))
+        self._points_memory = h5py.h5s.create_simple(self._batch_points.shape)
+        self._cells_memory = h5py.h5s.create_simple(self._batch_cells.shape)
+        self._held = 0  # frames in the batch (the last ones of the pending frames)
         self._blocks: list[_Block] = []
-        self._templates: list[str] = []  # per block, the XML of a frame (rank 0)
+        # per block, the XML of a frame (rank 0): its text split at the markers, and where
+        # each marker was (see _step_xml)
+        self._templates: list[tuple[list[str], list[int], list[int], list[int]]] = []
         self._row = 0  # the next row of the last block
         # every rank's piece sizes and file, for the XML on rank 0
         self._pieces = comm.gather((self.n_nodes, self.n_cells, self._h5_name), root=0)
         self._xml = None
         self._tail_at = 0
         self.n_writes = 0
-        self.flush_every = max(1, int(flush_every))
-        self._pending: list[tuple[float, int, int, int]] = []  # (t, step, block, row) not in the XML
-        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._vec)
+        # the frames not yet in the XML: time (s), step, block and row
+        self._n_pending = 0
+        self._times = np.zeros(self.flush_every)
+        self._where = np.zeros((self.flush_every, 3), dtype=np.int64)  # step, block, row
+        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._point_rows[0])
         if comm.rank == 0:
             self._xml = open(path, "w")
             names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))
@@ -235,7 +285,6 @@ class FieldWriter:
         # set-up (a long run's gigabytes of zeros would cost the set-up more, and a run
         # stopped early would leave a file sized for frames it never wrote)
         self._n_frames = max(1, int(n_frames)) if n_frames else None
-        frame_bytes = 8 * (6 * self.n_nodes + len(self.cell_fields) * n_cells)
         if self._n_frames:
             self._add_block(max(1, min(self._n_frames, self.FILL_LIMIT // max(frame_bytes, 1))),
                             fill=True)
@@ -268,7 +317,9 @@ class FieldWriter:
                                    len(self.cell_fields), self.n_cells, fill))
         self._h5.flush()  # the block's metadata (its datasets, their file space) on disk
         if self._xml is not None:
-            self._templates.append(self._template(len(self._blocks) - 1))
+            parts = _MARKERS.split(self._template(len(self._blocks) - 1))
+            self._templates.append((parts, *([i for i, p in enumerate(parts) if p == m]
+                                             for m in (_T, _STEP, _ROW))))
         self._row = 0
 
     def _slot(self) -> tuple[int, int]:
@@ -284,56 +335,94 @@ class FieldWriter:
 
     def write(self, t: float, step: int, u: np.ndarray, v: np.ndarray,
               cell_values: Mapping[str, np.ndarray]) -> None:
-        """Write the fields at time t (s) of step ``step``: u (m) and v (m/s) unrolled over the
-        local nodes (see :meth:`ghosted`), and an array over the owned cells for every name
-        of ``cell_fields`` (the arrays of :attr:`cell_values`, filled in place, are not copied)."""
-        import h5py
-
-        if cell_values is not self.cell_values:
+        """Take the fields at time t (s) of step ``step`` into the batch: u (m) and v (m/s)
+        unrolled over the local nodes (see :meth:`ghosted`), and an array over the owned
+        cells for every name of ``cell_fields`` (e.g. the arrays of :attr:`cell_values`,
+        filled in place: they are free for the next frame when write returns). The batch
+        goes to the file when full, and into the XML every ``flush_every`` writes."""
+        i = self._held
+        cells = self._cell_rows[i]
+        if cell_values is self.cell_values:
+            if cells is not self._cells:
+                cells[:] = self._cells
+        else:
             missing = [k for k in self.cell_fields if k not in cell_values]
             if missing:
                 raise ValueError(f"cell fields {missing} missing: every write holds every field")
-            for row, key in zip(self._rows, self.cell_fields):
+            for j, key in enumerate(self.cell_fields):
                 values = cell_values[key]
-                if values is not row:
-                    row[:] = values[: self.n_cells]
-        _point_vectors(u, v, self._nodes, self._vec)
+                if values is not self._rows[j] or cells is not self._cells:
+                    cells[j] = values[: self.n_cells]
+        _point_vectors(u, v, self._nodes, self._point_rows[i])
         b, row = self._slot()
-        block = self._blocks[b]
-        double = h5py.h5t.NATIVE_DOUBLE
-        space = block.points_space
-        space.select_hyperslab((row, 0, 0, 0), (1, 2, self.n_nodes, 3))
-        block.points.write(self._points_memory, space, self._vec, mtype=double)
-        if block.cells is not None:
-            space = block.cells_space
-            space.select_hyperslab((row, 0, 0), (1, len(self.cell_fields), self.n_cells))
-            block.cells.write(self._cells_memory, space, self._cells, mtype=double)
+        k = self._n_pending
+        self._times[k] = t
+        self._where[k] = step, b, row
+        self._n_pending += 1
+        self._held += 1
         self.n_writes += 1
-        self._pending.append((t, step, b, row))
-        if len(self._pending) >= self.flush_every:
+        if self._n_pending >= self.flush_every:
             self.flush()
+        elif self._held == self.depth:
+            self._write_batch()
+
+    def _write_batch(self) -> None:
+        """Write the batch's frames into their rows of the file: one hyperslab write per
+        dataset for each run of consecutive rows of a block (two when the batch straddles
+        a full block and the next). Local to the rank."""
+        import h5py
+
+        held, double = self._held, h5py.h5t.NATIVE_DOUBLE
+        where = self._where[self._n_pending - held: self._n_pending]
+        n_fields = len(self.cell_fields)
+        first = 0
+        while first < held:
+            b, row = int(where[first, 1]), int(where[first, 2])
+            last = first + 1
+            while last < held and where[last, 1] == b and where[last, 2] == row + last - first:
+                last += 1
+            count, block = last - first, self._blocks[b]
+            self._points_memory.select_hyperslab((first, 0, 0, 0), (count, 2, self.n_nodes, 3))
+            block.points_space.select_hyperslab((row, 0, 0, 0), (count, 2, self.n_nodes, 3))
+            block.points.write(self._points_memory, block.points_space, self._batch_points,
+                               mtype=double)
+            if block.cells is not None:
+                self._cells_memory.select_hyperslab((first, 0, 0), (count, n_fields, self.n_cells))
+                block.cells_space.select_hyperslab((row, 0, 0), (count, n_fields, self.n_cells))
+                block.cells.write(self._cells_memory, block.cells_space, self._batch_cells,
+                                  mtype=double)
+            first = last
+        self._held = 0
 
     def flush(self) -> None:
-        """Put the frames written so far on disk and into the XML (collective)."""
-        if not self._pending:
+        """Put the frames written so far into the file and the XML (collective)."""
+        self._write_batch()
+        if not self._n_pending:
             return
-        # no H5Fflush: each write put its rows into the OS (no sieve buffer), and a write
-        # changes no metadata (the blocks' file space was allocated and flushed at their
-        # creation), so the OS holds every frame written, which a killed process does not
-        # lose; the ranks meet so that every piece is there before the XML names it
+        # no H5Fflush: the batch's rows went to the OS just now (no sieve buffer) and a
+        # write changes no metadata (the blocks' file space was allocated and flushed at
+        # their creation), so the OS holds every frame the XML will name, which a killed
+        # process does not lose; the ranks meet so that every piece is there before the
+        # XML names it
         self.comm.barrier()
         if self._xml is not None:
             self._xml.seek(self._tail_at)
-            self._xml.write("".join(self._step_xml(*frame) for frame in self._pending))
+            self._xml.write("".join(self._step_xml(float(self._times[k]), *self._where[k].tolist())
+                                    for k in range(self._n_pending)))
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
-        self._pending.clear()
+        self._n_pending = 0
 
     def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
-        """The XML of one frame: its block's template with the time, step and row."""
-        return (self._templates[b].replace(_T, repr(t)).replace(_STEP, str(step))
-                .replace(_ROW, str(row)))
+        """The XML of one frame: its block's template with the time, step and row (put in
+        the places of the markers and joined: three str.replace of the bars' 2.3 kB
+        template cost 2.6 us a frame)."""
+        parts, at_t, at_step, at_row = self._templates[b]
+        for places, value in ((at_t, repr(t)), (at_step, str(step)), (at_row, str(row))):
+            for i in places:
+                parts[i] = value
+        return "".join(parts)
 
     def _template(self, b: int) -> str:
         """The XML of a frame of block ``b``, with the time, step and row left to fill

@@ -361,10 +361,11 @@ def _check_frames(directory, n_frames):
 
 def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     """Frames reach the XML in flushed batches: a copy of the files taken after three writes
-    with flush_every = 2 (what a killed run leaves: the third frame's data may be in the
-    file, its XML not) reads as two frames, though the datasets hold six rows. (The copy
-    reads what the OS holds: it fails if HDF5 keeps a write's rows in its sieve buffer or
-    allocates a block's file space at the first write, in metadata not yet flushed.)"""
+    with flush_every = 2 (what a killed run leaves: the third frame is in the writer's
+    batch, its XML not written) reads as two frames, though the datasets hold six rows.
+    (The copy reads what the OS holds: it fails if HDF5 keeps the rows in its sieve
+    buffer, allocates a block's file space at the first write, in metadata not yet
+    flushed, or if a flush names frames whose batch it has not written.)"""
     comm = MPI.COMM_WORLD
     base = comm.bcast(str(tmp_path_factory.mktemp("killed")), root=0)
     live, copy = os.path.join(base, "live"), os.path.join(base, "copy")
@@ -386,6 +387,52 @@ def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     with h5py.File(os.path.join(copy, h5), "r") as f:
         assert f["/frames/points_0"].shape[0] == 6  # preallocated rows, not shown
     _check_frames(live, 3)
+
+
+@pytest.mark.parametrize("depths", [(1, 1), (2, 3)], ids=["one_deep", "two_or_three_deep"])
+def test_batched_frames_read_back_as_written(tmp_path_factory, monkeypatch, depths):
+    """Frames computed in place into the writer's staging row (cell_block, as the simulation
+    does), batched ``depth`` frames deep (depths[rank % 2]: ranks may differ) with depth below
+    flush_every = 5, so batches reach the file between the XML's flushes; at depth 1 the
+    staging row is the batch's row. n_frames = 3: at depth 2 a batch straddles the end of the
+    first block. Every frame reads back exactly (bit for bit) as the arrays written, though
+    the staging row was overwritten by every frame after it; the piece's nodes are the
+    owned cells' nodes in local order (the layout), its cells the owned cells in order."""
+    from impact_fenics.compat import cell_dofs
+    from impact_fenics.xdmf import FieldWriter
+
+    comm = MPI.COMM_WORLD
+    out = comm.bcast(str(tmp_path_factory.mktemp("batched")), root=0)
+    model = _bar_model()
+    names = list(STRESS_NAMES)
+    n_cells = model.mesh.topology.index_map(2).size_local
+    nodes = np.unique(cell_dofs(model.V)[:n_cells])
+    depth = depths[comm.rank % 2]
+    monkeypatch.setattr(FieldWriter, "BATCH_LIMIT", depth * 8 * (6 * nodes.size + len(names) * n_cells))
+    writer = FieldWriter(os.path.join(out, "fields.xdmf"), model, cell_fields=names,
+                         flush_every=5, n_frames=3)
+    assert writer.depth == depth
+    stress = writer.cell_block(names)
+    rng = np.random.default_rng(comm.rank)
+    written = []
+    for k in range(11):
+        u, v = rng.standard_normal((2, 2 * model.node_xy.shape[0]))
+        stress[:] = rng.standard_normal(stress.shape)
+        writer.write(1e-6 * k, 10 * k, u, v, writer.cell_values)
+        written.append((u, v, stress.copy()))
+    writer.close()
+    comm.barrier()  # every piece closed before any rank reads them
+    frames = _frames(out)
+    assert [t for t, _ in frames] == [1e-6 * k for k in range(11)]
+    for (_, pieces), (u, v, cells) in zip(frames, written):
+        p = pieces[comm.rank]
+        assert np.array_equal(p["points"][:, :2], model.node_xy[nodes])
+        for key, values in (("displacement", u), ("velocity", v)):
+            expected = np.zeros((nodes.size, 3))
+            expected[:, :2] = values.reshape(-1, 2)[nodes]
+            assert np.array_equal(p["arrays"][key][1], expected), key
+        for j, name in enumerate(names):
+            assert np.array_equal(p["arrays"][name][1], cells[j]), name
 
 
 def test_more_frames_than_announced_go_to_a_new_block(tmp_path_factory):

@@ -317,9 +317,13 @@ class Simulation:
         n = 0
         try:
             while n < n_steps:
-                if block is not None and n != next_event:
-                    # the steps up to the next event (or the next look at the progress
-                    # line, or a full history block) in one compiled call
+                if (block is not None and n != output_at.next and n != fields_at.next
+                        and n != agree_at.next):
+                    # the steps up to the next output, fields or agreement step (or the
+                    # next look at the progress line, or a full history block) in one
+                    # compiled call: the Python steps are the same steps on every rank
+                    # (check and per-pair steps are the block's), so the ranks' collective
+                    # calls come in the same order
                     if event:  # the step after an event: none due
                         is_output = is_fields = is_pairs = is_check = is_agree = event = False
                     if pos:

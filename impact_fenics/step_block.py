@@ -1,31 +1,38 @@
-"""The steps between two events in one compiled call (one rank, linear bodies).
+"""The steps between two events in one compiled call (linear bodies).
 
 Between outputs a step of linear bodies is the predictor of paper eq. (1)
 (v <- A u + v by MatMultAdd, A = -dt M^-1 K; u <- u + dt v by VecAXPY), the
 contact set's step and a history row. The loop of :class:`~.simulation.Simulation`
-runs these in Python, about 2 us a step around the PETSc calls, which is a fifth
-of a step on a mesh of ~1,000 dofs. Here :func:`run_steps` runs a block of such
-steps in one call: PETSc's MatMultAdd and VecAXPY by address on the same objects
-(:mod:`.native`), the contact set's :func:`~.contact.fused.contact_step`, the
-contact track, the history row and the phase timers, each the operations of the
-Python step in the same order on the same arrays, so the numbers are the same
-bit for bit (tests/test_step_block.py). The loop keeps everything else: events
-(outputs, pair rows, checks) run as Python steps, and a block ends before the
-next event, when the history block is full, when a progress line may be due, or
-after :data:`MAX_STEPS` steps (the signal flag is looked at between blocks).
+runs these in Python, about 3 us a step around the PETSc calls: a third of a step
+on a mesh of ~1,000 dofs. Here :func:`run_steps` runs a block of such steps in one
+call: PETSc's MatMultAdd and VecAXPY by address on the same objects
+(:mod:`.native`), the contact set's :func:`~.contact.fused.contact_step` (under
+MPI after its pack and MPI_Allgatherv, also by address), the contact track, the
+history and per-pair rows, the divergence check (its count reduced over the
+ranks) and the phase timers: each the operations of the Python step in the same
+order on the same arrays, so the numbers are the same bit for bit
+(tests/test_step_block.py, 1 and 2 ranks). The loop keeps everything else:
+output steps (the energy row) run as Python steps, a fields step ends its block
+and the loop writes its frame after it, and a block also ends when the history
+block is full, when a progress line may be due, at the MPI ranks' agreement on
+signals, or after :data:`MAX_STEPS` steps or about :data:`BLOCK_SECONDS` (on one
+rank the signal flag is looked at between blocks). The MPI calls happen at the same steps on every rank, so
+blocks that end at different steps on different ranks (a progress line, rank
+0's per-pair block) only wait for each other inside the next call.
 
-It applies (:meth:`StepBlock.for_run`) on one rank when every body is linear, no
-surface load acts, and at most one contact set runs by the fused call, with or
-without a rigid body (whose force functions are evaluated in Python for the
-block's steps first). Otherwise, and where the PETSc library cannot be reached
-by address, the Python step runs.
+It applies (:meth:`StepBlock.for_run`) when every body is linear, no surface
+load acts, and at most one contact set runs by the fused call, with or without a
+rigid body (whose force functions are evaluated in Python for the block's steps
+first). Otherwise, and where PETSc or MPI cannot be reached by address, the
+Python step runs (``Settings(compiled_steps=False)`` asks for it).
 
 The phase times of a compiled step: f_int the predictor, contact_solve the whole
-contact step (detection and update are inside it: 0), history the row.
+contact step (detection and update are inside it: 0), history the rows.
 """
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from numba import njit
@@ -39,6 +46,7 @@ from .probes import _record_at
 from .timers import _book
 
 MAX_STEPS = 256  # a block's steps at most (the signal flag is looked at between blocks)
+BLOCK_SECONDS = 0.05  # ... and about this long at most, by the steps' time so far (s)
 # where a step's phase times go in simulation.PHASES (detection, update: 0, inside solve)
 F_INT, SOLVE, HISTORY, OUTPUT = 0, 2, 4, 5
 
@@ -247,6 +255,7 @@ class StepBlock:
         ints[I_PAIRS_EVERY] = self.pairs_at.every
         self.ints = ints
         self._f_ext, self._f_in = np.zeros(MAX_STEPS), np.zeros(MAX_STEPS)
+        self.max_steps = 8  # the first block's, then by the rate (run)
         if contact is not None:
             call = contact._fused_call
         else:  # arrays of the same types (one compiled version serves both)
@@ -310,8 +319,8 @@ class StepBlock:
         phase times are not booked: :meth:`book_held` books them with the time of what
         the caller does after it (:attr:`held`)."""
         ints, integ, rigid = self.ints, self.integ, self.rigid
-        if stop > n + MAX_STEPS:
-            stop, hold = n + MAX_STEPS, False
+        if stop > n + self.max_steps:
+            stop, hold = n + self.max_steps, False
         ints[I_HOLD] = hold
         if rigid is not None:  # its force functions at each step's t^n, in Python
             dt, step0 = integ.dt, integ.n
@@ -326,8 +335,12 @@ class StepBlock:
         ints[I_NEXT_CHECK], ints[I_NEXT_PAIRS] = self.check_at.next, self.pairs_at.next
         if self.pairs is not None:
             ints[I_PAIR_ROW] = self.pairs.room()
+        t = time.perf_counter()
         self._run(*self._args)
         done = int(ints[I_DONE])
+        if done > n:  # a block of at most BLOCK_SECONDS at the rate so far
+            per_step = (time.perf_counter() - t) / (done - n)
+            self.max_steps = max(1, min(MAX_STEPS, int(BLOCK_SECONDS / max(per_step, 1e-9))))
         integ.n += done - n
         self.table.filled(int(ints[I_ROW]))
         self.check_at.next, self.pairs_at.next = int(ints[I_NEXT_CHECK]), int(ints[I_NEXT_PAIRS])

@@ -1070,66 +1070,44 @@ class _ContactTrack:
 
     The counters are :attr:`state` (the compiled steps of step_block update it too);
     :attr:`step` is a closure over a memoryview of it (an item costs less than an
-    attribute: about 0.15 us a step for one contact set against 0.3 us as a method); one
-    contact set, the common case, gets a version without loops."""
+    attribute)."""
 
     __slots__ = ("step", "state", "penalty", "gain", "budget")
 
     def __init__(self, contacts: list):
         stats = [memoryview(c.stats) for c in contacts]
-        # per penalty set: its stats, the last number active and the last nonzero change
-        penalty = [[memoryview(c.stats), 0.0, 0.0] for c in contacts
-                   if c.method.name == "penalty"]
-        self.penalty = bool(penalty)
         self.gain = self.budget = 0.0
         # the counters (layout step_block.T_*, which updates them in its compiled steps):
         # the smallest committed gap (m) so far, or 0 (-max penetration); the first and
-        # last steps with contact (-1: none yet); the steps in contact; the reversals; one
-        # penalty set's last number active and last nonzero change
-        self.state = np.array([0.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0])
+        # last steps with contact (-1: none yet); the steps in contact; the reversals; then
+        # per penalty set its last number active and its last nonzero change
+        penalty = [(memoryview(c.stats), 5 + 2 * k) for k, c in
+                   enumerate(c for c in contacts if c.method.name == "penalty")]
+        self.penalty = bool(penalty)
+        self.state = np.zeros(5 + 2 * max(1, len(penalty)))
+        self.state[1:3] = -1.0
         s = memoryview(self.state)
 
-        if len(stats) == 1 and len(penalty) <= 1:
-            st = stats[0]
-            one_penalty = bool(penalty)
-
-            def step(n: int) -> None:
-                active = st[0]
+        def step(n: int) -> None:
+            touching = False
+            for st in stats:
                 if st[2] < s[0]:
                     s[0] = st[2]
-                if active > 0.0:
-                    if s[1] < 0.0:
-                        s[1] = n
-                    s[2] = n
-                    s[3] += 1.0
-                if one_penalty:  # reversals of its number of active constraints
-                    d = active - s[5]
-                    if d * s[6] < 0.0:
-                        s[4] += 1.0
-                    s[5] = active
-                    if d:
-                        s[6] = d
-        else:
-            def step(n: int) -> None:
-                touching = False
-                for st in stats:
-                    if st[2] < s[0]:
-                        s[0] = st[2]
-                    if st[0] > 0.0:
-                        touching = True
-                if touching:
-                    if s[1] < 0.0:
-                        s[1] = n
-                    s[2] = n
-                    s[3] += 1.0
-                for p in penalty:  # reversals of the number of active penalty constraints
-                    n_active = p[0][0]
-                    d = n_active - p[1]
-                    if d * p[2] < 0.0:
-                        s[4] += 1.0
-                    p[1] = n_active
-                    if d:
-                        p[2] = d
+                if st[0] > 0.0:
+                    touching = True
+            if touching:
+                if s[1] < 0.0:
+                    s[1] = n
+                s[2] = n
+                s[3] += 1.0
+            for st, k in penalty:  # reversals of the number of active penalty constraints
+                n_active = st[0]
+                d = n_active - s[k]
+                if d * s[k + 1] < 0.0:
+                    s[4] += 1.0
+                s[k] = n_active
+                if d:
+                    s[k + 1] = d
         self.step = step
 
     @property

@@ -29,6 +29,15 @@ def comm():
     return MPI.COMM_WORLD
 
 
+@pytest.fixture(scope="module")
+def punch_mesh():
+    """A small punch block (the paper's punch scene at R_z = 1 m, coarse): 21 constraints."""
+    from impact_fenics import meshing
+
+    return meshing.punch_block(width=1.5, depth=0.5, h_surface=0.05, grading=1.0, h_max=0.25,
+                               breaks=((1.0, 20),))
+
+
 def load_demo(name: str):
     """Import demos/<name>.py as a module (its run() and checks are the tested API)."""
     import importlib.util

@@ -34,12 +34,6 @@ def _settings(**kw):
     return Settings(**base)
 
 
-@pytest.fixture(scope="module")
-def punch_mesh():
-    return meshing.punch_block(width=1.5, depth=0.5, h_surface=0.05, grading=1.0, h_max=0.25,
-                               breaks=((1.0, 20),))
-
-
 def _state(sim):
     c = sim.contacts[0]
     integ = sim.integrator

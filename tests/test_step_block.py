@@ -41,12 +41,6 @@ def _settings(out, compiled, **kw):
 
 
 @pytest.fixture(scope="module")
-def punch_mesh():
-    return meshing.punch_block(width=1.5, depth=0.5, h_surface=0.05, grading=1.0, h_max=0.25,
-                               breaks=((1.0, 20),))
-
-
-@pytest.fixture(scope="module")
 def bars_mesh():
     return meshing.coaxial_bars(radius=0.1, striker_length=0.4, target_length=0.4, h=0.04,
                                 structured=False)

@@ -97,11 +97,24 @@ class Ledger:
         contact_work. (The path-dependent bodies' deformation work, sum 1/2 (f_int^{n-1}
         + f_int^n) . du, is reported beside the balance: it equals d psi_e + W_p.)"""
         E = kinetic + strain + plastic_work
-        if self.E0 is None:
-            self.E0 = E
-        balance = E - self.E0 - external_work - contact_work
-        self.scale = max(self.scale, abs(E), abs(self.E0), abs(external_work), abs(contact_work))
-        rel = abs(balance) / self.scale if self.scale > 0 else 0.0
+        E0 = self.E0
+        if E0 is None:
+            self.E0 = E0 = E
+        balance = E - E0 - external_work - contact_work
+        # scale = max(scale, |E|, |E0|, |external_work|, |contact_work|), the builtin's
+        # comparisons (a term replaces the largest so far only if it is larger) without
+        # its call
+        scale = self.scale
+        if abs(E) > scale:
+            scale = abs(E)
+        if abs(E0) > scale:
+            scale = abs(E0)
+        if abs(external_work) > scale:
+            scale = abs(external_work)
+        if abs(contact_work) > scale:
+            scale = abs(contact_work)
+        self.scale = scale
+        rel = abs(balance) / scale if scale > 0 else 0.0
         return E, balance, rel
 
 

@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from .compat import cell_dofs, eval_expression
-from .jit_watch import direct
+from .jit_watch import contiguous_float64, direct
 
 STRESS_NAMES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
 # the output components in the point notation (rr, tt, zz, rz)
@@ -373,7 +373,7 @@ class CellStress:
         if self._single:
             _, dofs, g, _, lame, _, (first, _) = self._kernel[0]
             args = (dofs, g, u, lame[0], lame[1], self._no_plastic, first, values, self.peaks)
-            if bound is None and _c_float64(u, 1) and _c_float64(values, 2):
+            if bound is None and contiguous_float64(u, 1) and contiguous_float64(values, 2):
                 # the first call binds the compiled entry to these arrays (an output
                 # loop's, which it then finds again); the arrays' types are checked here,
                 # since an entry takes another layout or ndim unchecked
@@ -403,12 +403,6 @@ class CellStress:
                     values[k, cells] = eval_expression(expr, self.model.mesh, cells)[:, 0]
         stress_peaks(values[_VM], values[_ZZ], self.peaks)
         return values
-
-
-def _c_float64(a, ndim: int) -> bool:
-    """Is ``a`` a C-contiguous, aligned, writeable float64 numpy array of ``ndim`` dimensions?"""
-    return (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.ndim == ndim
-            and a.flags.c_contiguous and a.flags.aligned and a.flags.writeable)
 
 
 def _range(cells: np.ndarray) -> tuple[int, int] | None:

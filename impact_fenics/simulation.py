@@ -27,7 +27,7 @@ from .energy import (Ledger, LoadWork, OutputSums, copy_state, half_dot,
                      strain_from_prediction)
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
-from .jit_watch import direct, gained, load, signature_counts
+from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
@@ -457,6 +457,11 @@ class Simulation:
         (``buf``: the run's buffers of u^n and v^n): the rigid bodies and their speeds v^n,
         the loads, and the energy columns, a dict updated in place (J)."""
         integ = self.integrator
+        # the arrays the compiled entries of an event are bound for (their type unchecked there)
+        for a in (buf["u"], buf["v"], self._minus_m_over_dt, integ.u_owned, integ.v_owned):
+            if not (contiguous_float64(a, 1) and a.size == integ.mass.size):
+                raise TypeError("an output buffer is not a contiguous float64 array over the "
+                                "owned dofs")
         self._event_buf = buf
         self._rigid_sets = [c for c in self.contacts if c.rigid is not None]
         self._rigid_v_now = [0.0] * len(self._rigid_sets)

@@ -169,6 +169,28 @@ def cell_stress(dofs, g, u, D, eps_p, cells, out) -> None:
 
 
 @njit(cache=True)
+def _isotropic_stress(dofs, g, u, lmbda, two_mu, half_two_mu, eps_p, plastic, k):
+    """(sigma_rr, sigma_zz, sigma_tt, sigma_rz) (Pa) of the k-th cell of
+    :func:`isotropic_cell_stress` (inlined in its loops)."""
+    a, b, d = dofs[k, 0], dofs[k, 1], dofs[k, 2]
+    ur1, uz1 = u[a], u[a + 1]
+    ur2, uz2, ur3, uz3 = u[b], u[b + 1], u[d], u[d + 1]
+    dur2, duz2, dur3, duz3 = ur2 - ur1, uz2 - uz1, ur3 - ur1, uz3 - uz1
+    g0, g1, g2, g3 = g[k, 0], g[k, 1], g[k, 2], g[k, 3]
+    e0 = dur2 * g0 + dur3 * g1
+    e1 = (ur1 + ur2 + ur3) * g[k, 4]
+    e2 = duz2 * g2 + duz3 * g3
+    gamma = dur2 * g2 + dur3 * g3 + duz2 * g0 + duz3 * g1  # 2 eps_rz
+    if plastic:
+        e0 -= eps_p[k, 0]
+        e1 -= eps_p[k, 1]
+        e2 -= eps_p[k, 2]
+        gamma -= 2.0 * eps_p[k, 3]
+    p = lmbda * (e0 + e1 + e2)
+    return p + two_mu * e0, p + two_mu * e2, p + two_mu * e1, half_two_mu * gamma
+
+
+@njit(cache=True)
 def isotropic_cell_stress(dofs, g, u, lmbda, two_mu, eps_p, cells, out) -> None:
     """:func:`cell_stress` of an isotropic D (sigma = lambda tr(eps) I + 2 mu eps, Pa; the
     Lame constants ``lmbda`` and ``two_mu`` = 2 mu): 9 flops of stress a cell instead of
@@ -176,26 +198,9 @@ def isotropic_cell_stress(dofs, g, u, lmbda, two_mu, eps_p, cells, out) -> None:
     plastic = eps_p.shape[0] > 0
     half_two_mu = 0.5 * two_mu
     for k in range(cells.size):
-        a, b, d = dofs[k, 0], dofs[k, 1], dofs[k, 2]
-        ur1, uz1 = u[a], u[a + 1]
-        ur2, uz2, ur3, uz3 = u[b], u[b + 1], u[d], u[d + 1]
-        dur2, duz2, dur3, duz3 = ur2 - ur1, uz2 - uz1, ur3 - ur1, uz3 - uz1
-        g0, g1, g2, g3 = g[k, 0], g[k, 1], g[k, 2], g[k, 3]
-        e0 = dur2 * g0 + dur3 * g1
-        e1 = (ur1 + ur2 + ur3) * g[k, 4]
-        e2 = duz2 * g2 + duz3 * g3
-        gamma = dur2 * g2 + dur3 * g3 + duz2 * g0 + duz3 * g1  # 2 eps_rz
-        if plastic:
-            e0 -= eps_p[k, 0]
-            e1 -= eps_p[k, 1]
-            e2 -= eps_p[k, 2]
-            gamma -= 2.0 * eps_p[k, 3]
-        p = lmbda * (e0 + e1 + e2)
         c = cells[k]
-        out[0, c] = p + two_mu * e0
-        out[1, c] = p + two_mu * e2
-        out[2, c] = p + two_mu * e1
-        out[3, c] = half_two_mu * gamma
+        out[0, c], out[1, c], out[2, c], out[3, c] = _isotropic_stress(
+            dofs, g, u, lmbda, two_mu, half_two_mu, eps_p, plastic, k)
 
 
 @njit(cache=True)
@@ -214,25 +219,8 @@ def isotropic_stress_range(dofs, g, u, lmbda, two_mu, eps_p, first, out, peaks) 
     s_rr, s_zz, s_tt = out[0, first:end], out[1, first:end], out[2, first:end]
     s_rz = out[3, first:end]
     for k in range(n):
-        a, b, d = dofs[k, 0], dofs[k, 1], dofs[k, 2]
-        ur1, uz1 = u[a], u[a + 1]
-        ur2, uz2, ur3, uz3 = u[b], u[b + 1], u[d], u[d + 1]
-        dur2, duz2, dur3, duz3 = ur2 - ur1, uz2 - uz1, ur3 - ur1, uz3 - uz1
-        g0, g1, g2, g3 = g[k, 0], g[k, 1], g[k, 2], g[k, 3]
-        e0 = dur2 * g0 + dur3 * g1
-        e1 = (ur1 + ur2 + ur3) * g[k, 4]
-        e2 = duz2 * g2 + duz3 * g3
-        gamma = dur2 * g2 + dur3 * g3 + duz2 * g0 + duz3 * g1  # 2 eps_rz
-        if plastic:
-            e0 -= eps_p[k, 0]
-            e1 -= eps_p[k, 1]
-            e2 -= eps_p[k, 2]
-            gamma -= 2.0 * eps_p[k, 3]
-        p = lmbda * (e0 + e1 + e2)
-        s_rr[k] = p + two_mu * e0
-        s_zz[k] = p + two_mu * e2
-        s_tt[k] = p + two_mu * e1
-        s_rz[k] = half_two_mu * gamma
+        s_rr[k], s_zz[k], s_tt[k], s_rz[k] = _isotropic_stress(
+            dofs, g, u, lmbda, two_mu, half_two_mu, eps_p, plastic, k)
     von_mises_rows(s_rr, s_zz, s_tt, s_rz, out[4, first:end])
     if peaks.size == 3:
         stress_peaks(out[4], out[1], peaks)

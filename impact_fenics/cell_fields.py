@@ -24,7 +24,10 @@ extremes. Bodies of one D are one pass (a call costs a few us: most of a small m
 frame), and an isotropic D takes lambda tr(eps) + 2 mu eps (9 flops, not the 28 of
 D eps: the same values to a few 1e-16 of the largest). On the punch's 21,792 cells
 0.16 ms against 0.22 ms with a general D and numpy's extremes; the bars' 1,008: 10 us
-against 20 us (loaded machine).
+against 20 us (loaded machine). The three passes of one isotropic range of cells are
+one call (:func:`isotropic_stress_range`), through its compiled entry in an output
+loop, with the nodes' u_r dofs unsigned (no check for a negative index): the bars'
+frame 7.8 us in the loop against 13.3 (median of 20 outputs, loaded machine).
 """
 from __future__ import annotations
 

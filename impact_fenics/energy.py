@@ -26,7 +26,7 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
-from .jit_watch import direct, load
+from .jit_watch import direct
 from .loads import SurfaceLoad
 
 
@@ -86,24 +86,36 @@ class Ledger:
         self.scale = 0.0  # largest |term| seen, the reference for the relative error
 
     def record(self, kinetic: float, strain: float, external_work: float,
-               contact_work: float, plastic_work: float = 0.0,
-               deformation_work: float = 0.0) -> dict[str, float]:
-        """Balance at one output step; all energies in J, already summed over ranks.
+               contact_work: float, plastic_work: float = 0.0) -> tuple[float, float, float]:
+        """(E_n, E_n - E_0 - W_n, its relative error) at one output step: all energies in J,
+        already summed over ranks; the relative error is |E_n - E_0 - W_n| over the largest
+        |term| seen so far (0 while every term is 0).
 
         ``strain`` is the stored elastic energy of every body (1/2 u'Ku of the linear
         ones, psi_e of the path-dependent ones), ``plastic_work`` the work dissipated
-        at their points; ``deformation_work`` sum 1/2 (f_int^{n-1} + f_int^n) . du of
-        the path-dependent bodies, reported beside (it equals d psi_e + W_p)."""
+        at their points, so E_n = kinetic + strain + plastic_work; W_n = external_work +
+        contact_work. (The path-dependent bodies' deformation work, sum 1/2 (f_int^{n-1}
+        + f_int^n) . du, is reported beside the balance: it equals d psi_e + W_p.)"""
         E = kinetic + strain + plastic_work
-        if self.E0 is None:
-            self.E0 = E
-        balance = E - self.E0 - external_work - contact_work
-        self.scale = max(self.scale, abs(E), abs(self.E0), abs(external_work), abs(contact_work))
-        rel = abs(balance) / self.scale if self.scale > 0 else 0.0
-        return {"kinetic": kinetic, "strain": strain, "total": E,
-                "external_work": external_work, "contact_work": contact_work,
-                "plastic_work": plastic_work, "deformation_work": deformation_work,
-                "balance_error": balance, "balance_error_rel": rel}
+        E0 = self.E0
+        if E0 is None:
+            self.E0 = E0 = E
+        balance = E - E0 - external_work - contact_work
+        # scale = max(scale, |E|, |E0|, |external_work|, |contact_work|), the builtin's
+        # comparisons (a term replaces the largest so far only if it is larger) without
+        # its call
+        scale = self.scale
+        if abs(E) > scale:
+            scale = abs(E)
+        if abs(E0) > scale:
+            scale = abs(E0)
+        if abs(external_work) > scale:
+            scale = abs(external_work)
+        if abs(contact_work) > scale:
+            scale = abs(contact_work)
+        self.scale = scale
+        rel = abs(balance) / scale if scale > 0 else 0.0
+        return E, balance, rel
 
 
 @njit(cache=True)
@@ -206,20 +218,26 @@ class OutputSums:
         self._start = np.cumsum([0] + [d.size for d in body_z]).astype(np.int64)
         self._local = np.zeros(3 + self.n_bodies + n_extra)
         self._total = np.zeros_like(self._local)
-        # its kernel compiled (or loaded) now, not at the first output
-        load(_output_sums, mass, mass, mass, self._dofs, self._start, self._local)
+        self._local_view = memoryview(self._local)
+        # the sums as floats (memoryview items): this rank's, or the reduced ones
+        self._result = memoryview(self._local if comm.size == 1 else self._total)
+        # its kernel's compiled entry, for velocities of the type of ``mass`` (float64,
+        # contiguous: the loop's arrays), taken now, not at the first output
+        self._sums = direct(_output_sums, mass, mass, mass, self._dofs, self._start,
+                            self._local)
 
     def reduce(self, v_now: np.ndarray, v_next: np.ndarray, strain: float,
-               extra=()) -> np.ndarray:
-        """(kinetic, strain, p_z, p_z per body..., extra...) summed over the ranks (a view,
-        valid until the next call); ``strain`` this rank's 1/2 (u^n)' K u^n (J)."""
-        local = self._local
-        _output_sums(self.mass, v_now, v_next, self._dofs, self._start, local)
+               extra=()) -> memoryview:
+        """(kinetic, strain, p_z, p_z per body..., extra...) summed over the ranks, as floats
+        (a view, valid until the next call); ``strain`` this rank's 1/2 (u^n)' K u^n (J).
+        ``v_now`` and ``v_next``: contiguous float64 arrays like ``mass``."""
+        local = self._local_view
+        self._sums(self.mass, v_now, v_next, self._dofs, self._start, self._local)
         local[1] = strain
         k = 3 + self.n_bodies
-        for i, x in enumerate(extra):
-            local[k + i] = x
-        if self.comm.size == 1:
-            return local
-        self.comm.Allreduce(local, self._total)
-        return self._total
+        for x in extra:
+            local[k] = x
+            k += 1
+        if self.comm.size > 1:
+            self.comm.Allreduce(self._local, self._total)
+        return self._result

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 
 def signature_counts() -> dict[str, int]:
     """{module.kernel: number of compiled signatures} of every numba kernel in the loaded
@@ -53,3 +55,12 @@ def direct(kernel, *args):
     kernel.compile(sig)
     entry = getattr(getattr(kernel, "overloads", {}).get(sig), "entry_point", None)
     return entry if callable(entry) else kernel
+
+
+def contiguous_float64(a, ndim: int) -> bool:
+    """Is ``a`` an aligned, writeable, C-contiguous float64 numpy array of ``ndim``
+    dimensions, the type :func:`direct` entries are bound for here? (An entry refuses
+    another dtype but takes another layout or ndim unchecked: check an array from
+    elsewhere once before binding it.)"""
+    return (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.ndim == ndim
+            and a.flags.c_contiguous and a.flags.aligned and a.flags.writeable)

@@ -27,7 +27,7 @@ from .energy import (Ledger, LoadWork, OutputSums, copy_state, half_dot,
                      strain_from_prediction)
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
-from .jit_watch import gained, load, signature_counts
+from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
@@ -162,10 +162,12 @@ class Simulation:
         # the sums of an output step: energies, momenta (its kernel loaded now)
         self._output_sums = OutputSums(self.integrator.mass, list(self._body_z.values()),
                                        self.comm, 4 if self.integrator.nonlinear else 1)
-        mass = self.integrator.mass  # the other kernels of an output step, for arrays like it
-        load(copy_state, mass, mass, mass, mass)
-        load(strain_from_prediction, mass, mass, mass, mass)
+        mass = self.integrator.mass  # the other kernels of an output step, for arrays like it:
+        # their compiled entries (the arrays an event passes are contiguous float64 ones)
+        self._copy_state = direct(copy_state, mass, mass, mass, mass)
+        self._strain_from_prediction = direct(strain_from_prediction, mass, mass, mass, mass)
         load(half_dot, mass, mass)
+        self._event_buf = None  # the run's output buffers, once _bind_output has seen them
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
@@ -409,7 +411,6 @@ class Simulation:
                             if track.first is not None and not any(
                                     c.any_active for c in self.contacts):  # springs all released
                                 track.gain = max(track.gain, row["contact_work"])
-                        tables["energy"].row()[:] = [row[k] for k in tables["energy"].columns]
                         self._check_stability(row, ledger, n)
                     if is_fields:
                         self._write_fields(writer)
@@ -503,16 +504,45 @@ class Simulation:
         return summary
 
     # ------------------------------------------------------------ pieces of the loop
-    def _pre_output(self, buf, Ku) -> dict:
+    def _bind_output(self, buf) -> None:
+        """What every output event of this run reads and writes, bound at its first one
+        (``buf``: the run's buffers of u^n and v^n): the rigid bodies and their speeds v^n,
+        the loads, and the energy columns, a dict updated in place (J)."""
         integ = self.integrator
-        copy_state(integ.u_owned, integ.v_owned, buf["u"], buf["v"])  # u^n, v^n
+        # the arrays the compiled entries of an event are bound for (their type unchecked there)
+        for a in (buf["u"], buf["v"], self._minus_m_over_dt, integ.u_owned, integ.v_owned):
+            if not (contiguous_float64(a, 1) and a.size == integ.mass.size):
+                raise TypeError("an output buffer is not a contiguous float64 array over the "
+                                "owned dofs")
+        self._event_buf = buf
+        self._rigid_sets = [c for c in self.contacts if c.rigid is not None]
+        self._rigid_v_now = [0.0] * len(self._rigid_sets)
+        self._load_terms = list(zip(integ.loads, integ._load_dofs, integ._load_coef))
+        self._energy_row = dict.fromkeys(_ENERGY_COLUMNS, 0.0)
+        # the energy table's row: step, time, _ENERGY_COLUMNS, momentum_z, per body and
+        # per rigid body (the order _post_output writes)
+        layout = ["step", "time", *_ENERGY_COLUMNS, *self._momentum_columns()]
+        if self.energy.columns != layout:
+            raise RuntimeError(f"energy columns {self.energy.columns}, expected {layout}")
+
+    def _pre_output(self, buf, Ku) -> list[float]:
+        """Keep u^n and v^n (m, m/s) and the rigid bodies' v^n (returned, a list reused by
+        every event) before the step of an output."""
+        if buf is not self._event_buf:
+            self._bind_output(buf)
+        integ = self.integrator
+        self._copy_state(integ.u_owned, integ.v_owned, buf["u"], buf["v"])  # u^n, v^n
         if integ.nonlinear:  # 1/2 u'Ku of the linear bodies (the others book psi_e, W_p)
             if integ.K is not None:
                 integ.K.mult(integ.u_vec, Ku)
                 self._strain_local = half_dot(buf["u"], Ku.array)
             else:
                 self._strain_local = 0.0
-        return {"rigid_v": [c.rigid.v if c.rigid else 0.0 for c in self.contacts]}
+        v_now = self._rigid_v_now
+        if v_now:
+            for i, c in enumerate(self._rigid_sets):
+                v_now[i] = c.rigid.v
+        return v_now
 
     def _internal_force_from_prediction(self, buf) -> None:
         """The strain energy 1/2 u^n.K u^n (J, this rank's part) from the step just
@@ -521,53 +551,81 @@ class Simulation:
         dofs K u reads 0, where u^n = 0: the strain energy is exact (to round-off;
         the difference loses eps |v| m / dt, less than K u's own eps |K| |u| once
         the motion has lasted a few steps)."""
-        integ = self.integrator
         u = buf["u"]
-        strain = strain_from_prediction(u, integ.v_owned, buf["v"], self._minus_m_over_dt)
-        t = integ.t
-        for ld, dofs, coef in zip(integ.loads, integ._load_dofs, integ._load_coef):
-            value = ld.history(t)
-            if value != 0.0:  # f on the free loaded dofs: m coef / dt per unit of the pulse
-                strain -= 0.5 * value * float(np.dot(u[dofs], self._minus_m_over_dt[dofs] * coef))
+        strain = self._strain_from_prediction(u, self.integrator.v_owned, buf["v"],
+                                              self._minus_m_over_dt)
+        if self._load_terms:
+            t = self.integrator.t
+            for ld, dofs, coef in self._load_terms:
+                value = ld.history(t)
+                if value != 0.0:  # f on the free loaded dofs: m coef / dt per unit of the pulse
+                    strain -= 0.5 * value * float(np.dot(u[dofs],
+                                                         self._minus_m_over_dt[dofs] * coef))
         self._strain_local = strain
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
+        """The energy row of the output step (step integ.n - 1) into the energy table, and
+        its energy columns (_ENERGY_COLUMNS, J) returned: a dict that every event updates
+        in place (after the run it holds the last row's). ``pre``: :meth:`_pre_output`'s."""
         integ = self.integrator
         nonlinear = integ.nonlinear
         sums = self._output_sums
-        extra = [load_work.local]
         if nonlinear:  # stored elastic energy, plastic and deformation work (J)
-            extra += [sum(f.elastic_energy_local() for f in nonlinear),
-                      sum(f.plastic_work_local for f in nonlinear),
-                      sum(f.deformation_work_local for f in nonlinear)]
-        total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, extra)
-        kinetic, strain = float(total[0]), float(total[1])
+            total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, (
+                load_work.local, sum(f.elastic_energy_local() for f in nonlinear),
+                sum(f.plastic_work_local for f in nonlinear),
+                sum(f.deformation_work_local for f in nonlinear)))
+        else:
+            total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, (load_work.local,))
+        kinetic, strain = total[0], total[1]  # floats (a memoryview's items)
         k = 3 + sums.n_bodies
-        ext = float(total[k])
-        work_c = 0.0
-        for c, v_now in zip(self.contacts, pre["rigid_v"]):
-            if c.rigid is not None:
+        ext = total[k]
+        rigid = self._rigid_sets
+        if rigid:
+            for c, v_now in zip(rigid, pre):
                 kinetic += c.kinetic_energy_rigid(v_now, c.rigid.v)
                 ext += c.rigid_external_work
+        work_c = 0.0
+        activation = 0  # (an int without contact sets, as the sum of none)
+        for c in self.contacts:
             work_c += c.contact_work
+            activation += c.activation_loss
         plastic = deformation = 0.0
         if nonlinear:
-            strain += float(total[k + 1])
-            plastic, deformation = float(total[k + 2]), float(total[k + 3])
-        row = ledger.record(kinetic, strain, ext, work_c, plastic, deformation)
-        row["activation_loss"] = sum(c.activation_loss for c in self.contacts)
-        row["step"] = integ.n - 1
-        row["time"] = (integ.n - 1) * self.settings.dt
+            strain += total[k + 1]
+            plastic, deformation = total[k + 2], total[k + 3]
+        energy, balance, rel = ledger.record(kinetic, strain, ext, work_c, plastic)
+        # the table's row through its memoryview (layout checked by _bind_output)
+        table = self.energy
+        j = table.next_row()
+        cells = table.cells
+        n = integ.n - 1
+        cells[j] = n
+        cells[j + 1] = n * self.settings.dt
+        row = self._energy_row
+        row["kinetic"] = cells[j + 2] = kinetic
+        row["strain"] = cells[j + 3] = strain
+        row["total"] = cells[j + 4] = energy
+        row["external_work"] = cells[j + 5] = ext
+        row["contact_work"] = cells[j + 6] = work_c
+        row["activation_loss"] = cells[j + 7] = activation
+        row["plastic_work"] = cells[j + 8] = plastic
+        row["deformation_work"] = cells[j + 9] = deformation
+        row["balance_error"] = cells[j + 10] = balance
+        row["balance_error_rel"] = cells[j + 11] = rel
         # z momentum (kg m/s) of v^{n+1}: in total (every node once) and per body
         # (a node that two bonded bodies share counts in both)
-        p_total = float(total[2])
-        for name, p in zip(self._body_z, total[3:k]):
-            row[f"momentum_z_{name}"] = float(p)
-        for c in self.contacts:
-            if c.rigid is not None:
-                row[f"momentum_z_{c.rigid.name}"] = c.rigid.mass * c.rigid.v
-                p_total += c.rigid.mass * c.rigid.v
-        row["momentum_z"] = p_total
+        p_total = total[2]
+        m = j + 13
+        for b in range(3, k):
+            cells[m] = total[b]
+            m += 1
+        for c in rigid:
+            p = c.rigid.mass * c.rigid.v
+            cells[m] = p
+            m += 1
+            p_total += p
+        cells[j + 12] = p_total
         return row
 
     @staticmethod
@@ -599,12 +657,17 @@ class Simulation:
                "(not finite, or a strain beyond 1)"))
 
     def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
-        values = [row["kinetic"], row["strain"], row["external_work"], row["contact_work"]]
-        budget = max(abs(ledger.E0 or 0.0), abs(row["external_work"]), 1e-300)
-        if not all(math.isfinite(x) for x in values):
+        """Stop a run whose energy (J) is not finite or grew beyond energy_growth_limit x
+        the energy put in (E_0 or the external work)."""
+        ext = row["external_work"]
+        isfinite = math.isfinite
+        if not (isfinite(row["kinetic"]) and isfinite(row["strain"]) and isfinite(ext)
+                and isfinite(row["contact_work"])):
             raise UnstableRunError(self._diagnosis(n, "the energy is not finite"))
+        E0 = ledger.E0
+        budget = max(abs(E0 or 0.0), abs(ext), 1e-300)
         limit = self.settings.energy_growth_limit
-        if row["total"] > limit * budget and (ledger.E0 or row["external_work"]):
+        if row["total"] > limit * budget and (E0 or ext):
             raise UnstableRunError(self._diagnosis(
                 n, f"the energy {row['total']:.4g} J grew beyond {limit:g} x the energy put in "
                    f"({budget:.4g} J)"))
@@ -631,7 +694,9 @@ class Simulation:
 
     def _field_writer(self, staging: str) -> FieldWriter:
         self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
-        self._peak_buf = np.empty(3)
+        self._peak_buf = np.empty(3)  # the peaks reduced over the ranks; read as floats
+        self._peak_view = memoryview(self._peak_buf if self.comm.size > 1
+                                     else self._cell_stress.peaks)
         extra = [name for p in self._cell_field_providers for name in p()]
         # the initial state, then every output_every steps and the last step
         n_frames = 1 + -(-self.n_steps // self.settings.output_every)
@@ -647,31 +712,35 @@ class Simulation:
         u = writer.ghosted(integ.u_owned, 0)
         v = writer.ghosted(integ.v_owned, 1)
         self._cell_stress.evaluate(u, out=self._stress_block)
-        self._track_peaks(integ.n * self.settings.dt)
+        t = integ.n * self.settings.dt
+        self._track_peaks(t)
         cells = writer.cell_values
-        for provider in self._cell_field_providers:
-            for key, values in provider().items():
-                cells[key][:] = values[: writer.n_cells]
-        writer.write(integ.n * self.settings.dt, integ.n, u, v, cells)
+        if self._cell_field_providers:
+            for provider in self._cell_field_providers:
+                for key, values in provider().items():
+                    cells[key][:] = values[: writer.n_cells]
+        writer.write(t, integ.n, u, v, cells)
 
     def _track_peaks(self, t: float) -> None:
         """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when
         (the cell stresses' extremes of this output, reduced over the ranks)."""
-        local = self._peak_buf
-        local[:] = self._cell_stress.peaks
+        peaks = self._peak_view  # (max von Mises, max sigma_zz, -min sigma_zz) of the output
         if self.comm.size > 1:
-            self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
-        vm, zz_max, zz_neg = local.tolist()
+            self._peak_buf[:] = self._cell_stress.peaks
+            self.comm.Allreduce(MPI.IN_PLACE, self._peak_buf, op=MPI.MAX)
         p = self._peaks
         if not p:
             p.update(von_mises=-math.inf, von_mises_time=t, sigma_zz_max=-math.inf,
                      sigma_zz_max_time=t, sigma_zz_min=math.inf, sigma_zz_min_time=t)
+        vm = peaks[0]
         if vm > p["von_mises"]:
             p["von_mises"], p["von_mises_time"] = vm, t
-        if zz_max > p["sigma_zz_max"]:
-            p["sigma_zz_max"], p["sigma_zz_max_time"] = zz_max, t
-        if -zz_neg < p["sigma_zz_min"]:
-            p["sigma_zz_min"], p["sigma_zz_min_time"] = -zz_neg, t
+        zz = peaks[1]
+        if zz > p["sigma_zz_max"]:
+            p["sigma_zz_max"], p["sigma_zz_max_time"] = zz, t
+        zz = -peaks[2]
+        if zz < p["sigma_zz_min"]:
+            p["sigma_zz_min"], p["sigma_zz_min_time"] = zz, t
 
     def _tables(self, staging: str | None, probes) -> dict:
         """History, energy and per-pair tables (on disk with an output directory, written in

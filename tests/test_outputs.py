@@ -238,7 +238,7 @@ def test_isotropic_cell_stress_is_d_times_the_elastic_strain():
 
     rng = np.random.default_rng(7)
     n_cells, n_nodes = 400, 250
-    nodes = rng.integers(0, n_nodes, (n_cells, 3))
+    dofs = (2 * rng.integers(0, n_nodes, (n_cells, 3))).astype(np.uint32)  # u_r dofs
     g = rng.standard_normal((n_cells, 5)) * 50.0  # inverse Jacobians of ~2 cm cells (1/m)
     u = rng.standard_normal(2 * n_nodes) * 1e-4
     eps_p = rng.standard_normal((n_cells, 4)) * 1e-3
@@ -248,9 +248,41 @@ def test_isotropic_cell_stress_is_d_times_the_elastic_strain():
     assert lame is not None and isotropic_lame(D + np.diag([0.0, 0.0, 0.0, 1e9])) is None
     ref, got = np.zeros((5, n_cells)), np.zeros((5, n_cells))
     for plastic in (eps_p, np.empty((0, 4))):
-        cell_stress(nodes, g, u, D, plastic, cells, ref)
-        isotropic_cell_stress(nodes, g, u, *lame, plastic, cells, got)
+        cell_stress(dofs, g, u, D, plastic, cells, ref)
+        isotropic_cell_stress(dofs, g, u, *lame, plastic, cells, got)
         assert np.abs(got[:4] - ref[:4]).max() <= 1e-14 * np.abs(ref[:4]).max()
+
+
+def test_stress_range_is_the_kernels_one_by_one():
+    """The one-call kernel of a range of cells (stresses, von Mises, the peaks) against
+    the isotropic cell kernel, the von Mises rows and the peaks called one by one: the
+    same operations on the same numbers, so the same floats exactly, with and without a
+    plastic strain, for a range in the middle of the cells (the peaks then over every
+    cell) and with the peaks left out (an empty array)."""
+    from impact_fenics.cell_fields import (isotropic_cell_stress, isotropic_stress_range,
+                                           stress_peaks, von_mises_rows)
+
+    rng = np.random.default_rng(11)
+    n_all, first, n, n_nodes = 300, 40, 200, 180
+    dofs = (2 * rng.integers(0, n_nodes, (n, 3))).astype(np.uint32)
+    g = rng.standard_normal((n, 5)) * 50.0  # inverse Jacobians of ~2 cm cells (1/m)
+    u = rng.standard_normal(2 * n_nodes) * 1e-4
+    lmbda, two_mu = 1.15e11, 1.54e11  # steel (Pa)
+    for eps_p in (rng.standard_normal((n, 4)) * 1e-3, np.empty((0, 4))):
+        ref = rng.standard_normal((5, n_all)) * 1e8  # the cells outside the range (Pa)
+        got = ref.copy()
+        end = first + n
+        isotropic_cell_stress(dofs, g, u, lmbda, two_mu, eps_p,
+                              np.arange(first, end, dtype=np.int64), ref)
+        von_mises_rows(ref[0, first:end], ref[1, first:end], ref[2, first:end],
+                       ref[3, first:end], ref[4, first:end])
+        peaks_ref, peaks = np.zeros(3), np.zeros(3)
+        stress_peaks(ref[4], ref[1], peaks_ref)
+        isotropic_stress_range(dofs, g, u, lmbda, two_mu, eps_p, first, got, peaks)
+        assert np.array_equal(got, ref) and np.array_equal(peaks, peaks_ref)
+        got[:, first:end] = 0.0  # without the peaks: the range written again, alone
+        isotropic_stress_range(dofs, g, u, lmbda, two_mu, eps_p, first, got, np.empty(0))
+        assert np.array_equal(got, ref)
 
 
 def _pvbatch(xdmf: str):

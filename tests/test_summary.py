@@ -74,3 +74,31 @@ def test_impact_figures_of_the_1d_solution(bars):
     assert abs(c["velocity_lower_after"]) <= VEL * V0
     assert abs(c["velocity_upper_after"] - V0) <= VEL * V0
     assert abs(c["restitution"] - 1.0) <= 2 * VEL
+
+
+def test_energy_row_and_peak_stresses_are_the_written_outputs(bars):
+    """Exact equivalences with the files: the summary's energy is the last row of
+    energy.csv (17 digits read back as the same float64); the row's total z momentum is
+    the two bodies' (the bars share no node), to the round-off of summing ~10^3 terms
+    in another order (n eps ~ 2e-13 of m v0); the peak stresses are the extremes of
+    the frames written to fields.xdmf, at the time of the first frame that reaches them."""
+    from impact_fenics.xdmf import FieldSeries
+
+    s, sim = bars
+    energy = sim.energy.data()
+    for key, value in s["energy"].items():
+        assert energy[key][-1] == value, key
+    p = s["bodies"]["striker"]["mass"] * V0
+    both = energy["momentum_z_striker"] + energy["momentum_z_target"]
+    assert np.abs(energy["momentum_z"] - both).max() <= 1e-12 * p
+    series = FieldSeries(os.path.join(sim.out_dir, "fields.xdmf"))
+    frames = range(len(series.times))
+    von_mises = np.array([series.values("von_mises", k).max() for k in frames])
+    zz_max = np.array([series.values("sigma_zz", k).max() for k in frames])
+    zz_min = np.array([series.values("sigma_zz", k).min() for k in frames])
+    peaks = s["peak_stress"]
+    for key, per_frame, extreme in (("von_mises", von_mises, von_mises.max()),
+                                    ("sigma_zz_max", zz_max, zz_max.max()),
+                                    ("sigma_zz_min", zz_min, zz_min.min())):
+        assert peaks[key] == extreme, key
+        assert peaks[f"{key}_time"] == series.times[np.flatnonzero(per_frame == extreme)[0]], key

@@ -72,9 +72,11 @@ def console_lines(s: dict) -> list[str]:
         wall = s["wall_time"]
         parts = ", ".join(f"{k} {v['share']:.0%}" for k, v in timing["phases"].items()
                           if v["share"] >= 0.005)
+        steps = ("compiled between events" if timing.get("compiled_steps")
+                 else "Python") if "compiled_steps" in timing else None
         lines.append(f"time: loop {wall:.3g} s = {timing['loop_over_steps_median']:.2f} x "
                      f"(steps x median step {s['step_time_median'] * 1e6:.1f} us); {parts}, "
-                     f"rest {timing['rest_share']:.0%}")
+                     f"rest {timing['rest_share']:.0%}" + (f"; steps {steps}" if steps else ""))
         setup = ", ".join(f"{k} {v:.2f} s" for k, v in s.get("setup_time", {}).items())
         lines.append(f"set-up: {setup}")
     return lines

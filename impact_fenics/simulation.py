@@ -307,10 +307,26 @@ class Simulation:
         progress_due = progress.due
         signal_state = interrupts.STATE
         clock = time.perf_counter
+
+        def output_event(pre, n: int) -> None:
+            """The energy row of output step n (after it), its checks and the penalty's
+            figures."""
+            nonlocal max_bal, last_energy
+            row = self._post_output(pre, buf, ledger, load_work)
+            max_bal = max(max_bal, row["balance_error_rel"])
+            last_energy = row
+            if track.penalty:
+                track.budget = max(track.budget, abs(ledger.E0 or 0.0), abs(row["external_work"]))
+                if track.first is not None and not any(
+                        c.any_active for c in self.contacts):  # springs all released
+                    track.gain = max(track.gain, row["contact_work"])
+            self._check_stability(row, ledger, n)
+
         # linear bodies: the steps between events run as compiled blocks
         t_block = clock()
         block = (StepBlock.for_run(self, tables["history"], times, probes, (check_at, pairs_at),
-                                   self._pair_tables, runaway, last, track.state)
+                                   self._pair_tables, runaway, last, track.state,
+                                   (buf["u"], buf["v"], self._minus_m_over_dt))
                  if s.compiled_steps else None)
         self.setup_time["kernels"] = clock() - t_block
         self.compiled_steps = block is not None
@@ -319,35 +335,47 @@ class Simulation:
         n = 0
         try:
             while n < n_steps:
-                if (block is not None and n != output_at.next and n != fields_at.next
-                        and n != agree_at.next):
-                    # the steps up to the next output, fields or agreement step (or the
-                    # next look at the progress line, or a full history block) in one
-                    # compiled call: the Python steps are the same steps on every rank
-                    # (check and per-pair steps are the block's), so the ranks' collective
-                    # calls come in the same order
+                if block is not None and n != agree_at.next:
+                    # the steps up to the next output or agreement step (or the next look
+                    # at the progress line, or a full history block) in one compiled call,
+                    # an output step alone (its energy row after it): Python steps are
+                    # only agreement steps, the same on every rank, so the ranks'
+                    # collective calls come in the same order (the block runs the checks
+                    # and per-pair rows of its steps)
                     if event:  # the step after an event: none due
                         is_output = is_fields = is_pairs = is_check = is_agree = event = False
                     if pos:
                         times.book(pos)
                         pos = 0
-                    # (the block runs the divergence checks and pair rows of its steps, and
-                    # a fields step: its frame is written after it, here)
-                    end = min(output_at.next, fields_at.next + 1, agree_at.next, progress_due,
-                              n_steps)
-                    n, next_history = block.run(n, end, next_history,
-                                                hold=end == fields_at.next + 1)
+                    if n == output_at.next:  # u^n, v^n kept, the strain energy from the
+                        output_at.due(n)     # prediction in the block
+                        t4 = clock()
+                        pre = self._pre_output(buf, Ku)
+                        t_pre = clock() - t4
+                        n, next_history = block.run(n, n + 1, next_history, hold=True,
+                                                    output=True)
+                        self._strain_local = float(block.strain[0])
+                    else:  # a fields step ends its block: its frame is written after it
+                        end = min(output_at.next, fields_at.next + 1, agree_at.next,
+                                  progress_due, n_steps)
+                        n, next_history = block.run(n, end, next_history,
+                                                    hold=end == fields_at.next + 1)
                     if block.runaway >= 0:
                         self._runaway(block.runaway, f"the rigid body '{block.rigid.name}' "
                                       f"moves at {block.rigid.v} m/s")
                     if block.diverged >= 0:
                         v_max = v_check.norm_inf()
                         self._runaway(block.diverged, f"a node moves at {v_max:.4g} m/s")
-                    if block.held:  # the block ended with a fields step: its frame
-                        fields_at.due(n - 1)
+                    if block.held:  # the output of the block's last step, timed with it
                         t4 = clock()
-                        self._write_fields(writer)
-                        block.book_held(clock() - t4)
+                        if block.ints_output:
+                            output_event(pre, n - 1)
+                        else:
+                            t_pre = 0.0
+                        if fields_at.next == n - 1:
+                            fields_at.due(n - 1)
+                            self._write_fields(writer)
+                        block.book_held(t_pre + clock() - t4)
                     next_event = min(output_at.next, fields_at.next, pairs_at.next,
                                      check_at.next, agree_at.next)
                     if n >= progress_due:
@@ -402,16 +430,7 @@ class Simulation:
                         v_max = v_check.norm_inf()
                         self._runaway(n, f"a node moves at {v_max:.4g} m/s")
                     if is_output:
-                        row = self._post_output(pre, buf, ledger, load_work)
-                        max_bal = max(max_bal, row["balance_error_rel"])
-                        last_energy = row
-                        if track.penalty:
-                            track.budget = max(track.budget, abs(ledger.E0 or 0.0),
-                                               abs(row["external_work"]))
-                            if track.first is not None and not any(
-                                    c.any_active for c in self.contacts):  # springs all released
-                                track.gain = max(track.gain, row["contact_work"])
-                        self._check_stability(row, ledger, n)
+                        output_event(pre, n)
                     if is_fields:
                         self._write_fields(writer)
                     t5 = clock()

@@ -39,6 +39,7 @@ from numba import njit
 
 from . import native
 from .contact.fused import contact_step
+from .energy import strain_from_prediction
 from .contact.interface import (B, FORCE, LO, MISC_SIZE, N_CONS, STATS, U, U_NOW, UP, V,
                                 WAVES, ContactSet, _committed_gap, _pack)
 from .output import _pair_row
@@ -61,13 +62,14 @@ I_MULT_ADD, I_AXPY, I_CLOCK, I_A, I_U, I_V = range(14, 20)
 I_NEXT_CHECK, I_CHECK_EVERY, I_LAST = range(20, 23)
 I_PAIRS, I_NEXT_PAIRS, I_PAIRS_EVERY, I_PAIR_ROW, I_PAIR_CAPACITY = range(23, 28)
 # ... hold the last step's phase times (its output follows in Python: its time is added
-# before booking them)
-I_HOLD = 28
+# before booking them); the first step is an output step (its strain energy from the
+# prediction is kept)
+I_HOLD, I_OUTPUT = 28, 29
 # ... and out: the step reached, the PETSc error code, the step whose rigid body ran away,
 # the step after which a speed exceeded the runaway limit (-1: none), the last step's
 # times held in ``current`` (1) or booked (0)
-I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD = range(29, 34)
-N_INTS = 34
+I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD = range(30, 35)
+N_INTS = 35
 # the contact track (floats): lowest gap, first and last step in contact (-1: none),
 # steps in contact, reversals, the penalty's last number active and last nonzero change
 T_LOWEST, T_FIRST, T_LAST, T_STEPS, T_REVERSALS, T_ACTIVE, T_CHANGE = range(7)
@@ -91,7 +93,8 @@ def _next(k, every, last):
 @njit(cache=True)
 def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext, f_in, track,
               history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
-              timespec, mpi, local, send, counts, displs, reduce) -> None:
+              timespec, mpi, local, send, counts, displs, reduce, u_n, v_n, minus_m_over_dt,
+              strain) -> None:
     """Steps ints[I_N] .. ints[I_STOP] - 1 of the loop (integrator step ints[I_STEP] for the
     first), each as the Python step does it: predictor, contact step, track, history row
     (when the step is ints[I_NEXT_HISTORY]: then the next is ``ints[I_EVERY]`` on), phase
@@ -105,7 +108,11 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     contact dofs are packed (``local`` -> ``send``) and gathered (``counts``, ``displs``)
     before the contact step, and the check's count is reduced (``reduce``: 2 doubles),
     by the MPI library itself (``mpi``: native.mpi_addresses), as the Python step does
-    through mpi4py; every rank calls them at the same steps."""
+    through mpi4py; every rank calls them at the same steps. ints[I_OUTPUT]: the first
+    step is an output step, whose u^n, v^n the caller kept in ``u_n``, ``v_n``: its
+    strain energy (J, this rank's) from the prediction goes to strain[0]
+    (simulation._internal_force_from_prediction without loads), and it has a history row
+    whether or not one is due (as every output step)."""
     n0, stop, step0 = ints[I_N], ints[I_STOP], ints[I_STEP]
     contact, rigid = ints[I_CONTACT] != 0, ints[I_RIGID] != 0
     penalty, probes, timed = ints[I_PENALTY] != 0, ints[I_PROBES] != 0, ints[I_TIMED] != 0
@@ -136,6 +143,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         if err != 0:
             ints[I_ERROR] = err
             break
+        if k == n0 and ints[I_OUTPUT] != 0:
+            strain[0] = strain_from_prediction(u_n, src_v, v_n, minus_m_over_dt)
         t1 = native.now(clock, timespec)
         t2 = t1
         u_r = v_r = 0.0
@@ -167,8 +176,10 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                     track[T_CHANGE] = d
         t3 = native.now(clock, timespec)
         k += 1
-        if k - 1 == next_history:  # the history row of the state after the step
+        due = k - 1 == next_history
+        if due:
             next_history += every
+        if due or (k - 1 == n0 and ints[I_OUTPUT] != 0):  # the state after the step
             j = row * width
             row += 1
             if probes:
@@ -235,7 +246,7 @@ class StepBlock:
 
     def __init__(self, integ, contact, table, times, probes, every: int, addresses,
                  schedules, pairs, limit: float, last: int, track: np.ndarray,
-                 mpi: np.ndarray | None = None):
+                 mpi: np.ndarray | None, state_n: tuple):
         self.integ, self.contact, self.table, self.times = integ, contact, table, times
         self.rigid = contact.rigid if contact is not None else None
         self.check_at, self.pairs_at = schedules
@@ -284,17 +295,19 @@ class StepBlock:
         else:  # (never used)
             comm = (np.zeros(6, dtype=np.int64), np.zeros(0, dtype=np.int32), np.zeros(0),
                     np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(2))
+        self.strain = np.zeros(1)  # an output step's strain energy (J, this rank's part)
         self._args = (ints, integ.dt, float(limit), *call, self._f_ext, self._f_in, self.track,
                       table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64),
-                      *comm)
+                      *comm, *state_n, self.strain)
         from .jit_watch import direct
 
         self._run = direct(run_steps, *self._args)
 
     @classmethod
     def for_run(cls, sim, table, times, probes, schedules, pair_tables, limit: float,
-                last: int, track: np.ndarray) -> "StepBlock | None":
-        """The block of ``sim``'s run, or None where the Python step must run."""
+                last: int, track: np.ndarray, state_n: tuple) -> "StepBlock | None":
+        """The block of ``sim``'s run, or None where the Python step must run. ``state_n``:
+        (u^n, v^n buffers of an output step, -M/dt) as simulation.run keeps them."""
         integ = sim.integrator
         if integ.A is None or integ.nonlinear or integ.loads or len(sim.contacts) > 1:
             return None
@@ -309,19 +322,22 @@ class StepBlock:
             return None
         pairs = pair_tables[0][1] if pair_tables else None
         return cls(integ, contact, table, times, probes, sim.settings.history_every, addresses,
-                   schedules, pairs, limit, last, track, mpi)
+                   schedules, pairs, limit, last, track, mpi, state_n)
 
-    def run(self, n: int, stop: int, next_history: int, hold: bool = False) -> tuple[int, int]:
+    def run(self, n: int, stop: int, next_history: int, hold: bool = False,
+            output: bool = False) -> tuple[int, int]:
         """Run the loop's steps n .. stop - 1 (or fewer: see :func:`run_steps`); returns (the
         loop's next step, the next history step). Raises RuntimeError on a PETSc error;
         a runaway is left for the caller in :attr:`runaway` and :attr:`diverged` (the
         step after which it was seen, or -1). ``hold``: if step stop - 1 is reached, its
         phase times are not booked: :meth:`book_held` books them with the time of what
-        the caller does after it (:attr:`held`)."""
+        the caller does after it (:attr:`held`). ``output``: step n is an output step (its
+        u^n, v^n kept by the caller): its strain energy goes to :attr:`strain`."""
         ints, integ, rigid = self.ints, self.integ, self.rigid
         if stop > n + self.max_steps:
             stop, hold = n + self.max_steps, False
         ints[I_HOLD] = hold
+        ints[I_OUTPUT] = output
         if rigid is not None:  # its force functions at each step's t^n, in Python
             dt, step0 = integ.dt, integ.n
             f_ext, f_in, incident = self._f_ext, self._f_in, rigid.incident
@@ -358,6 +374,11 @@ class StepBlock:
             raise RuntimeError(f"PETSc error {int(ints[I_ERROR])} in the step "
                                f"{integ.n} -> {integ.n + 1}")
         return done, int(ints[I_NEXT_HISTORY])
+
+    @property
+    def ints_output(self) -> bool:
+        """Was the last block an output step's (:meth:`run`'s ``output``)?"""
+        return self.ints[I_OUTPUT] != 0
 
     @property
     def held(self) -> bool:

@@ -37,11 +37,13 @@ BAR_H = 0.02  # the demo's element size (m); BAR_DT is for it
 BAR_FINER = (0.01, 0.005)  # finer meshes (m): 4x and 16x the dofs, dt = BAR_DT h / BAR_H
 
 
-def _matmult_median(integ, comm, repeats: int = 7, inner: int = 50) -> float:
-    """Median seconds of one bare K x (the slowest rank's)."""
+def _matmult_median(integ, comm, repeats: int = 15, inner: int = 100) -> float:
+    """Median seconds of one bare K x (the slowest rank's), after a warm-up."""
     x = integ.K.createVecRight()
     y = integ.K.createVecLeft()
     x.setRandom()
+    for _ in range(inner):
+        integ.K.mult(x, y)
     samples = []
     for _ in range(repeats):
         comm.Barrier()

@@ -209,10 +209,10 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             current[F_INT] = t1 - t0
             current[SOLVE] = t2 - t1
             current[HISTORY] = t4 - t3
-            if k == stop and ints[I_HOLD] != 0:
-                ints[I_HELD] = 1
-            else:
-                _book(current, totals, sample, state)
+        if k == stop and ints[I_HOLD] != 0:  # (with or without timers: the caller's output)
+            ints[I_HELD] = 1
+        elif timed:
+            _book(current, totals, sample, state)
         if rigid and not math.isfinite(F[V, body]):
             ints[I_RUNAWAY] = k - 1
             break
@@ -354,6 +354,8 @@ class StepBlock:
         t = time.perf_counter()
         self._run(*self._args)
         done = int(ints[I_DONE])
+        if done == n and not (ints[I_ERROR] or ints[I_RUNAWAY] >= 0 or ints[I_DIVERGED] >= 0):
+            raise RuntimeError(f"a block of steps from step {n} to {stop} made no step")
         if done > n:  # a block of at most BLOCK_SECONDS at the rate so far
             per_step = (time.perf_counter() - t) / (done - n)
             self.max_steps = max(1, min(MAX_STEPS, int(BLOCK_SECONDS / max(per_step, 1e-9))))

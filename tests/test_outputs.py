@@ -22,6 +22,7 @@ import math
 import os
 import shutil
 import subprocess
+import time
 import xml.etree.ElementTree as ET
 
 import h5py
@@ -295,13 +296,15 @@ def _pvbatch(xdmf: str):
         cmd = ["xvfb-run", "-a"] + cmd
     else:
         cmd.insert(1, "--force-offscreen-rendering")
-    for _ in range(3):
+    for attempt in range(5):
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
                               env=clean_mpi_env())
         # xvfb-run -a picks its display number racily: with other X servers starting at
-        # the same moment, ParaView may find none and abort in creating its window
+        # the same moment, ParaView may find none and abort in creating its window; the
+        # next try waits a little longer each time (another pvbatch on the machine)
         if "CreateAWindow" not in proc.stderr:
             break
+        time.sleep(1.0 + attempt)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 

@@ -40,6 +40,7 @@ from numba import njit
 from . import native
 from .contact.fused import contact_step
 from .energy import strain_from_prediction
+from .jit_watch import drop_stale_cache
 from .contact.interface import (B, FORCE, LO, MISC_SIZE, N_CONS, STATS, U, U_NOW, UP, V,
                                 WAVES, ContactSet, _committed_gap, _pack)
 from .output import _pair_row
@@ -234,6 +235,17 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     ints[I_NEXT_CHECK] = next_check
     ints[I_NEXT_PAIRS] = next_pairs
     ints[I_PAIR_ROW] = pair_row
+
+
+# run_steps compiles the kernels of these modules into itself: its cache goes with theirs
+def _callees():
+    from . import energy, output, probes, timers
+    from .contact import dme, film, fused, interface, penalty
+
+    return (native, energy, output, probes, timers, dme, film, fused, interface, penalty)
+
+
+drop_stale_cache(run_steps, _callees())
 
 
 class StepBlock:

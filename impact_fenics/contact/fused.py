@@ -37,6 +37,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..jit_watch import drop_stale_cache
+from . import dme, film, interface, penalty
 from .dme import _cluster, _pairs
 from .film import _film_fast
 from .interface import (ALL_POS, B, CODE, D, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
@@ -325,3 +327,7 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
         misc[RIGID_WORK] += 0.5 * dt * v_n * (misc[RIGID_F_PREV] + f)
     misc[RIGID_F_PREV] = f
     return F[U, body], v_next
+
+
+# contact_step compiles the method kernels into itself: its cache goes with theirs
+drop_stale_cache(contact_step, (dme, film, interface, penalty))

@@ -14,7 +14,10 @@ import sys
 import textwrap
 import time
 
+from conftest import clean_mpi_env  # (under mpirun: the child is not a rank of this job)
 from mpi4py import MPI
+
+import impact_fenics  # noqa: F401  (PETSc starts on every rank, collectively, at import)
 
 COMM = MPI.COMM_WORLD
 
@@ -50,7 +53,7 @@ def _value(root: str) -> tuple[int, int]:
             "'caller.twice-*')));"
             "print(c.twice(), n)")
     out = subprocess.run([sys.executable, "-c", code, root], capture_output=True, text=True,
-                         check=True).stdout.split()
+                         check=True, env=clean_mpi_env()).stdout.split()
     return int(out[0]), int(out[1])
 
 

@@ -101,19 +101,8 @@ class Ledger:
         if E0 is None:
             self.E0 = E0 = E
         balance = E - E0 - external_work - contact_work
-        # scale = max(scale, |E|, |E0|, |external_work|, |contact_work|), the builtin's
-        # comparisons (a term replaces the largest so far only if it is larger) without
-        # its call
-        scale = self.scale
-        if abs(E) > scale:
-            scale = abs(E)
-        if abs(E0) > scale:
-            scale = abs(E0)
-        if abs(external_work) > scale:
-            scale = abs(external_work)
-        if abs(contact_work) > scale:
-            scale = abs(contact_work)
-        self.scale = scale
+        self.scale = scale = max(self.scale, abs(E), abs(E0), abs(external_work),
+                                 abs(contact_work))
         rel = abs(balance) / scale if scale > 0 else 0.0
         return E, balance, rel
 

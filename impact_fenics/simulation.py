@@ -361,14 +361,12 @@ class Simulation:
                         n, next_history = block.run(n, end, next_history,
                                                     hold=end == fields_at.next + 1)
                     if block.runaway >= 0:
-                        self._runaway(block.runaway, f"the rigid body '{block.rigid.name}' "
-                                      f"moves at {block.rigid.v} m/s")
+                        self._rigid_runaway(block.runaway, block.rigid)
                     if block.diverged >= 0:
-                        v_max = v_check.norm_inf()
-                        self._runaway(block.diverged, f"a node moves at {v_max:.4g} m/s")
+                        self._node_runaway(block.diverged, v_check)
                     if block.held:  # the output of the block's last step, timed with it
                         t4 = clock()
-                        if block.ints_output:
+                        if block.was_output:
                             output_event(pre, n - 1)
                         else:
                             t_pre = 0.0
@@ -424,11 +422,10 @@ class Simulation:
                 t4 = clock()
                 for body in rigid:
                     if not math.isfinite(body.v):
-                        self._runaway(n, f"the rigid body '{body.name}' moves at {body.v} m/s")
+                        self._rigid_runaway(n, body)
                 if event:
                     if is_check and v_check.exceeds(runaway):
-                        v_max = v_check.norm_inf()
-                        self._runaway(n, f"a node moves at {v_max:.4g} m/s")
+                        self._node_runaway(n, v_check)
                     if is_output:
                         output_event(pre, n)
                     if is_fields:
@@ -674,6 +671,14 @@ class Simulation:
         raise UnstableRunError(self._diagnosis(
             n, f"{what}, beyond the runaway speed {self._runaway_speed():.4g} m/s "
                "(not finite, or a strain beyond 1)"))
+
+    def _rigid_runaway(self, n: int, body: RigidBody) -> None:
+        """Stop at step n: ``body`` moves at a speed that is not finite."""
+        self._runaway(n, f"the rigid body '{body.name}' moves at {body.v} m/s")
+
+    def _node_runaway(self, n: int, v_check: "_OwnedVec") -> None:
+        """Stop at step n: a node moves beyond the runaway speed (collective)."""
+        self._runaway(n, f"a node moves at {v_check.norm_inf():.4g} m/s")
 
     def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
         """Stop a run whose energy (J) is not finite or grew beyond energy_growth_limit x

@@ -390,7 +390,7 @@ class StepBlock:
         return done, int(ints[I_NEXT_HISTORY])
 
     @property
-    def ints_output(self) -> bool:
+    def was_output(self) -> bool:
         """Was the last block an output step's (:meth:`run`'s ``output``)?"""
         return self.ints[I_OUTPUT] != 0
 

@@ -91,7 +91,7 @@ def _next(k, every, last):
     return min(k + every, last) if k < last else last + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # (the GIL is free for a writer thread while it runs)
 def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext, f_in, track,
               history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
               timespec, mpi, local, send, counts, displs, reduce, u_n, v_n, minus_m_over_dt,

@@ -22,6 +22,8 @@ The ledger's energy is then  1/2 (v^n)' M v^{n+1} + 1/2 (u^n)' K u^n + psi_e + W
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from mpi4py import MPI
 from numba import njit
@@ -105,6 +107,26 @@ class Ledger:
                                  abs(contact_work))
         rel = abs(balance) / scale if scale > 0 else 0.0
         return E, balance, rel
+
+
+# energy_verdict's answers
+STABLE, NOT_FINITE, GREW = 0, 1, 2
+
+
+@njit(cache=True)
+def energy_verdict(kinetic: float, strain: float, external_work: float, contact_work: float,
+                   total: float, E0: float, limit: float) -> int:
+    """Is the energy of an output step sound? NOT_FINITE if kinetic, strain, external or
+    contact work (J) is not finite; GREW if E_n (``total``, J) exceeds ``limit`` x the
+    energy put in, max(|E_0|, |W_ext|) (when either is nonzero); else STABLE. (The
+    loop's stability check, in Python and in the compiled steps.)"""
+    if not (math.isfinite(kinetic) and math.isfinite(strain) and math.isfinite(external_work)
+            and math.isfinite(contact_work)):
+        return NOT_FINITE
+    budget = max(abs(E0), abs(external_work), 1e-300)
+    if total > limit * budget and (E0 != 0.0 or external_work != 0.0):
+        return GREW
+    return STABLE
 
 
 @njit(cache=True)
@@ -214,6 +236,11 @@ class OutputSums:
         # contiguous: the loop's arrays), taken now, not at the first output
         self._sums = direct(_output_sums, mass, mass, mass, self._dofs, self._start,
                             self._local)
+
+    @property
+    def size(self) -> int:
+        """The number of sums (3 + bodies + the extra numbers)."""
+        return self._local.size
 
     def reduce(self, v_now: np.ndarray, v_next: np.ndarray, strain: float,
                extra=()) -> memoryview:

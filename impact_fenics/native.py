@@ -10,7 +10,7 @@ bit for bit, without petsc4py's ~0.2 us a call. The addresses are arguments of t
 kernel, not constants compiled into it, so numba caches the kernel across runs.
 
 MPI is called the same way, from the library mpi4py loaded, with mpi4py's handles
-of the communicator, MPI_DOUBLE and MPI_MAX: pointers in Open MPI, ``int`` in
+of the communicator, MPI_DOUBLE, MPI_MAX and MPI_SUM: pointers in Open MPI, ``int`` in
 MPICH (:func:`mpi_addresses` says which; the kernels call the matching form).
 
 :func:`now` reads CLOCK_MONOTONIC, the clock of ``time.perf_counter`` on Linux
@@ -29,8 +29,8 @@ from numba.extending import intrinsic
 
 CLOCK_MONOTONIC = 1  # Linux <time.h>
 # mpi_addresses(): MPI_Allgatherv, MPI_Allreduce, handles 64-bit (1) or 32-bit (0), and the
-# handles of the communicator, MPI_DOUBLE and MPI_MAX
-M_ALLGATHERV, M_ALLREDUCE, M_WIDE, M_COMM, M_DOUBLE, M_MAX = range(6)
+# handles of the communicator, MPI_DOUBLE, MPI_MAX and MPI_SUM
+M_ALLGATHERV, M_ALLREDUCE, M_WIDE, M_COMM, M_DOUBLE, M_MAX, M_SUM = range(7)
 
 
 @intrinsic
@@ -133,13 +133,14 @@ def allgatherv(mpi, send, recv, counts, displs) -> int:
 
 
 @njit(cache=True)
-def allreduce_max(mpi, send, recv) -> int:
-    """MPI_Allreduce(MPI_MAX) of the doubles ``send`` into ``recv``."""
+def allreduce(mpi, send, recv, op: int) -> int:
+    """MPI_Allreduce of the doubles ``send`` into ``recv`` by the operation in ``mpi[op]``
+    (``op``: M_MAX or M_SUM)."""
     if mpi[M_WIDE] != 0:
         return _allreduce_64(mpi[M_ALLREDUCE], send.ctypes.data, recv.ctypes.data,
-                             np.int32(send.size), mpi[M_DOUBLE], mpi[M_MAX], mpi[M_COMM])
+                             np.int32(send.size), mpi[M_DOUBLE], mpi[op], mpi[M_COMM])
     return _allreduce_32(mpi[M_ALLREDUCE], send.ctypes.data, recv.ctypes.data,
-                         np.int32(send.size), mpi[M_DOUBLE], mpi[M_MAX], mpi[M_COMM])
+                         np.int32(send.size), mpi[M_DOUBLE], mpi[op], mpi[M_COMM])
 
 
 @njit(cache=True)
@@ -208,7 +209,7 @@ def _signed(handle: int, bits: int) -> int:
 
 
 def mpi_addresses(comm) -> np.ndarray | None:
-    """int64 [MPI_Allgatherv, MPI_Allreduce, wide, comm, MPI_DOUBLE, MPI_MAX] for ``comm``
+    """int64 [MPI_Allgatherv, MPI_Allreduce, wide, comm, MPI_DOUBLE, MPI_MAX, MPI_SUM] for ``comm``
     (layout M_*), or None where they cannot be had (the caller then stays with mpi4py)."""
     from mpi4py import MPI
 
@@ -223,5 +224,5 @@ def mpi_addresses(comm) -> np.ndarray | None:
         functions = [_address(lib.MPI_Allgatherv), _address(lib.MPI_Allreduce)]
     except (OSError, AttributeError):
         return None
-    handles = [_signed(MPI._handleof(h), bits) for h in (comm, MPI.DOUBLE, MPI.MAX)]
+    handles = [_signed(MPI._handleof(h), bits) for h in (comm, MPI.DOUBLE, MPI.MAX, MPI.SUM)]
     return np.array(functions + [bits == 64] + handles, dtype=np.int64)

@@ -23,8 +23,8 @@ from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
-from .energy import (Ledger, LoadWork, OutputSums, copy_state, half_dot,
-                     strain_from_prediction)
+from .energy import (GREW, NOT_FINITE, Ledger, LoadWork, OutputSums, copy_state,
+                     energy_verdict, half_dot, strain_from_prediction)
 from .errors import InputError, UnstableRunError, require
 from .integrator import Integrator
 from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
@@ -57,6 +57,7 @@ RUNAWAY_FACTOR = 10.0
 PENALTY_BOUND = 4.0 / 3.0
 CHATTER_MIN, CHATTER_SHARE, GAIN_SHARE = 10, 0.05, 0.01
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
+OUTPUT_PHASE = PHASES.index("output")
 
 
 @dataclass
@@ -167,6 +168,7 @@ class Simulation:
         self._copy_state = direct(copy_state, mass, mass, mass, mass)
         self._strain_from_prediction = direct(strain_from_prediction, mass, mass, mass, mass)
         load(half_dot, mass, mass)
+        load(energy_verdict, *[0.0] * 7)  # (the stability check of every output step)
         self._event_buf = None  # the run's output buffers, once _bind_output has seen them
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
@@ -308,24 +310,25 @@ class Simulation:
         signal_state = interrupts.STATE
         clock = time.perf_counter
 
-        def output_event(pre, n: int) -> None:
-            """The energy row of output step n (after it), its checks and the penalty's
-            figures."""
+        def output_event(row: dict, rec: memoryview, n: int) -> None:
+            """After the energy row ``row`` of output step n (from its record ``rec``): its
+            checks and the penalty's figures."""
             nonlocal max_bal, last_energy
-            row = self._post_output(pre, buf, ledger, load_work)
             max_bal = max(max_bal, row["balance_error_rel"])
             last_energy = row
             if track.penalty:
                 track.budget = max(track.budget, abs(ledger.E0 or 0.0), abs(row["external_work"]))
-                if track.first is not None and not any(
-                        c.any_active for c in self.contacts):  # springs all released
+                if rec[-1]:  # contact made, the springs all released
                     track.gain = max(track.gain, row["contact_work"])
             self._check_stability(row, ledger, n)
 
         # linear bodies: the steps between events run as compiled blocks
         t_block = clock()
-        block = (StepBlock.for_run(self, tables["history"], times, probes, (check_at, pairs_at),
-                                   self._pair_tables, runaway, last, track.state,
+        if s.compiled_steps and buf is not self._event_buf:
+            self._bind_output(buf)  # (the energy rows of the blocks' output steps)
+        block = (StepBlock.for_run(self, tables["history"], times, probes,
+                                   (output_at, check_at, pairs_at), self._pair_tables, runaway,
+                                   last, track.state,
                                    (buf["u"], buf["v"], self._minus_m_over_dt))
                  if s.compiled_steps else None)
         self.setup_time["kernels"] = clock() - t_block
@@ -336,44 +339,36 @@ class Simulation:
         try:
             while n < n_steps:
                 if block is not None and n != agree_at.next:
-                    # the steps up to the next output or agreement step (or the next look
-                    # at the progress line, or a full history block) in one compiled call,
-                    # an output step alone (its energy row after it): Python steps are
-                    # only agreement steps, the same on every rank, so the ranks'
-                    # collective calls come in the same order (the block runs the checks
-                    # and per-pair rows of its steps)
+                    # the steps up to the next fields or agreement step (or the next look at
+                    # the progress line, or a full history block) in one compiled call, the
+                    # energy rows of its output steps after it: Python steps are only
+                    # agreement steps, the same on every rank, so the ranks' collective calls
+                    # come in the same order (the block runs the checks, the output steps'
+                    # sums and per-pair rows of its steps)
                     if event:  # the step after an event: none due
                         is_output = is_fields = is_pairs = is_check = is_agree = event = False
                     if pos:
                         times.book(pos)
                         pos = 0
-                    if n == output_at.next:  # u^n, v^n kept, the strain energy from the
-                        output_at.due(n)     # prediction in the block
-                        t4 = clock()
-                        pre = self._pre_output(buf, Ku)
-                        t_pre = clock() - t4
-                        n, next_history = block.run(n, n + 1, next_history, hold=True,
-                                                    output=True)
-                        self._strain_local = float(block.strain[0])
-                    else:  # a fields step ends its block: its frame is written after it
-                        end = min(output_at.next, fields_at.next + 1, agree_at.next,
-                                  progress_due, n_steps)
-                        n, next_history = block.run(n, end, next_history,
-                                                    hold=end == fields_at.next + 1)
+                    end = min(fields_at.next + 1, agree_at.next, progress_due, n_steps)
+                    n, next_history = block.run(n, end, next_history,
+                                                hold=end == fields_at.next + 1, E0=ledger.E0)
+                    t4 = clock()
+                    if block.n_events:  # their energy rows (the step numbers: integ's)
+                        shift = integ.n - n
+                        for i in range(block.n_events):
+                            rec, k = block.event(i)
+                            output_event(self._row_from_record(rec, k + shift, ledger), rec, k)
                     if block.runaway >= 0:
                         self._rigid_runaway(block.runaway, block.rigid)
                     if block.diverged >= 0:
                         self._node_runaway(block.diverged, v_check)
-                    if block.held:  # the output of the block's last step, timed with it
-                        t4 = clock()
-                        if block.was_output:
-                            output_event(pre, n - 1)
-                        else:
-                            t_pre = 0.0
-                        if fields_at.next == n - 1:
-                            fields_at.due(n - 1)
-                            self._write_fields(writer)
-                        block.book_held(t_pre + clock() - t4)
+                    if block.held:  # the frame of the block's last step, timed with it
+                        fields_at.due(n - 1)
+                        self._write_fields(writer)
+                        block.book_held(clock() - t4)
+                    elif times is not None:
+                        times.totals[OUTPUT_PHASE] += clock() - t4
                     next_event = min(output_at.next, fields_at.next, pairs_at.next,
                                      check_at.next, agree_at.next)
                     if n >= progress_due:
@@ -427,7 +422,8 @@ class Simulation:
                     if is_check and v_check.exceeds(runaway):
                         self._node_runaway(n, v_check)
                     if is_output:
-                        output_event(pre, n)
+                        output_event(self._post_output(pre, buf, ledger, load_work),
+                                     self._record_view, n)
                     if is_fields:
                         self._write_fields(writer)
                     t5 = clock()
@@ -535,8 +531,13 @@ class Simulation:
         self._rigid_v_now = [0.0] * len(self._rigid_sets)
         self._load_terms = list(zip(integ.loads, integ._load_dofs, integ._load_coef))
         self._energy_row = dict.fromkeys(_ENERGY_COLUMNS, 0.0)
+        # an output step's numbers (layout: see
+        # event_record_size), filled by _post_output or by the compiled steps (_row_from_record
+        # makes the row from it)
+        self._record = np.zeros(self.event_record_size())
+        self._record_view = memoryview(self._record)
         # the energy table's row: step, time, _ENERGY_COLUMNS, momentum_z, per body and
-        # per rigid body (the order _post_output writes)
+        # per rigid body (the order _row_from_record writes)
         layout = ["step", "time", *_ENERGY_COLUMNS, *self._momentum_columns()]
         if self.energy.columns != layout:
             raise RuntimeError(f"energy columns {self.energy.columns}, expected {layout}")
@@ -579,10 +580,19 @@ class Simulation:
                                                          self._minus_m_over_dt[dofs] * coef))
         self._strain_local = strain
 
+    def event_record_size(self) -> int:
+        """Floats in an output step's record: the OutputSums (kinetic, strain, p_z, p_z per
+        body, the extra local numbers: J, kg m/s), per contact set its work and activation
+        loss (J), per rigid body v^n, v^{n+1} (m/s) and its external work (J), then 1 if
+        contact was made and no constraint is active after the step (else 0)."""
+        n_rigid = sum(c.rigid is not None for c in self.contacts)
+        return self._output_sums.size + 2 * len(self.contacts) + 3 * n_rigid + 1
+
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         """The energy row of the output step (step integ.n - 1) into the energy table, and
         its energy columns (_ENERGY_COLUMNS, J) returned: a dict that every event updates
-        in place (after the run it holds the last row's). ``pre``: :meth:`_pre_output`'s."""
+        in place (after the run it holds the last row's). ``pre``: :meth:`_pre_output`'s.
+        The step's numbers go into the record first (the compiled steps fill it alike)."""
         integ = self.integrator
         nonlinear = integ.nonlinear
         sums = self._output_sums
@@ -593,29 +603,52 @@ class Simulation:
                 sum(f.deformation_work_local for f in nonlinear)))
         else:
             total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, (load_work.local,))
-        kinetic, strain = total[0], total[1]  # floats (a memoryview's items)
+        rec = self._record_view
+        j = sums.size
+        rec[:j] = total
+        for c in self.contacts:
+            rec[j] = c.contact_work
+            rec[j + 1] = c.activation_loss
+            j += 2
+        for c, v_now in zip(self._rigid_sets, pre):
+            rec[j] = v_now
+            rec[j + 1] = c.rigid.v
+            rec[j + 2] = c.rigid_external_work
+            j += 3
+        rec[j] = float(self.track.first is not None
+                       and not any(c.any_active for c in self.contacts))
+        return self._row_from_record(rec, integ.n - 1, ledger)
+
+    def _row_from_record(self, rec: memoryview, n: int, ledger) -> dict:
+        """The energy row of output step ``n`` from its record ``rec`` (see
+        :meth:`event_record_size`) into the energy table; its energy columns returned
+        (:meth:`_post_output`)."""
+        sums = self._output_sums
+        kinetic, strain = rec[0], rec[1]  # floats (a memoryview's items)
         k = 3 + sums.n_bodies
-        ext = total[k]
+        ext = rec[k]
         rigid = self._rigid_sets
-        if rigid:
-            for c, v_now in zip(rigid, pre):
-                kinetic += c.kinetic_energy_rigid(v_now, c.rigid.v)
-                ext += c.rigid_external_work
+        j = sums.size + 2 * len(self.contacts)
+        for c in rigid:
+            kinetic += c.kinetic_energy_rigid(rec[j], rec[j + 1])
+            ext += rec[j + 2]
+            j += 3
         work_c = 0.0
         activation = 0  # (an int without contact sets, as the sum of none)
+        j = sums.size
         for c in self.contacts:
-            work_c += c.contact_work
-            activation += c.activation_loss
+            work_c += rec[j]
+            activation += rec[j + 1]
+            j += 2
         plastic = deformation = 0.0
-        if nonlinear:
-            strain += total[k + 1]
-            plastic, deformation = total[k + 2], total[k + 3]
+        if self.integrator.nonlinear:
+            strain += rec[k + 1]
+            plastic, deformation = rec[k + 2], rec[k + 3]
         energy, balance, rel = ledger.record(kinetic, strain, ext, work_c, plastic)
         # the table's row through its memoryview (layout checked by _bind_output)
         table = self.energy
         j = table.next_row()
         cells = table.cells
-        n = integ.n - 1
         cells[j] = n
         cells[j + 1] = n * self.settings.dt
         row = self._energy_row
@@ -631,16 +664,18 @@ class Simulation:
         row["balance_error_rel"] = cells[j + 11] = rel
         # z momentum (kg m/s) of v^{n+1}: in total (every node once) and per body
         # (a node that two bonded bodies share counts in both)
-        p_total = total[2]
+        p_total = rec[2]
         m = j + 13
         for b in range(3, k):
-            cells[m] = total[b]
+            cells[m] = rec[b]
             m += 1
+        v_next = sums.size + 2 * len(self.contacts) + 1
         for c in rigid:
-            p = c.rigid.mass * c.rigid.v
+            p = c.rigid.mass * rec[v_next]
             cells[m] = p
             m += 1
             p_total += p
+            v_next += 3
         cells[j + 12] = p_total
         return row
 
@@ -684,14 +719,14 @@ class Simulation:
         """Stop a run whose energy (J) is not finite or grew beyond energy_growth_limit x
         the energy put in (E_0 or the external work)."""
         ext = row["external_work"]
-        isfinite = math.isfinite
-        if not (isfinite(row["kinetic"]) and isfinite(row["strain"]) and isfinite(ext)
-                and isfinite(row["contact_work"])):
+        E0 = ledger.E0 or 0.0
+        limit = float(self.settings.energy_growth_limit)
+        verdict = energy_verdict(row["kinetic"], row["strain"], ext, row["contact_work"],
+                                 row["total"], E0, limit)
+        if verdict == NOT_FINITE:
             raise UnstableRunError(self._diagnosis(n, "the energy is not finite"))
-        E0 = ledger.E0
-        budget = max(abs(E0 or 0.0), abs(ext), 1e-300)
-        limit = self.settings.energy_growth_limit
-        if row["total"] > limit * budget and (E0 or ext):
+        if verdict == GREW:
+            budget = max(abs(E0), abs(ext), 1e-300)
             raise UnstableRunError(self._diagnosis(
                 n, f"the energy {row['total']:.4g} J grew beyond {limit:g} x the energy put in "
                    f"({budget:.4g} J)"))

@@ -39,10 +39,12 @@ from numba import njit
 
 from . import native
 from .contact.fused import contact_step
-from .energy import strain_from_prediction
+from .energy import (STABLE, _output_sums, copy_state, energy_verdict,
+                     strain_from_prediction)
 from .jit_watch import drop_stale_cache
-from .contact.interface import (B, FORCE, LO, MISC_SIZE, N_CONS, STATS, U, U_NOW, UP, V,
-                                WAVES, ContactSet, _committed_gap, _pack)
+from .contact.interface import (B, FORCE, LEDGER, LO, MISC_SIZE, N_CONS, RIGID_MASS,
+                                RIGID_WORK, STATS, U, U_NOW, UP, V, WAVES, ContactSet,
+                                _committed_gap, _pack)
 from .output import _pair_row
 from .probes import _record_at
 from .timers import _book
@@ -62,15 +64,17 @@ I_MULT_ADD, I_AXPY, I_CLOCK, I_A, I_U, I_V = range(14, 20)
 # next step, every, rows filled, rows of the block)
 I_NEXT_CHECK, I_CHECK_EVERY, I_LAST = range(20, 23)
 I_PAIRS, I_NEXT_PAIRS, I_PAIRS_EVERY, I_PAIR_ROW, I_PAIR_CAPACITY = range(23, 28)
-# ... hold the last step's phase times (its output follows in Python: its time is added
-# before booking them); the first step is an output step (its strain energy from the
-# prediction is kept)
-I_HOLD, I_OUTPUT = 28, 29
+# ... hold the last step's phase times (its frame follows in Python: its time is added
+# before booking them); the output steps (next, every)
+I_HOLD, I_NEXT_OUTPUT, I_OUTPUT_EVERY = 28, 29, 30
 # ... and out: the step reached, the PETSc error code, the step whose rigid body ran away,
 # the step after which a speed exceeded the runaway limit (-1: none), the last step's
-# times held in ``current`` (1) or booked (0)
-I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD = range(30, 35)
-N_INTS = 35
+# times held in ``current`` (1) or booked (0), the output steps recorded, the output step
+# whose energy failed energy_verdict (-1: none)
+I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD, I_EVENTS, I_UNSOUND = range(31, 38)
+N_INTS = 38
+# energy (floats): E_0 of the ledger (J; NaN before the first output), the growth limit
+E_0, E_LIMIT = 0, 1
 # the contact track (floats): lowest gap, first and last step in contact (-1: none),
 # steps in contact, reversals, the penalty's last number active and last nonzero change
 T_LOWEST, T_FIRST, T_LAST, T_STEPS, T_REVERSALS, T_ACTIVE, T_CHANGE = range(7)
@@ -95,7 +99,8 @@ def _next(k, every, last):
 def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext, f_in, track,
               history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
               timespec, mpi, local, send, counts, displs, reduce, u_n, v_n, minus_m_over_dt,
-              strain) -> None:
+              mass, body_dofs, body_start, sums_local, sums_total, events, event_steps,
+              energy) -> None:
     """Steps ints[I_N] .. ints[I_STOP] - 1 of the loop (integrator step ints[I_STEP] for the
     first), each as the Python step does it: predictor, contact step, track, history row
     (when the step is ints[I_NEXT_HISTORY]: then the next is ``ints[I_EVERY]`` on), phase
@@ -109,11 +114,19 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     contact dofs are packed (``local`` -> ``send``) and gathered (``counts``, ``displs``)
     before the contact step, and the check's count is reduced (``reduce``: 2 doubles),
     by the MPI library itself (``mpi``: native.mpi_addresses), as the Python step does
-    through mpi4py; every rank calls them at the same steps. ints[I_OUTPUT]: the first
-    step is an output step, whose u^n, v^n the caller kept in ``u_n``, ``v_n``: its
-    strain energy (J, this rank's) from the prediction goes to strain[0]
-    (simulation._internal_force_from_prediction without loads), and it has a history row
-    whether or not one is due (as every output step)."""
+    through mpi4py; every rank calls them at the same steps.
+
+    An output step (ints[I_NEXT_OUTPUT], then every ints[I_OUTPUT_EVERY]) keeps u^n, v^n
+    (``u_n``, ``v_n``), has a history row whether or not one is due, and after it its
+    record (simulation.event_record_size's layout) goes to the next row of ``events``
+    (its loop step to ``event_steps``; ints[I_EVENTS] rows in all): the output sums
+    (energy._output_sums of M = ``mass``, the strain energy 1/2 u'Ku from the
+    prediction, summed over the ranks into ``sums_total`` by MPI_SUM under MPI), the
+    contact set's work and activation loss, the rigid body's v^n, v^{n+1} and external
+    work, and whether contact was made and nothing is active. The loop makes the energy
+    rows from them after the block. If the step's energy fails energy_verdict (E_0 and the
+    growth limit in ``energy``) the block stops after it (ints[I_UNSOUND] = that step):
+    the loop's row of it raises. A full ``events`` stops the block too."""
     n0, stop, step0 = ints[I_N], ints[I_STOP], ints[I_STEP]
     contact, rigid = ints[I_CONTACT] != 0, ints[I_RIGID] != 0
     penalty, probes, timed = ints[I_PENALTY] != 0, ints[I_PROBES] != 0, ints[I_TIMED] != 0
@@ -124,28 +137,39 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     last, next_check, check_every = ints[I_LAST], ints[I_NEXT_CHECK], ints[I_CHECK_EVERY]
     pairs, next_pairs, pairs_every = ints[I_PAIRS] != 0, ints[I_NEXT_PAIRS], ints[I_PAIRS_EVERY]
     pair_row, pair_capacity = ints[I_PAIR_ROW], ints[I_PAIR_CAPACITY]
+    next_output, output_every = ints[I_NEXT_OUTPUT], ints[I_OUTPUT_EVERY]
     ints[I_ERROR] = 0
     ints[I_RUNAWAY] = -1
     ints[I_DIVERGED] = -1
     ints[I_HELD] = 0
+    ints[I_UNSOUND] = -1
+    n_events = 0
     body = F.shape[1] - 1
     gathered = recv.size > 0
     parallel = mpi[native.M_ALLREDUCE] != 0
     n = int(misc[N_CONS])
     b, u_now, lo, up = F[B, :n], F[U_NOW], c_ints[LO, :n], c_ints[UP, :n]
     force, active_flags = F[FORCE, :n], flags[0, :n]
+    n_sums = sums_local.size
+    sums = sums_total if parallel else sums_local
+    strain = v_rigid = 0.0
     k = n0
     while k < stop:
         step = step0 + k - n0
+        output = k == next_output
         t0 = native.now(clock, timespec)
+        if output:  # u^n, v^n (simulation._pre_output)
+            copy_state(src_u, src_v, u_n, v_n)
+            if rigid:
+                v_rigid = F[V, body]
         err = native.mat_mult_add(mult_add, A, u, v, v)
         if err == 0:
             err = native.vec_axpy(axpy, u, dt, v)
         if err != 0:
             ints[I_ERROR] = err
             break
-        if k == n0 and ints[I_OUTPUT] != 0:
-            strain[0] = strain_from_prediction(u_n, src_v, v_n, minus_m_over_dt)
+        if output:
+            strain = strain_from_prediction(u_n, src_v, v_n, minus_m_over_dt)
         t1 = native.now(clock, timespec)
         t2 = t1
         u_r = v_r = 0.0
@@ -180,7 +204,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         due = k - 1 == next_history
         if due:
             next_history += every
-        if due or (k - 1 == n0 and ints[I_OUTPUT] != 0):  # the state after the step
+        if due or output:  # the state after the step
             j = row * width
             row += 1
             if probes:
@@ -206,14 +230,6 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                       active_flags)
             pair_row += 1
         t4 = native.now(clock, timespec)
-        if timed:
-            current[F_INT] = t1 - t0
-            current[SOLVE] = t2 - t1
-            current[HISTORY] = t4 - t3
-        if k == stop and ints[I_HOLD] != 0:  # (with or without timers: the caller's output)
-            ints[I_HELD] = 1
-        elif timed:
-            _book(current, totals, sample, state)
         if rigid and not math.isfinite(F[V, body]):
             ints[I_RUNAWAY] = k - 1
             break
@@ -222,19 +238,69 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             count = count_beyond(src_v, limit)
             if parallel:  # the largest count of the ranks (simulation._OwnedVec.exceeds)
                 reduce[0] = count
-                native.allreduce_max(mpi, reduce[0:1], reduce[1:2])
+                native.allreduce(mpi, reduce[0:1], reduce[1:2], native.M_MAX)
                 count = reduce[1]
             if count > 0:
                 ints[I_DIVERGED] = k - 1
                 break
-        if row == capacity or pair_row == pair_capacity:
+        unsound = False
+        if output:  # its record (simulation._post_output), the energy's verdict
+            next_output = _next(k - 1, output_every, last)
+            _output_sums(mass, v_n, src_v, body_dofs, body_start, sums_local)
+            sums_local[1] = strain
+            sums_local[3 + body_start.size - 1:] = 0.0  # (no loads: their work is 0)
+            if parallel:
+                err = native.allreduce(mpi, sums_local, sums_total, native.M_SUM)
+                if err != 0:
+                    ints[I_ERROR] = err
+                    break
+            rec = events[n_events]
+            event_steps[n_events] = k - 1
+            n_events += 1
+            rec[:n_sums] = sums
+            kinetic, ext, work = sums[0], sums[3 + body_start.size - 1], 0.0
+            m = n_sums
+            if contact:
+                work = misc[LEDGER]
+                rec[m] = work
+                rec[m + 1] = misc[LEDGER + 1]
+                m += 2
+                if rigid:
+                    rec[m] = v_rigid
+                    rec[m + 1] = F[V, body]
+                    rec[m + 2] = misc[RIGID_WORK]
+                    m += 3
+                    kinetic += 0.5 * misc[RIGID_MASS] * v_rigid * F[V, body]
+                    ext += misc[RIGID_WORK]
+            rec[m] = 1.0 if track[T_FIRST] >= 0.0 and misc[STATS] <= 0.0 else 0.0
+            total = kinetic + sums[1] + 0.0  # (energy.Ledger.record's E_n)
+            if math.isnan(energy[E_0]):
+                energy[E_0] = total
+            unsound = energy_verdict(kinetic, sums[1], ext, work, total, energy[E_0],
+                                     energy[E_LIMIT]) != STABLE
+        t5 = native.now(clock, timespec)
+        if timed:
+            current[F_INT] = t1 - t0
+            current[SOLVE] = t2 - t1
+            current[HISTORY] = t4 - t3
+            current[OUTPUT] = t5 - t4
+        if k == stop and ints[I_HOLD] != 0:  # (with or without timers: the caller's output)
+            ints[I_HELD] = 1
+        elif timed:
+            _book(current, totals, sample, state)
+        if unsound:
+            ints[I_UNSOUND] = k - 1
+            break
+        if row == capacity or pair_row == pair_capacity or n_events == events.shape[0]:
             break
     ints[I_DONE] = k
     ints[I_ROW] = row
     ints[I_NEXT_HISTORY] = next_history
     ints[I_NEXT_CHECK] = next_check
     ints[I_NEXT_PAIRS] = next_pairs
+    ints[I_NEXT_OUTPUT] = next_output
     ints[I_PAIR_ROW] = pair_row
+    ints[I_EVENTS] = n_events
 
 
 # run_steps compiles the kernels of these modules into itself: its cache goes with theirs
@@ -251,17 +317,20 @@ drop_stale_cache(run_steps, _callees())
 class StepBlock:
     """The compiled steps of one run (see the module docstring); build it by :meth:`for_run`.
 
-    ``schedules``: the loop's (check, pairs) schedules (simulation._Schedule: their
-    ``next`` advances with the block's steps); ``pairs``: the contact set's per-pair
-    table (output.PairHistory) or None; ``limit``: the runaway speed (m/s); ``last``: the
-    run's last step; ``track``: the contact track's counters (layout T_*)."""
+    ``schedules``: the loop's (output, check, pairs) schedules (simulation._Schedule:
+    their ``next`` advances with the block's steps); ``pairs``: the contact set's
+    per-pair table (output.PairHistory) or None; ``limit``: the runaway speed (m/s);
+    ``last``: the run's last step; ``track``: the contact track's counters (layout T_*);
+    ``sums``: the run's energy.OutputSums; ``record``: the floats of an output step's
+    record; ``growth_limit``: Settings.energy_growth_limit."""
 
     def __init__(self, integ, contact, table, times, probes, every: int, addresses,
                  schedules, pairs, limit: float, last: int, track: np.ndarray,
-                 mpi: np.ndarray | None, state_n: tuple):
+                 mpi: np.ndarray | None, state_n: tuple, sums, record: int,
+                 growth_limit: float):
         self.integ, self.contact, self.table, self.times = integ, contact, table, times
         self.rigid = contact.rigid if contact is not None else None
-        self.check_at, self.pairs_at = schedules
+        self.output_at, self.check_at, self.pairs_at = schedules
         self.pairs = pairs
         ints = np.zeros(N_INTS, dtype=np.int64)
         ints[I_MULT_ADD:I_CLOCK + 1] = addresses
@@ -276,6 +345,7 @@ class StepBlock:
         ints[I_CHECK_EVERY], ints[I_LAST] = self.check_at.every, last
         ints[I_PAIRS] = pairs is not None
         ints[I_PAIRS_EVERY] = self.pairs_at.every
+        ints[I_OUTPUT_EVERY] = self.output_at.every
         self.ints = ints
         self._f_ext, self._f_in = np.zeros(MAX_STEPS), np.zeros(MAX_STEPS)
         self.max_steps = 8  # the first block's, then by the rate (run)
@@ -305,12 +375,17 @@ class StepBlock:
                         contact._displs.astype(np.int32))
             comm = (mpi, *comm, np.zeros(2))
         else:  # (never used)
-            comm = (np.zeros(6, dtype=np.int64), np.zeros(0, dtype=np.int32), np.zeros(0),
+            comm = (np.zeros(7, dtype=np.int64), np.zeros(0, dtype=np.int32), np.zeros(0),
                     np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(2))
-        self.strain = np.zeros(1)  # an output step's strain energy (J, this rank's part)
+        # the records of the block's output steps (at most one a step) and their loop steps
+        self.events = np.zeros((MAX_STEPS, record))
+        self.event_steps = np.zeros(MAX_STEPS, dtype=np.int64)
+        self._event_views = [memoryview(r) for r in self.events]
+        self.energy = np.array([math.nan, growth_limit])  # layout E_*
         self._args = (ints, integ.dt, float(limit), *call, self._f_ext, self._f_in, self.track,
                       table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64),
-                      *comm, *state_n, self.strain)
+                      *comm, *state_n, sums.mass, sums._dofs, sums._start, sums._local,
+                      sums._total, self.events, self.event_steps, self.energy)
         from .jit_watch import direct
 
         self._run = direct(run_steps, *self._args)
@@ -334,22 +409,24 @@ class StepBlock:
             return None
         pairs = pair_tables[0][1] if pair_tables else None
         return cls(integ, contact, table, times, probes, sim.settings.history_every, addresses,
-                   schedules, pairs, limit, last, track, mpi, state_n)
+                   schedules, pairs, limit, last, track, mpi, state_n, sim._output_sums,
+                   sim.event_record_size(), sim.settings.energy_growth_limit)
 
     def run(self, n: int, stop: int, next_history: int, hold: bool = False,
-            output: bool = False) -> tuple[int, int]:
+            E0: float | None = None) -> tuple[int, int]:
         """Run the loop's steps n .. stop - 1 (or fewer: see :func:`run_steps`); returns (the
-        loop's next step, the next history step). Raises RuntimeError on a PETSc error;
-        a runaway is left for the caller in :attr:`runaway` and :attr:`diverged` (the
-        step after which it was seen, or -1). ``hold``: if step stop - 1 is reached, its
-        phase times are not booked: :meth:`book_held` books them with the time of what
-        the caller does after it (:attr:`held`). ``output``: step n is an output step (its
-        u^n, v^n kept by the caller): its strain energy goes to :attr:`strain`."""
+        loop's next step, the next history step). Raises RuntimeError on a PETSc or MPI
+        error; a runaway is left for the caller in :attr:`runaway` and :attr:`diverged`
+        (the step after which it was seen, or -1). ``hold``: if step stop - 1 is reached,
+        its phase times are not booked: :meth:`book_held` books them with the time of
+        what the caller does after it (:attr:`held`). The output steps' records are then
+        :meth:`event` 0 .. :attr:`n_events` - 1, for the energy rows; ``E0``: the
+        ledger's E_0 (J) so far (None before the first output)."""
         ints, integ, rigid = self.ints, self.integ, self.rigid
         if stop > n + self.max_steps:
             stop, hold = n + self.max_steps, False
         ints[I_HOLD] = hold
-        ints[I_OUTPUT] = output
+        self.energy[E_0] = math.nan if E0 is None else E0
         if rigid is not None:  # its force functions at each step's t^n, in Python
             dt, step0 = integ.dt, integ.n
             f_ext, f_in, incident = self._f_ext, self._f_in, rigid.incident
@@ -361,6 +438,7 @@ class StepBlock:
         ints[I_N], ints[I_STOP], ints[I_STEP] = n, stop, integ.n
         ints[I_NEXT_HISTORY], ints[I_ROW] = next_history, self.table.room()
         ints[I_NEXT_CHECK], ints[I_NEXT_PAIRS] = self.check_at.next, self.pairs_at.next
+        ints[I_NEXT_OUTPUT] = self.output_at.next
         if self.pairs is not None:
             ints[I_PAIR_ROW] = self.pairs.room()
         t = time.perf_counter()
@@ -374,6 +452,7 @@ class StepBlock:
         integ.n += done - n
         self.table.filled(int(ints[I_ROW]))
         self.check_at.next, self.pairs_at.next = int(ints[I_NEXT_CHECK]), int(ints[I_NEXT_PAIRS])
+        self.output_at.next = int(ints[I_NEXT_OUTPUT])
         if self.pairs is not None:
             self.pairs.filled(int(ints[I_PAIR_ROW]))
         if rigid is not None and done > n:
@@ -385,14 +464,18 @@ class StepBlock:
                 rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
                     float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
         if ints[I_ERROR]:
-            raise RuntimeError(f"PETSc error {int(ints[I_ERROR])} in the step "
+            raise RuntimeError(f"PETSc or MPI error {int(ints[I_ERROR])} in the step "
                                f"{integ.n} -> {integ.n + 1}")
         return done, int(ints[I_NEXT_HISTORY])
 
     @property
-    def was_output(self) -> bool:
-        """Was the last block an output step's (:meth:`run`'s ``output``)?"""
-        return self.ints[I_OUTPUT] != 0
+    def n_events(self) -> int:
+        """The output steps of the last block."""
+        return int(self.ints[I_EVENTS])
+
+    def event(self, i: int) -> tuple[memoryview, int]:
+        """(record, loop step) of the last block's output step i."""
+        return self._event_views[i], int(self.event_steps[i])
 
     @property
     def held(self) -> bool:
@@ -400,9 +483,9 @@ class StepBlock:
         return self.ints[I_HELD] != 0
 
     def book_held(self, output: float) -> None:
-        """Book the held step's phase times with ``output`` (s) as its output phase."""
+        """Book the held step's phase times with ``output`` (s) added to its output phase."""
         if self.times is not None:
-            self.times.current[OUTPUT] = output
+            self.times.current[OUTPUT] += output
             self.times.record()
 
     @property

@@ -9,8 +9,10 @@ C functions and kernels on the same arrays in the same order, so every number a
 run writes must be identical (no tolerance), apart from the CPU-time columns.
 
 Scenes: a rigid punch (penalty, FILM, DME: rigid slot, the penalty's reversals),
-two bars with node pairs and a probe, one bar with no contact, and two runs that
-fail: a rigid body driven to a non-finite speed and a step above the stable limit.
+two bars with node pairs and a probe, one bar with no contact, and three runs that
+fail: a rigid body driven to a non-finite speed, and a step above the stable limit
+caught by the runaway speed and by the energy's growth (the energy rows of the blocks'
+output steps come from the records the blocks keep).
 Under MPI the blocks call the MPI library themselves (the contact set's Allgatherv,
 the check's reduction) where the Python step goes through mpi4py: the same
 comparisons, on each rank's part.
@@ -131,12 +133,20 @@ def test_no_contact_compiled_steps_equal_python_steps(bars_mesh, tmp_path_factor
 
 
 def _failure(make, tmp_path_factory, name) -> list[str]:
-    messages = []
+    """Run the failing scene both ways: the messages, and everything written up to the
+    failure, identical."""
+    messages, runs = [], []
     for compiled in (True, False):
         sim = make(os.path.join(_scratch(tmp_path_factory, name), "run"), compiled)
         with pytest.raises(UnstableRunError) as err:
             sim.run()
+        assert sim.compiled_steps == compiled
         messages.append(str(err.value))
+        runs.append(_written(sim))
+    a, b = runs
+    assert a.keys() == b.keys()
+    for key in a:
+        assert np.array_equal(a[key], b[key]), key
     return messages
 
 
@@ -159,3 +169,19 @@ def test_a_diverging_run_stops_both_at_the_same_step(bars_mesh, tmp_path_factory
                           initial_velocity={"striker": (0.0, 5.0)})
     a, b = _failure(make, tmp_path_factory, "diverged")
     assert a == b and "a node moves at" in a
+
+
+def test_an_energy_growing_run_stops_both_at_the_same_step(bars_mesh, tmp_path_factory):
+    # above the stable step the energy grows by a factor every step: checked at every
+    # output step (here every 5th, in the compiled blocks' records), it passes the growth
+    # limit long before a speed passes the runaway limit (checked every 64 steps)
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        sim = Simulation(model, _settings(out, compiled, cfl=3.0, force_dt=True,
+                                          n_steps=2000, output_every=5),
+                         initial_velocity={"striker": (0.0, 5.0)})
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
+                        scenes.make_method("film"))
+        return sim
+    a, b = _failure(make, tmp_path_factory, "grew")
+    assert a == b and "grew beyond" in a

@@ -242,6 +242,29 @@ def stress_peaks(vm, zz, peaks) -> None:
     peaks[0], peaks[1], peaks[2] = vm_max, zz_max, -zz_min
 
 
+# track_peaks' state: largest von Mises (Pa) and its time (s), largest sigma_zz and its
+# time, smallest sigma_zz and its time, 1 once a frame was seen
+PEAK_NAMES = ("von_mises", "von_mises_time", "sigma_zz_max", "sigma_zz_max_time",
+              "sigma_zz_min", "sigma_zz_min_time")
+
+
+@njit(cache=True)
+def track_peaks(peaks, t, state) -> None:
+    """The run's stress peaks over its frames (``state``, PEAK_NAMES then a seen flag)
+    with a frame's ``peaks`` (:func:`stress_peaks`' (max von Mises, max sigma_zz, -min
+    sigma_zz), Pa) at time ``t`` (s): each kept with its time when exceeded."""
+    if state[6] == 0.0:
+        state[0], state[2], state[4] = -np.inf, -np.inf, np.inf
+        state[1] = state[3] = state[5] = t
+        state[6] = 1.0
+    if peaks[0] > state[0]:
+        state[0], state[1] = peaks[0], t
+    if peaks[1] > state[2]:
+        state[2], state[3] = peaks[1], t
+    if -peaks[2] < state[4]:
+        state[4], state[5] = -peaks[2], t
+
+
 def isotropic_lame(D: np.ndarray) -> tuple[float, float] | None:
     """(lambda, 2 mu) in Pa if D (4x4, tensor shear) is isotropic elasticity, to round-off;
     else None."""

@@ -72,7 +72,8 @@ def console_lines(s: dict) -> list[str]:
         wall = s["wall_time"]
         parts = ", ".join(f"{k} {v['share']:.0%}" for k, v in timing["phases"].items()
                           if v["share"] >= 0.005)
-        steps = ("compiled between events" if timing.get("compiled_steps")
+        steps = (("compiled, frames too" if timing.get("compiled_frames")
+                  else "compiled between frames") if timing.get("compiled_steps")
                  else "Python") if "compiled_steps" in timing else None
         lines.append(f"time: loop {wall:.3g} s = {timing['loop_over_steps_median']:.2f} x "
                      f"(steps x median step {s['step_time_median'] * 1e6:.1f} us); {parts}, "

@@ -17,7 +17,7 @@ from mpi4py import MPI
 from numba import njit
 
 from . import console, interrupts, output, plotting, rundir
-from .cell_fields import STRESS_NAMES, CellStress
+from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
 from .contact.nts_interface import NodeToSegmentSet
@@ -175,7 +175,7 @@ class Simulation:
         self._cell_field_providers: list = []
         if self.plastic_fields is not None:  # eps_p_eq and yielded with the stresses
             self.add_cell_fields(self.cell_fields)
-        self._peaks: dict = {}
+        self._peaks = np.zeros(len(PEAK_NAMES) + 1)  # cell_fields.track_peaks' state
         self.status = "not started"
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
@@ -329,10 +329,14 @@ class Simulation:
         block = (StepBlock.for_run(self, tables["history"], times, probes,
                                    (output_at, check_at, pairs_at), self._pair_tables, runaway,
                                    last, track.state,
-                                   (buf["u"], buf["v"], self._minus_m_over_dt))
+                                   (buf["u"], buf["v"], self._minus_m_over_dt), writer,
+                                   fields_at)
                  if s.compiled_steps else None)
+        # the blocks write the frames (else a fields step ends its block, the frame after it)
+        block_frames = block is not None and block.writer is not None
         self.setup_time["kernels"] = clock() - t_block
         self.compiled_steps = block is not None
+        self.compiled_frames = block_frames
         jit_before = signature_counts()
         t_run = clock()
         n = 0
@@ -350,10 +354,14 @@ class Simulation:
                     if pos:
                         times.book(pos)
                         pos = 0
-                    end = min(fields_at.next + 1, agree_at.next, progress_due, n_steps)
-                    n, next_history = block.run(n, end, next_history,
-                                                hold=end == fields_at.next + 1, E0=ledger.E0)
+                    end = min(agree_at.next, progress_due, n_steps)
+                    if not block_frames:
+                        end = min(end, fields_at.next + 1)
+                    n, next_history = block.run(n, end, next_history, E0=ledger.E0,
+                                                hold=not block_frames and end == fields_at.next + 1)
                     t4 = clock()
+                    for i in range(block.n_frames):  # the frames it wrote into the batch
+                        writer.written(*block.frame(i))
                     if block.n_events:  # their energy rows (the step numbers: integ's)
                         shift = integ.n - n
                         for i in range(block.n_events):
@@ -753,9 +761,8 @@ class Simulation:
 
     def _field_writer(self, staging: str) -> FieldWriter:
         self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
-        self._peak_buf = np.empty(3)  # the peaks reduced over the ranks; read as floats
-        self._peak_view = memoryview(self._peak_buf if self.comm.size > 1
-                                     else self._cell_stress.peaks)
+        self._peak_buf = np.empty(3)  # the peaks reduced over the ranks
+        self._track = direct(track_peaks, self._peak_buf, 0.0, self._peaks)
         extra = [name for p in self._cell_field_providers for name in p()]
         # the initial state, then every output_every steps and the last step
         n_frames = 1 + -(-self.n_steps // self.settings.output_every)
@@ -783,23 +790,12 @@ class Simulation:
     def _track_peaks(self, t: float) -> None:
         """Largest von Mises and extreme sigma_zz (Pa) over the field outputs, and when
         (the cell stresses' extremes of this output, reduced over the ranks)."""
-        peaks = self._peak_view  # (max von Mises, max sigma_zz, -min sigma_zz) of the output
+        peaks = self._cell_stress.peaks  # (max von Mises, max sigma_zz, -min sigma_zz)
         if self.comm.size > 1:
-            self._peak_buf[:] = self._cell_stress.peaks
+            self._peak_buf[:] = peaks
             self.comm.Allreduce(MPI.IN_PLACE, self._peak_buf, op=MPI.MAX)
-        p = self._peaks
-        if not p:
-            p.update(von_mises=-math.inf, von_mises_time=t, sigma_zz_max=-math.inf,
-                     sigma_zz_max_time=t, sigma_zz_min=math.inf, sigma_zz_min_time=t)
-        vm = peaks[0]
-        if vm > p["von_mises"]:
-            p["von_mises"], p["von_mises_time"] = vm, t
-        zz = peaks[1]
-        if zz > p["sigma_zz_max"]:
-            p["sigma_zz_max"], p["sigma_zz_max_time"] = zz, t
-        zz = -peaks[2]
-        if zz < p["sigma_zz_min"]:
-            p["sigma_zz_min"], p["sigma_zz_min_time"] = zz, t
+            peaks = self._peak_buf
+        self._track(peaks, t, self._peaks)
 
     def _tables(self, staging: str | None, probes) -> dict:
         """History, energy and per-pair tables (on disk with an output directory, written in
@@ -1007,17 +1003,19 @@ class Simulation:
                 "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
                 "compiled_in_loop": list(self.compiled_in_loop),
                 "compiled_steps": self.compiled_steps,
+                "compiled_frames": self.compiled_frames,
                 "definition": "total and median: the slowest rank's (s); share: the phase's "
                               "total over the loop's wall time, both averaged over the ranks; "
                               "rest: the loop's own Python, progress and signal checks; "
                               "compiled_in_loop: numba kernels that compiled inside the loop; "
-                              "compiled_steps: the steps between events ran as compiled "
-                              "blocks (one rank, linear bodies: step_block.py)"}
+                              "compiled_steps: the steps ran as compiled blocks with their "
+                              "output steps' sums (linear bodies: step_block.py); "
+                              "compiled_frames: the blocks wrote the frames too (one rank)"}
         summary["bodies"] = self._body_figures()
         if self.contacts:
             summary["impact"] = self._impact_figures()
-        if self._peaks:
-            summary["peak_stress"] = dict(self._peaks)
+        if self._peaks[-1]:
+            summary["peak_stress"] = dict(zip(PEAK_NAMES, self._peaks.tolist()))
         if last_energy is not None:
             last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}

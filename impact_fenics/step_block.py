@@ -39,6 +39,7 @@ from numba import njit
 
 from . import native
 from .contact.fused import contact_step
+from .cell_fields import STRESS_NAMES, isotropic_stress_range, track_peaks
 from .energy import (STABLE, _output_sums, copy_state, energy_verdict,
                      strain_from_prediction)
 from .jit_watch import drop_stale_cache
@@ -48,6 +49,7 @@ from .contact.interface import (B, FORCE, LEDGER, LO, MISC_SIZE, N_CONS, RIGID_M
 from .output import _pair_row
 from .probes import _record_at
 from .timers import _book
+from .xdmf import _point_vectors
 
 MAX_STEPS = 256  # a block's steps at most (the signal flag is looked at between blocks)
 BLOCK_SECONDS = 0.05  # ... and about this long at most, by the steps' time so far (s)
@@ -72,7 +74,10 @@ I_HOLD, I_NEXT_OUTPUT, I_OUTPUT_EVERY = 28, 29, 30
 # times held in ``current`` (1) or booked (0), the output steps recorded, the output step
 # whose energy failed energy_verdict (-1: none)
 I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD, I_EVENTS, I_UNSOUND = range(31, 38)
-N_INTS = 38
+# the frames written by the block (on: 1), the fields steps (next, every), the first cell of
+# the stress kernel's range, the batch's rows held (in and out), the frames of the block (out)
+I_FRAMES, I_NEXT_FIELDS, I_FIELDS_EVERY, I_STRESS_FIRST, I_FRAME_ROW, I_N_FRAMES = range(38, 44)
+N_INTS = 44
 # energy (floats): E_0 of the ledger (J; NaN before the first output), the growth limit
 E_0, E_LIMIT = 0, 1
 # the contact track (floats): lowest gap, first and last step in contact (-1: none),
@@ -100,7 +105,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
               history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
               timespec, mpi, local, send, counts, displs, reduce, u_n, v_n, minus_m_over_dt,
               mass, body_dofs, body_start, sums_local, sums_total, events, event_steps,
-              energy) -> None:
+              energy, frame_points, frame_cells, nodes, s_dofs, s_g, lame, no_plastic,
+              s_peaks, peak_state, frame_t, frame_step) -> None:
     """Steps ints[I_N] .. ints[I_STOP] - 1 of the loop (integrator step ints[I_STEP] for the
     first), each as the Python step does it: predictor, contact step, track, history row
     (when the step is ints[I_NEXT_HISTORY]: then the next is ``ints[I_EVERY]`` on), phase
@@ -126,7 +132,17 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     work, and whether contact was made and nothing is active. The loop makes the energy
     rows from them after the block. If the step's energy fails energy_verdict (E_0 and the
     growth limit in ``energy``) the block stops after it (ints[I_UNSOUND] = that step):
-    the loop's row of it raises. A full ``events`` stops the block too."""
+    the loop's row of it raises. A full ``events`` stops the block too.
+
+    With ints[I_FRAMES] (one rank, the stresses of one isotropic kernel), a fields step
+    (ints[I_NEXT_FIELDS], then every ints[I_FIELDS_EVERY]) writes the frame of the state
+    after it into the writer's batch row ints[I_FRAME_ROW] (``frame_points``,
+    ``frame_cells``: xdmf.FieldWriter.batch_rows): the point vectors of ``nodes``, the
+    stresses (cell_fields.isotropic_stress_range of ``s_dofs``, ``s_g``, ``lame``, from
+    cell ints[I_STRESS_FIRST], their peaks into ``s_peaks``) and the run's peaks
+    (``peak_state``, cell_fields.track_peaks), its time and step into ``frame_t``,
+    ``frame_step`` (ints[I_N_FRAMES] frames): the loop then hands them to the writer
+    (FieldWriter.written). A full batch stops the block."""
     n0, stop, step0 = ints[I_N], ints[I_STOP], ints[I_STEP]
     contact, rigid = ints[I_CONTACT] != 0, ints[I_RIGID] != 0
     penalty, probes, timed = ints[I_PENALTY] != 0, ints[I_PROBES] != 0, ints[I_TIMED] != 0
@@ -138,6 +154,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     pairs, next_pairs, pairs_every = ints[I_PAIRS] != 0, ints[I_NEXT_PAIRS], ints[I_PAIRS_EVERY]
     pair_row, pair_capacity = ints[I_PAIR_ROW], ints[I_PAIR_CAPACITY]
     next_output, output_every = ints[I_NEXT_OUTPUT], ints[I_OUTPUT_EVERY]
+    frames, next_fields, fields_every = ints[I_FRAMES] != 0, ints[I_NEXT_FIELDS], ints[I_FIELDS_EVERY]
+    frame_row, depth, n_frames = ints[I_FRAME_ROW], frame_points.shape[0], 0
     ints[I_ERROR] = 0
     ints[I_RUNAWAY] = -1
     ints[I_DIVERGED] = -1
@@ -278,6 +296,17 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                 energy[E_0] = total
             unsound = energy_verdict(kinetic, sums[1], ext, work, total, energy[E_0],
                                      energy[E_LIMIT]) != STABLE
+        if frames and k - 1 == next_fields and not unsound:  # the frame of the state after it
+            next_fields = _next(k - 1, fields_every, last)
+            isotropic_stress_range(s_dofs, s_g, src_u, lame[0], lame[1], no_plastic,
+                                   ints[I_STRESS_FIRST], frame_cells[frame_row], s_peaks)
+            _point_vectors(src_u, src_v, nodes, frame_points[frame_row])
+            t_frame = (step + 1) * dt
+            track_peaks(s_peaks, t_frame, peak_state)
+            frame_t[n_frames] = t_frame
+            frame_step[n_frames] = step + 1
+            n_frames += 1
+            frame_row += 1
         t5 = native.now(clock, timespec)
         if timed:
             current[F_INT] = t1 - t0
@@ -291,7 +320,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         if unsound:
             ints[I_UNSOUND] = k - 1
             break
-        if row == capacity or pair_row == pair_capacity or n_events == events.shape[0]:
+        if (row == capacity or pair_row == pair_capacity or n_events == events.shape[0]
+                or frame_row == depth):
             break
     ints[I_DONE] = k
     ints[I_ROW] = row
@@ -301,14 +331,18 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     ints[I_NEXT_OUTPUT] = next_output
     ints[I_PAIR_ROW] = pair_row
     ints[I_EVENTS] = n_events
+    ints[I_NEXT_FIELDS] = next_fields
+    ints[I_FRAME_ROW] = frame_row
+    ints[I_N_FRAMES] = n_frames
 
 
 # run_steps compiles the kernels of these modules into itself: its cache goes with theirs
 def _callees():
-    from . import energy, output, probes, timers
+    from . import cell_fields, energy, output, probes, timers, xdmf
     from .contact import dme, film, fused, interface, penalty
 
-    return (native, energy, output, probes, timers, dme, film, fused, interface, penalty)
+    return (native, cell_fields, energy, output, probes, timers, xdmf, dme, film, fused,
+            interface, penalty)
 
 
 drop_stale_cache(run_steps, _callees())
@@ -322,15 +356,18 @@ class StepBlock:
     per-pair table (output.PairHistory) or None; ``limit``: the runaway speed (m/s);
     ``last``: the run's last step; ``track``: the contact track's counters (layout T_*);
     ``sums``: the run's energy.OutputSums; ``record``: the floats of an output step's
-    record; ``growth_limit``: Settings.energy_growth_limit."""
+    record; ``growth_limit``: Settings.energy_growth_limit; ``frames``: (the field writer,
+    its CellStress, the fields steps' schedule, the run's peaks: cell_fields.track_peaks'
+    state) where the blocks write the frames, else None."""
 
     def __init__(self, integ, contact, table, times, probes, every: int, addresses,
                  schedules, pairs, limit: float, last: int, track: np.ndarray,
                  mpi: np.ndarray | None, state_n: tuple, sums, record: int,
-                 growth_limit: float):
+                 growth_limit: float, frames: tuple | None = None):
         self.integ, self.contact, self.table, self.times = integ, contact, table, times
         self.rigid = contact.rigid if contact is not None else None
         self.output_at, self.check_at, self.pairs_at = schedules
+        self.writer = self.fields_at = None
         self.pairs = pairs
         ints = np.zeros(N_INTS, dtype=np.int64)
         ints[I_MULT_ADD:I_CLOCK + 1] = addresses
@@ -382,19 +419,40 @@ class StepBlock:
         self.event_steps = np.zeros(MAX_STEPS, dtype=np.int64)
         self._event_views = [memoryview(r) for r in self.events]
         self.energy = np.array([math.nan, growth_limit])  # layout E_*
-        self._args = (ints, integ.dt, float(limit), *call, self._f_ext, self._f_in, self.track,
-                      table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64),
-                      *comm, *state_n, sums.mass, sums._dofs, sums._start, sums._local,
-                      sums._total, self.events, self.event_steps, self.energy)
+        if frames is not None:  # the writer's batch, the stress kernel's arrays
+            self.writer, stress, self.fields_at, peak_state = frames
+            _, s_dofs, s_g, _, lame, _, (first, _) = stress._kernel[0]
+            points, cells, _ = self.writer.batch_rows()
+            frame_arrays = (points, cells, self.writer._nodes, s_dofs, s_g, np.array(lame),
+                            stress._no_plastic, stress.peaks, peak_state)
+            ints[I_FRAMES], ints[I_FIELDS_EVERY], ints[I_STRESS_FIRST] = 1, self.fields_at.every, first
+            n_frames = points.shape[0]
+        else:  # (never used)
+            frame_arrays = (np.zeros((1, 2, 1, 3)), np.zeros((1, 5, 1)), np.zeros(1, dtype=np.int64),
+                            np.zeros((1, 3), dtype=np.uint32), np.zeros((1, 5)), np.zeros(2),
+                            np.zeros((0, 4)), np.zeros(3), np.zeros(7))
+            n_frames = 1
+        self.frame_t = np.zeros(n_frames)
+        self.frame_step = np.zeros(n_frames, dtype=np.int64)
+        head = (ints, integ.dt, float(limit), *call, self._f_ext, self._f_in, self.track,
+                table.flat, index, *pair_arrays, *clocks, np.zeros(2, dtype=np.int64),
+                *comm, *state_n, sums.mass, sums._dofs, sums._start, sums._local,
+                sums._total, self.events, self.event_steps, self.energy)
+        self._batch = len(head)  # where the batch's two arrays are in _args
+        self._args = (*head, *frame_arrays, self.frame_t, self.frame_step)
         from .jit_watch import direct
 
         self._run = direct(run_steps, *self._args)
 
     @classmethod
     def for_run(cls, sim, table, times, probes, schedules, pair_tables, limit: float,
-                last: int, track: np.ndarray, state_n: tuple) -> "StepBlock | None":
+                last: int, track: np.ndarray, state_n: tuple, writer=None,
+                fields_at=None) -> "StepBlock | None":
         """The block of ``sim``'s run, or None where the Python step must run. ``state_n``:
-        (u^n, v^n buffers of an output step, -M/dt) as simulation.run keeps them."""
+        (u^n, v^n buffers of an output step, -M/dt) as simulation.run keeps them;
+        ``writer``: the run's FieldWriter (or None), ``fields_at`` its schedule: the
+        blocks write the frames on one rank when the cell fields are the stresses of one
+        isotropic kernel and the writer batches frames (else the loop writes them)."""
         integ = sim.integrator
         if integ.A is None or integ.nonlinear or integ.loads or len(sim.contacts) > 1:
             return None
@@ -408,9 +466,14 @@ class StepBlock:
         if addresses is None or (sim.comm.size > 1 and mpi is None):
             return None
         pairs = pair_tables[0][1] if pair_tables else None
+        frames = None
+        if (writer is not None and sim.comm.size == 1 and writer.depth > 1
+                and writer.cell_fields == list(STRESS_NAMES) and not sim._cell_field_providers
+                and sim._cell_stress._single):
+            frames = (writer, sim._cell_stress, fields_at, sim._peaks)
         return cls(integ, contact, table, times, probes, sim.settings.history_every, addresses,
                    schedules, pairs, limit, last, track, mpi, state_n, sim._output_sums,
-                   sim.event_record_size(), sim.settings.energy_growth_limit)
+                   sim.event_record_size(), sim.settings.energy_growth_limit, frames)
 
     def run(self, n: int, stop: int, next_history: int, hold: bool = False,
             E0: float | None = None) -> tuple[int, int]:
@@ -439,6 +502,12 @@ class StepBlock:
         ints[I_NEXT_HISTORY], ints[I_ROW] = next_history, self.table.room()
         ints[I_NEXT_CHECK], ints[I_NEXT_PAIRS] = self.check_at.next, self.pairs_at.next
         ints[I_NEXT_OUTPUT] = self.output_at.next
+        if self.writer is not None:  # the batch's arrays (the writer may change them)
+            points, cells, ints[I_FRAME_ROW] = self.writer.batch_rows()
+            b = self._batch
+            if points is not self._args[b] or cells is not self._args[b + 1]:
+                self._args = (*self._args[:b], points, cells, *self._args[b + 2:])
+            ints[I_NEXT_FIELDS] = self.fields_at.next
         if self.pairs is not None:
             ints[I_PAIR_ROW] = self.pairs.room()
         t = time.perf_counter()
@@ -453,6 +522,8 @@ class StepBlock:
         self.table.filled(int(ints[I_ROW]))
         self.check_at.next, self.pairs_at.next = int(ints[I_NEXT_CHECK]), int(ints[I_NEXT_PAIRS])
         self.output_at.next = int(ints[I_NEXT_OUTPUT])
+        if self.writer is not None:
+            self.fields_at.next = int(ints[I_NEXT_FIELDS])
         if self.pairs is not None:
             self.pairs.filled(int(ints[I_PAIR_ROW]))
         if rigid is not None and done > n:
@@ -476,6 +547,15 @@ class StepBlock:
     def event(self, i: int) -> tuple[memoryview, int]:
         """(record, loop step) of the last block's output step i."""
         return self._event_views[i], int(self.event_steps[i])
+
+    @property
+    def n_frames(self) -> int:
+        """The frames the last block wrote into the writer's batch."""
+        return int(self.ints[I_N_FRAMES])
+
+    def frame(self, i: int) -> tuple[float, int]:
+        """(time in s, step) of the last block's frame i."""
+        return float(self.frame_t[i]), int(self.frame_step[i])
 
     @property
     def held(self) -> bool:

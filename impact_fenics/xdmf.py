@@ -354,6 +354,18 @@ class FieldWriter:
                 if values is not self._rows[j] or cells is not self._cells:
                     cells[j] = values[: self.n_cells]
         _point_vectors(u, v, self._nodes, self._point_rows[i])
+        self.written(t, step)
+
+    def batch_rows(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(point vectors, cell fields, frames held) of the batch: for a caller that fills
+        the next rows itself (point rows as :func:`_point_vectors` does, cell rows in
+        ``cell_fields`` order; depth > 1), then calls :meth:`written` for each, in order,
+        before any other write."""
+        return self._batch_points, self._batch_cells, self._held
+
+    def written(self, t: float, step: int) -> None:
+        """The batch's next row now holds the frame at time t (s) of step ``step``: it goes
+        to the file when the batch is full, into the XML every ``flush_every`` writes."""
         b, row = self._slot()
         k = self._n_pending
         self._times[k] = t

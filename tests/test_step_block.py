@@ -1,9 +1,10 @@
 """The compiled steps between events equal the Python steps, bit for bit.
 
-On one rank with linear bodies, the loop runs the steps between events as compiled
-blocks (impact_fenics/step_block.py): PETSc's MatMultAdd and VecAXPY called by
-address, the fused contact step, the contact track, history and per-pair rows, the
-divergence check. The oracle is the Python step (``Settings(compiled_steps=False)``),
+With linear bodies the loop runs its steps as compiled blocks
+(impact_fenics/step_block.py): PETSc's MatMultAdd and VecAXPY called by address, the
+fused contact step, the contact track, history and per-pair rows, the divergence
+check, the output steps' energy sums (their rows made from the blocks' records) and,
+on one rank, the frames (into the writer's batch). The oracle is the Python step (``Settings(compiled_steps=False)``),
 which the wave, impact and energy tests validated against closed forms: the same
 C functions and kernels on the same arrays in the same order, so every number a
 run writes must be identical (no tolerance), apart from the CPU-time columns.
@@ -83,13 +84,16 @@ def _written(sim) -> dict:
     return got
 
 
-def _same(make, tmp_path_factory, name, expect_contact=True):
-    """Run the scene make(out, compiled) both ways; everything written is identical."""
+def _same(make, tmp_path_factory, name, expect_contact=True, frames=None):
+    """Run the scene make(out, compiled) both ways; everything written is identical.
+    ``frames``: the compiled run's blocks wrote the frames (one rank), if not None."""
     runs = {}
     for compiled in (True, False):
         sim = make(os.path.join(_scratch(tmp_path_factory, name), "run"), compiled)
         sim.run()
         assert sim.compiled_steps == compiled and sim.compiled_in_loop == []
+        if frames is not None:
+            assert sim.compiled_frames == (compiled and frames and COMM.size == 1)
         runs[compiled] = _written(sim)
     a, b = runs[True], runs[False]
     assert a.keys() == b.keys()
@@ -120,7 +124,7 @@ def test_bars_compiled_steps_equal_python_steps(bars_mesh, tmp_path_factory, tim
                         scenes.make_method("film"))
         sim.add_probe("sigma_zz_obs", (0.05, 0.2), "sigma_zz")
         return sim
-    got = _same(make, tmp_path_factory, f"bars_{timers}")
+    got = _same(make, tmp_path_factory, f"bars_{timers}", frames=True)
     assert "history.sigma_zz_obs" in got and "fields.sigma_zz.3" in got
 
 

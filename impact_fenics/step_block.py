@@ -1,24 +1,34 @@
-"""The steps between two events in one compiled call (linear bodies).
+"""A run's steps in compiled blocks (linear bodies), their outputs' numbers included.
 
-Between outputs a step of linear bodies is the predictor of paper eq. (1)
-(v <- A u + v by MatMultAdd, A = -dt M^-1 K; u <- u + dt v by VecAXPY), the
-contact set's step and a history row. The loop of :class:`~.simulation.Simulation`
-runs these in Python, about 3 us a step around the PETSc calls: a third of a step
-on a mesh of ~1,000 dofs. Here :func:`run_steps` runs a block of such steps in one
-call: PETSc's MatMultAdd and VecAXPY by address on the same objects
-(:mod:`.native`), the contact set's :func:`~.contact.fused.contact_step` (under
-MPI after its pack and MPI_Allgatherv, also by address), the contact track, the
-history and per-pair rows, the divergence check (its count reduced over the
-ranks) and the phase timers: each the operations of the Python step in the same
-order on the same arrays, so the numbers are the same bit for bit
-(tests/test_step_block.py, 1 and 2 ranks). The loop keeps everything else:
-output steps (the energy row) run as Python steps, a fields step ends its block
-and the loop writes its frame after it, and a block also ends when the history
-block is full, when a progress line may be due, at the MPI ranks' agreement on
-signals, or after :data:`MAX_STEPS` steps or about :data:`BLOCK_SECONDS` (on one
-rank the signal flag is looked at between blocks). The MPI calls happen at the same steps on every rank, so
-blocks that end at different steps on different ranks (a progress line, rank
-0's per-pair block) only wait for each other inside the next call.
+A step of linear bodies is the predictor of paper eq. (1) (v <- A u + v by
+MatMultAdd, A = -dt M^-1 K; u <- u + dt v by VecAXPY), the contact set's step and a
+history row. The loop of :class:`~.simulation.Simulation` runs these in Python,
+about 3 us a step around the PETSc calls: a third of a step on a mesh of ~1,000
+dofs. Here :func:`run_steps` runs a block of steps in one call: PETSc's MatMultAdd
+and VecAXPY by address on the same objects (:mod:`.native`), the contact set's
+:func:`~.contact.fused.contact_step` (under MPI after its pack and MPI_Allgatherv,
+also by address), the contact track, the history and per-pair rows, the divergence
+check (its count reduced over the ranks) and the phase timers: each the operations
+of the Python step in the same order on the same arrays, so the numbers are the
+same bit for bit (tests/test_step_block.py, 1 and 2 ranks).
+
+Outputs inside a block. An output step keeps u^n and v^n, and after it the block
+sums its energies and momenta (energy._output_sums; MPI_SUM by address under MPI)
+and records them with the contact work and the rigid body's speeds; the loop makes
+the energy rows from these records after the block
+(Simulation._row_from_record, which makes the Python step's rows from the same
+record), and a step whose energy fails energy.energy_verdict ends its block so the
+row raises at the same step. On one rank, when the cell fields are the stresses of
+one isotropic kernel and the writer batches frames, a fields step computes its
+frame straight into the writer's batch row (stresses, point vectors, the run's
+peaks) and the loop hands the frames to the writer after the block (else a fields
+step ends its block and the loop writes its frame). So a block ends when the
+writer's batch or the history block is full, when a progress line may be due, at
+the MPI ranks' agreement on signals, or after :data:`MAX_STEPS` steps or about
+:data:`BLOCK_SECONDS` (on one rank the signal flag is looked at between blocks).
+The MPI calls happen at the same steps on every rank, so blocks that end at
+different steps on different ranks (a progress line, rank 0's per-pair block) only
+wait for each other inside the next call. The kernel releases the GIL.
 
 It applies (:meth:`StepBlock.for_run`) when every body is linear, no surface
 load acts, and at most one contact set runs by the fused call, with or without a
@@ -26,8 +36,10 @@ rigid body (whose force functions are evaluated in Python for the block's steps
 first). Otherwise, and where PETSc or MPI cannot be reached by address, the
 Python step runs (``Settings(compiled_steps=False)`` asks for it).
 
-The phase times of a compiled step: f_int the predictor, contact_solve the whole
-contact step (detection and update are inside it: 0), history the rows.
+The phase times of a compiled step: f_int the predictor (with an output step's
+copy of u^n, v^n and its strain energy), contact_solve the whole contact step
+(detection and update are inside it: 0), history the rows, output the output
+step's sums and the frame.
 """
 from __future__ import annotations
 

@@ -410,11 +410,13 @@ def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     comm.barrier()
     model = _bar_model()
     writer = _write_frames(model, live, 3, n_frames=6, flush_every=2)
+    writer.wait()  # the worker thread's writes handed over so far: done
     comm.barrier()
     h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
-    shutil.copy(os.path.join(live, h5), copy)
-    if comm.rank == 0:
+    if comm.rank == 0:  # the XML first: the rows it names were in the OS before it was
         shutil.copy(os.path.join(live, "fields.xdmf"), copy)
+    comm.barrier()
+    shutil.copy(os.path.join(live, h5), copy)
     comm.barrier()
     writer.close()
     comm.barrier()  # every piece closed before any rank reads them

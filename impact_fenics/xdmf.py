@@ -592,6 +592,12 @@ class FieldWriter:
             if job:
                 self._worker.submit(job)
 
+    @property
+    def asynchronous(self) -> bool:
+        """Do the batches go to the file on the worker thread (else h5py writes them on the
+        caller's)?"""
+        return self._worker is not None
+
     def wait(self) -> None:
         """Wait for this rank's worker thread (local): on return the OS holds every row it
         was given and, on rank 0, the XML of every flush so far (a failure is raised at the

@@ -45,21 +45,44 @@ only copies the frame into an in-memory batch, ``depth`` frames deep, preallocat
 at set-up: the point vectors straight from u and v, the cell fields from the
 staging row (:attr:`FieldWriter.cell_values`, :meth:`FieldWriter.cell_block`:
 callers compute into it, and it is free for the next frame when write returns).
-When the batch is full, and at every flush, its frames go to the file with one
-hyperslab write per dataset for each run of consecutive rows of a block (two
-runs when the batch straddles the end of a block). ``depth`` is ``flush_every``,
-or fewer frames when those would pass ``BATCH_LIMIT`` (1 MiB) a rank: a batch
-pays for a copy per frame to save calls, which is a gain only while a frame's
-bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a large
-mesh's frames are best written one at a time (the punch's 1.4 MB frame:
-1 deep, where the staging row is the batch's row and nothing is copied; 2 deep
-cost 0.31 ms a frame against 0.27, loaded machine). A batch fuller than that also holds memory
-for nothing. Costs per frame, writes with their flushes amortised, a run's 21
-frames (n_frames = 21), interleaved with main's writer of a frame at a time
-(loaded machine, median of 60): bars mesh (1,198 dofs), 8 deep, 23 us against 31.5
-on 1 rank and 21 against 31.5 on 2; a write alone 7.6 us, a flush of 8 frames
-0.15 ms, of which the rows' bytes to the OS 0.10 ms (as a raw pwrite of the same
-bytes) and their XML 18 us; punch mesh (22,660 dofs), 1 deep: 0.26 ms as before.
+``depth`` is ``flush_every``, or fewer frames when those would pass ``BATCH_LIMIT``
+(1 MiB) a rank: a batch pays for a copy per frame to save calls, a gain only while
+a frame's bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a
+large mesh's frames go one at a time (the punch's 1.4 MB frame: 1 deep).
+
+When the batch is full, and at every flush, its frames go to the file, each run of
+consecutive rows of a block (two when the batch straddles the end of a block) as
+one byte range per dataset, on a worker thread (one per writer and rank, a daemon
+started at set-up and ended at close): the datasets are contiguous and their file
+space allocated when made, so a run of rows is one range of the batch in memory
+and one in the file (the dataset's offset, ``H5Dget_offset``, + row x bytes per
+row), and the worker writes it with ``os.pwrite`` into its own descriptor of the
+rank's .h5 file (float64 in memory is H5T_NATIVE_DOUBLE's little-endian IEEE in the
+file: the bytes are those h5py would write, tests/test_outputs.py compares the
+files byte for byte). pwrite releases the GIL, and the loop's steps between outputs
+run as one compiled ``nogil`` call (step_block.py), so the bytes reach the OS while
+the steps run. The batch is double: the writes fill one while the worker writes
+the other (a batch is refilled only once its job is done). h5py's hyperslab writes on
+the caller's thread remain where a dataset gives no offset, the file is not the
+POSIX one (sec2 driver), the machine is big-endian, or ``FieldWriter.ASYNC`` is off.
+A failed pwrite (disk full, EIO) is kept by the worker and raised as one-line
+OSError on the caller's thread at the next write, flush or close (on more ranks at
+the next flush's meeting, on every rank at once, so none waits for a rank that
+stopped); close then closes the files without a flush.
+
+Figures (loaded machine, 2 cores; A/B of the same code with ASYNC off, interleaved):
+bars (1,198 dofs, 500 steps, 21 frames, 8 deep), 1 rank, runs while the other core
+was idle: loop 5.86 -> 5.56 ms (1.58 -> 1.50 x steps x median step), its output
+phase 1.21 -> 0.93 ms (the write that flushes 0.13 -> 0.05 ms: what is left is the
+XML, built on the caller's thread); with both cores busy no gain (5.85 -> 5.79 ms:
+the worker's pwrite then takes the loop's core); 2 ranks on the 2 cores: the same
+(10.4 against 10.5 ms, no core for the threads). Punch (22,660 dofs, 400 steps, 1 deep):
+a write 0.24 -> 0.11 ms (of which 0.05 ms the cell fields' copy from the staging row
+into the batch: the worker writes the batch while the caller computes the next
+frame's stresses into the staging row), loop 82.0 -> 79.9 ms (1.18 -> 1.15). Memory:
+two batches and a staging row, bars 1.1 MB a rank (0.55 MB before), punch 3.7 MB
+(1.4 MB before, the staging row being the batch's row): at most twice ``BATCH_LIMIT``
+(or two frames, when one passes it) and a frame's cell fields.
 
 Each attribute names its row with Xdmf3's heavy-data hyperslab,
 ``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
@@ -75,21 +98,24 @@ ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
 
 The XML is appended, never rewritten: rank 0 keeps the file open, writes each
-new step where the closing tags were and puts them back after it, so a write
-costs the same however many came before. The frames reach the XML in
-batches: every ``flush_every`` writes (and at close) each rank writes its batch
-into its file, the ranks meet and only then rank 0 appends the XML of the frames
-written since the last flush (the batch's depth may differ between ranks: a batch
-written when full, between flushes, is the rank's own business; flushes are
-collective and counted in writes, the same on every rank). Rows go to the OS in
-the call that writes them (the file has no sieve buffer) and change no HDF5
-metadata (a block's file space is allocated, and its metadata flushed, when the
-block is made), so the XML never names data the OS does not hold, and a run
-stopped at any point, even killed (the OS keeps what a killed process wrote),
-leaves a readable series of the frames of the flushes so far; the frames in the
-batch when it was killed are lost, at most ``flush_every`` frames, as the XML of
-the frames since the last flush always was. (An H5Fflush per flush cost ~0.1 ms
-and added nothing.)
+new step where the closing tags were and the closing tags after it, in one pwrite,
+so a write costs the same however many came before. The frames reach the XML in
+batches: every ``flush_every`` writes (and at close) each rank writes its batch, and
+the XML of the frames since the last flush is appended once their rows are in the OS
+on every rank: on one rank by the worker, in the job of the rows, after them (the
+next write waits for that job: it is long done by then); on more, at the next write
+(or close) each rank waits for its worker, the ranks meet and rank 0 appends it,
+before that write's frame (without the worker: the rows, the ranks meet, the XML, all
+in the flush). The batch's depth may differ between ranks (a batch written when
+full, between flushes, is the rank's own business); flushes are collective and
+counted in writes, the same on every rank. A write changes no HDF5 metadata (a
+block's file space is allocated, and its metadata flushed, when the block is made)
+and HDF5 keeps no rows (no sieve buffer), so the XML never names data the OS does
+not hold, and a run stopped at any point, even killed (the OS keeps what a killed
+process wrote), leaves a readable series of the frames of the flushes so far but
+those whose XML is still due (a flush's, until the next write); the frames not in
+it are lost, at most ``flush_every``, as they always were. (An H5Fflush per flush
+cost ~0.1 ms and added nothing.)
 """
 from __future__ import annotations
 
@@ -382,6 +408,7 @@ class FieldWriter:
         self._rows_of = [(list(p), list(c)) for p, c in self._batches]
         self._current = 0  # the batch being filled; the worker's job of each batch
         self._batch_job = [0] * len(self._batches)
+        self._flush_job = 0  # the worker's job that holds the last flush's XML (one rank)
         self._batch_points, self._batch_cells = self._batches[0]
         self._point_rows, self._cell_rows = self._rows_of[0]
         self._cells = (self._cell_rows[0] if self.depth == 1 and self._worker is None
@@ -447,8 +474,11 @@ class FieldWriter:
         if self._due:  # the frames of the last flush: in the OS (waited for), then the XML
             self._publish()
         i = self._held
-        if self._worker is not None:  # the worker's news; a batch to fill: its job done
-            self._take(self._batch_job[self._current] if not i else 0)
+        if self._worker is not None:  # the worker's news, the last flush's job done (its
+            # XML written: a run killed from here loses the frames since only) and, for a
+            # batch to fill, its last job done
+            self._take(self._flush_job if i else max(self._flush_job,
+                                                     self._batch_job[self._current]))
         cells = self._cell_rows[i]
         if cell_values is self.cell_values:
             if cells is not self._cells:
@@ -540,6 +570,8 @@ class FieldWriter:
             self._point_rows, self._cell_rows = self._rows_of[self._current]
         elif job:
             worker.submit(job)
+        if publish and worker is not None:
+            self._flush_job = worker.submitted
 
     def _xml_job(self) -> list:
         """[(descriptor, bytes, offset)] of the XML of the pending frames (rank 0; [] on the
@@ -556,15 +588,13 @@ class FieldWriter:
         return [(self._xml.fileno(), text + _TAIL, at)]
 
     def _take(self, job: int | None = None, collective: bool = False) -> None:
-        """Wait for the worker's jobs up to number ``job`` (all if None; 0: only take what is
-        done) and raise its failure as OSError: on one rank at once, on more only when
-        ``collective`` (then every rank raises if one failed, so the ranks stop together and
-        none waits for one that stopped)."""
+        """Wait for the worker's jobs up to number ``job`` (all if None), take the outcomes of
+        those done after it, and raise its failure as OSError: on one rank at once, on more
+        only when ``collective`` (then every rank raises if one failed, so the ranks stop
+        together and none waits for one that stopped)."""
         worker = self._worker
-        if job == 0:
-            worker.wait(block=False)
-        else:
-            worker.wait(job)
+        worker.wait(job)
+        worker.wait(block=False)
         failed = worker.error is not None
         if self.comm.size > 1:
             if not collective:
@@ -584,13 +614,12 @@ class FieldWriter:
     def _publish(self) -> None:
         """With the worker on more than one rank: the frames of the last flush into the XML
         (collective), once their rows are in the OS on every rank (each rank's worker
-        waited for, then the ranks meet): rank 0's worker appends them."""
+        waited for, then the ranks meet): rank 0 appends them (one pwrite)."""
         self._due = False
         if self._n_pending:
             self._take(collective=True)
-            job = self._xml_job()
-            if job:
-                self._worker.submit(job)
+            for fd, data, offset in self._xml_job():
+                _pwrite_all(fd, data, offset)
 
     @property
     def asynchronous(self) -> bool:
@@ -600,8 +629,9 @@ class FieldWriter:
 
     def wait(self) -> None:
         """Wait for this rank's worker thread (local): on return the OS holds every row it
-        was given and, on rank 0, the XML of every flush so far (a failure is raised at the
-        next write, flush or close). Nothing to wait for without the worker."""
+        was given and the XML of every flush so far (on more ranks: but the last one's, due
+        at the next write); a failure is raised at the next write, flush or close. Nothing
+        to wait for without the worker."""
         if self._worker is not None:
             self._worker.wait()
 

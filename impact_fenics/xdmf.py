@@ -222,9 +222,10 @@ class _Pwriter:
     so it runs while the loop's thread is in a compiled block of steps). :meth:`submit`
     queues a job, a list of (file descriptor, bytes, offset); jobs run in order, each
     range after the one before; each job's outcome (None, or the exception that stopped
-    it) comes back in order to :meth:`wait`, on the submitting thread. The thread runs no
-    Python between its writes but a loop (no GIL held while the loop's thread wants it)
-    and holds no reference to the writer."""
+    it) comes back in order to :meth:`wait`, on the submitting thread. Between its writes
+    the thread runs a few lines of Python only (it holds the GIL for microseconds: the
+    XML is built on the caller's thread, which needs the GIL between its blocks of steps),
+    and it holds no reference to the writer."""
 
     def __init__(self, name: str):
         self.submitted = 0  # jobs submitted, and jobs whose outcome was taken (by wait)

@@ -396,6 +396,8 @@ class FieldWriter:
                 and self._h5.id.get_access_plist().get_driver() == h5py.h5fd.SEC2):
             self._fd = os.open(h5_path, os.O_WRONLY)
             self._worker = _Pwriter(f"fields-p{comm.rank}")
+        # do the batches go to the file on the worker thread (else h5py writes them here)?
+        self.asynchronous = self._worker is not None
         # the batch: the frames written but not yet in the file, ``depth`` deep (see
         # BATCH_LIMIT), their point vectors (component 2 stays 0) and cell fields, twice
         # with the worker (one is filled while the other is written); a caller computes a
@@ -621,12 +623,6 @@ class FieldWriter:
             self._take(collective=True)
             for fd, data, offset in self._xml_job():
                 _pwrite_all(fd, data, offset)
-
-    @property
-    def asynchronous(self) -> bool:
-        """Do the batches go to the file on the worker thread (else h5py writes them on the
-        caller's)?"""
-        return self._worker is not None
 
     def wait(self) -> None:
         """Wait for this rank's worker thread (local): on return the OS holds every row it

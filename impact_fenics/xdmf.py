@@ -553,7 +553,7 @@ class FieldWriter:
                                   mtype=double)
             first = last
         self._held = 0
-        if publish:
+        if publish and self._n_pending:
             # no H5Fflush: the rows go to the OS by pwrite (the worker's before the XML's,
             # or HDF5's in the calls above: no sieve buffer) and a write changes no metadata
             # (the blocks' file space was allocated and flushed at their creation), so the

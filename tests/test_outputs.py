@@ -426,6 +426,21 @@ def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     _check_frames(live, 3)
 
 
+def _batches_of_depth(monkeypatch, depths):
+    """The bars model and its writer's cell fields, with BATCH_LIMIT set so that a batch holds
+    depths[rank % 2] frames: (model, names, owned cells, the piece's nodes, depth)."""
+    from impact_fenics.compat import cell_dofs
+    from impact_fenics.xdmf import FieldWriter
+
+    model = _bar_model()
+    names = list(STRESS_NAMES)
+    n_cells = model.mesh.topology.index_map(2).size_local
+    nodes = np.unique(cell_dofs(model.V)[:n_cells])
+    depth = depths[MPI.COMM_WORLD.rank % 2]
+    monkeypatch.setattr(FieldWriter, "BATCH_LIMIT", depth * 8 * (6 * nodes.size + len(names) * n_cells))
+    return model, names, n_cells, nodes, depth
+
+
 @pytest.mark.parametrize("depths", [(1, 1), (2, 3)], ids=["one_deep", "two_or_three_deep"])
 def test_batched_frames_read_back_as_written(tmp_path_factory, monkeypatch, depths):
     """Frames computed in place into the writer's staging row (cell_block, as the simulation
@@ -435,17 +450,11 @@ def test_batched_frames_read_back_as_written(tmp_path_factory, monkeypatch, dept
     first block. Every frame reads back exactly (bit for bit) as the arrays written, though
     the staging row was overwritten by every frame after it; the piece's nodes are the
     owned cells' nodes in local order (the layout), its cells the owned cells in order."""
-    from impact_fenics.compat import cell_dofs
     from impact_fenics.xdmf import FieldWriter
 
     comm = MPI.COMM_WORLD
     out = comm.bcast(str(tmp_path_factory.mktemp("batched")), root=0)
-    model = _bar_model()
-    names = list(STRESS_NAMES)
-    n_cells = model.mesh.topology.index_map(2).size_local
-    nodes = np.unique(cell_dofs(model.V)[:n_cells])
-    depth = depths[comm.rank % 2]
-    monkeypatch.setattr(FieldWriter, "BATCH_LIMIT", depth * 8 * (6 * nodes.size + len(names) * n_cells))
+    model, names, n_cells, nodes, depth = _batches_of_depth(monkeypatch, depths)
     writer = FieldWriter(os.path.join(out, "fields.xdmf"), model, cell_fields=names,
                          flush_every=5, n_frames=3)
     assert writer.depth == depth
@@ -516,17 +525,11 @@ def test_worker_thread_files_are_the_synchronous_files_byte_for_byte(tmp_path_fa
     batched test, and a batch as deep as a flush (the bars' case); n_frames = 3 and 11
     writes: a batch straddles the first block's end, and the second block (never filled
     with zeros) holds rows not written."""
-    from impact_fenics.compat import cell_dofs
     from impact_fenics.xdmf import FieldWriter
 
     comm = MPI.COMM_WORLD
     base = comm.bcast(str(tmp_path_factory.mktemp("async_bytes")), root=0)
-    model = _bar_model()
-    names = list(STRESS_NAMES)
-    n_cells = model.mesh.topology.index_map(2).size_local
-    nodes = np.unique(cell_dofs(model.V)[:n_cells])
-    depth = depths[comm.rank % 2]
-    monkeypatch.setattr(FieldWriter, "BATCH_LIMIT", depth * 8 * (6 * nodes.size + len(names) * n_cells))
+    model, names, n_cells, _, depth = _batches_of_depth(monkeypatch, depths)
     rng = np.random.default_rng(comm.rank)
     frames = [(rng.standard_normal((2, 2 * model.node_xy.shape[0])),
                rng.standard_normal((len(names), n_cells))) for _ in range(11)]

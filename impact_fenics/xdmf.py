@@ -407,7 +407,8 @@ class FieldWriter:
         self._batches = [(np.zeros((self.depth, 2, self.n_nodes, 3)),
                           np.zeros((self.depth, n_fields, n_cells)))
                          for _ in range(1 if self._worker is None else 2)]
-        self._bytes = [(memoryview(p).cast("B"), memoryview(c).cast("B")) for p, c in self._batches]
+        self._bytes = [tuple(memoryview(a.reshape(-1).view(np.uint8)) for a in batch)
+                       for batch in self._batches]
         self._rows_of = [(list(p), list(c)) for p, c in self._batches]
         self._current = 0  # the batch being filled; the worker's job of each batch
         self._batch_job = [0] * len(self._batches)
@@ -472,7 +473,7 @@ class FieldWriter:
         cells for every name of ``cell_fields`` (e.g. the arrays of :attr:`cell_values`,
         filled in place: they are free for the next frame when write returns). The batch
         goes to the file when full, and into the XML every ``flush_every`` writes (with
-        the worker thread, the XML of a flush is appended at the next write, or at close).
+        the worker thread on more ranks, at the write after: see the module's XML).
         Raises OSError if the worker failed to write a batch (disk full, I/O error)."""
         if self._due:  # the frames of the last flush: in the OS (waited for), then the XML
             self._publish()

@@ -70,16 +70,17 @@ OSError on the caller's thread at the next write, flush or close (on more ranks 
 the next flush's meeting, on every rank at once, so none waits for a rank that
 stopped); close then closes the files without a flush.
 
-Figures (loaded machine, 2 cores; A/B of the same code with ASYNC off, interleaved):
-bars (1,198 dofs, 500 steps, 21 frames, 8 deep), 1 rank, runs while the other core
-was idle: loop 5.86 -> 5.56 ms (1.58 -> 1.50 x steps x median step), its output
-phase 1.21 -> 0.93 ms (the write that flushes 0.13 -> 0.05 ms: what is left is the
-XML, built on the caller's thread); with both cores busy no gain (5.85 -> 5.79 ms:
-the worker's pwrite then takes the loop's core); 2 ranks on the 2 cores: the same
-(10.4 against 10.5 ms, no core for the threads). Punch (22,660 dofs, 400 steps, 1 deep):
-a write 0.24 -> 0.11 ms (of which 0.05 ms the cell fields' copy from the staging row
+Figures (2 cores shared with other jobs; A/B of the same code with ASYNC off,
+interleaved, medians): bars (1,198 dofs, 500 steps, 21 frames, 8 deep), 1 rank, 30
+runs each while the other core was idle: loop 5.80 -> 5.55 ms (1.57 -> 1.50 x steps
+x median step), its output phase 1.19 -> 0.92 ms; the write that flushes 0.13 ->
+0.06 ms (left: the XML, 0.03 ms, built on the caller's thread, and the job); with
+both cores busy (other jobs) no gain, 5.85 -> 5.79 ms: the worker's pwrite then
+takes the loop's core; 2 ranks on the 2 cores: the same, 6.28 against 6.26 ms (no
+core for the threads). Punch (22,660 dofs, 400 steps, 1 deep), other core idle: a
+write 0.24 -> 0.11 ms (of which 0.05 ms the cell fields' copy from the staging row
 into the batch: the worker writes the batch while the caller computes the next
-frame's stresses into the staging row), loop 82.0 -> 79.9 ms (1.18 -> 1.15). Memory:
+frame's stresses into the staging row), loop 83.4 -> 80.9 ms (1.20 -> 1.17). Memory:
 two batches and a staging row, bars 1.1 MB a rank (0.55 MB before), punch 3.7 MB
 (1.4 MB before, the staging row being the batch's row): at most twice ``BATCH_LIMIT``
 (or two frames, when one passes it) and a frame's cell fields.

@@ -45,21 +45,45 @@ only copies the frame into an in-memory batch, ``depth`` frames deep, preallocat
 at set-up: the point vectors straight from u and v, the cell fields from the
 staging row (:attr:`FieldWriter.cell_values`, :meth:`FieldWriter.cell_block`:
 callers compute into it, and it is free for the next frame when write returns).
-When the batch is full, and at every flush, its frames go to the file with one
-hyperslab write per dataset for each run of consecutive rows of a block (two
-runs when the batch straddles the end of a block). ``depth`` is ``flush_every``,
-or fewer frames when those would pass ``BATCH_LIMIT`` (1 MiB) a rank: a batch
-pays for a copy per frame to save calls, which is a gain only while a frame's
-bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a large
-mesh's frames are best written one at a time (the punch's 1.4 MB frame:
-1 deep, where the staging row is the batch's row and nothing is copied; 2 deep
-cost 0.31 ms a frame against 0.27, loaded machine). A batch fuller than that also holds memory
-for nothing. Costs per frame, writes with their flushes amortised, a run's 21
-frames (n_frames = 21), interleaved with main's writer of a frame at a time
-(loaded machine, median of 60): bars mesh (1,198 dofs), 8 deep, 23 us against 31.5
-on 1 rank and 21 against 31.5 on 2; a write alone 7.6 us, a flush of 8 frames
-0.15 ms, of which the rows' bytes to the OS 0.10 ms (as a raw pwrite of the same
-bytes) and their XML 18 us; punch mesh (22,660 dofs), 1 deep: 0.26 ms as before.
+``depth`` is ``flush_every``, or fewer frames when those would pass ``BATCH_LIMIT``
+(1 MiB) a rank: a batch pays for a copy per frame to save calls, a gain only while
+a frame's bytes cost less than the calls (the bars' 69 kB frame: 8 deep), and a
+large mesh's frames go one at a time (the punch's 1.4 MB frame: 1 deep).
+
+When the batch is full, and at every flush, its frames go to the file, each run of
+consecutive rows of a block (two when the batch straddles the end of a block) as
+one byte range per dataset, on a worker thread (one per writer and rank, a daemon
+started at set-up and ended at close): the datasets are contiguous and their file
+space allocated when made, so a run of rows is one range of the batch in memory
+and one in the file (the dataset's offset, ``H5Dget_offset``, + row x bytes per
+row), and the worker writes it with ``os.pwrite`` into its own descriptor of the
+rank's .h5 file (float64 in memory is H5T_NATIVE_DOUBLE's little-endian IEEE in the
+file: the bytes are those h5py would write, tests/test_outputs.py compares the
+files byte for byte). pwrite releases the GIL, and the loop's steps between outputs
+run as one compiled ``nogil`` call (step_block.py), so the bytes reach the OS while
+the steps run. The batch is double: the writes fill one while the worker writes
+the other (a batch is refilled only once its job is done). h5py's hyperslab writes on
+the caller's thread remain where a dataset gives no offset, the file is not the
+POSIX one (sec2 driver), the machine is big-endian, or ``FieldWriter.ASYNC`` is off.
+A failed pwrite (disk full, EIO) is kept by the worker and raised as one-line
+OSError on the caller's thread at the next write, flush or close (on more ranks at
+the next flush's meeting, on every rank at once, so none waits for a rank that
+stopped); close then closes the files without a flush.
+
+Figures (2 cores shared with other jobs; A/B of the same code with ASYNC off,
+interleaved, medians): bars (1,198 dofs, 500 steps, 21 frames, 8 deep), 1 rank, 30
+runs each while the other core was idle: loop 5.80 -> 5.55 ms (1.57 -> 1.50 x steps
+x median step), its output phase 1.19 -> 0.92 ms; the write that flushes 0.13 ->
+0.06 ms (left: the XML, 0.03 ms, built on the caller's thread, and the job); with
+both cores busy (other jobs) no gain, 5.85 -> 5.79 ms: the worker's pwrite then
+takes the loop's core; 2 ranks on the 2 cores: the same, 6.28 against 6.26 ms (no
+core for the threads). Punch (22,660 dofs, 400 steps, 1 deep), other core idle: a
+write 0.24 -> 0.11 ms (of which 0.05 ms the cell fields' copy from the staging row
+into the batch: the worker writes the batch while the caller computes the next
+frame's stresses into the staging row), loop 83.4 -> 80.9 ms (1.20 -> 1.17). Memory:
+two batches and a staging row, bars 1.1 MB a rank (0.55 MB before), punch 3.7 MB
+(1.4 MB before, the staging row being the batch's row): at most twice ``BATCH_LIMIT``
+(or two frames, when one passes it) and a frame's cell fields.
 
 Each attribute names its row with Xdmf3's heavy-data hyperslab,
 ``file.h5:/frames/cells_0|start:stride:count:shape`` in an HDF DataItem. That is
@@ -75,26 +99,32 @@ ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
 
 The XML is appended, never rewritten: rank 0 keeps the file open, writes each
-new step where the closing tags were and puts them back after it, so a write
-costs the same however many came before. The frames reach the XML in
-batches: every ``flush_every`` writes (and at close) each rank writes its batch
-into its file, the ranks meet and only then rank 0 appends the XML of the frames
-written since the last flush (the batch's depth may differ between ranks: a batch
-written when full, between flushes, is the rank's own business; flushes are
-collective and counted in writes, the same on every rank). Rows go to the OS in
-the call that writes them (the file has no sieve buffer) and change no HDF5
-metadata (a block's file space is allocated, and its metadata flushed, when the
-block is made), so the XML never names data the OS does not hold, and a run
-stopped at any point, even killed (the OS keeps what a killed process wrote),
-leaves a readable series of the frames of the flushes so far; the frames in the
-batch when it was killed are lost, at most ``flush_every`` frames, as the XML of
-the frames since the last flush always was. (An H5Fflush per flush cost ~0.1 ms
-and added nothing.)
+new step where the closing tags were and the closing tags after it, in one pwrite,
+so a write costs the same however many came before. The frames reach the XML in
+batches: every ``flush_every`` writes (and at close) each rank writes its batch, and
+the XML of the frames since the last flush is appended once their rows are in the OS
+on every rank: on one rank by the worker, in the job of the rows, after them (the
+next write waits for that job: it is long done by then); on more, at the next write
+(or close) each rank waits for its worker, the ranks meet and rank 0 appends it,
+before that write's frame (without the worker: the rows, the ranks meet, the XML, all
+in the flush). The batch's depth may differ between ranks (a batch written when
+full, between flushes, is the rank's own business); flushes are collective and
+counted in writes, the same on every rank. A write changes no HDF5 metadata (a
+block's file space is allocated, and its metadata flushed, when the block is made)
+and HDF5 keeps no rows (no sieve buffer), so the XML never names data the OS does
+not hold, and a run stopped at any point, even killed (the OS keeps what a killed
+process wrote), leaves a readable series of the frames of the flushes so far but
+those whose XML is still due (a flush's, until the next write); the frames not in
+it are lost, at most ``flush_every``, as they always were. (An H5Fflush per flush
+cost ~0.1 ms and added nothing.)
 """
 from __future__ import annotations
 
 import os
+import queue
 import re
+import sys
+import threading
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -106,7 +136,7 @@ from .jit_watch import load
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
 _T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
 _MARKERS = re.compile("(\x00(?:t|step|row)\x00)")
-_TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+_TAIL = b"    </Grid>\n  </Domain>\n</Xdmf>\n"
 # XDMF topology of P1 cells by nodes per cell; dolfinx numbers a quadrilateral's vertices
 # (0, 0), (1, 0), (0, 1), (1, 1), XDMF (like VTK) goes round the cell: 0, 1, 3, 2
 CELL_TYPES = {3: "Triangle", 4: "Quadrilateral"}
@@ -170,6 +200,82 @@ class _Block:
             self.cells = h5py.h5d.create(h5.id, self.cells_path.encode(), h5py.h5t.NATIVE_DOUBLE,
                                          h5py.h5s.create_simple(self.cells_shape), dcpl=dcpl)
             self.cells_space = self.cells.get_space()
+        # where each dataset's rows start in the file (bytes; contiguous, allocated now), for
+        # writing them with os.pwrite: None if HDF5 gives no offset (then h5py writes them)
+        self.points_offset = self.points.get_offset()
+        self.cells_offset = None if self.cells is None else self.cells.get_offset()
+        self.direct = self.points_offset is not None and (
+            self.cells is None or self.cells_offset is not None)
+
+
+def _pwrite_all(fd: int, data, offset: int) -> None:
+    """Write ``data`` (bytes-like) into ``fd`` at byte ``offset`` (os.pwrite, on from where a
+    short write stopped)."""
+    while data:
+        n = os.pwrite(fd, data, offset)
+        if n <= 0:
+            raise OSError(5, "pwrite wrote nothing")
+        data, offset = data[n:], offset + n
+
+
+class _Pwriter:
+    """A daemon thread writing byte ranges into files with os.pwrite (which releases the GIL,
+    so it runs while the loop's thread is in a compiled block of steps). :meth:`submit`
+    queues a job, a list of (file descriptor, bytes, offset); jobs run in order, each
+    range after the one before; each job's outcome (None, or the exception that stopped
+    it) comes back in order to :meth:`wait`, on the submitting thread. Between its writes
+    the thread runs a few lines of Python only (it holds the GIL for microseconds: the
+    XML is built on the caller's thread, which needs the GIL between its blocks of steps),
+    and it holds no reference to the writer."""
+
+    def __init__(self, name: str):
+        self.submitted = 0  # jobs submitted, and jobs whose outcome was taken (by wait)
+        self.taken = 0
+        self.error: BaseException | None = None  # the first failure taken
+        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
+        self._done: queue.SimpleQueue = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._run, args=(self._jobs, self._done),
+                                        name=name, daemon=True)
+        self._thread.start()
+
+    @staticmethod
+    def _run(jobs: queue.SimpleQueue, done: queue.SimpleQueue) -> None:
+        while True:
+            job = jobs.get()
+            if job is None:
+                return
+            outcome = None
+            try:
+                for fd, data, offset in job:
+                    _pwrite_all(fd, data, offset)
+            except BaseException as exc:  # (never lost: handed to the loop's thread)
+                outcome = exc
+            done.put(outcome)
+
+    def submit(self, job: list) -> int:
+        """Queue ``job``; its number (for :meth:`wait`)."""
+        self._jobs.put(job)
+        self.submitted += 1
+        return self.submitted
+
+    def wait(self, job: int | None = None, block: bool = True) -> None:
+        """Take the outcomes of the jobs up to number ``job`` (all submitted if None),
+        waiting for them if ``block`` (else only those already done); the first failure
+        is kept in :attr:`error`."""
+        job = self.submitted if job is None else job
+        while self.taken < job:
+            if not block and self._done.empty():
+                return
+            outcome = self._done.get()
+            self.taken += 1
+            if outcome is not None and self.error is None:
+                self.error = outcome
+
+    def stop(self) -> None:
+        """Take every outcome and end the thread."""
+        self.wait()
+        self._jobs.put(None)
+        self._thread.join()
 
 
 class FieldWriter:
@@ -189,6 +295,7 @@ class FieldWriter:
     BLOCK = 16
     FILL_LIMIT = 64 * 2**20  # bytes of the first block (written with zeros at set-up)
     BATCH_LIMIT = 2**20  # bytes a rank's batch of frames may hold (see the module's Batches)
+    ASYNC = True  # batches go to the file on a worker thread where they can (see Batches)
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
@@ -237,23 +344,10 @@ class FieldWriter:
         self._h5.create_group("/frames")
         self._h5.flush()
         self._static = {k: np.asarray(v).dtype for k, v in static.items()}
-        # the batch: the frames written but not yet in the file, ``depth`` deep (see
-        # BATCH_LIMIT), their point vectors (component 2 stays 0) and cell fields; a caller
-        # computes a frame's cell fields into the staging row (cell_values, cell_block),
-        # copied into the batch by write (at depth 1 the staging row is the batch's row)
         self.flush_every = max(1, int(flush_every))
         n_fields = len(self.cell_fields)
         frame_bytes = 8 * (6 * self.n_nodes + n_fields * n_cells)
         self.depth = max(1, min(self.flush_every, self.BATCH_LIMIT // max(frame_bytes, 1)))
-        self._batch_points = np.zeros((self.depth, 2, self.n_nodes, 3))
-        self._batch_cells = np.zeros((self.depth, n_fields, n_cells))
-        self._point_rows = list(self._batch_points)
-        self._cell_rows = list(self._batch_cells)
-        self._cells = self._cell_rows[0] if self.depth == 1 else np.zeros((n_fields, n_cells))
-        self.cell_values = {key: self._cells[k] for k, key in enumerate(self.cell_fields)}
-        self._rows = list(self.cell_values.values())
-        self._points_memory = h5py.h5s.create_simple(self._batch_points.shape)
-        self._cells_memory = h5py.h5s.create_simple(self._batch_cells.shape)
         self._held = 0  # frames in the batch (the last ones of the pending frames)
         self._blocks: list[_Block] = []
         # per block, the XML of a frame (rank 0): its text split at the markers, and where
@@ -265,19 +359,20 @@ class FieldWriter:
         self._xml = None
         self._tail_at = 0
         self.n_writes = 0
-        # the frames not yet in the XML: time (s), step, block and row
+        # the frames not yet in the XML: time (s), step, block and row; ``_due``: they are
+        # all flushed (their batch handed to the worker), the XML is due at the next write
         self._n_pending = 0
+        self._due = False
         self._times = np.zeros(self.flush_every)
         self._where = np.zeros((self.flush_every, 3), dtype=np.int64)  # step, block, row
-        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._point_rows[0])
         if comm.rank == 0:
-            self._xml = open(path, "w")
+            self._xml = open(path, "wb")  # (appended with os.pwrite at _tail_at, see _xml_job)
             names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))
             head = ('<?xml version="1.0"?>\n<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
                     '  <Domain>\n'
                     f'    <Information Name="body_id" Value="{names}"/>\n'
                     '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n')
-            self._xml.write(head)
+            self._xml.write(head.encode())
             self._tail_at = self._xml.tell()
             self._xml.write(_TAIL)
             self._xml.flush()
@@ -290,6 +385,45 @@ class FieldWriter:
                             fill=True)
         else:
             self._add_block(self.BLOCK)
+        # the worker thread and its descriptor of this rank's file (beside HDF5's), when the
+        # rows can go there as raw bytes: the file is the POSIX one (sec2 driver: an offset
+        # is a byte of the file), HDF5 gives the datasets' offsets and the machine's
+        # float64 is H5T_NATIVE_DOUBLE's little-endian IEEE (the bytes in memory are the
+        # bytes in the file); else h5py writes every batch on this thread
+        self._worker: _Pwriter | None = None
+        self._fd = -1
+        self._failed = False
+        if (self.ASYNC and sys.byteorder == "little" and self._blocks[0].direct
+                and self._h5.id.get_access_plist().get_driver() == h5py.h5fd.SEC2):
+            self._fd = os.open(h5_path, os.O_WRONLY)
+            self._worker = _Pwriter(f"fields-p{comm.rank}")
+        # do the batches go to the file on the worker thread (else h5py writes them here)?
+        self.asynchronous = self._worker is not None
+        # the batch: the frames written but not yet in the file, ``depth`` deep (see
+        # BATCH_LIMIT), their point vectors (component 2 stays 0) and cell fields, twice
+        # with the worker (one is filled while the other is written); a caller computes a
+        # frame's cell fields into the staging row (cell_values, cell_block), copied into
+        # the batch by write (without the worker, at depth 1 the staging row is the batch's
+        # row; with it, the staging row is free when write returns, the batch's row is not)
+        self._batches = [(np.zeros((self.depth, 2, self.n_nodes, 3)),
+                          np.zeros((self.depth, n_fields, n_cells)))
+                         for _ in range(1 if self._worker is None else 2)]
+        self._bytes = [tuple(memoryview(a.reshape(-1).view(np.uint8)) for a in batch)
+                       for batch in self._batches]
+        self._rows_of = [(list(p), list(c)) for p, c in self._batches]
+        self._current = 0  # the batch being filled; the worker's job of each batch
+        self._batch_job = [0] * len(self._batches)
+        self._flush_job = 0  # the worker's job that holds the last flush's XML (one rank)
+        self._batch_points, self._batch_cells = self._batches[0]
+        self._point_rows, self._cell_rows = self._rows_of[0]
+        self._cells = (self._cell_rows[0] if self.depth == 1 and self._worker is None
+                       else np.zeros((n_fields, n_cells)))
+        self.cell_values = {key: self._cells[k] for k, key in enumerate(self.cell_fields)}
+        self._rows = list(self.cell_values.values())
+        self._points_memory = h5py.h5s.create_simple(self._batch_points.shape)
+        self._cells_memory = h5py.h5s.create_simple(self._batch_cells.shape)
+        self._point_bytes, self._cell_bytes = 48 * self.n_nodes, 8 * n_fields * n_cells  # a row
+        load(_point_vectors, np.zeros(2), np.zeros(2), self._nodes, self._point_rows[0])
 
     # ------------------------------------------------------------ writing
     def ghosted(self, owned: np.ndarray, k: int = 0) -> np.ndarray:
@@ -339,8 +473,17 @@ class FieldWriter:
         unrolled over the local nodes (see :meth:`ghosted`), and an array over the owned
         cells for every name of ``cell_fields`` (e.g. the arrays of :attr:`cell_values`,
         filled in place: they are free for the next frame when write returns). The batch
-        goes to the file when full, and into the XML every ``flush_every`` writes."""
+        goes to the file when full, and into the XML every ``flush_every`` writes (with
+        the worker thread on more ranks, at the write after: see the module's XML).
+        Raises OSError if the worker failed to write a batch (disk full, I/O error)."""
+        if self._due:  # the frames of the last flush: in the OS (waited for), then the XML
+            self._publish()
         i = self._held
+        if self._worker is not None:  # the worker's news, the last flush's job done (its
+            # XML written: a run killed from here loses the frames since only) and, for a
+            # batch to fill, its last job done
+            self._take(self._flush_job if i else max(self._flush_job,
+                                                     self._batch_job[self._current]))
         cells = self._cell_rows[i]
         if cell_values is self.cell_values:
             if cells is not self._cells:
@@ -374,19 +517,31 @@ class FieldWriter:
         self._held += 1
         self.n_writes += 1
         if self._n_pending >= self.flush_every:
-            self.flush()
+            if self._worker is not None and self.comm.size > 1:
+                self._write_batch()
+                self._due = True  # the ranks meet at the next write: their rows are written
+            else:
+                self._write_batch(publish=True)
         elif self._held == self.depth:
             self._write_batch()
 
-    def _write_batch(self) -> None:
-        """Write the batch's frames into their rows of the file: one hyperslab write per
-        dataset for each run of consecutive rows of a block (two when the batch straddles
-        a full block and the next). Local to the rank."""
+    def _write_batch(self, publish: bool = False) -> None:
+        """Write the batch's frames into their rows of the file, each run of consecutive rows
+        of a block (two runs when the batch straddles a full block and the next) as one
+        byte range per dataset: with the worker, its job (os.pwrite of the batch's bytes at
+        the rows' offsets; the other batch is filled meanwhile), else one h5py hyperslab
+        write per dataset. Local to the rank, unless ``publish`` (collective): then the
+        pending frames go into the XML after their rows, in the worker's same job (one
+        rank), or after the ranks meet (no worker; see :meth:`_publish` for the worker on
+        more ranks)."""
         import h5py
 
         held, double = self._held, h5py.h5t.NATIVE_DOUBLE
         where = self._where[self._n_pending - held: self._n_pending]
         n_fields = len(self.cell_fields)
+        worker, fd, job = self._worker, self._fd, []
+        points_bytes, cells_bytes = self._bytes[self._current]
+        pb, cb = self._point_bytes, self._cell_bytes
         first = 0
         while first < held:
             b, row = int(where[first, 1]), int(where[first, 2])
@@ -394,6 +549,13 @@ class FieldWriter:
             while last < held and where[last, 1] == b and where[last, 2] == row + last - first:
                 last += 1
             count, block = last - first, self._blocks[b]
+            if worker is not None and block.direct:
+                job.append((fd, points_bytes[first * pb: last * pb], block.points_offset + row * pb))
+                if block.cells is not None:
+                    job.append((fd, cells_bytes[first * cb: last * cb],
+                                block.cells_offset + row * cb))
+                first = last
+                continue
             self._points_memory.select_hyperslab((first, 0, 0, 0), (count, 2, self.n_nodes, 3))
             block.points_space.select_hyperslab((row, 0, 0, 0), (count, 2, self.n_nodes, 3))
             block.points.write(self._points_memory, block.points_space, self._batch_points,
@@ -405,26 +567,95 @@ class FieldWriter:
                                   mtype=double)
             first = last
         self._held = 0
+        if publish and self._n_pending:
+            # no H5Fflush: the rows go to the OS by pwrite (the worker's before the XML's,
+            # or HDF5's in the calls above: no sieve buffer) and a write changes no metadata
+            # (the blocks' file space was allocated and flushed at their creation), so the
+            # OS holds every frame the XML will name, which a killed process does not lose;
+            # without the worker the ranks meet so that every piece is there before the XML
+            # names it (with it, there is one rank)
+            if worker is None:
+                self.comm.barrier()
+                for fd_xml, data, offset in self._xml_job():
+                    _pwrite_all(fd_xml, data, offset)
+            else:
+                job += self._xml_job()
+        if worker is not None and held:  # the batch to the worker; fill the other one
+            self._batch_job[self._current] = worker.submit(job)
+            self._current = 1 - self._current
+            self._batch_points, self._batch_cells = self._batches[self._current]
+            self._point_rows, self._cell_rows = self._rows_of[self._current]
+        elif job:
+            worker.submit(job)
+        if publish and worker is not None:
+            self._flush_job = worker.submitted
+
+    def _xml_job(self) -> list:
+        """[(descriptor, bytes, offset)] of the XML of the pending frames (rank 0; [] on the
+        others): the frames where the closing tags were, the closing tags after them; the
+        pending frames are then none (in the XML once these bytes are written)."""
+        n = self._n_pending
+        self._n_pending = 0
+        if self._xml is None or not n:
+            return []
+        text = "".join(self._step_xml(float(self._times[k]), *self._where[k].tolist())
+                       for k in range(n)).encode()
+        at = self._tail_at
+        self._tail_at += len(text)
+        return [(self._xml.fileno(), text + _TAIL, at)]
+
+    def _take(self, job: int | None = None, collective: bool = False) -> None:
+        """Wait for the worker's jobs up to number ``job`` (all if None), take the outcomes of
+        those done after it, and raise its failure as OSError: on one rank at once, on more
+        only when ``collective`` (then every rank raises if one failed, so the ranks stop
+        together and none waits for one that stopped)."""
+        worker = self._worker
+        worker.wait(job)
+        worker.wait(block=False)
+        failed = worker.error is not None
+        if self.comm.size > 1:
+            if not collective:
+                return
+            failed = self.comm.allreduce(failed, op=MPI.LOR)
+        if not failed:
+            return
+        self._failed = True
+        exc = worker.error
+        if exc is None:
+            raise OSError("writing the fields' frames failed on another rank")
+        errno = getattr(exc, "errno", None)
+        detail = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        message = f"writing the fields' frames to {self._h5_name} failed: {detail}"
+        raise (OSError(errno, message) if errno else OSError(message)) from exc
+
+    def _publish(self) -> None:
+        """With the worker on more than one rank: the frames of the last flush into the XML
+        (collective), once their rows are in the OS on every rank (each rank's worker
+        waited for, then the ranks meet): rank 0 appends them (one pwrite)."""
+        self._due = False
+        if self._n_pending:
+            self._take(collective=True)
+            for fd, data, offset in self._xml_job():
+                _pwrite_all(fd, data, offset)
+
+    def wait(self) -> None:
+        """Wait for this rank's worker thread (local): on return the OS holds every row it
+        was given and the XML of every flush so far (on more ranks: but the last one's, due
+        at the next write); a failure is raised at the next write, flush or close. Nothing
+        to wait for without the worker."""
+        if self._worker is not None:
+            self._worker.wait()
 
     def flush(self) -> None:
-        """Put the frames written so far into the file and the XML (collective)."""
-        self._write_batch()
-        if not self._n_pending:
-            return
-        # no H5Fflush: the batch's rows went to the OS just now (no sieve buffer) and a
-        # write changes no metadata (the blocks' file space was allocated and flushed at
-        # their creation), so the OS holds every frame the XML will name, which a killed
-        # process does not lose; the ranks meet so that every piece is there before the
-        # XML names it
-        self.comm.barrier()
-        if self._xml is not None:
-            self._xml.seek(self._tail_at)
-            self._xml.write("".join(self._step_xml(float(self._times[k]), *self._where[k].tolist())
-                                    for k in range(self._n_pending)))
-            self._tail_at = self._xml.tell()
-            self._xml.write(_TAIL)
-            self._xml.flush()
-        self._n_pending = 0
+        """Put the frames written so far into the file and the XML (collective); on return
+        they are there (the worker waited for)."""
+        if self._worker is not None and self.comm.size > 1:
+            self._write_batch()
+            self._publish()
+        else:
+            self._write_batch(publish=True)
+        if self._worker is not None:
+            self._take(collective=True)
 
     def _step_xml(self, t: float, step: int, b: int, row: int) -> str:
         """The XML of one frame: its block's template with the time, step and row (put in
@@ -471,15 +702,25 @@ class FieldWriter:
         return "\n".join(lines)
 
     def close(self) -> None:
-        """Flush the last frames (collective) and close the files."""
-        if self._h5 is not None:
-            self.flush()
-            self._blocks.clear()
-            self._h5.close()
-            self._h5 = None
-        if self._xml is not None:
-            self._xml.close()
-            self._xml = None
+        """Flush the last frames (collective, unless a write failed: then this rank's files
+        are closed as they are) and close the files; the worker thread ends."""
+        try:
+            if self._h5 is not None and not self._failed:
+                self.flush()
+        finally:
+            if self._worker is not None:
+                self._worker.stop()
+                self._worker = None
+            if self._fd >= 0:
+                os.close(self._fd)
+                self._fd = -1
+            if self._h5 is not None:
+                self._blocks.clear()
+                self._h5.close()
+                self._h5 = None
+            if self._xml is not None:
+                self._xml.close()
+                self._xml = None
 
 
 # ----------------------------------------------------------------------------- reading back

@@ -410,11 +410,13 @@ def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     comm.barrier()
     model = _bar_model()
     writer = _write_frames(model, live, 3, n_frames=6, flush_every=2)
+    writer.wait()  # the worker thread's writes handed over so far: done
     comm.barrier()
     h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
-    shutil.copy(os.path.join(live, h5), copy)
-    if comm.rank == 0:
+    if comm.rank == 0:  # the XML first: the rows it names were in the OS before it was
         shutil.copy(os.path.join(live, "fields.xdmf"), copy)
+    comm.barrier()
+    shutil.copy(os.path.join(live, h5), copy)
     comm.barrier()
     writer.close()
     comm.barrier()  # every piece closed before any rank reads them
@@ -422,6 +424,21 @@ def test_a_killed_run_shows_the_flushed_frames_only(tmp_path_factory):
     with h5py.File(os.path.join(copy, h5), "r") as f:
         assert f["/frames/points_0"].shape[0] == 6  # preallocated rows, not shown
     _check_frames(live, 3)
+
+
+def _batches_of_depth(monkeypatch, depths):
+    """The bars model and its writer's cell fields, with BATCH_LIMIT set so that a batch holds
+    depths[rank % 2] frames: (model, names, owned cells, the piece's nodes, depth)."""
+    from impact_fenics.compat import cell_dofs
+    from impact_fenics.xdmf import FieldWriter
+
+    model = _bar_model()
+    names = list(STRESS_NAMES)
+    n_cells = model.mesh.topology.index_map(2).size_local
+    nodes = np.unique(cell_dofs(model.V)[:n_cells])
+    depth = depths[MPI.COMM_WORLD.rank % 2]
+    monkeypatch.setattr(FieldWriter, "BATCH_LIMIT", depth * 8 * (6 * nodes.size + len(names) * n_cells))
+    return model, names, n_cells, nodes, depth
 
 
 @pytest.mark.parametrize("depths", [(1, 1), (2, 3)], ids=["one_deep", "two_or_three_deep"])
@@ -433,17 +450,11 @@ def test_batched_frames_read_back_as_written(tmp_path_factory, monkeypatch, dept
     first block. Every frame reads back exactly (bit for bit) as the arrays written, though
     the staging row was overwritten by every frame after it; the piece's nodes are the
     owned cells' nodes in local order (the layout), its cells the owned cells in order."""
-    from impact_fenics.compat import cell_dofs
     from impact_fenics.xdmf import FieldWriter
 
     comm = MPI.COMM_WORLD
     out = comm.bcast(str(tmp_path_factory.mktemp("batched")), root=0)
-    model = _bar_model()
-    names = list(STRESS_NAMES)
-    n_cells = model.mesh.topology.index_map(2).size_local
-    nodes = np.unique(cell_dofs(model.V)[:n_cells])
-    depth = depths[comm.rank % 2]
-    monkeypatch.setattr(FieldWriter, "BATCH_LIMIT", depth * 8 * (6 * nodes.size + len(names) * n_cells))
+    model, names, n_cells, nodes, depth = _batches_of_depth(monkeypatch, depths)
     writer = FieldWriter(os.path.join(out, "fields.xdmf"), model, cell_fields=names,
                          flush_every=5, n_frames=3)
     assert writer.depth == depth
@@ -501,3 +512,90 @@ def test_more_frames_than_announced_go_to_a_new_block(tmp_path_factory):
             assert block["points"] == p["points"].shape[0]
             assert np.allclose(block["arrays"]["displacement"]["range"], [size.min(), size.max()],
                                rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("depths", [(1, 1), (2, 3), (5, 5)], ids=["one_deep", "two_or_three_deep",
+                                                                   "flush_deep"])
+def test_worker_thread_files_are_the_synchronous_files_byte_for_byte(tmp_path_factory,
+                                                                      monkeypatch, depths):
+    """The same frames written twice, by h5py on the caller's thread (FieldWriter.ASYNC off)
+    and by the worker thread's os.pwrite at the datasets' offsets: every file (each rank's
+    .h5 and the .xdmf) is byte for byte the same. The oracle is HDF5 itself: the raw
+    bytes land where its hyperslab writes put them, in its byte order. Depths as in the
+    batched test, and a batch as deep as a flush (the bars' case); n_frames = 3 and 11
+    writes: a batch straddles the first block's end, and the second block (never filled
+    with zeros) holds rows not written."""
+    from impact_fenics.xdmf import FieldWriter
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path_factory.mktemp("async_bytes")), root=0)
+    model, names, n_cells, _, depth = _batches_of_depth(monkeypatch, depths)
+    rng = np.random.default_rng(comm.rank)
+    frames = [(rng.standard_normal((2, 2 * model.node_xy.shape[0])),
+               rng.standard_normal((len(names), n_cells))) for _ in range(11)]
+    for threaded in (False, True):
+        monkeypatch.setattr(FieldWriter, "ASYNC", threaded)
+        out = os.path.join(base, f"threaded_{threaded}")
+        if comm.rank == 0:
+            os.makedirs(out)
+        comm.barrier()
+        writer = FieldWriter(os.path.join(out, "fields.xdmf"), model, cell_fields=names,
+                             flush_every=5, n_frames=3)
+        assert writer.depth == depth and writer.asynchronous == threaded
+        stress = writer.cell_block(names)
+        for k, ((u, v), cells) in enumerate(frames):
+            stress[:] = cells
+            writer.write(1e-6 * k, 10 * k, u, v, writer.cell_values)
+        writer.close()
+    comm.barrier()  # every file closed before any rank reads them
+    h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
+    for name in [h5] + (["fields.xdmf"] if comm.rank == 0 else []):
+        with open(os.path.join(base, "threaded_False", name), "rb") as f:
+            synchronous = f.read()
+        with open(os.path.join(base, "threaded_True", name), "rb") as f:
+            threaded = f.read()
+        assert len(threaded) == len(synchronous) and threaded == synchronous, name
+    assert len(_frames(os.path.join(base, "threaded_True"))) == 11
+
+
+def test_a_worker_write_error_stops_the_writes(tmp_path_factory):
+    """The worker thread's write fails (its descriptor of the .h5 file swapped for a read-only
+    one under it, on rank 0: EBADF, as a disk-full ENOSPC or an EIO would come): the
+    next write, flush or close on the caller's thread raises OSError, one line naming
+    the file and the cause, on every rank at the same call (the others say a rank
+    failed: none waits for it); close then closes the files without a collective flush,
+    and the XML names only the frames of the flush before, which read back as written."""
+    import errno
+
+    from impact_fenics.xdmf import FieldWriter
+
+    comm = MPI.COMM_WORLD
+    out = comm.bcast(str(tmp_path_factory.mktemp("worker_error")), root=0)
+    model = _bar_model()
+    writer = _write_frames(model, out, 2, n_frames=6, flush_every=2)
+    assert writer.asynchronous
+    writer.wait()
+    h5 = "fields.h5" if comm.size == 1 else f"fields_p{comm.rank}.h5"
+    read_only = os.open(os.path.join(out, h5), os.O_RDONLY)
+    if comm.rank == 0:
+        os.dup2(read_only, writer._fd)
+    from impact_fenics.compat import cell_dofs
+
+    xy = model.node_xy
+    centroids = xy[cell_dofs(model.V)[: writer.n_cells]].mean(axis=1)
+    with pytest.raises(OSError) as info:
+        for k in range(2, 12):
+            u = _nodal(xy, k).ravel()
+            writer.write(1e-6 * k, 10 * k, u, -u,
+                         {name: _cellular(centroids, j, k) for j, name in enumerate(STRESS_NAMES)})
+        writer.flush()
+    message = str(info.value)
+    assert "\n" not in message
+    if comm.rank == 0:
+        assert info.value.errno == errno.EBADF and h5 in message, message
+    else:
+        assert "another rank" in message, message
+    writer.close()  # (no collective flush after a failure: this returns on every rank)
+    os.close(read_only)
+    comm.barrier()
+    _check_frames(out, 2)

@@ -138,7 +138,10 @@ def write_cost(comm: MPI.Comm, n_writes: int = 200, every: int = 50) -> dict:
     """Seconds per field write, in blocks of ``every`` writes (rounded down to whole flushes:
     a write may only copy its frame into the writer's batch, so a block holds its flushes,
     and its mean is a write's cost with the batch's rows and the XML amortised), on the
-    punch mesh: flat when the cost does not depend on the writes before."""
+    punch mesh: flat when the cost does not depend on the writes before. (With the
+    writer's worker thread, writes back to back leave it no steps to run beside: a write
+    waits for the batch before it, so this is the rows' throughput, more than a run's
+    loop pays for a write.)"""
     from .. import meshing
     from ..bodies import Body, DeformableModel
     from ..materials import STEEL
@@ -167,7 +170,8 @@ def write_cost(comm: MPI.Comm, n_writes: int = 200, every: int = 50) -> dict:
     if comm.rank == 0:
         import shutil
         shutil.rmtree(scratch, ignore_errors=True)
-    return {"every": every, "batch_depth": writer.depth, "seconds_per_write_by_block": blocks,
+    return {"every": every, "batch_depth": writer.depth, "asynchronous": writer.asynchronous,
+            "seconds_per_write_by_block": blocks,
             "growth_last_over_first": blocks[-1] / blocks[0]}
 
 
@@ -281,8 +285,9 @@ def part_whole_run(ctx) -> dict:
     res["write_cost"] = write_cost(ctx.comm)
     wc = res["write_cost"]
     if "seconds_per_write_by_block" in wc:
+        thread = ", rows by the worker thread" if wc.get("asynchronous") else ""
         ctx.log("   field write (punch mesh, batch depth "
-                f"{wc.get('batch_depth', 1)}), ms per write with its flushes in blocks of "
+                f"{wc.get('batch_depth', 1)}{thread}), ms per write with its flushes in blocks of "
                 f"{wc['every']}: " + ", ".join(f"{1e3 * s:.2f}" for s in wc["seconds_per_write_by_block"]))
     return res
 

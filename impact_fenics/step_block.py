@@ -19,11 +19,11 @@ the energy rows from these records after the block
 (Simulation._row_from_record, which makes the Python step's rows from the same
 record), and a step whose energy fails energy.energy_verdict ends its block so the
 row raises at the same step. On one rank, when the cell fields are the stresses of
-one isotropic kernel and the writer batches frames, a fields step computes its
+one isotropic kernel, a fields step computes its
 frame straight into the writer's batch row (stresses, point vectors, the run's
 peaks) and the loop hands the frames to the writer after the block (else a fields
-step ends its block and the loop writes its frame). So a block ends when the
-writer's batch or the history block is full, when a progress line may be due, at
+step ends its block and the loop writes its frame). So a block ends where the
+writer's batch goes to the file (full, or a flush due), when the history block is full, when a progress line may be due, at
 the MPI ranks' agreement on signals, or after :data:`MAX_STEPS` steps or about
 :data:`BLOCK_SECONDS` (on one rank the signal flag is looked at between blocks).
 The MPI calls happen at the same steps on every rank, so blocks that end at
@@ -87,9 +87,11 @@ I_HOLD, I_NEXT_OUTPUT, I_OUTPUT_EVERY = 28, 29, 30
 # whose energy failed energy_verdict (-1: none)
 I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD, I_EVENTS, I_UNSOUND = range(31, 38)
 # the frames written by the block (on: 1), the fields steps (next, every), the first cell of
-# the stress kernel's range, the batch's rows held (in and out), the frames of the block (out)
+# the stress kernel's range, the batch's next row (in and out), the frames of the block
+# (out), the batch's row where it goes to the file (the block stops there)
 I_FRAMES, I_NEXT_FIELDS, I_FIELDS_EVERY, I_STRESS_FIRST, I_FRAME_ROW, I_N_FRAMES = range(38, 44)
-N_INTS = 44
+I_FRAME_END = 44
+N_INTS = 45
 # energy (floats): E_0 of the ledger (J; NaN before the first output), the growth limit
 E_0, E_LIMIT = 0, 1
 # the contact track (floats): lowest gap, first and last step in contact (-1: none),
@@ -154,7 +156,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     cell ints[I_STRESS_FIRST], their peaks into ``s_peaks``) and the run's peaks
     (``peak_state``, cell_fields.track_peaks), its time and step into ``frame_t``,
     ``frame_step`` (ints[I_N_FRAMES] frames): the loop then hands them to the writer
-    (FieldWriter.written). A full batch stops the block."""
+    (FieldWriter.written). The block stops at row ints[I_FRAME_END], where the batch goes
+    to the file (FieldWriter.batch_rows)."""
     n0, stop, step0 = ints[I_N], ints[I_STOP], ints[I_STEP]
     contact, rigid = ints[I_CONTACT] != 0, ints[I_RIGID] != 0
     penalty, probes, timed = ints[I_PENALTY] != 0, ints[I_PROBES] != 0, ints[I_TIMED] != 0
@@ -167,7 +170,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     pair_row, pair_capacity = ints[I_PAIR_ROW], ints[I_PAIR_CAPACITY]
     next_output, output_every = ints[I_NEXT_OUTPUT], ints[I_OUTPUT_EVERY]
     frames, next_fields, fields_every = ints[I_FRAMES] != 0, ints[I_NEXT_FIELDS], ints[I_FIELDS_EVERY]
-    frame_row, depth, n_frames = ints[I_FRAME_ROW], frame_points.shape[0], 0
+    frame_row, frame_end, n_frames = ints[I_FRAME_ROW], ints[I_FRAME_END], 0
     ints[I_ERROR] = 0
     ints[I_RUNAWAY] = -1
     ints[I_DIVERGED] = -1
@@ -333,7 +336,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             ints[I_UNSOUND] = k - 1
             break
         if (row == capacity or pair_row == pair_capacity or n_events == events.shape[0]
-                or frame_row == depth):
+                or (frames and frame_row == frame_end)):
             break
     ints[I_DONE] = k
     ints[I_ROW] = row
@@ -434,7 +437,7 @@ class StepBlock:
         if frames is not None:  # the writer's batch, the stress kernel's arrays
             self.writer, stress, self.fields_at, peak_state = frames
             _, s_dofs, s_g, _, lame, _, (first, _) = stress._kernel[0]
-            points, cells, _ = self.writer.batch_rows()
+            points, cells, _, _ = self.writer.batch_rows()
             frame_arrays = (points, cells, self.writer._nodes, s_dofs, s_g, np.array(lame),
                             stress._no_plastic, stress.peaks, peak_state)
             ints[I_FRAMES], ints[I_FIELDS_EVERY], ints[I_STRESS_FIRST] = 1, self.fields_at.every, first
@@ -464,7 +467,7 @@ class StepBlock:
         (u^n, v^n buffers of an output step, -M/dt) as simulation.run keeps them;
         ``writer``: the run's FieldWriter (or None), ``fields_at`` its schedule: the
         blocks write the frames on one rank when the cell fields are the stresses of one
-        isotropic kernel and the writer batches frames (else the loop writes them)."""
+        isotropic kernel (else the loop writes them)."""
         integ = sim.integrator
         if integ.A is None or integ.nonlinear or integ.loads or len(sim.contacts) > 1:
             return None
@@ -479,7 +482,7 @@ class StepBlock:
             return None
         pairs = pair_tables[0][1] if pair_tables else None
         frames = None
-        if (writer is not None and sim.comm.size == 1 and writer.depth > 1
+        if (writer is not None and sim.comm.size == 1
                 and writer.cell_fields == list(STRESS_NAMES) and not sim._cell_field_providers
                 and sim._cell_stress._single):
             frames = (writer, sim._cell_stress, fields_at, sim._peaks)
@@ -515,7 +518,7 @@ class StepBlock:
         ints[I_NEXT_CHECK], ints[I_NEXT_PAIRS] = self.check_at.next, self.pairs_at.next
         ints[I_NEXT_OUTPUT] = self.output_at.next
         if self.writer is not None:  # the batch's arrays (the writer may change them)
-            points, cells, ints[I_FRAME_ROW] = self.writer.batch_rows()
+            points, cells, ints[I_FRAME_ROW], ints[I_FRAME_END] = self.writer.batch_rows()
             b = self._batch
             if points is not self._args[b] or cells is not self._args[b + 1]:
                 self._args = (*self._args[:b], points, cells, *self._args[b + 2:])

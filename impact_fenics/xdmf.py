@@ -408,6 +408,9 @@ class FieldWriter:
         self._batches = [(np.zeros((self.depth, 2, self.n_nodes, 3)),
                           np.zeros((self.depth, n_fields, n_cells)))
                          for _ in range(1 if self._worker is None else 2)]
+        for batch in self._batches:  # their pages touched now, not at a frame's first write
+            for a in batch:
+                a.fill(0.0)
         self._bytes = [tuple(memoryview(a.reshape(-1).view(np.uint8)) for a in batch)
                        for batch in self._batches]
         self._rows_of = [(list(p), list(c)) for p, c in self._batches]
@@ -476,14 +479,7 @@ class FieldWriter:
         goes to the file when full, and into the XML every ``flush_every`` writes (with
         the worker thread on more ranks, at the write after: see the module's XML).
         Raises OSError if the worker failed to write a batch (disk full, I/O error)."""
-        if self._due:  # the frames of the last flush: in the OS (waited for), then the XML
-            self._publish()
-        i = self._held
-        if self._worker is not None:  # the worker's news, the last flush's job done (its
-            # XML written: a run killed from here loses the frames since only) and, for a
-            # batch to fill, its last job done
-            self._take(self._flush_job if i else max(self._flush_job,
-                                                     self._batch_job[self._current]))
+        i = self._ready()
         cells = self._cell_rows[i]
         if cell_values is self.cell_values:
             if cells is not self._cells:
@@ -499,12 +495,31 @@ class FieldWriter:
         _point_vectors(u, v, self._nodes, self._point_rows[i])
         self.written(t, step)
 
-    def batch_rows(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """(point vectors, cell fields, frames held) of the batch: for a caller that fills
-        the next rows itself (point rows as :func:`_point_vectors` does, cell rows in
-        ``cell_fields`` order; depth > 1), then calls :meth:`written` for each, in order,
-        before any other write."""
-        return self._batch_points, self._batch_cells, self._held
+    def _ready(self, flushed: bool = True) -> int:
+        """The batch's next row (the frames it holds), free to fill: the last flush
+        published, and with the worker its news taken, for an empty batch its last job
+        done and, if ``flushed``, the last flush's job done (its XML written: a run killed
+        from here loses the frames since only)."""
+        if self._due:  # the frames of the last flush: in the OS (waited for), then the XML
+            self._publish()
+        i = self._held
+        if self._worker is not None:
+            job = 0 if i else self._batch_job[self._current]
+            self._take(max(job, self._flush_job) if flushed else job)
+        return i
+
+    def batch_rows(self) -> tuple[np.ndarray, np.ndarray, int, int]:
+        """(point vectors, cell fields, first row, end row) of the batch: rows first ..
+        end - 1 are free to fill, the frames before the batch goes to the file (full, or
+        a flush due). For a caller that fills them itself (point rows as
+        :func:`_point_vectors` does, cell rows in ``cell_fields`` order), then calls
+        :meth:`written` for each, in order, before any other write or batch_rows. (Unlike
+        :meth:`write`, it does not wait for the last flush's job: the caller fills rows
+        while the worker writes. A run killed before that job is done, about 0.1 ms on a
+        small mesh, loses that flush's frames too.)"""
+        i = self._ready(flushed=False)
+        end = i + min(self.depth - i, self.flush_every - self._n_pending)
+        return self._batch_points, self._batch_cells, i, end
 
     def written(self, t: float, step: int) -> None:
         """The batch's next row now holds the frame at time t (s) of step ``step``: it goes

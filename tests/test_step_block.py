@@ -128,6 +128,36 @@ def test_bars_compiled_steps_equal_python_steps(bars_mesh, tmp_path_factory, tim
     assert "history.sigma_zz_obs" in got and "fields.sigma_zz.3" in got
 
 
+def test_frames_of_a_shallow_batch_equal_python_steps(bars_mesh, tmp_path_factory,
+                                                      monkeypatch):
+    # a batch of 3 frames and a flush every 8: a block's frames stop where the batch goes
+    # to the file, full or flushed, and the next block fills the other batch
+    from impact_fenics import xdmf
+
+    mesh = bars_mesh.mesh  # a frame's bytes on one rank (a rank's piece has fewer)
+    frame = 8 * (6 * mesh.geometry.x.shape[0] + 5 * mesh.topology.index_map(2).size_local)
+    monkeypatch.setattr(xdmf.FieldWriter, "BATCH_LIMIT", 3 * frame + 1)
+    depths = []
+    init = xdmf.FieldWriter.__init__
+
+    def spy(self, *args, **kw):
+        init(self, *args, **kw)
+        depths.append((self.depth, self.flush_every))
+    monkeypatch.setattr(xdmf.FieldWriter, "__init__", spy)
+
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        sim = Simulation(model, _settings(out, compiled, output_every=4),
+                         initial_velocity={"striker": (0.0, 5.0)})
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
+                        scenes.make_method("dme"))
+        return sim
+    got = _same(make, tmp_path_factory, "shallow", frames=True)
+    assert "fields.sigma_zz.40" in got
+    if COMM.size == 1:
+        assert depths == [(3, 8)] * 2
+
+
 def test_no_contact_compiled_steps_equal_python_steps(bars_mesh, tmp_path_factory):
     def make(out, compiled):
         model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])

@@ -197,7 +197,7 @@ def _put(x, value_bits, out, pos, sig, exp, pow10):
     return pos + 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # (a worker thread formats while the loop steps)
 def _rows(values, bits, out, sig, exp, pow10):
     """CSV text of the rows of ``values`` (rows x columns; ``bits`` the same memory as
     uint64) into ``out``; returns the number of bytes."""

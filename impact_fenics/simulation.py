@@ -236,6 +236,7 @@ class Simulation:
         # in place; one before the first step removes the staging directory and stops
         stop = _StopFlag()
         staging = writer = None
+        tables: dict = {}
         try:
             t_setup = time.perf_counter()
             staging = rundir.prepare_directory(s.out, comm) if s.out else None
@@ -251,6 +252,8 @@ class Simulation:
         except BaseException:
             if writer is not None:
                 writer.close()  # collective: left to the garbage collector it can hang MPI
+            for tbl in tables.values():  # (their worker threads ended)
+                tbl.close()
             if staging:
                 rundir.abandon_directory(staging, comm)
             stop.restore()
@@ -831,7 +834,7 @@ class Simulation:
 
         tables = {"history": output.Table(path("history.csv"), cols, comm, block,
                                           raw_columns=n_raw + len(cols) - n_probes,
-                                          summed=n_raw, finish=finish),
+                                          summed=n_raw, finish=finish, asynchronous=True),
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
                                          + self._momentum_columns(), comm, 16)}
         self._history_row = self._history_filler(tables["history"], probes, n_raw)

@@ -121,10 +121,8 @@ cost ~0.1 ms and added nothing.)
 from __future__ import annotations
 
 import os
-import queue
 import re
 import sys
-import threading
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -132,6 +130,7 @@ from mpi4py import MPI
 from numba import njit
 
 from .jit_watch import load
+from .worker import Worker, failure, pwrite_all
 
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
 _T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
@@ -208,74 +207,10 @@ class _Block:
             self.cells is None or self.cells_offset is not None)
 
 
-def _pwrite_all(fd: int, data, offset: int) -> None:
-    """Write ``data`` (bytes-like) into ``fd`` at byte ``offset`` (os.pwrite, on from where a
-    short write stopped)."""
-    while data:
-        n = os.pwrite(fd, data, offset)
-        if n <= 0:
-            raise OSError(5, "pwrite wrote nothing")
-        data, offset = data[n:], offset + n
-
-
-class _Pwriter:
-    """A daemon thread writing byte ranges into files with os.pwrite (which releases the GIL,
-    so it runs while the loop's thread is in a compiled block of steps). :meth:`submit`
-    queues a job, a list of (file descriptor, bytes, offset); jobs run in order, each
-    range after the one before; each job's outcome (None, or the exception that stopped
-    it) comes back in order to :meth:`wait`, on the submitting thread. Between its writes
-    the thread runs a few lines of Python only (it holds the GIL for microseconds: the
-    XML is built on the caller's thread, which needs the GIL between its blocks of steps),
-    and it holds no reference to the writer."""
-
-    def __init__(self, name: str):
-        self.submitted = 0  # jobs submitted, and jobs whose outcome was taken (by wait)
-        self.taken = 0
-        self.error: BaseException | None = None  # the first failure taken
-        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
-        self._done: queue.SimpleQueue = queue.SimpleQueue()
-        self._thread = threading.Thread(target=self._run, args=(self._jobs, self._done),
-                                        name=name, daemon=True)
-        self._thread.start()
-
-    @staticmethod
-    def _run(jobs: queue.SimpleQueue, done: queue.SimpleQueue) -> None:
-        while True:
-            job = jobs.get()
-            if job is None:
-                return
-            outcome = None
-            try:
-                for fd, data, offset in job:
-                    _pwrite_all(fd, data, offset)
-            except BaseException as exc:  # (never lost: handed to the loop's thread)
-                outcome = exc
-            done.put(outcome)
-
-    def submit(self, job: list) -> int:
-        """Queue ``job``; its number (for :meth:`wait`)."""
-        self._jobs.put(job)
-        self.submitted += 1
-        return self.submitted
-
-    def wait(self, job: int | None = None, block: bool = True) -> None:
-        """Take the outcomes of the jobs up to number ``job`` (all submitted if None),
-        waiting for them if ``block`` (else only those already done); the first failure
-        is kept in :attr:`error`."""
-        job = self.submitted if job is None else job
-        while self.taken < job:
-            if not block and self._done.empty():
-                return
-            outcome = self._done.get()
-            self.taken += 1
-            if outcome is not None and self.error is None:
-                self.error = outcome
-
-    def stop(self) -> None:
-        """Take every outcome and end the thread."""
-        self.wait()
-        self._jobs.put(None)
-        self._thread.join()
+def _write_ranges(job: list) -> None:
+    """A worker's job: each (file descriptor, bytes, offset) of ``job`` written, in order."""
+    for fd, data, offset in job:
+        pwrite_all(fd, data, offset)
 
 
 class FieldWriter:
@@ -390,13 +325,13 @@ class FieldWriter:
         # is a byte of the file), HDF5 gives the datasets' offsets and the machine's
         # float64 is H5T_NATIVE_DOUBLE's little-endian IEEE (the bytes in memory are the
         # bytes in the file); else h5py writes every batch on this thread
-        self._worker: _Pwriter | None = None
+        self._worker: Worker | None = None
         self._fd = -1
         self._failed = False
         if (self.ASYNC and sys.byteorder == "little" and self._blocks[0].direct
                 and self._h5.id.get_access_plist().get_driver() == h5py.h5fd.SEC2):
             self._fd = os.open(h5_path, os.O_WRONLY)
-            self._worker = _Pwriter(f"fields-p{comm.rank}")
+            self._worker = Worker(f"fields-p{comm.rank}")
         # do the batches go to the file on the worker thread (else h5py writes them here)?
         self.asynchronous = self._worker is not None
         # the batch: the frames written but not yet in the file, ``depth`` deep (see
@@ -592,16 +527,16 @@ class FieldWriter:
             if worker is None:
                 self.comm.barrier()
                 for fd_xml, data, offset in self._xml_job():
-                    _pwrite_all(fd_xml, data, offset)
+                    pwrite_all(fd_xml, data, offset)
             else:
                 job += self._xml_job()
         if worker is not None and held:  # the batch to the worker; fill the other one
-            self._batch_job[self._current] = worker.submit(job)
+            self._batch_job[self._current] = worker.submit(_write_ranges, job)
             self._current = 1 - self._current
             self._batch_points, self._batch_cells = self._batches[self._current]
             self._point_rows, self._cell_rows = self._rows_of[self._current]
         elif job:
-            worker.submit(job)
+            worker.submit(_write_ranges, job)
         if publish and worker is not None:
             self._flush_job = worker.submitted
 
@@ -638,10 +573,7 @@ class FieldWriter:
         exc = worker.error
         if exc is None:
             raise OSError("writing the fields' frames failed on another rank")
-        errno = getattr(exc, "errno", None)
-        detail = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        message = f"writing the fields' frames to {self._h5_name} failed: {detail}"
-        raise (OSError(errno, message) if errno else OSError(message)) from exc
+        raise failure(exc, self._h5_name, "the fields' frames") from exc
 
     def _publish(self) -> None:
         """With the worker on more than one rank: the frames of the last flush into the XML
@@ -651,7 +583,7 @@ class FieldWriter:
         if self._n_pending:
             self._take(collective=True)
             for fd, data, offset in self._xml_job():
-                _pwrite_all(fd, data, offset)
+                pwrite_all(fd, data, offset)
 
     def wait(self) -> None:
         """Wait for this rank's worker thread (local): on return the OS holds every row it

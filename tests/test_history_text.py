@@ -109,3 +109,53 @@ def test_table_in_blocks_holds_every_row(tmp_path):
             assert f.readline() == "step,a,b\n"
             assert f.readline().startswith("0,")
     assert os.path.getsize(path) > 0
+
+
+def test_a_table_formatted_on_its_worker_thread_is_the_same_file(tmp_path_factory):
+    # the oracle is the same rows written by the caller's thread: the worker's file is
+    # byte for byte that file (blocks in order, each block's rows copied before the
+    # block is reused), whatever the blocks in flight
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path_factory.mktemp("async_table")), root=0)
+    rng = np.random.default_rng(5)
+    rows = rng.standard_normal((53, 3))
+    files = []
+    for asynchronous in (False, True):
+        path = os.path.join(base, f"t_{asynchronous}.csv")
+        table = output.Table(path, ["step", "a", "b"], comm, capacity=4,
+                             asynchronous=asynchronous)
+        assert (table._worker is not None) == (asynchronous and comm.rank == 0)
+        for r in rows:
+            table.row()[:] = r
+        table.close()
+        files.append(path)
+    comm.barrier()
+    with open(files[0], "rb") as f:
+        synchronous = f.read()
+    with open(files[1], "rb") as f:
+        assert f.read() == synchronous
+    assert np.array_equal(np.loadtxt(files[1], delimiter=",", skiprows=1), rows)
+
+
+def test_a_table_worker_write_error_raises_one_line(tmp_path_factory):
+    # the worker's descriptor swapped for a read-only one (EBADF, as ENOSPC or EIO would
+    # come): close raises OSError naming the file and the cause, and ends the thread
+    import pytest
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path_factory.mktemp("async_table_error")), root=0)
+    path = os.path.join(base, "t.csv")
+    table = output.Table(path, ["step", "a"], comm, capacity=4, asynchronous=True)
+    if comm.rank == 0:
+        os.close(table._fd)
+        table._fd = os.open(path, os.O_RDONLY)
+    for k in range(6):
+        table.row()[:] = (k, 0.5 * k)
+    if comm.rank == 0:
+        with pytest.raises(OSError) as err:
+            table.close()
+        message = str(err.value)
+        assert "t.csv" in message and "failed" in message and "\n" not in message
+        assert table._worker is None
+    else:
+        table.close()

@@ -6,8 +6,11 @@ code without a hang. Anything unexpected aborts all ranks.
 """
 from __future__ import annotations
 
+import errno
 import functools
 import logging
+import os
+import re
 import sys
 from typing import Callable, TypeVar
 
@@ -15,6 +18,7 @@ F = TypeVar("F", bound=Callable)
 
 EXIT_INPUT = 2
 EXIT_UNSTABLE = 3
+EXIT_OUTPUT = 4
 
 
 class InputError(ValueError):
@@ -23,6 +27,16 @@ class InputError(ValueError):
 
 class UnstableRunError(RuntimeError):
     """The run diverged (NaN or energy growth); the message gives step and stable dt."""
+
+
+class OutputError(OSError):
+    """Writing the run's results failed (disk full, I/O error): the message names the file
+    and the cause in one line. It may come on one rank only."""
+
+
+# OSErrors a user acts on as on an OutputError: disk full, quota, I/O error, read-only
+# file system, file too large
+_OUTPUT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS, errno.EFBIG}
 
 
 def _print_rank0(message: str) -> None:
@@ -57,9 +71,11 @@ def quiet_compiler_logs() -> None:
 
 
 def user_errors(func: F) -> F:
-    """Decorate a ``main()``: InputError exits 2, UnstableRunError exits 3 and a signal
-    before the run 128 + its number, one line each; the form compiler's INFO lines
-    stay off the console. SIGINT and SIGTERM are caught from the first line on."""
+    """Decorate a ``main()``: InputError exits 2, UnstableRunError exits 3, OutputError (or
+    an OSError of a full disk, an I/O error, ...: _OUTPUT_ERRNOS) 4 (said by the rank that
+    met it, every rank stopped) and a signal before the run 128
+    + its number, one line each; the form compiler's INFO lines stay off the console.
+    SIGINT and SIGTERM are caught from the first line on."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
@@ -76,11 +92,47 @@ def user_errors(func: F) -> F:
         except UnstableRunError as exc:
             _print_rank0(f"error: {exc}")
             raise SystemExit(EXIT_UNSTABLE)
+        except OSError as exc:
+            if not (isinstance(exc, OutputError) or exc.errno in _OUTPUT_ERRNOS):
+                raise
+            from mpi4py import MPI
+
+            sys.stdout.flush()
+            print(f"error: {exc}", file=sys.stderr, flush=True)
+            if MPI.COMM_WORLD.size > 1:  # (the other ranks may be waiting in a collective)
+                MPI.COMM_WORLD.Abort(EXIT_OUTPUT)
+            raise SystemExit(EXIT_OUTPUT)
         except interrupts.Interrupted as exc:
             _print_rank0(f"stopped: {exc}")
             raise SystemExit(exc.exit_code)
 
     return wrapper  # type: ignore[return-value]
+
+
+def file_system_failure(exc: BaseException) -> str | None:
+    """The cause (e.g. 'No space left on device') if ``exc`` is a failed write for a
+    reason in _OUTPUT_ERRNOS, also as HDF5 reports it through h5py (its message carries
+    'errno = N, error message = ...'); else None."""
+    code = getattr(exc, "errno", None)
+    if code in _OUTPUT_ERRNOS:
+        return os.strerror(code)
+    found = re.search(r"errno = (\d+)", str(exc))
+    if found and int(found.group(1)) in _OUTPUT_ERRNOS:
+        return os.strerror(int(found.group(1)))
+    return None
+
+
+def output_failed(exc: OutputError) -> None:
+    """Stop on a failed write of the results met on this rank only (a rank-0 file): raise
+    ``exc`` on one rank; under MPI print its line and abort every rank with exit 4 (the
+    others may be waiting in a collective call that this rank will never make)."""
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.size > 1:
+        sys.stdout.flush()
+        print(f"error: {exc}", file=sys.stderr, flush=True)
+        MPI.COMM_WORLD.Abort(EXIT_OUTPUT)
+    raise exc
 
 
 def require(condition: bool, message: str) -> None:

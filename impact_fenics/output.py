@@ -18,6 +18,7 @@ from mpi4py import MPI
 from numba import njit
 
 from . import float_text
+from .errors import output_failed
 from .worker import Worker, failure, write_all
 
 # the output directory rules and the lock live in rundir.py (no dolfinx import there)
@@ -27,9 +28,12 @@ from .rundir import abandon_directory, finalize_directory, prepare_directory  # 
 def write_json(path: str, data: dict, comm: MPI.Comm) -> None:
     """Write ``data`` as indented, strict JSON from rank 0 (NaN and infinities become null)."""
     if comm.rank == 0:
-        with open(path, "w") as f:
-            json.dump(json_ready(data), f, indent=2, sort_keys=True, allow_nan=False)
-            f.write("\n")
+        try:
+            with open(path, "w") as f:
+                json.dump(json_ready(data), f, indent=2, sort_keys=True, allow_nan=False)
+                f.write("\n")
+        except OSError as exc:  # (a full disk: the file named in the one line)
+            output_failed(failure(exc, os.path.basename(path), "the summary"))
 
 
 def json_ready(obj):
@@ -158,8 +162,11 @@ class Table:
                 self._next_copy = 1 - k
             elif self.comm.rank == 0:
                 text = float_text.format_rows(out, self._text)
-                with open(self.path, "ab") as f:
-                    f.write(text)
+                try:
+                    with open(self.path, "ab") as f:
+                        f.write(text)
+                except OSError as exc:
+                    output_failed(failure(exc, os.path.basename(self.path), "the table"))
         else:
             self._kept.append(np.array(out, dtype=float))
         self.n_rows += n
@@ -177,7 +184,7 @@ class Table:
         worker.wait(job)
         if worker.error is not None:
             exc, worker.error = worker.error, None
-            raise failure(exc, os.path.basename(self.path), "the table") from exc
+            output_failed(failure(exc, os.path.basename(self.path), "the table"))
 
     def close(self) -> None:
         """Write what is left (collective, like :meth:`flush`); with the worker, wait for it
@@ -194,7 +201,7 @@ class Table:
                     worker.stop()
                     os.close(self._fd)
                 if error is not None:
-                    raise failure(error, os.path.basename(self.path), "the table") from error
+                    output_failed(failure(error, os.path.basename(self.path), "the table"))
 
     def moved(self, directory: str) -> None:
         """The file now lives in ``directory`` (the run directory was published)."""

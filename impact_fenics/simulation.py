@@ -25,7 +25,8 @@ from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
 from .energy import (GREW, NOT_FINITE, Ledger, LoadWork, OutputSums, copy_state,
                      energy_verdict, half_dot, strain_from_prediction)
-from .errors import InputError, UnstableRunError, require
+from .errors import (InputError, OutputError, UnstableRunError, file_system_failure,
+                     output_failed, require)
 from .integrator import Integrator
 from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
 from .internal_force.cell_fields import PlasticCellFields
@@ -769,8 +770,14 @@ class Simulation:
         extra = [name for p in self._cell_field_providers for name in p()]
         # the initial state, then every output_every steps and the last step
         n_frames = 1 + -(-self.n_steps // self.settings.output_every)
-        writer = FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
-                             cell_fields=list(STRESS_NAMES) + extra, n_frames=n_frames)
+        try:
+            writer = FieldWriter(os.path.join(staging, "fields.xdmf"), self.model,
+                                 cell_fields=list(STRESS_NAMES) + extra, n_frames=n_frames)
+        except Exception as exc:  # a full disk at set-up: one line, every rank stopped
+            cause = file_system_failure(exc)
+            if cause is None:
+                raise
+            output_failed(OutputError(f"writing the fields to {staging} failed: {cause}"))
         # the stresses are computed straight into the writer's frame buffer
         self._stress_block = writer.cell_block(STRESS_NAMES)
         return writer

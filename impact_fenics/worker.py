@@ -15,6 +15,8 @@ import os
 import queue
 import threading
 
+from .errors import OutputError
+
 
 class Worker:
     """A daemon thread running submitted jobs (a function and its arguments) in order.
@@ -90,9 +92,9 @@ def write_all(fd: int, data) -> None:
         data = data[n:]
 
 
-def failure(exc: BaseException, name: str, what: str) -> OSError:
-    """A worker's failure ``exc`` as one OSError: 'writing <what> to <name> failed: ...'."""
+def failure(exc: BaseException, name: str, what: str) -> OutputError:
+    """A worker's failure ``exc`` as one line: 'writing <what> to <name> failed: ...'."""
     errno = getattr(exc, "errno", None)
     detail = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
     message = f"writing {what} to {name} failed: {detail}"
-    return OSError(errno, message) if errno else OSError(message)
+    return OutputError(errno, message) if errno else OutputError(message)

@@ -130,6 +130,7 @@ from mpi4py import MPI
 from numba import njit
 
 from .jit_watch import load
+from .errors import OutputError, output_failed
 from .worker import Worker, failure, pwrite_all
 
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
@@ -526,8 +527,7 @@ class FieldWriter:
             # names it (with it, there is one rank)
             if worker is None:
                 self.comm.barrier()
-                for fd_xml, data, offset in self._xml_job():
-                    pwrite_all(fd_xml, data, offset)
+                self._append_xml()
             else:
                 job += self._xml_job()
         if worker is not None and held:  # the batch to the worker; fill the other one
@@ -572,7 +572,7 @@ class FieldWriter:
         self._failed = True
         exc = worker.error
         if exc is None:
-            raise OSError("writing the fields' frames failed on another rank")
+            raise OutputError("writing the fields' frames failed on another rank")
         raise failure(exc, self._h5_name, "the fields' frames") from exc
 
     def _publish(self) -> None:
@@ -582,8 +582,7 @@ class FieldWriter:
         self._due = False
         if self._n_pending:
             self._take(collective=True)
-            for fd, data, offset in self._xml_job():
-                pwrite_all(fd, data, offset)
+            self._append_xml()
 
     def wait(self) -> None:
         """Wait for this rank's worker thread (local): on return the OS holds every row it
@@ -647,6 +646,14 @@ class FieldWriter:
             lines.append("        </Grid>")
         lines.append("      </Grid>\n")
         return "\n".join(lines)
+
+    def _append_xml(self) -> None:
+        """The pending frames into the XML, on this thread (rank 0; a failed write stops
+        every rank: errors.output_failed)."""
+        try:
+            _write_ranges(self._xml_job())
+        except OSError as exc:
+            output_failed(failure(exc, os.path.basename(self.path), "the fields' XML"))
 
     def close(self) -> None:
         """Flush the last frames (collective, unless a write failed: then this rank's files

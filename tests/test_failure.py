@@ -103,6 +103,30 @@ def test_diverging_run_in_process(tmp_path, capsys):
     _check_diverged_dir(out, message)
 
 
+@serial_only
+def test_a_full_disk_exits_4_in_one_line(tmp_path, capsys, monkeypatch):
+    # the history table's worker thread meets a full disk (its write raises ENOSPC, as
+    # os.write does then): the command line's specification is one line naming the file
+    # and the cause, exit 4, and no published directory (the staging one stays, as a
+    # crash leaves it). Serial: under MPI the failing rank aborts every rank.
+    import errno
+
+    from impact_fenics import output
+
+    def full(fd, data):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(output, "write_all", full)
+    (tmp_path / "scene.toml").write_text(BAR)
+    out = str(tmp_path / "out")
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", str(tmp_path / "scene.toml"), "--out", out, "--quiet"])
+    assert exit_.value.code == 4
+    err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("warning")]
+    assert err == [f"error: [Errno {errno.ENOSPC}] writing the table to history.csv failed: "
+                   f"{os.strerror(errno.ENOSPC)}"]
+    assert not os.path.exists(out) and os.path.isdir(out + ".partial")
+
+
 def _wait_for_loop(proc, out, timeout=60.0) -> None:
     """Wait until the run is in its loop: the first output row is in the staging directory."""
     energy = os.path.join(str(out) + ".partial", "energy.csv")

@@ -29,6 +29,7 @@ from .errors import (InputError, OutputError, UnstableRunError, file_system_fail
                      output_failed, require)
 from .integrator import Integrator
 from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
+from .worker import spare_core
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
@@ -841,7 +842,8 @@ class Simulation:
 
         tables = {"history": output.Table(path("history.csv"), cols, comm, block,
                                           raw_columns=n_raw + len(cols) - n_probes,
-                                          summed=n_raw, finish=finish, asynchronous=True),
+                                          summed=n_raw, finish=finish,
+                                          asynchronous=spare_core(comm)),
                   "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
                                          + self._momentum_columns(), comm, 16)}
         self._history_row = self._history_filler(tables["history"], probes, n_raw)

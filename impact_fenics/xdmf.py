@@ -64,7 +64,9 @@ run as one compiled ``nogil`` call (step_block.py), so the bytes reach the OS wh
 the steps run. The batch is double: the writes fill one while the worker writes
 the other (a batch is refilled only once its job is done). h5py's hyperslab writes on
 the caller's thread remain where a dataset gives no offset, the file is not the
-POSIX one (sec2 driver), the machine is big-endian, or ``FieldWriter.ASYNC`` is off.
+POSIX one (sec2 driver), the machine is big-endian, no core is free for the thread
+(worker.spare_core: 2 ranks on 2 cores write on their own threads, measured faster),
+or ``FieldWriter.ASYNC`` is False (True: the thread wherever it can be).
 A failed pwrite (disk full, EIO) is kept by the worker and raised as one-line
 OSError on the caller's thread at the next write, flush or close (on more ranks at
 the next flush's meeting, on every rank at once, so none waits for a rank that
@@ -131,7 +133,7 @@ from numba import njit
 
 from .jit_watch import load
 from .errors import OutputError, output_failed
-from .worker import Worker, failure, pwrite_all
+from .worker import Worker, failure, pwrite_all, spare_core
 
 # markers of a frame's XML template (see FieldWriter._template): no XML holds a NUL
 _T, _STEP, _ROW = "\x00t\x00", "\x00step\x00", "\x00row\x00"
@@ -231,7 +233,9 @@ class FieldWriter:
     BLOCK = 16
     FILL_LIMIT = 64 * 2**20  # bytes of the first block (written with zeros at set-up)
     BATCH_LIMIT = 2**20  # bytes a rank's batch of frames may hold (see the module's Batches)
-    ASYNC = True  # batches go to the file on a worker thread where they can (see Batches)
+    # batches go to the file on a worker thread where they can (see Batches): where a core
+    # is free for it (None: worker.spare_core), always (True) or never (False)
+    ASYNC: bool | None = None
 
     def __init__(self, path: str, model, cell_fields: Sequence[str] = (),
                  static_cell_fields: Mapping[str, np.ndarray] | None = None,
@@ -329,7 +333,8 @@ class FieldWriter:
         self._worker: Worker | None = None
         self._fd = -1
         self._failed = False
-        if (self.ASYNC and sys.byteorder == "little" and self._blocks[0].direct
+        threaded = spare_core(comm) if self.ASYNC is None else self.ASYNC
+        if (threaded and sys.byteorder == "little" and self._blocks[0].direct
                 and self._h5.id.get_access_plist().get_driver() == h5py.h5fd.SEC2):
             self._fd = os.open(h5_path, os.O_WRONLY)
             self._worker = Worker(f"fields-p{comm.rank}")

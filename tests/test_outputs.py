@@ -558,7 +558,7 @@ def test_worker_thread_files_are_the_synchronous_files_byte_for_byte(tmp_path_fa
     assert len(_frames(os.path.join(base, "threaded_True"))) == 11
 
 
-def test_a_worker_write_error_stops_the_writes(tmp_path_factory):
+def test_a_worker_write_error_stops_the_writes(tmp_path_factory, monkeypatch):
     """The worker thread's write fails (its descriptor of the .h5 file swapped for a read-only
     one under it, on rank 0: EBADF, as a disk-full ENOSPC or an EIO would come): the
     next write, flush or close on the caller's thread raises OSError, one line naming
@@ -572,6 +572,7 @@ def test_a_worker_write_error_stops_the_writes(tmp_path_factory):
     comm = MPI.COMM_WORLD
     out = comm.bcast(str(tmp_path_factory.mktemp("worker_error")), root=0)
     model = _bar_model()
+    monkeypatch.setattr(FieldWriter, "ASYNC", True)  # (the thread even with no core free)
     writer = _write_frames(model, out, 2, n_frames=6, flush_every=2)
     assert writer.asynchronous
     writer.wait()

@@ -117,8 +117,10 @@ and HDF5 keeps no rows (no sieve buffer), so the XML never names data the OS doe
 not hold, and a run stopped at any point, even killed (the OS keeps what a killed
 process wrote), leaves a readable series of the frames of the flushes so far but
 those whose XML is still due (a flush's, until the next write); the frames not in
-it are lost, at most ``flush_every``, as they always were. (An H5Fflush per flush
-cost ~0.1 ms and added nothing.)
+it are lost, at most ``flush_every``, as they always were (when the compiled blocks
+write the frames, :meth:`FieldWriter.batch_rows`, a kill in the ~0.1 ms before the
+worker has appended a flush's XML loses that flush's frames too). (An H5Fflush per
+flush cost ~0.1 ms and added nothing.)
 """
 from __future__ import annotations
 

@@ -95,12 +95,7 @@ def user_errors(func: F) -> F:
         except OSError as exc:
             if not (isinstance(exc, OutputError) or exc.errno in _OUTPUT_ERRNOS):
                 raise
-            from mpi4py import MPI
-
-            sys.stdout.flush()
-            print(f"error: {exc}", file=sys.stderr, flush=True)
-            if MPI.COMM_WORLD.size > 1:  # (the other ranks may be waiting in a collective)
-                MPI.COMM_WORLD.Abort(EXIT_OUTPUT)
+            _stop_on_output(exc)
             raise SystemExit(EXIT_OUTPUT)
         except interrupts.Interrupted as exc:
             _print_rank0(f"stopped: {exc}")
@@ -122,16 +117,24 @@ def file_system_failure(exc: BaseException) -> str | None:
     return None
 
 
+def _stop_on_output(exc: OSError) -> None:
+    """Print ``exc``'s line on this rank (the rank that met it); under MPI abort every rank
+    with exit 4 (the others may be waiting in a collective call this rank will not make)."""
+    from mpi4py import MPI
+
+    sys.stdout.flush()
+    print(f"error: {exc}", file=sys.stderr, flush=True)
+    if MPI.COMM_WORLD.size > 1:
+        MPI.COMM_WORLD.Abort(EXIT_OUTPUT)
+
+
 def output_failed(exc: OutputError) -> None:
     """Stop on a failed write of the results met on this rank only (a rank-0 file): raise
-    ``exc`` on one rank; under MPI print its line and abort every rank with exit 4 (the
-    others may be waiting in a collective call that this rank will never make)."""
+    ``exc`` on one rank (user_errors says it); under MPI say it and abort every rank."""
     from mpi4py import MPI
 
     if MPI.COMM_WORLD.size > 1:
-        sys.stdout.flush()
-        print(f"error: {exc}", file=sys.stderr, flush=True)
-        MPI.COMM_WORLD.Abort(EXIT_OUTPUT)
+        _stop_on_output(exc)
     raise exc
 
 

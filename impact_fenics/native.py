@@ -176,22 +176,28 @@ def _address(fn) -> int:
     return ctypes.cast(fn, ctypes.c_void_p).value
 
 
+def _functions(stem: str | None, names) -> list[int] | None:
+    """The addresses of the functions ``names`` in the shared library ``stem``* mapped into
+    this process (None: the process itself, libc's), or None where one cannot be had."""
+    path = None if stem is None else _loaded(stem)
+    if stem is not None and path is None:
+        return None
+    try:
+        lib = ctypes.CDLL(path)
+        return [_address(getattr(lib, name)) for name in names]
+    except (OSError, AttributeError):
+        return None
+
+
 @functools.lru_cache(maxsize=None)
 def _addresses() -> tuple | None:
     from petsc4py import PETSc
 
     if np.dtype(PETSc.ScalarType) != np.float64:
         return None
-    path = _loaded("libpetsc")
-    if path is None:
-        return None
-    try:
-        petsc = ctypes.CDLL(path)
-        libc = ctypes.CDLL(None)
-        return (_address(petsc.MatMultAdd), _address(petsc.VecAXPY),
-                _address(libc.clock_gettime))
-    except (OSError, AttributeError):
-        return None
+    petsc = _functions("libpetsc", ("MatMultAdd", "VecAXPY"))
+    clock = _functions(None, ("clock_gettime",))
+    return None if petsc is None or clock is None else (*petsc, *clock)
 
 
 def addresses() -> np.ndarray | None:
@@ -216,13 +222,8 @@ def mpi_addresses(comm) -> np.ndarray | None:
     bits = 8 * MPI._sizeof(MPI.Comm)
     if bits not in (32, 64) or {8 * MPI._sizeof(t) for t in (MPI.Datatype, MPI.Op)} != {bits}:
         return None
-    path = _loaded("libmpi.so")
-    if path is None:
-        return None
-    try:
-        lib = ctypes.CDLL(path)
-        functions = [_address(lib.MPI_Allgatherv), _address(lib.MPI_Allreduce)]
-    except (OSError, AttributeError):
+    functions = _functions("libmpi.so", ("MPI_Allgatherv", "MPI_Allreduce"))
+    if functions is None:
         return None
     handles = [_signed(MPI._handleof(h), bits) for h in (comm, MPI.DOUBLE, MPI.MAX, MPI.SUM)]
     return np.array(functions + [bits == 64] + handles, dtype=np.int64)

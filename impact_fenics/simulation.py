@@ -641,7 +641,7 @@ class Simulation:
         k = 3 + sums.n_bodies
         ext = rec[k]
         rigid = self._rigid_sets
-        j = sums.size + 2 * len(self.contacts)
+        first_rigid = j = sums.size + 2 * len(self.contacts)  # (v^n, v^{n+1}, work) each
         for c in rigid:
             kinetic += c.kinetic_energy_rigid(rec[j], rec[j + 1])
             ext += rec[j + 2]
@@ -682,7 +682,7 @@ class Simulation:
         for b in range(3, k):
             cells[m] = rec[b]
             m += 1
-        v_next = sums.size + 2 * len(self.contacts) + 1
+        v_next = first_rigid + 1
         for c in rigid:
             p = c.rigid.mass * rec[v_next]
             cells[m] = p

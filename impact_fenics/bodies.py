@@ -28,11 +28,36 @@ class Body:
     material: Material
 
 
+# What the solver reads of a material (forms.Material): every material, a linear one
+# (the stress as a UFL expression, K assembled once), a path-dependent one (a compiled
+# point update at the quadrature points, internal_force/quadrature.py)
+MATERIAL_ATTRIBUTES = ("density", "linear", "wave_speed")
+LINEAR_ATTRIBUTES = ("stress",)
+PATH_DEPENDENT_ATTRIBUTES = ("lmbda", "mu", "n_state", "params", "update")
+
+
+def check_material(body: Body) -> None:
+    """Refuse, in one line naming the class and the attribute, a material that lacks
+    what the solver reads of it."""
+    m = body.material
+    needs = MATERIAL_ATTRIBUTES
+    if hasattr(m, "linear"):
+        needs += LINEAR_ATTRIBUTES if m.linear else PATH_DEPENDENT_ATTRIBUTES
+    missing = [name for name in needs if not hasattr(m, name)]
+    if missing:
+        kind = "" if "linear" in missing else " linear" if m.linear else " path-dependent"
+        raise InputError(f"body '{body.name}': the material {type(m).__name__} has no "
+                         f"attribute '{missing[0]}' (a{kind} material needs "
+                         f"{', '.join(needs)})")
+
+
 class DeformableModel:
     """The space, the parts and the dof maps of the deformable bodies of a scene."""
 
     def __init__(self, tmesh: TaggedMesh, bodies: list[Body], degree: int = STIFFNESS_DEGREE):
         require(len(bodies) > 0, "a scene needs at least one deformable body")
+        for b in bodies:
+            check_material(b)
         self.tmesh = tmesh
         self.mesh = tmesh.mesh
         self.comm = self.mesh.comm

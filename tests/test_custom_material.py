@@ -88,3 +88,46 @@ def test_pulse_in_the_rod_travels_at_sqrt_E_z_over_rho():
     assert s["status"] == "completed"
     assert s["wave_speed_error_rel"] <= s["h"] / s["probe_distance"]
     assert s["energy_balance_error_rel"] < 1e-10
+
+
+class _Without:
+    """The demo's material with one attribute taken away (what a user's class may lack)."""
+
+    def __init__(self, material, missing: str):
+        self._material, self._missing = material, missing
+
+    def __getattr__(self, name):
+        if name == self._missing or name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self._material, name)
+
+
+@pytest.mark.parametrize("missing", ["density", "linear", "stress", "wave_speed"])
+def test_a_material_without_an_attribute_is_refused_in_one_line(missing):
+    """A material lacking what the solver reads of it (the protocol of the demo's
+    docstring) is refused when the model is made, in one line naming the class and the
+    attribute (InputError: exit 2 from a main decorated with user_errors)."""
+    from impact_fenics.bodies import Body, DeformableModel
+    from impact_fenics.errors import InputError
+
+    tmesh = meshing.bar(radius=0.05, length=0.1, h=0.05)
+    material = _Without(cm.TransverselyIsotropic(**CONSTANTS), missing)
+    with pytest.raises(InputError) as err:
+        DeformableModel(tmesh, [Body("bar", material)])
+    message = str(err.value)
+    assert "\n" not in message
+    assert message.startswith(f"body 'bar': the material _Without has no attribute '{missing}'")
+
+
+@pytest.mark.parametrize("missing", ["update", "params", "n_state"])
+def test_a_path_dependent_material_without_its_update_is_refused(missing):
+    """linear = False: the point update, its parameters and state size are read too."""
+    from impact_fenics.bodies import Body, DeformableModel
+    from impact_fenics.errors import InputError
+    from impact_fenics.materials import J2
+
+    tmesh = meshing.bar(radius=0.05, length=0.1, h=0.05)
+    material = _Without(J2(yield_stress=300e6), missing)
+    with pytest.raises(InputError, match=f"the material _Without has no attribute '{missing}' "
+                                         r"\(a path-dependent material needs"):
+        DeformableModel(tmesh, [Body("bar", material)])

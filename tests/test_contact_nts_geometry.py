@@ -261,3 +261,26 @@ def test_penalty_above_the_stability_bound_is_refused_unless_forced():
     assert scaled.info["beta_max"] == pytest.approx(1.0, rel=1e-12)
     with pytest.raises(InputError, match="must be > 0"):
         Penalty(-1.0)
+
+
+def test_the_default_reach_takes_a_curved_faces_slaves_and_refuses_faces_apart():
+    """A nose of radius R (a quarter circle in 8 segments, tip on the axis at z = 0, centre
+    at (0, R)) over the flat face z = 0, r <= R: the slave under the rim is R (sqrt 2 - 1)
+    from the nose (closed form, plus at most the segments' sagitta R (1 - cos(pi / 32))),
+    beyond the longest segment 2 R sin(pi / 32), and in the default reach (that segment plus
+    the nose's depth R along the face's normal). The face lowered by 2 R, farther than
+    that depth and a segment: refused. (Two flat faces apart: the test above.)"""
+    R, n = 0.02, 8
+    theta = np.linspace(0.0, 0.5 * np.pi, n + 1)
+    nose = np.stack([R * np.sin(theta), R - R * np.cos(theta)], axis=1)
+    face = [(r, 0.0) for r in np.linspace(0.0, R, 13)]
+    c = _constraints(face, nose, (0.0, R))
+    assert c.n == 13
+    rim = int(np.argmax(c.slave_xy[:, 0]))
+    gap = R * (np.sqrt(2.0) - 1.0)
+    assert gap > 2 * R * np.sin(np.pi / 32)  # beyond the longest segment
+    # (45 degrees is a vertex of the nose: the distance is the closed form, to the
+    # round-off of a few operations on coordinates of size R)
+    assert gap - 1e-14 * R <= c.g0[rim] <= gap + R * (1.0 - np.cos(np.pi / 32)) + 1e-14 * R
+    with pytest.raises(InputError, match="no segment of 'master' within reach"):
+        _constraints([(r, -2.0 * R) for r, _ in face], nose, (0.0, R))

@@ -31,7 +31,15 @@ Edge cases (each tested):
 
 Initial gaps below -``gap_tol`` are refused (one line naming the node); gaps
 within +-``gap_tol`` are set to zero. A slave farther than ``reach`` from every
-master segment is refused.
+master segment is refused. By default (:func:`default_reach`) the reach is the
+longest master segment plus the depth of the two faces: the larger of the
+master's extent along the slave face's normal and the slave's extent along the
+master face's normal (each face's normal: the direction in which its nodes
+spread least). Two faces that touch somewhere have every slave within that
+depth of the master, plus a segment for the discretisation: a flat face on a
+flat face keeps one segment, and the nodes of a flat block under a nose of
+radius R (up to R (sqrt 2 - 1) from it) are within the nose's depth R; faces
+apart by more than their depth (a group at the other end of a body) are refused.
 """
 from __future__ import annotations
 
@@ -149,6 +157,29 @@ def segment_normals(node_xy: np.ndarray, segments: np.ndarray, inside: np.ndarra
     return n
 
 
+def thin_direction(xy: np.ndarray) -> np.ndarray | None:
+    """The unit direction in which the points ``xy`` (n, 2) spread least (a straight
+    face's normal), or None for fewer than two distinct points."""
+    if xy.shape[0] < 2:
+        return None
+    c = xy - xy.mean(axis=0)
+    w, v = np.linalg.eigh(c.T @ c)
+    return v[:, 0] if w[1] > 0.0 else None
+
+
+def default_reach(slave_xy: np.ndarray, master_xy: np.ndarray, longest: float) -> float:
+    """The farthest master segment (m) a slave may use unless told: the ``longest`` master
+    segment (m) plus the depth of the two faces, the larger of the master nodes' extent
+    along the slave face's normal and the slave nodes' extent along the master face's
+    normal (see the module docstring)."""
+    depth = 0.0
+    for face, other in ((slave_xy, master_xy), (master_xy, slave_xy)):
+        n = thin_direction(face)
+        if n is not None:
+            depth = max(depth, float(np.ptp(other @ n)))
+    return longest + depth
+
+
 def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
           master_dofs: np.ndarray, segments: np.ndarray, inside: np.ndarray,
           names: tuple[str, str] = ("slave", "master"), reach: float | None = None,
@@ -156,8 +187,8 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
     """Constraints from replicated arrays (any order: sorted here into the global order).
 
     ``segments`` (k, 2) index ``master_xy``; ``inside`` (k, 2) a point inside the
-    master body behind each segment. ``reach`` (m) defaults to the longest master
-    segment, ``gap_tol`` (m) to 1e-6 of the shortest; ``xi_tol`` is relative."""
+    master body behind each segment. ``reach`` (m) defaults to :func:`default_reach`,
+    ``gap_tol`` (m) to 1e-6 of the shortest segment; ``xi_tol`` is relative."""
     slave_xy = np.asarray(slave_xy, dtype=float)
     master_xy = np.asarray(master_xy, dtype=float)
     # sort keys rounded to 1e-9 of the extent: dof coordinates differ by round-off
@@ -183,7 +214,8 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
     lengths = np.linalg.norm(master_xy[segments[:, 1]] - master_xy[segments[:, 0]], axis=1)
     if np.any(lengths <= 0):
         raise InputError(f"master surface '{names[1]}' has a segment of zero length")
-    reach = float(lengths.max()) if reach is None else float(reach)
+    reach = default_reach(slave_xy, master_xy, float(lengths.max())) if reach is None \
+        else float(reach)
     gap_tol = 1e-6 * float(lengths.min()) if gap_tol is None else float(gap_tol)
     normals = segment_normals(master_xy, segments, inside)
     n = slave_xy.shape[0]
@@ -203,10 +235,12 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
         g0[on_axis] = sign * (slave_xy[on_axis, 1] - point[on_axis, 1])
     far = dist > reach
     if np.any(far):
-        p = slave_xy[np.flatnonzero(far)[0]]
+        k = np.flatnonzero(far)[0]
+        p = slave_xy[k]
         raise InputError(f"contact: {int(far.sum())} node(s) of '{names[0]}' have no segment of "
                          f"'{names[1]}' within reach {reach:.4g} m, first at "
-                         f"(r={p[0]:.6g}, z={p[1]:.6g})")
+                         f"(r={p[0]:.6g}, z={p[1]:.6g}), {dist[k]:.4g} m away: "
+                         "are these the faces that meet? (else give reach, m)")
     deep = g0 < -gap_tol
     if np.any(deep):
         k = np.flatnonzero(deep)[0]

@@ -68,7 +68,9 @@ class Settings:
 
     ``dt`` in s, or ``cfl``: dt = cfl * the stable limit (element bound);
     ``t_end`` in s (or ``n_steps``); outputs every ``output_every`` steps (XDMF
-    fields and the energy ledger), ``history_every`` steps (CSV rows) and
+    fields), ``energy_every`` steps (the energy ledger's rows and its stability check;
+    None: with the fields, every ``output_every`` steps), ``history_every`` steps (CSV
+    rows; an energy row's step has one too) and
     ``pairs_every`` steps (the per-pair rows of contact_pairs.h5: gap, force and
     active flag of every constraint, 24 B a pair, e.g. 14.6 kB a row at the punch's
     610 pairs: every 10 steps, the default, their cost is under 1 % of its step)."""
@@ -79,6 +81,7 @@ class Settings:
     n_steps: int | None = None
     out: str | None = None
     output_every: int = 50
+    energy_every: int | None = None
     history_every: int = 1
     pairs_every: int = 10
     fields: bool = True
@@ -120,8 +123,10 @@ class Simulation:
         self.setup_time: dict[str, float] = {}
         t0 = clock()
         require((settings.dt is None) != (settings.cfl is None), "give either dt or cfl")
-        for key in ("output_every", "history_every", "pairs_every"):
+        for key in ("output_every", "energy_every", "history_every", "pairs_every"):
             every = getattr(settings, key)
+            if key == "energy_every" and every is None:
+                continue
             require(isinstance(every, (int, np.integer)) and not isinstance(every, bool)
                     and every > 0, f"{key} = {every!r}: must be an integer > 0 (steps)")
         fixed = [model.axis_dofs()] + list(fixed or [])
@@ -275,7 +280,9 @@ class Simulation:
         self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
         last_energy, max_bal = None, 0.0
-        runaway = self._runaway_speed()
+        # the runaway speed of this run, fixed at its start (a diverged state's speeds
+        # would give another): the check and its message use this one
+        runaway = self.runaway_speed = self._runaway_speed()
         v_check = _OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
         self.track = track = _ContactTrack(self.contacts)
@@ -288,7 +295,8 @@ class Simulation:
         # progress is looked at only when a line may be due, the signal flag is one
         # attribute. Everything else happens on the steps an event is due.
         last = n_steps - 1
-        output_at = _Schedule(0, s.output_every, last)  # energy rows (and their history rows)
+        # energy rows (and their history rows)
+        output_at = _Schedule(0, s.energy_every or s.output_every, last)
         fields_at = (_Schedule(s.output_every - 1, s.output_every, last)  # state n + 1 written
                      if writer is not None else _Schedule.never(last))
         pairs_at = _Schedule(0, s.pairs_every, last) if self._pair_tables else _Schedule.never(last)
@@ -716,8 +724,10 @@ class Simulation:
         return max(max(waves), RUNAWAY_FACTOR * v0)
 
     def _runaway(self, n: int, what: str) -> None:
+        """Stop at step n: ``what`` passed the runaway speed the run checked against
+        (:attr:`runaway_speed`, fixed at its start)."""
         raise UnstableRunError(self._diagnosis(
-            n, f"{what}, beyond the runaway speed {self._runaway_speed():.4g} m/s "
+            n, f"{what}, beyond the runaway speed {self.runaway_speed:.4g} m/s "
                "(not finite, or a strain beyond 1)"))
 
     def _rigid_runaway(self, n: int, body: RigidBody) -> None:

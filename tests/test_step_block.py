@@ -219,3 +219,41 @@ def test_an_energy_growing_run_stops_both_at_the_same_step(bars_mesh, tmp_path_f
         return sim
     a, b = _failure(make, tmp_path_factory, "grew")
     assert a == b and "grew beyond" in a
+
+
+def test_the_divergence_message_names_the_limit_it_checked(bars_mesh, tmp_path_factory):
+    """'a node moves at V m/s, beyond the runaway speed L m/s': L is the limit the run
+    checked against, fixed at its start (the steel's dilatational speed: 10 x the initial
+    5 m/s is below it), not one recomputed from the diverged speeds, and V passed it;
+    the same from the compiled and the Python steps."""
+    import re
+
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        return Simulation(model, _settings(out, compiled, cfl=3.0, force_dt=True,
+                                           n_steps=2000, output_every=500),
+                          initial_velocity={"striker": (0.0, 5.0)})
+    for message in _failure(make, tmp_path_factory, "runaway_limit"):
+        found = re.search(r"a node moves at (\S+) m/s, beyond the runaway speed (\S+) m/s",
+                          message)
+        assert found, message
+        speed, limit = map(float, found.groups())
+        assert limit == float(f"{STEEL.wave_speed():.4g}") and speed > limit, message
+
+
+def test_energy_rows_on_their_own_cadence_equal_python_steps(bars_mesh, tmp_path_factory):
+    """energy_every = 4 with frames every 25 steps and history rows every 3: the energy
+    rows come at steps 0, 4, 8, ... and the last one (the schedule of every cadence), the
+    frames at t = 0 and every 25 steps; the compiled blocks (whose output steps are the
+    energy rows) and the Python steps write the same files."""
+    def make(out, compiled):
+        model = DeformableModel(bars_mesh, [Body("striker", STEEL), Body("target", STEEL)])
+        sim = Simulation(model, _settings(out, compiled, energy_every=4, history_every=3),
+                         initial_velocity={"striker": (0.0, 5.0)})
+        sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"),
+                        scenes.make_method("film"))
+        return sim
+    got = _same(make, tmp_path_factory, "energy_every", frames=True)
+    n = 240  # _settings' n_steps
+    assert got["energy.step"].tolist() == list(range(0, n - 1, 4)) + [n - 1]
+    assert len(got["fields.times"]) == 1 + -(-n // 25)

@@ -1,9 +1,14 @@
 """The command line: run a scene file, render the fields of a finished run.
 
     impact-fenics run scenes/bar_impact.toml [--method film] [--out DIR] [--quiet]
+    impact-fenics check scenes/bar_impact.toml [--method film] [--out DIR]
     impact-fenics plot results/bar_impact [--times 1e-4 2e-4] [--field sigma_zz] [--scale 50]
+    impact-fenics --version
 
-(or ``python -m impact_fenics ...``). ``run`` works under mpirun. Exit codes:
+(or ``python -m impact_fenics ...``). ``run`` works under mpirun; ``check`` reads and
+checks the scene as ``run`` does before it meshes (the values, their plausibility,
+the output directory, the estimate and the memory and disk it needs), writes
+nothing and builds nothing but what a count needs (a mesh file is read). Exit codes:
 0 done; 2 bad input, reported in one line "error: ..." before anything is
 written (an output directory that is not a run directory, or that another run
 is writing, is bad input); 3 the run diverged (one line with the step and the
@@ -30,19 +35,25 @@ class _Parser(argparse.ArgumentParser):
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="impact-fenics",
                      description="Explicit axisymmetric dynamics with node-to-node contact.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,plot}")
+    parser.add_argument("--version", action="version", version=f"impact-fenics {version()}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,check,plot}")
     run = sub.add_parser("run", help="run a scene file (TOML)",
                          description="Run a scene file; results go to one directory.")
-    run.add_argument("scene", help="the scene file, e.g. scenes/bar_impact.toml")
-    run.add_argument("--method", choices=("penalty", "film", "dme"),
-                     help="contact method for every [[contact]] (overrides the file)")
-    run.add_argument("--out", help="output directory (overrides [output] dir; default "
-                                   "results/<scene name>)")
+    check = sub.add_parser("check", help="check a scene file without running it",
+                           description="Read and check a scene file as run does before it "
+                                       "meshes, print the estimate; writes nothing.")
+    for p in (run, check):
+        p.add_argument("scene", help="the scene file, e.g. scenes/bar_impact.toml")
+        p.add_argument("--method", choices=("penalty", "film", "dme"),
+                       help="contact method for every [[contact]] (overrides the file)")
+        p.add_argument("--out", help="output directory (overrides [output] dir; default "
+                                     "results/<scene name>)")
+        p.add_argument("--force", action="store_true",
+                       help="run what the checks refuse: dt above the stable limit, a penalty "
+                            "above its stable bound, a run estimated beyond the memory or "
+                            "the free disk")
     run.add_argument("--quiet", action="store_true",
                      help="no progress line and no report (errors are still printed)")
-    run.add_argument("--force", action="store_true",
-                     help="run what the checks refuse: dt above the stable limit, a penalty "
-                          "above its stable bound, a run estimated beyond the memory")
     plot = sub.add_parser("plot", help="render a field of a finished run (PNG files)",
                           description="Render a field of RUN_DIR/fields.xdmf on the deformed "
                                       "mesh at chosen times; PNG files go to RUN_DIR.")
@@ -70,14 +81,26 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "run":
         return run_scene(args.scene, method=args.method, out=args.out, quiet=args.quiet,
                          force=args.force)
+    if args.command == "check":
+        return check_scene(args.scene, method=args.method, out=args.out, force=args.force)
     region = None if args.whole else (tuple(args.region) if args.region else "auto")
     return plot_run(args.run_dir, field=args.field, times=args.times, scale=args.scale,
                     region=region)
 
 
-def run_scene(path: str, method: str | None = None, out: str | None = None,
-              quiet: bool = False, force: bool = False) -> int:
-    """Check the scene file in full, build it, run it; returns the exit code."""
+def version() -> str:
+    """The installed version of impact_fenics."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("impact_fenics")
+    except metadata.PackageNotFoundError:
+        return "(not installed: pip install -e .)"
+
+
+def _checked(path: str, method: str | None, out: str | None, force: bool, quiet: bool):
+    """Read and check the scene, its output directory, its plausibility and its estimate
+    (printed unless ``quiet``), as a run does before it meshes: (scene, output directory)."""
     from mpi4py import MPI
 
     from . import interrupts
@@ -95,7 +118,33 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
         scene.force = True
     out_dir = out or scene.output["dir"] or os.path.join("results", scene.stem)
     scene_file.check_output_dir(out_dir, "--out" if out else "[output] dir =", comm)
-    scene_file.check_resources(scene, comm, quiet)
+    scene_file.warn_implausible(scene, comm)
+    scene_file.check_resources(scene, comm, quiet, out_dir)
+    return scene, out_dir
+
+
+def check_scene(path: str, method: str | None = None, out: str | None = None,
+                force: bool = False) -> int:
+    """Check the scene file as :func:`run_scene` does before it meshes and print the
+    estimate; nothing is built (but a mesh file read for its counts) or written."""
+    from mpi4py import MPI
+
+    _checked(path, method, out, force, quiet=False)
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"{path}: checked (the mesh's groups and the stable step are checked when "
+              "the run builds the mesh)", flush=True)
+    return 0
+
+
+def run_scene(path: str, method: str | None = None, out: str | None = None,
+              quiet: bool = False, force: bool = False) -> int:
+    """Check the scene file in full, build it, run it; returns the exit code."""
+    from mpi4py import MPI
+
+    from . import scene_file
+
+    comm = MPI.COMM_WORLD
+    scene, out_dir = _checked(path, method, out, force, quiet)
     if scene.finite:
         return _run_finite(scene, out_dir, quiet, comm)
     sim = scene_file.build(scene, {"out": out_dir, "quiet": quiet}, comm)

@@ -117,6 +117,9 @@ def check_kind(scene) -> None:
     if m.viscosity != 0.0:
         raise InputError(f"[materials.{m.name}] viscosity = {m.viscosity!r}: finite-strain J2 is "
                          "rate-independent (give no viscosity)")
+    if scene.output["energy_every"] is not None:
+        raise InputError("[output] energy_every: a finite-strain run books its energies in "
+                         "every history row (history_every)")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "
@@ -142,8 +145,9 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     from .finite_run import FiniteRun, FiniteSettings, quad_bar
     from .materials.finite_j2 import FiniteJ2
     from .materials.neo_hookean import NeoHookean
-    from .scene_file import _at
+    from .scene_file import _at, explained_refusal, mesh_sizes, warn_implausible
 
+    warn_implausible(scene, comm)
     body = scene.bodies[0]
     spec = scene.materials[body.material]
     with _at(f"[materials.{spec.name}]"):
@@ -184,11 +188,15 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
         settings.summary_extra["wall_face"] = wall.face
         settings.summary_extra["impact_face_loss"] = comm.allreduce(
             0.5 * m_face * float(body.velocity[1]) ** 2)
+    size = plausibility.model_size(mesh, comm)
     dt = settings.dt if settings.dt is not None else settings.safety * run.dt_limit()
     if settings.dt is not None and settings.dt > run.dt_limit():
-        raise InputError(f"[time] dt = {settings.dt!r} s is above the stable limit "
-                         f"{run.dt_limit():.4g} s of the undeformed cells; use cfl or a smaller dt")
-    plausibility.check_values(scene, dt, math.ceil(settings.t_end / dt), mesh, comm)
+        raise InputError(explained_refusal(
+            f"[time] dt = {settings.dt!r} s is above the stable limit {run.dt_limit():.4g} s "
+            "of the undeformed cells; use cfl or a smaller dt", scene, size))
+    n_steps = math.ceil(settings.t_end / dt)
+    plausibility.report(plausibility.findings(scene, dt=dt, n_steps=n_steps,
+                                              **mesh_sizes(scene, size)), scene.warned, comm)
     return run
 
 

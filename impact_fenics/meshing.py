@@ -6,6 +6,7 @@ reads a .msh file with named physical groups through the same path.
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -135,22 +136,81 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     require(os.path.isfile(path), f"mesh file '{path}' does not exist")
 
     def build(gmsh):
-        gmsh.open(path)
-        if gmsh.model.getDimension() != 2:
-            raise InputError(f"mesh file '{path}' is not a 2D (r, z) mesh")
-        if not gmsh.model.mesh.getNodes()[0].size:
-            raise InputError(f"mesh file '{path}' holds no mesh nodes")
-        # dolfinx 0.5's gmshio crashes (segmentation fault) on cells outside every
-        # 2D physical group: refuse them here, before it sees the model
-        loose = [tag for _, tag in gmsh.model.getEntities(2)
-                 if not len(gmsh.model.getPhysicalGroupsForEntity(2, tag))
-                 and len(gmsh.model.mesh.getElements(2, tag)[0])]
-        if loose:
-            raise InputError(f"mesh file '{path}': surface(s) {', '.join(map(str, loose))} "
-                             "have cells but no 2D physical group; put every surface in a "
-                             "named physical group (a body)")
+        _open_msh(gmsh, path)
 
     return _to_dolfinx(comm, build, {"source": os.path.abspath(path)})
+
+
+def _open_msh(gmsh, path: str) -> None:
+    """Open a .msh file in gmsh and refuse what the reader cannot take (one line)."""
+    gmsh.open(path)
+    if gmsh.model.getDimension() != 2:
+        raise InputError(f"mesh file '{path}' is not a 2D (r, z) mesh")
+    if not gmsh.model.mesh.getNodes()[0].size:
+        raise InputError(f"mesh file '{path}' holds no mesh nodes")
+    # dolfinx 0.5's gmshio crashes (segmentation fault) on cells outside every
+    # 2D physical group: refuse them here, before it sees the model
+    loose = [tag for _, tag in gmsh.model.getEntities(2)
+             if not len(gmsh.model.getPhysicalGroupsForEntity(2, tag))
+             and len(gmsh.model.mesh.getElements(2, tag)[0])]
+    if loose:
+        raise InputError(f"mesh file '{path}': surface(s) {', '.join(map(str, loose))} "
+                         "have cells but no 2D physical group; put every surface in a "
+                         "named physical group (a body)")
+
+
+def msh_size(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """What a .msh file holds, without building the mesh (rank 0 reads it, every rank gets
+    the answer): {"groups": {name: (cells, smallest element size h in m: the side of the
+    equilateral triangle, or square, of the smallest cell's area)}, "nodes": the nodes of
+    the cells, "size": the largest extent in r or z (m), "cells" and "facets": the group
+    names}. Refuses what :func:`load_msh` refuses."""
+    require(os.path.isfile(path), f"mesh file '{path}' does not exist")
+    out, error = None, None
+    if comm.rank == 0:
+        gmsh = _gmsh()
+        gmsh.clear()
+        try:
+            _open_msh(gmsh, path)
+            tags, xyz, _ = gmsh.model.mesh.getNodes()
+            xy = np.zeros((int(tags.max()) + 1, 2))
+            xy[tags.astype(np.int64)] = xyz.reshape(-1, 3)[:, :2]
+            groups, used = {}, []
+            for dim, tag in gmsh.model.getPhysicalGroups(2):
+                name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
+                cells, h = 0, np.inf
+                for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+                    types, _, nodes = gmsh.model.mesh.getElements(2, entity)
+                    for kind, conn in zip(types, nodes):
+                        props = gmsh.model.mesh.getElementProperties(kind)
+                        corners = props[5]  # (of props[3] nodes a cell)
+                        conn = conn.astype(np.int64).reshape(-1, props[3])[:, :corners]
+                        p = xy[conn]
+                        area = 0.5 * np.abs(np.sum(p[:, :, 0] * np.roll(p[:, :, 1], -1, 1)
+                                                   - np.roll(p[:, :, 0], -1, 1) * p[:, :, 1],
+                                                   axis=1))
+                        shape = (math.sqrt(3.0) / 4.0) if corners == 3 else 1.0
+                        cells += conn.shape[0]
+                        h = min(h, float(np.sqrt(area.min() / shape)))
+                        used.append(conn.ravel())
+                groups[name] = (cells, h)
+            nodes = np.unique(np.concatenate(used)) if used else np.zeros(0, np.int64)
+            box = xy[nodes]
+            names = _physical_names(gmsh)
+            out = {"groups": groups, "nodes": int(nodes.size),
+                   "size": float(np.ptp(box, axis=0).max()) if box.size else 0.0,
+                   "cells": sorted(names[0]), "facets": sorted(names[1])}
+        except InputError as exc:
+            error = str(exc)
+        except Exception as exc:  # gmsh raises plain Exceptions for unreadable files
+            error = f"mesh could not be built or read: {exc}"
+        gmsh.clear()
+    out, error = comm.bcast((out, error), root=0)
+    if error is not None:
+        if comm.rank == 0:
+            _restart_gmsh()
+        raise InputError(error)
+    return out
 
 
 # ----------------------------------------------------------------------------- helpers

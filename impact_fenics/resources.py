@@ -1,43 +1,219 @@
-"""Rough size, memory and time of a run, from the mesh request before anything is meshed.
+"""Size, steps, memory, time and disk of a run, from the scene before anything is meshed.
 
-Cells of a generator mesh follow from its parameters: a structured grid of
-alternating diagonals has 2 n_r n_z triangles; an unstructured one about
-A / (sqrt(3)/4 h^2) (equilateral triangles of side h over the area A, m^2); the
-graded punch block integrates that density over the depth with h(d) =
-min(h_surface + grading d, h_max). Dofs: two per node, about one node per two
-cells. Memory: measured on this package (bar meshes of 4k to 260k dofs, peak
-resident size): about 250 MB of libraries and compiled forms per rank plus
-about 1.1 kB per dof (mesh, gmsh model on rank 0, K and A, vectors), taken as
-1.5 kB; plus the in-memory history (8 B per value, twice for its doubling
-buffer). Time: about 15 ns per dof and step on one core of the development
-machine (loaded), shared by the ranks. These are estimates to refuse a request
-that cannot fit, not predictions.
+**Cells and dofs.** A generator mesh is counted from its parameters, region by
+region (a body's part of the mesh): a structured grid of alternating diagonals
+has 2 n_r n_z triangles on (n_r + 1)(n_z + 1) nodes; an unstructured one about
+A / (sqrt(3)/4 h^2) triangles (equilateral triangles of side h over the area A,
+m^2) on 1 + (F + B) / 2 nodes (Euler's formula for F triangles with B edges on
+the boundary, about the perimeter over h); the graded block integrates the
+density 1 / (sqrt(3)/4 h^2) of its size field h = min(h_surface + grading d,
+h_max), d the distance to the face under the breaks; quadrilaterals n_r n_z on
+(n_r + 1)(n_z + 1) nodes. Two dofs a node. A mesh file is counted as read
+(meshing.msh_size).
+
+**Steps.** t_end / dt; with cfl, dt = cfl x the element bound, about
+DT_FACTOR x h / c1 of each region's element size h and its body's dilatational
+speed c1 (the smallest over the regions; calibrated on the shipped scenes).
+At finite strain against a wall the cells flatten and the step falls: the
+estimate takes FLATTENING times the steps of the undeformed cells (the shipped
+Taylor bar's ratio).
+
+**Memory** (peak resident size measured on bar meshes of 4k to 260k dofs):
+BASE_BYTES_PER_RANK of libraries and compiled forms a rank, BYTES_PER_DOF
+(mesh, gmsh model on rank 0, K and A, vectors), and the in-memory history (8 B
+a value, twice for its doubling buffer).
+
+**Time**: set-up (imports, mesh, forms, kernels from the cache) SETUP_SECONDS
+plus SETUP_SECONDS_PER_CELL a cell; the steps SECONDS_PER_STEP a step and
+SECONDS_PER_DOF_STEP a dof (PLASTIC_... for path-dependent bodies,
+FINITE_SECONDS_PER_CELL_STEP a cell at finite strain) shared by the ranks; and,
+where numba's cache is cold (a first run), COMPILE_SECONDS for every kernel to
+compile, in proportion. Calibrated on the shipped scenes on a loaded 2-core
+machine: estimates to refuse what cannot fit and to say what to expect, not
+predictions.
+
+**Disk**: fields.h5 (xdmf.py) holds the mesh and, per frame, u and v padded to
+three components at every node and each cell field at every cell, 8 B a value
+(at finite strain the frames come in blocks that double: the file is the
+blocks' size); fields.xdmf about XDMF_BYTES_PER_FRAME a frame and rank; the
+CSV tables about CSV_BYTES_PER_VALUE a value (17 significant digits; zeros are
+short); contact_pairs.h5 24 B a pair a row; the pictures and the summary.
 """
 from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+import shutil
+from dataclasses import dataclass, field
 
 BASE_BYTES_PER_RANK = 250e6
 BYTES_PER_DOF = 1.5e3
-SECONDS_PER_DOF_STEP = 15e-9
 EQUILATERAL = math.sqrt(3.0) / 4.0  # area of an equilateral triangle of side 1
+# the element bound dt = 2 / omega_max over h / c1 of a region (s per s): triangles of a
+# structured grid of alternating diagonals, of an unstructured (frontal Delaunay) mesh,
+# square quadrilaterals at finite strain (min A / max diagonal = h / sqrt 2)
+DT_FACTOR = {"structured": 0.65, "unstructured": 0.45, "quad": math.sqrt(0.5)}
+FLATTENING = 14.0
+SETUP_SECONDS = 4.0
+SETUP_SECONDS_PER_CELL = 2e-5
+SECONDS_PER_STEP = 5e-6
+SECONDS_PER_DOF_STEP = 7e-9
+PLASTIC_SECONDS_PER_DOF_STEP = 4e-8
+FINITE_SECONDS_PER_CELL_STEP = 1.1e-6
+COMPILE_SECONDS = 30.0
+XDMF_BYTES_PER_FRAME = 2.5e3
+CSV_BYTES_PER_VALUE = 16.0
+PAIR_BYTES = 24.0
+PICTURES_BYTES = 2.5e5  # history.png, energy.png, summary.json and the scene's copy
+FIELD_BLOCK = 16  # xdmf.FieldWriter.BLOCK: the first block of frames of unknown count
+
+
+@dataclass
+class Region:
+    """A body's part of a generator mesh: its cell group, cells, nodes, its smallest
+    element size h (m) and its kind (a key of DT_FACTOR)."""
+
+    body: str
+    cells: float
+    nodes: float
+    h: float
+    kind: str
+
+
+def _rectangle(body: str, width: float, height: float, h: float, structured: bool,
+               n_r: int | None = None) -> Region:
+    """A rectangle width x height (m) of element size h (m); ``n_r`` intervals on the
+    sides along r (default round(width / h))."""
+    n_r = n_r or max(1, round(width / h))
+    n_z = max(1, round(height / h))
+    if structured:
+        return Region(body, 2.0 * n_r * n_z, (n_r + 1.0) * (n_z + 1.0), h, "structured")
+    cells = width * height / (EQUILATERAL * h * h)
+    return Region(body, cells, 1.0 + 0.5 * (cells + 2 * n_r + 2 * n_z), h, "unstructured")
+
+
+def _graded_block(p: dict) -> Region:
+    """punch_block: the integral of 1 / (sqrt(3)/4 h^2) over the block and of 1 / h along
+    its boundary, h = min(h_surface + grading d, h_max) with d the distance to the face
+    0 <= r <= r_last of the breaks (midpoint sums on grids finer than h / 4)."""
+    import numpy as np
+
+    hs, g, h_max = p["h_surface"], p["grading"], p["h_max"]
+    width, depth, breaks = p["width"], p["depth"], p["breaks"]
+    r_last = breaks[-1][0]
+
+    def size(d):
+        return np.minimum(hs + g * d, h_max)
+
+    def grid(a: float, b: float, start: float) -> np.ndarray:
+        """Points a = x_0 < ... < x_n = b spaced a quarter of the size at distance
+        start + (x - a) from the face."""
+        xs = [a]
+        while xs[-1] < b:
+            xs.append(min(b, xs[-1] + 0.25 * float(size(start + xs[-1] - a))))
+        return np.array(xs)
+
+    r = np.concatenate([np.linspace(0.0, r_last, max(2, int(4 * r_last / hs)) + 1),
+                        grid(r_last, width, 0.0)[1:]])
+    z = grid(0.0, depth, 0.0)
+    rm, zm = 0.5 * (r[1:] + r[:-1]), 0.5 * (z[1:] + z[:-1])
+    d = np.hypot(np.maximum(rm[:, None] - r_last, 0.0), zm[None, :])
+    cells = float(np.sum(np.outer(np.diff(r), np.diff(z)) / (EQUILATERAL * size(d) ** 2)))
+    far = np.hypot(width - r_last, zm)  # the side r = width, the bottom, the axis
+    bottom = np.hypot(np.maximum(rm - r_last, 0.0), depth)
+    edges = (sum(n for _, n in breaks) + np.sum(np.diff(r)[rm > r_last] / size(rm[rm > r_last] - r_last))
+             + np.sum(np.diff(z) / size(far)) + np.sum(np.diff(r) / size(bottom))
+             + np.sum(np.diff(z) / size(zm)))
+    h_min = min([hs] + [(r1 - r0) / n for (r0, (r1, n)) in
+                        zip([0.0] + [b[0] for b in breaks[:-1]], breaks)])
+    return Region("block", cells, 1.0 + 0.5 * (cells + float(edges)), h_min, "unstructured")
+
+
+def generator_regions(generator: str, p: dict) -> list[Region]:
+    """The regions of a generator mesh with parameters ``p`` (its defaults filled in)."""
+    if generator == "bar":
+        return [_rectangle("bar", p["radius"], p["length"], p["h"], p["structured"])]
+    if generator in ("coaxial_bars", "coaxial_bars_sized"):
+        h = ((p["h"], p["h"]) if generator == "coaxial_bars"
+             else (p["h_striker"], p["h_target"]))
+        return [_rectangle(body, p["radius"], length, hb, p["structured"])
+                for body, length, hb in zip(("striker", "target"),
+                                            (p["striker_length"], p["target_length"]), h)]
+    if generator == "nosed_striker_on_block":  # a quarter-disc nose and its shank; the block
+        a, shank, hs = p["nose_radius"], p["shank_length"], p["h_striker"]
+        cells = (0.25 * math.pi * a * a + a * shank) / (EQUILATERAL * hs * hs)
+        edges = (0.5 * math.pi * a + shank + a + a + shank) / hs
+        striker = Region("striker", cells, 1.0 + 0.5 * (cells + edges), hs, "unstructured")
+        return [striker, _rectangle("block", p["block_width"], p["block_depth"], p["h_block"],
+                                    False)]
+    if generator == "quad_bar":  # n_r x round(n_r length / radius) square quadrilaterals
+        n_r = p["n_r"]
+        n_z = max(1, round(n_r * p["length"] / p["radius"]))
+        return [Region("", float(n_r * n_z), (n_r + 1.0) * (n_z + 1.0), p["radius"] / n_r, "quad")]
+    if generator == "punch_block":
+        return [_graded_block(p)]
+    raise ValueError(generator)
+
+
+def generator_size(generator: str, p: dict) -> float:
+    """The largest extent (m) in r or z of a generator mesh with parameters ``p``."""
+    if generator in ("bar", "quad_bar"):
+        return max(p["radius"], p["length"])
+    if generator in ("coaxial_bars", "coaxial_bars_sized"):
+        return max(p["radius"], p["striker_length"] + p["target_length"])
+    if generator == "nosed_striker_on_block":
+        return max(p["block_width"], p["block_depth"] + p["nose_radius"] + p["shank_length"])
+    if generator == "punch_block":
+        return max(p["width"], p["depth"])
+    raise ValueError(generator)
+
+
+def contact_radius(generator: str | None, p: dict) -> float | None:
+    """The radius (m) of the contact faces of a generator mesh (None: not known)."""
+    if generator in ("bar", "quad_bar", "coaxial_bars", "coaxial_bars_sized"):
+        return p["radius"]
+    if generator == "nosed_striker_on_block":
+        return p["nose_radius"]
+    return None
 
 
 @dataclass
 class Estimate:
     cells: float
     dofs: float
-    memory: float     # bytes, all ranks
-    time: float       # s, wall
     n_steps: float
+    memory: float        # bytes, all ranks
+    setup: float         # s, wall: imports, mesh, forms, kernels from their cache
+    steps_time: float    # s, wall
+    compile: float       # s, wall: the kernels whose cache is cold (0: none)
+    disk: float          # bytes, every file of the run
+    fields: float        # bytes of the field files (fields.h5 or fields_p*.h5)
+    frames: float
+    flattening: bool = False  # finite strain against a wall: steps x FLATTENING
+    parts: dict = field(default_factory=dict)  # bytes by file
 
-    def line(self, available: float | None) -> str:
+    @property
+    def time(self) -> float:
+        """The run's wall time (s), compile included."""
+        return self.setup + self.steps_time + self.compile
+
+    def lines(self, available: float | None, free: float | None) -> list[str]:
+        """What the run is estimated to take, on two lines (rank 0 prints them)."""
         avail = f" of {available / 1e9:.3g} GB available" if available else ""
-        return (f"estimate: {self.cells:,.0f} cells, {self.dofs:,.0f} dofs, "
-                f"{self.memory / 1e9:.3g} GB of memory{avail}, about "
-                f"{_duration(self.time)} for {self.n_steps:,.0f} steps (rough)")
+        steps = f"{self.n_steps:,.0f} step{'' if self.n_steps == 1 else 's'}"
+        if self.flattening:
+            steps += (f" (the step falls as the cells flatten: {FLATTENING:g} x the steps of "
+                      "the undeformed cells, as on the shipped Taylor bar)")
+        parts = f"set-up {_duration(self.setup)}, steps {_duration(self.steps_time)}"
+        if self.compile:
+            parts += f", compiling {_duration(self.compile)}"
+        fields = (f" (fields {size_text(self.fields)}: {self.frames:,.0f} frames)"
+                  if self.fields else "")
+        space = f" of {size_text(free)} free" if free is not None else ""
+        return [f"estimate: {self.cells:,.0f} cells, {self.dofs:,.0f} dofs, {steps}, about "
+                f"{_duration(self.time)} ({parts})",
+                f"          {self.memory / 1e9:.3g} GB of memory{avail}, "
+                f"{size_text(self.disk)} of output{fields}{space} (rough)"]
 
 
 def _duration(seconds: float) -> str:
@@ -47,57 +223,73 @@ def _duration(seconds: float) -> str:
     return f"{seconds:.2g} s"
 
 
-def _rect_cells(width: float, height: float, h: float, structured: bool) -> float:
-    if structured:
-        return 2.0 * max(1, round(width / h)) * max(1, round(height / h))
-    return width * height / (EQUILATERAL * h * h)
+def size_text(n: float) -> str:
+    """A number of bytes as kB, MB, GB or TB (decimal)."""
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
 
 
-def generator_cells(generator: str, p: dict) -> tuple[float, float]:
-    """(cells, smallest element size in m) of a generator mesh with parameters ``p``
-    (the generator's defaults filled in)."""
-    if generator == "bar":
-        return _rect_cells(p["radius"], p["length"], p["h"], p["structured"]), p["h"]
-    if generator == "coaxial_bars":
-        cells = sum(_rect_cells(p["radius"], length, p["h"], p["structured"])
-                    for length in (p["striker_length"], p["target_length"]))
-        return cells, p["h"]
-    if generator == "coaxial_bars_sized":
-        cells = (_rect_cells(p["radius"], p["striker_length"], p["h_striker"], p["structured"])
-                 + _rect_cells(p["radius"], p["target_length"], p["h_target"], p["structured"]))
-        return cells, min(p["h_striker"], p["h_target"])
-    if generator == "nosed_striker_on_block":  # a quarter-disc nose and its shank; the block
-        a = p["nose_radius"]
-        striker = (0.25 * math.pi * a * a + a * p["shank_length"]) / (EQUILATERAL * p["h_striker"] ** 2)
-        block = p["block_width"] * p["block_depth"] / (EQUILATERAL * p["h_block"] ** 2)
-        return striker + block, min(p["h_striker"], p["h_block"])
-    if generator == "quad_bar":  # n_r x round(n_r length / radius) quadrilaterals
-        return p["n_r"] * max(1, round(p["n_r"] * p["length"] / p["radius"])), p["radius"] / p["n_r"]
-    if generator == "punch_block":
-        hs, g, h_max = p["h_surface"], p["grading"], p["h_max"]
-        hs = min([hs] + [(r1 - r0) / n for (r0, (r1, n)) in
-                         zip([0.0] + [b[0] for b in p["breaks"][:-1]], p["breaks"])])
-        depth, width = p["depth"], p["width"]
-        d_cap = (h_max - hs) / g if g > 0 else math.inf
-        d1 = min(depth, d_cap)
-        # integral of 1/h(d)^2 over the depth
-        inv = (1.0 / g) * (1.0 / hs - 1.0 / (hs + g * d1)) if g > 0 else d1 / hs ** 2
-        inv += max(0.0, depth - d1) / h_max ** 2
-        return width * inv / EQUILATERAL, hs
-    raise ValueError(generator)
+@dataclass
+class RunShape:
+    """What the estimate needs of a scene, in numbers: see :func:`estimate`."""
+
+    cells: float
+    nodes: float
+    n_steps: float
+    n_ranks: int
+    finite: bool = False
+    plastic: bool = False
+    flattening: bool = False
+    history_columns: int = 2
+    history_every: int = 1
+    energy_columns: int = 0       # small strain: the energy table's columns
+    energy_every: int = 1
+    output_every: int = 50
+    fields: bool = True
+    cell_fields: int = 5
+    pairs: list = field(default_factory=list)  # per contact set: pairs
+    pairs_every: int = 10
+    plots: bool = True
+    cold: float = 0.0             # the share of the run's kernels whose cache is cold
 
 
-def estimate(cells: float, n_steps: float, n_ranks: int, history_columns: int,
-             history_every: int, dofs: float | None = None) -> Estimate:
-    """Memory (bytes) and wall time (s) of ``cells`` CST cells (or ``dofs`` dofs of another
-    element) run for ``n_steps``."""
-    if dofs is None:
-        dofs = cells + 4.0 * math.sqrt(cells) + 2.0  # 2 per node, ~cells/2 nodes plus the boundary
-    rows = n_steps / history_every + 2
-    memory = (n_ranks * BASE_BYTES_PER_RANK + BYTES_PER_DOF * dofs
-              + 2 * 8.0 * rows * history_columns)
-    time = SECONDS_PER_DOF_STEP * dofs * n_steps / n_ranks
-    return Estimate(cells, dofs, memory, time, n_steps)
+def estimate(s: RunShape) -> Estimate:
+    """Memory (bytes), time (s) and disk (bytes) of a run of the shape ``s``."""
+    dofs = 2.0 * s.nodes
+    n = s.n_steps
+    history_rows = n / s.history_every + (0 if s.finite else n / s.energy_every) + 2
+    memory = (s.n_ranks * BASE_BYTES_PER_RANK + BYTES_PER_DOF * dofs
+              + 2 * 8.0 * history_rows * s.history_columns)
+    setup = SETUP_SECONDS + SETUP_SECONDS_PER_CELL * s.cells
+    if s.finite:
+        steps = n * FINITE_SECONDS_PER_CELL_STEP * s.cells / s.n_ranks
+    else:
+        per_dof = PLASTIC_SECONDS_PER_DOF_STEP if s.plastic else SECONDS_PER_DOF_STEP
+        steps = n * (SECONDS_PER_STEP + per_dof * dofs / s.n_ranks)
+    parts = {"history.csv": CSV_BYTES_PER_VALUE * history_rows * s.history_columns}
+    frames = 0.0
+    if s.fields:
+        frames = 1.0 + math.ceil(n / s.output_every)
+        held = frames
+        if s.finite:  # blocks of FIELD_BLOCK frames, each as long as all before it
+            held = float(FIELD_BLOCK)
+            while held < frames:
+                held *= 2.0
+        frame = 8.0 * (6.0 * s.nodes + s.cell_fields * s.cells)
+        mesh = 8.0 * (2.0 * s.nodes + 3.0 * s.cells) + 4.0 * s.cells
+        parts["fields.h5"] = held * frame + mesh
+        parts["fields.xdmf"] = XDMF_BYTES_PER_FRAME * frames * s.n_ranks
+    if not s.finite:
+        parts["energy.csv"] = (CSV_BYTES_PER_VALUE * (n / s.energy_every + 2)
+                               * s.energy_columns)
+        for k, pairs in enumerate(s.pairs):
+            parts[f"contact_pairs{k}.h5"] = PAIR_BYTES * pairs * (n / s.pairs_every + 2)
+    parts["pictures and summary"] = PICTURES_BYTES if s.plots else 1e4
+    return Estimate(s.cells, dofs, n, memory, setup, steps, COMPILE_SECONDS * s.cold,
+                    sum(parts.values()), parts.get("fields.h5", 0.0), frames, s.flattening,
+                    parts)
 
 
 def available_memory() -> float | None:
@@ -112,4 +304,18 @@ def available_memory() -> float | None:
     try:
         return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
     except (ValueError, OSError):
+        return None
+
+
+def free_disk(path: str) -> tuple[str, float] | None:
+    """(the existing folder that will hold ``path``, its free bytes), or None if unknown."""
+    here = os.path.abspath(os.path.expanduser(path))
+    while True:
+        parent = os.path.dirname(here)
+        if os.path.isdir(parent) or parent == here:
+            break
+        here = parent
+    try:
+        return parent, float(shutil.disk_usage(parent).free)
+    except OSError:
         return None

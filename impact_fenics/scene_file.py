@@ -31,6 +31,7 @@ from .errors import InputError
 QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
               "eps_p_eq", "yielded")
 METHODS = ("penalty", "film", "dme")
+ENERGY_EVERY = 10  # steps between energy rows unless [output] energy_every (small strain)
 COMPONENTS = {"r": 0, "z": 1}
 _MISSING = object()
 
@@ -281,8 +282,9 @@ class Scene:
     time: dict[str, Any]
     output: dict[str, Any]
     probes: list[ProbeSpec] = field(default_factory=list)
-    force: bool = False  # run what the checks refuse (dt, penalty bound, memory)
+    force: bool = False  # run what the checks refuse (dt, penalty bound, memory, disk)
     wall: Any = None     # finite_scene.WallSpec of a [wall] table, or None
+    warned: set[str] = field(default_factory=set)  # the plausibility findings said so far
 
     @property
     def finite(self) -> bool:
@@ -618,10 +620,14 @@ def _read_time(data: Any) -> dict[str, Any]:
 
 
 def _read_output(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[output]", ("dir", "output_every", "history_every", "pairs_every", "fields",
-                                  "plots"))
+    t = _Table(data, "[output]", ("dir", "output_every", "energy_every", "history_every",
+                                  "pairs_every", "fields", "plots"))
     return {"dir": t.text("dir", "the output directory", None),
-            "output_every": t.count("output_every", "steps between field and energy outputs", 50),
+            "output_every": t.count("output_every", "steps between field outputs "
+                                                    "(fields.xdmf)", 50),
+            "energy_every": t.count("energy_every", "steps between energy rows (energy.csv) "
+                                                    f"and their stability check; default "
+                                                    f"{ENERGY_EVERY}", None),
             "history_every": t.count("history_every", "steps between history rows", 1),
             "pairs_every": t.count("pairs_every", "steps between per-pair contact rows", 10),
             "fields": t.flag("fields", "write fields.xdmf", True),
@@ -651,46 +657,160 @@ def check_output_dir(path: str, where: str, comm: MPI.Comm = MPI.COMM_WORLD) -> 
         raise InputError(f"{where} {_fmt(path)}: the output directory cannot be used: {error}")
 
 
-# ----------------------------------------------------------------------------- resources
+# ----------------------------------------------------------------------------- plausibility
 
-def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool = False) -> None:
-    """Estimate cells, dofs, memory and time before meshing (generator meshes); print
-    them on rank 0 and refuse a run beyond the available memory unless forced."""
-    if scene.mesh.generator is None:
-        return  # a mesh file: its size is what it is
+def generator_params(scene: Scene) -> dict[str, Any]:
+    """The parameters of the scene's generator mesh, its defaults filled in."""
     import inspect
 
     from . import meshing
 
-    quads = scene.mesh.generator == "quad_bar"  # finite_run.quad_bar: every key given
-    params = {} if quads else {
+    params = {} if scene.mesh.generator == "quad_bar" else {  # quad_bar: every key given
         k: v.default for k, v in
         inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
         if v.default is not inspect.Parameter.empty}
     params.update(scene.mesh.params)
-    cells, h_min = resources.generator_cells(scene.mesh.generator, params)
+    return params
+
+
+def warn_implausible(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """Warn (rank 0, once each) about the scene's values that no real impact has, as far as
+    they are known before meshing (plausibility.py): materials, speeds, a given dt, the
+    size of a generator mesh."""
+    plausibility.report(plausibility.findings(scene, dt=scene.time["dt"], **mesh_sizes(scene)),
+                        scene.warned, comm)
+
+
+def mesh_sizes(scene: Scene, size: float | None = None) -> dict[str, float | None]:
+    """The model's largest extent ``size`` and smallest element size ``h`` (m) as far as
+    known before meshing (a generator's parameters; ``size`` if given)."""
+    if scene.mesh.generator is None:
+        return {"size": size, "h": None}
+    params = generator_params(scene)
+    return {"size": resources.generator_size(scene.mesh.generator, params) if size is None
+            else size,
+            "h": min(r.h for r in resources.generator_regions(scene.mesh.generator, params))}
+
+
+def explained_refusal(message: str, scene: Scene, size: float | None) -> str:
+    """A refusal of the step (above the stable limit, longer than the run) with the scene's
+    implausible units that may cause it (materials, the model's size (m) ``size``, its
+    elements, dt)."""
+    found = [f for f in plausibility.findings(scene, dt=scene.time["dt"],
+                                              **mesh_sizes(scene, size))
+             if f.key.startswith(("[materials", "[mesh]", "[time] dt"))]
+    return plausibility.explained(message, found)
+
+
+# ----------------------------------------------------------------------------- resources
+
+def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
+             cold: float = 0.0) -> resources.Estimate:
+    """Cells, dofs, steps, memory, time and disk of the scene's run on ``comm``, before
+    meshing (a mesh file is read for its counts); ``cold``: the share of the run's numba
+    kernels that compile (jit_watch.cold_share)."""
+    o = scene.output
+    if scene.mesh.generator is not None:
+        params = generator_params(scene)
+        regions = resources.generator_regions(scene.mesh.generator, params)
+        nodes = sum(r.nodes for r in regions)
+        radius = resources.contact_radius(scene.mesh.generator, params)
+    else:
+        from . import meshing
+
+        with _at("[mesh]"):
+            counts = meshing.msh_size(scene.mesh.file, comm)
+        regions = [resources.Region(name, float(n), 0.0, h, "unstructured")
+                   for name, (n, h) in counts["groups"].items()]
+        nodes, radius = float(counts["nodes"]), None
+    cells = sum(r.cells for r in regions)
+    speeds = {b.name: plausibility.wave_speed(m.E, m.nu, m.density)
+              for b in scene.bodies for m in (scene.materials[b.material],)}
+    fastest = max(speeds.values())
     t = scene.time
+    flattening = False
     if t["n_steps"] is not None:
         n_steps = float(t["n_steps"])
     else:
         dt = t["dt"]
-        if dt is None:  # cfl: the element bound is about 0.3 h / c for these triangles, h / sqrt 2 / c
-            # for square quadrilaterals (finite strain: at the start; flattening cells lower it)
-            c = max(plausibility.wave_speed(m.E, m.nu, m.density) for m in scene.materials.values())
-            dt = t["cfl"] * (math.sqrt(0.5) if quads else 0.3) * h_min / c
-        n_steps = math.ceil(t["t_end"] / dt)
-    columns = 2 + len(scene.probes) + 9 * len(scene.contacts)
-    est = resources.estimate(cells, n_steps, comm.size, columns, scene.output["history_every"],
-                             dofs=2.0 * (cells + 2.0 * math.sqrt(cells) + 1.0) if quads else None)
+        if dt is None:
+            dt = t["cfl"] * min(resources.DT_FACTOR[r.kind] * r.h / speeds.get(r.body, fastest)
+                                for r in regions)
+            flattening = scene.finite and scene.wall is not None
+        n_steps = math.ceil(t["t_end"] / dt - 1e-9) * (resources.FLATTENING if flattening else 1)
+    plastic = any(scene.materials[b.material].model != "elastic" for b in scene.bodies)
+    h_min = min(r.h for r in regions)
+    pairs = []
+    for c in scene.contacts:  # the nodes of the (slave, lower) face
+        across = c.radius if c.rigid is not None else radius
+        pairs.append(across / h_min + 1 if across else math.sqrt(cells))
+    if scene.finite:
+        columns, cell_fields = 19, 6  # finite_run.HISTORY_COLUMNS, CELL_FIELDS
+        energy_columns = 0
+    else:
+        columns = 2 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
+                                              for c in scene.contacts)
+        cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
+        energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
+    shape = resources.RunShape(
+        cells, nodes, n_steps, comm.size, finite=scene.finite, plastic=plastic,
+        flattening=flattening, history_columns=columns, history_every=o["history_every"],
+        energy_columns=energy_columns, energy_every=o["energy_every"] or ENERGY_EVERY,
+        output_every=o["output_every"], fields=o["fields"], cell_fields=cell_fields,
+        pairs=pairs, pairs_every=o["pairs_every"], plots=o["plots"], cold=cold)
+    return resources.estimate(shape)
+
+
+def kernels_cold(scene: Scene) -> float:
+    """The share (0 to 1) of the numba kernels of the scene's run whose on-disk cache is
+    cold (a first run): the modules the run calls are imported to see them."""
+    from . import jit_watch
+
+    if scene.finite:
+        from . import finite_run
+        from .materials import finite_j2, neo_hookean  # noqa: F401
+
+        entry = finite_run.velocity_update
+    else:
+        from . import energy, simulation  # noqa: F401
+        from .contact import segments  # noqa: F401
+        from .materials import j2  # noqa: F401
+
+        entry = energy.copy_state
+    return jit_watch.cold_share(entry)
+
+
+def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool = False,
+                    out_dir: str | None = None) -> resources.Estimate:
+    """Estimate the run before meshing; print it on rank 0 (and "compiling kernels (first
+    run only)" when numba's cache is cold); refuse a run beyond the available memory, or
+    whose outputs pass the free space of ``out_dir``'s disk, unless forced."""
+    cold = kernels_cold(scene)
+    cold = max(comm.allgather(cold))
+    est = estimate(scene, comm, cold)
     available = resources.available_memory() if comm.rank == 0 else None
-    available = comm.bcast(available, root=0)
+    disk = resources.free_disk(out_dir) if (comm.rank == 0 and out_dir) else None
+    available, disk = comm.bcast((available, disk), root=0)
     if comm.rank == 0 and not quiet:
-        print(est.line(available), flush=True)
-    if available and est.memory > available and not scene.force:
+        for line in est.lines(available, disk[1] if disk else None):
+            print(line, flush=True)
+        if cold:
+            print("compiling kernels (first run only)", flush=True)
+    if scene.force:
+        return est
+    if available and est.memory > available:
         raise InputError(f"[mesh] the run needs about {est.memory / 1e9:.3g} GB ("
                          f"{est.cells:,.0f} cells, {est.n_steps:,.0f} steps), more than the "
                          f"{available / 1e9:.3g} GB available: coarsen the mesh or shorten "
                          "the run, or force it (force = true or --force)")
+    if disk and est.disk > disk[1]:
+        what = (f"fields {resources.size_text(est.fields)}: {est.frames:,.0f} frames"
+                if est.fields else "no fields")
+        raise InputError(f"[output] the run writes about {resources.size_text(est.disk)} ({what}), "
+                         f"more than the {resources.size_text(disk[1])} free in {disk[0]}: raise "
+                         "output_every, set fields = false or free the disk, or force it "
+                         "(force = true or --force)")
+    return est
 
 
 # ----------------------------------------------------------------------------- building
@@ -718,6 +838,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from .scenes import make_method
     from .simulation import Settings, Simulation
 
+    warn_implausible(scene, comm)
     with _at("[mesh]"):
         if scene.mesh.file is not None:
             tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
@@ -725,6 +846,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             generate = getattr(meshing, scene.mesh.generator)
             tmesh = generate(comm=comm, **scene.mesh.params)
     _check_groups(scene, tmesh)
+    size = plausibility.model_size(tmesh.mesh, comm)
     materials = {}
     for m in scene.materials.values():
         with _at(f"[materials.{m.name}]"):
@@ -756,7 +878,9 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     settings = Settings(dt=t["dt"], cfl=t["cfl"], t_end=t["t_end"], n_steps=t["n_steps"],
                         force_dt=t["force_dt"] or scene.force, force=scene.force,
                         converged_dt=t["converged_dt"], out=o["dir"],
-                        output_every=o["output_every"], history_every=o["history_every"],
+                        output_every=o["output_every"],
+                        energy_every=o["energy_every"] or ENERGY_EVERY,
+                        history_every=o["history_every"],
                         pairs_every=o["pairs_every"], fields=o["fields"], plots=o["plots"])
     for key, value in (settings_overrides or {}).items():
         setattr(settings, key, value)
@@ -764,9 +888,9 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     try:
         sim = Simulation(model, settings, fixed=fixed, loads=surface_loads,
                          initial_velocity=velocity)
-    except InputError as exc:
+    except InputError as exc:  # (with the implausible units that may cause it)
         hint = " with force_dt = true" if "stable limit" in str(exc) else ""
-        raise InputError(f"[time] {exc}{hint}") from None
+        raise InputError(explained_refusal(f"[time] {exc}{hint}", scene, size)) from None
     for c in scene.contacts:
         _warn_ignored_keys(c, comm)
         with _at(c.where):
@@ -792,7 +916,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()
             _one_body_at(tmesh, p.point, comm)
         sim.add_probe(p.name, p.point, p.quantity)
-    plausibility.check_scene(scene, sim, comm)
+    plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
+                                              **mesh_sizes(scene, size)), scene.warned, comm)
     return sim
 
 

@@ -231,3 +231,64 @@ def test_implausible_values_warn_in_one_line_each(tmp_path, capsys, old, new, wo
                               ["run", "{base}/scene.toml", "--out", "{base}/run", "--quiet"])
     assert code == 0, err
     assert any(words in w for w in _warnings(err)), err
+
+
+# ------------------------------------------------------------------ units, disk
+def _warned_then_refused(tmp_path, capsys, text: str, words: list[str]) -> str:
+    """The run is refused (exit 2, one error line holding ``words``, nothing written) and
+    the warnings about the implausible values come before the error."""
+    line = _refused(tmp_path, capsys, text, "")
+    for w in words:
+        assert w in line, line
+    return line
+
+
+def test_a_density_in_g_per_cm3_is_named_in_the_dt_refusal(tmp_path, capsys):
+    """Density 7.85 (g/cm^3 for steel) with a fixed dt: the stable limit falls by
+    sqrt(1000); the refusal says the dt is above it and that the density is implausible,
+    after a warning that said so first."""
+    text = replace(replace(BAR, "cfl = 0.9", "dt = 1e-6"), "density = 7850.0", "density = 7.85")
+    code, _, err, _, _ = _cli(tmp_path, capsys, text, ["run", "{base}/scene.toml", "--out",
+                                                      "{base}/out", "--quiet"])
+    assert code == 2
+    if COMM.rank == 0:
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert lines[0].startswith("warning: [materials.steel] wave speed") and \
+            "the density 7.85 kg/m^3 is implausible (g/cm^3?)" in lines[0], err
+        assert lines[-1].startswith("error: [time] dt = 1e-06 s is above the stable limit"), err
+    _warned_then_refused(tmp_path, capsys, text, [
+        "is above the stable limit",
+        "; the density 7.85 kg/m^3 of [materials.steel] is implausible (g/cm^3?)"])
+
+
+def test_a_mesh_in_millimetres_is_named_in_the_step_refusal(tmp_path, capsys):
+    """The bar drawn in millimetres (20 x 100 with 10 mm elements read as metres): its step
+    from cfl outlasts the run; the refusal names the elements' size as the likely cause."""
+    text = replace(BAR, "n_steps = 100", "t_end = 1e-4")
+    for old, new in (("radius = 0.02", "radius = 20.0"), ("length = 0.1", "length = 100.0"),
+                     ("h = 0.01", "h = 10.0"), ("point = [0.01, 0.05]", "point = [10.0, 50.0]")):
+        text = replace(text, old, new)
+    _warned_then_refused(tmp_path, capsys, text, [
+        "[time] t_end = 0.0001 s is shorter than one step",
+        "; the elements are 10 m (a mesh in millimetres?)"])
+
+
+def test_outputs_beyond_the_free_disk_are_refused_unless_forced(tmp_path, capsys, monkeypatch):
+    """The estimate of the outputs (here some 100 kB: the fields, the tables, the
+    pictures) against the free space of the output's disk, 10 kB here: refused in one
+    line before anything is written; --force runs it."""
+    from types import SimpleNamespace
+
+    from impact_fenics import resources
+
+    def small_disk(path):
+        return SimpleNamespace(total=10**9, used=10**9 - 10**4, free=10**4)
+
+    monkeypatch.setattr(resources.shutil, "disk_usage", small_disk)
+    text = replace(BAR, "n_steps = 100", "n_steps = 20")
+    line = _refused(tmp_path, capsys, text, "[output] the run writes about")
+    assert "more than the 10 kB free in" in line and "--force" in line
+    code, _, err, base, _ = _cli(tmp_path, capsys, text, ["run", "{base}/scene.toml", "--out",
+                                                          "{base}/out", "--quiet", "--force"])
+    assert code == 0, err
+    assert os.path.isfile(os.path.join(base, "out", "summary.json"))

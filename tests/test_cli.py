@@ -276,3 +276,137 @@ def test_progress_under_mpirun_follows_the_launchers_terminal(tmp_path):
     text = log.read_text()
     assert proc.returncode == 0 and "completed" in text, text
     assert "\r" not in text and "steps/s" not in text
+
+
+# ---------------------------------------------------------------- --version, check, estimates
+@serial_only
+def test_version():
+    from importlib import metadata
+
+    proc = launch(["--version"])
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == f"impact-fenics {metadata.version('impact_fenics')}\n"
+
+
+def _folder(base: str) -> dict:
+    """Every file under ``base`` with its bytes."""
+    found = {}
+    for root, _, files in os.walk(base):
+        for name in files:
+            with open(os.path.join(root, name), "rb") as f:
+                found[os.path.relpath(os.path.join(root, name), base)] = f.read()
+    return found
+
+
+def test_check_prints_the_estimate_and_writes_nothing(tmp_path, capsys):
+    """`impact-fenics check SCENE`: exit 0, the estimate printed, no file written or
+    changed (not even the output directory); a bad scene: exit 2 in one line."""
+    base = _shared_dir(tmp_path)
+    if MPI.COMM_WORLD.rank == 0:
+        with open(os.path.join(base, "pair.toml"), "w") as f:
+            f.write(PAIR)
+        with open(os.path.join(base, "bad.toml"), "w") as f:
+            f.write(replace(PAIR, "nu = 0.3", "nu = 0.7"))
+    MPI.COMM_WORLD.barrier()
+    before = _folder(base)
+    capsys.readouterr()
+    out = os.path.join(base, "out")
+    assert cli.main(["check", os.path.join(base, "pair.toml"), "--out", out]) == 0
+    printed = capsys.readouterr()
+    if MPI.COMM_WORLD.rank == 0:
+        assert "estimate: " in printed.out and "checked" in printed.out, printed.out
+        assert "warning" not in printed.err and "error" not in printed.err, printed.err
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["check", os.path.join(base, "bad.toml"), "--out", out])
+    assert exit_.value.code == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    if MPI.COMM_WORLD.rank == 0:
+        assert len(err) == 1 and err[0].startswith("error: [materials.steel] nu = 0.7"), err
+    MPI.COMM_WORLD.barrier()
+    assert _folder(base) == before
+
+
+def test_check_counts_a_mesh_file_as_read(tmp_path, capsys):
+    """A mesh file's cells and dofs in the estimate are those of the file (4 x 8 squares
+    cut in two: 64 triangles on 5 x 9 nodes), read without building the mesh."""
+    base = _shared_dir(tmp_path)
+    if MPI.COMM_WORLD.rank == 0:
+        with open(os.path.join(base, "disk.msh"), "w") as f:
+            f.write(_disk_msh(0.02, 0.04, 4, 8))
+        with open(os.path.join(base, "disk.toml"), "w") as f:
+            f.write(MSH_SCENE)
+    MPI.COMM_WORLD.barrier()
+    capsys.readouterr()
+    assert cli.main(["check", os.path.join(base, "disk.toml"), "--out",
+                     os.path.join(base, "out")]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        assert "estimate: 64 cells, 90 dofs, 5 steps," in capsys.readouterr().out
+
+
+def test_the_first_run_says_it_compiles(tmp_path, capsys, monkeypatch):
+    """Where numba's cache is cold (jit_watch.cold_share, tests/test_jit_watch.py), the
+    estimate counts the compile and the run says "compiling kernels (first run only)"
+    before the silent seconds of compiling."""
+    base = _shared_dir(tmp_path)
+    if MPI.COMM_WORLD.rank == 0:
+        with open(os.path.join(base, "pair.toml"), "w") as f:
+            f.write(PAIR)
+    MPI.COMM_WORLD.barrier()
+    capsys.readouterr()
+    monkeypatch.setattr(scene_file, "kernels_cold", lambda scene: 1.0)
+    assert cli.main(["check", os.path.join(base, "pair.toml"), "--out",
+                     os.path.join(base, "out")]) == 0
+    out = capsys.readouterr().out
+    if MPI.COMM_WORLD.rank == 0:
+        assert "compiling kernels (first run only)" in out and ", compiling 30 s)" in out, out
+    monkeypatch.setattr(scene_file, "kernels_cold", lambda scene: 0.0)
+    assert cli.main(["check", os.path.join(base, "pair.toml"), "--out",
+                     os.path.join(base, "out")]) == 0
+    assert "compiling" not in capsys.readouterr().out
+
+
+# The shipped scenes, each estimated before meshing and then run: the oracle is the run
+# (its dofs and steps as counted, the bytes it wrote as the files' sizes). The target is
+# 2x either way; the Taylor bar runs on 4 x 40 quadrilaterals instead of 8 x 81 (its
+# steps at 80 us are 10x those of the undeformed cells there, 14x on 8 x 81: the
+# estimate's 14x is within 2x of both). The shipped scenes run without a warning.
+SHIPPED = sorted(os.path.splitext(name)[0] for name in os.listdir(SCENES)
+                 if name.endswith(".toml"))
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_the_estimate_of_each_shipped_scene_is_within_2x_of_its_run(tmp_path, capsys, name):
+    base = _shared_dir(tmp_path)
+    path = os.path.join(SCENES, f"{name}.toml")
+    if name == "taylor_bar":
+        with open(path) as f:
+            text = replace(f.read(), "n_r = 8", "n_r = 4")
+        path = os.path.join(base, f"{name}.toml")
+        if MPI.COMM_WORLD.rank == 0:
+            with open(path, "w") as f:
+                f.write(text)
+        MPI.COMM_WORLD.barrier()
+    est = scene_file.estimate(scene_file.read_scene(path), MPI.COMM_WORLD)
+    out = os.path.join(base, "run")
+    capsys.readouterr()
+    s = _cli_run(path, out)
+    err = capsys.readouterr().err
+    assert "warning" not in err, err
+    written = sum(os.path.getsize(os.path.join(out, f)) for f in os.listdir(out))
+    for what, guess, real in (("dofs", est.dofs, s["n_dofs"]), ("steps", est.n_steps, s["n_steps"]),
+                              ("bytes", est.disk, written)):
+        assert 0.5 <= guess / real <= 2.0, (what, guess, real)
+
+
+@pytest.mark.parametrize("given, rows", [("", [0, 10, 19]), ("energy_every = 3\n",
+                                                             [0, 3, 6, 9, 12, 15, 18, 19])],
+                         ids=["default", "every_3"])
+def test_energy_rows_have_their_own_cadence(tmp_path, given, rows):
+    """[output] energy_every (steps; default 10): the energy rows at steps 0, k, 2k, ... and
+    the last (19 of 20), whatever output_every (5 here) is."""
+    scene = tmp_path / "pair.toml"
+    scene.write_text(replace(PAIR, "output_every = 10\n", "output_every = 5\n" + given))
+    out = os.path.join(_shared_dir(tmp_path), "run")
+    _cli_run(str(scene), out)
+    energy = np.genfromtxt(os.path.join(out, "energy.csv"), delimiter=",", names=True)
+    assert energy["step"].tolist() == rows

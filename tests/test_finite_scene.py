@@ -398,3 +398,18 @@ def test_bad_finite_scene_in_process(tmp_path, capsys, edit, expected):
     if COMM.rank == 0:
         assert len(err) == 1 and err[0].startswith("error: " + expected), err
     assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()
+
+
+def test_an_energy_cadence_is_refused_at_finite_strain(tmp_path, capsys):
+    """A finite-strain run books its energies in every history row: [output] energy_every
+    is refused in one line, nothing written."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(replace(TAYLOR, "output_every = 25", "output_every = 25\nenergy_every = 5"))
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", str(scene), "--quiet", "--out", str(tmp_path / "out")])
+    assert exit_.value.code == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    if COMM.rank == 0:
+        assert len(err) == 1 and err[0].startswith(
+            "error: [output] energy_every: a finite-strain run books its energies"), err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()

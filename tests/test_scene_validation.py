@@ -171,3 +171,25 @@ def test_the_base_scenes_are_valid(tmp_path, base):
     scene.write_text(base)
     assert cli.main(["run", str(scene), "--out", out, "--quiet"]) == 0
     assert os.path.isfile(os.path.join(out, "summary.json"))
+
+
+# [output] energy_every: steps between energy rows (an integer >= 1; small strain only)
+ENERGY_CASES = [
+    ("energy_every = 0", _edit(PAIR, "output_every = 10", "output_every = 10\nenergy_every = 0"),
+     "[output] energy_every = 0: must be an integer >= 1"),
+    ("energy_every = 2.5", _edit(PAIR, "output_every = 10",
+                                 "output_every = 10\nenergy_every = 2.5"),
+     "[output] energy_every = 2.5: must be an integer >= 1"),
+]
+
+
+@pytest.mark.parametrize("make, expected", [c[1:] for c in ENERGY_CASES],
+                         ids=[c[0] for c in ENERGY_CASES])
+def test_a_bad_energy_cadence_is_refused(tmp_path, capsys, make, expected):
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(_prepare(tmp_path, make))
+    assert exit_.value.code == 2
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    if MPI.COMM_WORLD.rank == 0:
+        assert len(lines) == 1 and lines[0].startswith("error: " + expected), lines
+    _assert_nothing_written(tmp_path)

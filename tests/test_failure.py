@@ -186,7 +186,7 @@ def test_divergence_is_caught_between_outputs(tmp_path, capsys):
 
     out = MPI.COMM_WORLD.bcast(str(tmp_path / "out"), root=0)
     (tmp_path / "scene.toml").write_text(replace(DIVERGING, "output_every = 5",
-                                                 "output_every = 1000"))
+                                                 "output_every = 1000\nenergy_every = 1000"))
     with pytest.raises(SystemExit) as exit_:
         cli.main(["run", str(tmp_path / "scene.toml"), "--out", out, "--quiet"])
     assert exit_.value.code == 3

@@ -27,10 +27,10 @@ a value, twice for its doubling buffer).
 plus SETUP_SECONDS_PER_CELL a cell; the steps SECONDS_PER_STEP a step and
 SECONDS_PER_DOF_STEP a dof (PLASTIC_... for path-dependent bodies,
 FINITE_SECONDS_PER_CELL_STEP a cell at finite strain) shared by the ranks; and,
-where numba's cache is cold (a first run), COMPILE_SECONDS for every kernel to
-compile, in proportion. Calibrated on the shipped scenes on a loaded 2-core
-machine: estimates to refuse what cannot fit and to say what to expect, not
-predictions.
+where numba's cache is cold (a first run), COMPILE_SECONDS times the share of
+the kernels that compile. Calibrated on the shipped scenes on a loaded 2-core
+machine (`impact-fenics check` against the run's wall time): estimates to
+refuse what cannot fit and to say what to expect, not predictions.
 
 **Disk**: fields.h5 (xdmf.py) holds the mesh and, per frame, u and v padded to
 three components at every node and each cell field at every cell, 8 B a value
@@ -259,7 +259,9 @@ def estimate(s: RunShape) -> Estimate:
     """Memory (bytes), time (s) and disk (bytes) of a run of the shape ``s``."""
     dofs = 2.0 * s.nodes
     n = s.n_steps
-    history_rows = n / s.history_every + (0 if s.finite else n / s.energy_every) + 2
+    history_rows = n / s.history_every + 2  # (an energy row's step has a history row too)
+    if s.history_every > 1 and not s.finite:
+        history_rows += n / s.energy_every
     memory = (s.n_ranks * BASE_BYTES_PER_RANK + BYTES_PER_DOF * dofs
               + 2 * 8.0 * history_rows * s.history_columns)
     setup = SETUP_SECONDS + SETUP_SECONDS_PER_CELL * s.cells

@@ -22,7 +22,7 @@ import os
 import numpy as np
 from mpi4py import MPI
 
-from impact_fenics import loads, scenes
+from impact_fenics import loads, rundir, scenes
 from impact_fenics.errors import InputError, user_errors
 from impact_fenics.materials import DruckerPrager
 from impact_fenics.simulation import Settings
@@ -184,7 +184,9 @@ def main(argv=None):
     k_static = static_stiffness(sim)
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
-        plot(sim, os.path.join(out, "force_penetration.png"), k_static)
+        picture = os.path.join(sim.out_dir, "force_penetration.png")
+        plot(sim, picture, k_static)
+        rundir.record_files(sim.out_dir, [picture])  # the run's own, replaced with it
         print(f"bit_rock ({args.method}, {args.rock} rock): {s['n_cells']} cells, "
               f"{s['n_dofs']} dofs, {s['n_steps']} steps of {s['dt']:.4g} s, {s['n_ranks']} rank(s)")
         print(f"waves (J): incident {s['wave_incident']:.6f}, reflected {s['wave_reflected']:.6f}, "

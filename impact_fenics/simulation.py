@@ -517,7 +517,7 @@ class Simulation:
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")
                 output.write_json(os.path.join(staging, "summary.json"), summary, comm)
-                self.out_dir = rundir.finalize_directory(staging, s.out, comm)
+                self.out_dir = rundir.finalize_directory(staging, s.out, comm, self.status)
                 for tbl in tables.values():
                     tbl.moved(self.out_dir)
             stop.collective(comm)  # a signal while the directory was moved into place

@@ -430,3 +430,20 @@ def test_a_tilde_is_the_home_directory(tmp_path, capsys, monkeypatch, route):
     assert code == 0, err
     assert _summary(os.path.join(home, "runs", "x"))["status"] == "completed"
     assert os.listdir(work) == []
+
+
+def test_every_file_a_run_writes_has_a_run_files_name(tmp_path, capsys):
+    """The names by which a dead run's staging directory is cleaned (rundir.RUN_FILE)
+    cover every file a run writes: contact pairs, probes, plots, fields, a finite-strain
+    run; else a dead run's own file would block the next run forever."""
+    from scene_texts import PAIR
+    from test_finite_scene import TAYLOR
+
+    base = _shared(tmp_path)
+    for k, text in enumerate((PAIR, TAYLOR)):
+        out = os.path.join(base, f"run{k}")
+        code, err = _run(["run", _scene(base, text), "--out", out, "--quiet"], capsys)
+        assert code == 0, err
+        names = sorted(os.listdir(out))
+        assert "fields.h5" in names and "history.png" in names, names
+        assert all(rundir.RUN_FILE.match(n) for n in names), names

@@ -60,7 +60,6 @@ from .. import compat
 from ..errors import UnstableRunError
 
 N_POINTS = 4
-N_NODES = 4
 _G = 0.5 / math.sqrt(3.0)
 # 2x2 Gauss points on the reference square [0, 1]^2, and dolfinx's vertex order of a
 # quadrilateral: (0, 0), (1, 0), (0, 1), (1, 1)

@@ -172,7 +172,7 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
     eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
     equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
     """
-    lmbda, mu, K = params[LMBDA], params[MU], params[BULK]
+    lmbda, mu = params[LMBDA], params[MU]
     af, p_t = params[ALPHA_F], params[P_T]
     elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
     s0 = sigma[0]

@@ -1,6 +1,6 @@
 """A finite-strain explicit run: Q1 mean-dilatation bodies, a variable time step, a rigid wall.
 
-The scheme with the velocity at half steps (DESIGN 10):
+The scheme with the velocity at half steps:
 
     v^{n+1/2} = v^{n-1/2} + 1/2 (dt_{n-1/2} + dt_{n+1/2}) M^-1 (f_ext^n - f_int(u^n)),
     u^{n+1}   = u^n + dt_{n+1/2} v^{n+1/2},

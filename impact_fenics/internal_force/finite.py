@@ -1,6 +1,6 @@
 """Finite-strain internal force: total Lagrangian, bilinear quadrilaterals with mean dilatation.
 
-Kinematics (DESIGN 10), in the reference coordinates (R, Z) (m):
+Kinematics, in the reference coordinates (R, Z) (m):
 
     F = [[1 + du_r/dR, du_r/dZ, 0], [du_z/dR, 1 + du_z/dZ, 0], [0, 0, 1 + u_r/R]],  J = det F > 0,
     f_int,a = int P : Grad N_a 2 pi R dX   (N),   P = tau F^-T the first Piola-Kirchhoff stress.

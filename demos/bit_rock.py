@@ -23,7 +23,7 @@ import numpy as np
 from mpi4py import MPI
 
 from impact_fenics import loads, scenes
-from impact_fenics.errors import user_errors
+from impact_fenics.errors import InputError, user_errors
 from impact_fenics.materials import DruckerPrager
 from impact_fenics.simulation import Settings
 

@@ -29,11 +29,10 @@ from impact_fenics.simulation import Settings
 
 # ## The scene
 #
-# Rock: granite-like, E = 60 GPa, nu = 0.25, rho = 2600 kg/m^3 (the values of
-# issue 10; Jaeger, Cook & Zimmerman, *Fundamentals of Rock Mechanics*, 4th ed.
+# Rock: granite-like, E = 60 GPa, nu = 0.25, rho = 2600 kg/m^3 (Jaeger, Cook & Zimmerman, *Fundamentals of Rock Mechanics*, 4th ed.
 # 2007, give E = 50-70 GPa and nu = 0.2-0.3 for intact granites). For the
 # Drucker-Prager rock: uniaxial compressive strength 200 MPa, tensile strength
-# 10 MPa (issue 10; Westerly granite is near both), friction angle 50 deg
+# 10 MPa (Westerly granite is near both), friction angle 50 deg
 # (intact granite 45-60 deg from Hoek-Brown fits, Hoek & Brown 1997, matched on
 # the compression meridian), dilatancy 10 deg (a fifth of it, as is usual for
 # rock, Vermeer & de Borst 1984), no hardening.

@@ -1,6 +1,6 @@
 """A finite-strain explicit run: Q1 mean-dilatation bodies, a variable time step, a rigid wall.
 
-The scheme with the velocity at half steps (DESIGN 10):
+The scheme with the velocity at half steps:
 
     v^{n+1/2} = v^{n-1/2} + 1/2 (dt_{n-1/2} + dt_{n+1/2}) M^-1 (f_ext^n - f_int(u^n)),
     u^{n+1}   = u^n + dt_{n+1/2} v^{n+1/2},
@@ -214,7 +214,7 @@ class FiniteRun:
         self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
         self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
         length, r_max = float(hi[1] - lo[1]), float(hi[0])
-        self.length0, self.radius0 = length, r_max
+        self.length0 = length
         owned_xy = self.node_xy[: self.n_owned_nodes]
         free = np.ones(self.n_owned, dtype=bool)
         free[2 * np.flatnonzero(np.abs(owned_xy[:, 0]) <= 1e-12 * max(r_max, 1e-300))] = False

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
-from numba import njit
 
 from . import console, interrupts, output, plotting, rundir
 from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks

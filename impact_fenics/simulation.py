@@ -175,8 +175,8 @@ class Simulation:
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
-        if self.plastic_fields is not None:  # eps_p_eq and yielded with the stresses
-            self.add_cell_fields(self.cell_fields)
+        if self.plastic_fields is not None:  # eps_p_eq and yielded of the frame's stresses
+            self.add_cell_fields(self.plastic_fields.frame_arrays)
         self._peaks = np.zeros(len(PEAK_NAMES) + 1)  # cell_fields.track_peaks' state
         self.status = "not started"
 

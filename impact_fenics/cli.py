@@ -172,10 +172,10 @@ def _report(title: str, s: dict, out_dir: str) -> None:
     print(f"{title}: {s['status']}, {s['stopped_at_step']} of {s['n_steps']} steps of "
           f"{s['dt']:.4g} s (stable limit {s['dt_critical']:.4g} s), {s['n_dofs']} dofs on "
           f"{s['n_ranks']} rank(s), {s['wall_time']:.1f} s")
+    from .report import console_lines, energy_line
+
     if "energy" in s:
-        e = s["energy"]
-        print(f"energy: kinetic {e['kinetic']:.6g} J, strain {e['strain']:.6g} J, balance "
-              f"error {s['energy_balance_error_rel']:.1e} (relative)")
+        print(energy_line(s))
     if "contact" in s:
         c = s["contact"]
         first, last = c["first_contact_step"], c["last_contact_step"]
@@ -183,8 +183,6 @@ def _report(title: str, s: dict, out_dir: str) -> None:
                 if first is not None else "never active")
         print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
               f"max penetration {c['max_penetration']:.3g} m")
-    from .report import console_lines
-
     for line in console_lines(s):
         print(line)
     print(f"results in {out_dir}/ (open fields.xdmf in ParaView; "

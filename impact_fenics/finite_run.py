@@ -519,7 +519,7 @@ class FiniteRun:
                 if s.plots and comm.rank == 0 and not stop.signum:
                     from .plotting import write_finite_plots
 
-                    write_finite_plots(staging, self.history)
+                    write_finite_plots(staging, self.history, summary.get("title"))
                 if not self.status.startswith("interrupted") and stop.collective(comm):
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")

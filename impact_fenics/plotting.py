@@ -1,9 +1,10 @@
 """Pictures of a run: history plots (matplotlib) and field renders from the XDMF (pyvista).
 
-* :func:`write_history_plots` writes ``history.png`` (probes, contact force and
-  gap, rigid body motion) and ``energy.png`` (the energy ledger and its balance
-  error) into a run directory; :class:`~impact_fenics.simulation.Simulation`
-  calls it on rank 0 at the end of every run with an output directory.
+* :func:`write_history_plots` writes ``history.png`` (every probe, contact force
+  and gap, rigid body motion) and ``energy.png`` (every term of the energy ledger
+  that is not zero, plastic work included, their total and the balance error)
+  into a run directory; :class:`~impact_fenics.simulation.Simulation` calls it on
+  rank 0 at the end of every run with an output directory.
 * :func:`render_fields` reads ``fields.xdmf`` and its HDF5 file as dolfinx
   writes them and renders one field on the deformed mesh (displacement scaled
   for visibility) at chosen times, offscreen, as PNG files.
@@ -27,19 +28,26 @@ DISPLACEMENTS = ("u_r", "u_z")
 
 # ----------------------------------------------------------------------------- histories
 
+def _run_name(run_dir: str) -> str:
+    """The name of a run without a title: its directory's (a staging suffix dropped)."""
+    return os.path.basename(os.path.normpath(run_dir)).removesuffix(".partial")
+
+
 def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
                         energy: dict[str, np.ndarray],
-                        probes: list[tuple[str, str]] | None = None) -> list[str]:
+                        probes: list[tuple[str, str]] | None = None,
+                        title: str | None = None) -> list[str]:
     """Write history.png and energy.png into ``run_dir``; returns the paths written.
 
     ``history`` and ``energy`` map column names to arrays (time in s);
-    ``probes`` lists (column, quantity) of the probe columns. A failure to plot
-    never loses a run: it is reported in one line on stderr and skipped."""
+    ``probes`` lists (column, quantity) of the probe columns; ``title`` names the run
+    (a scene's title; default: the directory's name). A failure to plot never loses a
+    run: it is reported in one line on stderr and skipped."""
     try:
         import matplotlib
 
         matplotlib.use("Agg")
-        title = os.path.basename(os.path.normpath(run_dir)).removesuffix(".partial")
+        title = title or _run_name(run_dir)
         written = []
         path = os.path.join(run_dir, "history.png")
         if _plot_history(path, history, probes or [], title):
@@ -53,10 +61,11 @@ def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
         return []
 
 
-def write_finite_plots(run_dir: str, h: dict[str, np.ndarray]) -> list[str]:
+def write_finite_plots(run_dir: str, h: dict[str, np.ndarray], title: str | None = None) -> list[str]:
     """history.png of a finite-strain run (finite_run.HISTORY_COLUMNS): length and
     impact-face radius (mm), the largest eps_bar_p, the energies (J) and dt with its
-    limit (s) against time; returns the paths written (a failure is one warning line)."""
+    limit (s) against time, under ``title`` (default: the directory's name); returns the
+    paths written (a failure is one warning line)."""
     try:
         import matplotlib
 
@@ -82,6 +91,7 @@ def write_finite_plots(run_dir: str, h: dict[str, np.ndarray]) -> list[str]:
         ax[1, 1].legend()
         for a in ax.ravel():
             a.set_xlabel("t (µs)")
+        fig.suptitle(f"{title or _run_name(run_dir)}: histories")
         fig.tight_layout()
         path = os.path.join(run_dir, "history.png")
         fig.savefig(path, dpi=110)
@@ -96,6 +106,29 @@ def _finite(y: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(y), y, np.nan)
 
 
+# the probe panels: (quantities, y label, factor to the plotted unit)
+PROBE_PANELS = ((STRESSES, "probe stress (MPa)", 1e-6),
+                (DISPLACEMENTS, "probe displacement (mm)", 1e3),
+                (("eps_p_eq",), "probe eps_p_eq (-)", 1.0),
+                (("yielded",), "probe yielded (0 / 1)", 1.0))
+
+
+def probe_panels(h: dict[str, np.ndarray], probes: list[tuple[str, str]]) -> list:
+    """[(y label, [(column, values)])]: every probe column of ``h`` in a panel of its
+    quantity's kind (a quantity of no listed kind in a panel of its own)."""
+    panels = []
+    shown = set()
+    for quantities, label, factor in PROBE_PANELS:
+        curves = [(n, h[n] * factor) for n, q in probes if q in quantities and n in h]
+        shown.update(n for n, _ in curves)
+        if curves:
+            panels.append((label, curves))
+    for n, q in probes:
+        if n in h and n not in shown:
+            panels.append((f"probe {q}", [(n, h[n])]))
+    return panels
+
+
 def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, str]],
                   title: str) -> bool:
     import matplotlib.pyplot as plt
@@ -104,13 +137,7 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
         return False
     t = h["time"] * 1e6
     probe_names = {name for name, _ in probes}
-    panels = []  # (ylabel, [(label, values)])
-    stress = [(n, h[n] / 1e6) for n, q in probes if q in STRESSES and n in h]
-    disp = [(n, h[n] * 1e3) for n, q in probes if q in DISPLACEMENTS and n in h]
-    if stress:
-        panels.append(("probe stress (MPa)", stress))
-    if disp:
-        panels.append(("probe displacement (mm)", disp))
+    panels = probe_panels(h, probes)  # (ylabel, [(label, values)])
     force = [(c, h[c]) for c in h if c.endswith("_force")]
     if force:
         panels.append(("contact force (N)", force))
@@ -139,18 +166,45 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
     return True
 
 
+# the energy panel's curves: (column, label); a column that is zero at every output is
+# left out, except the stored energies and their total
+ENERGY_CURVES = (("kinetic", "kinetic"), ("strain", "strain (stored elastic)"),
+                 ("plastic_work", "plastic work (dissipated)"),
+                 ("total", "total = kinetic + strain + plastic work"),
+                 ("external_work", "work of loads"), ("contact_work", "work of contact"),
+                 ("activation_loss", "activation losses (in the work of contact)"))
+ALWAYS = ("kinetic", "strain", "total")
+
+
+def energy_curves(e: dict[str, np.ndarray]) -> list[tuple[str, str, np.ndarray]]:
+    """The curves of energy.png, [(column, label, values in J)]: the ledger's terms of
+    :data:`ENERGY_CURVES` (a term zero at every output left out, but for the stored
+    energies and their total), then, when work was done on the bodies, the initial
+    energy plus that work ("balance"): the total follows it to round-off."""
+    curves = [(name, label, _finite(e[name])) for name, label in ENERGY_CURVES
+              if name in e and (name in ALWAYS or np.any(_finite(e[name]) != 0.0))]
+    work = sum(e[k] for k in ("external_work", "contact_work") if k in e)
+    if "total" in e and e["total"].size and np.any(work != 0.0):
+        curves.append(("balance", "initial + work of loads and contact",
+                       _finite(e["total"][0] + work)))
+    return curves
+
+
 def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
+    """energy.png: :func:`energy_curves` and the relative balance error."""
     import matplotlib.pyplot as plt
 
     if "time" not in e or e["time"].size == 0:
         return False
     t = e["time"] * 1e6
-    fig, (ax, ax_err) = plt.subplots(2, 1, sharex=True, figsize=(8, 6),
+    fig, (ax, ax_err) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5),
                                      gridspec_kw={"height_ratios": [2, 1]})
-    for name in ("kinetic", "strain", "total", "external_work", "contact_work"):
-        if name in e:
-            ax.plot(t, _finite(e[name]), lw=1.4 if name == "total" else 1.0, label=name,
-                    marker="." if t.size < 40 else None)
+    marker = "." if t.size < 40 else None
+    for name, label, y in energy_curves(e):
+        if name == "balance":
+            ax.plot(t, y, "k--", lw=0.8, label=label)
+        else:
+            ax.plot(t, y, lw=1.6 if name == "total" else 1.0, label=label, marker=marker)
     ax.set_ylabel("energy, work (J)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small", loc="best")
@@ -158,7 +212,7 @@ def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
     err = np.abs(_finite(e.get("balance_error_rel", np.full(t.size, np.nan))))
     shown = np.where(err > 0, err, np.nan)
     ax_err.semilogy(t, shown, ".-", lw=1.0, color="k")
-    ax_err.set_ylabel("|balance error| / scale")
+    ax_err.set_ylabel("|total - initial - work|\n/ largest term")
     ax_err.set_xlabel("t (µs)")
     ax_err.grid(alpha=0.3, which="both")
     if not np.any(np.isfinite(shown)):

@@ -92,6 +92,7 @@ class Settings:
     plots: bool = True  # history.png and energy.png in the output directory (rank 0)
     f_int_path: str = "fast"  # path-dependent bodies: "fast" (fused cell kernel) or "generic"
     compiled_steps: bool = True  # the steps between events as compiled blocks where they apply
+    title: str | None = None  # the run's name in its summary and pictures (a scene's title)
 
     def steps(self) -> int:
         """Number of steps to run."""
@@ -512,7 +513,8 @@ class Simulation:
                 # after an interrupt the data files are complete: skip the plots, finish fast
                 if s.plots and comm.rank == 0 and not stop.signum:
                     plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
-                                                 [(name, q) for name, _, q in self._probe_specs])
+                                                 [(name, q) for name, _, q in self._probe_specs],
+                                                 s.title)
                 if not self.status.startswith("interrupted") and stop.collective(comm):
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")
@@ -910,7 +912,8 @@ class Simulation:
     def _body_figures(self) -> dict:
         """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
         and at the end kinetic 1/2 sum m v^2 and strain energy (J): 1/2 u . K u over its dofs,
-        or the stored elastic energy psi_e of a path-dependent body."""
+        or the stored elastic energy psi_e of a path-dependent body, which also gets its
+        plastic work (J)."""
         integ, comm = self.integrator, self.comm
         Ku = integ.u_vec.duplicate()
         if integ.K is not None:  # the linear bodies' stiffness
@@ -919,19 +922,37 @@ class Simulation:
             Ku.set(0.0)
         ku = Ku.array
         psi = {f.body: f.elastic_energy_local() for f in integ.nonlinear}  # path-dependent
+        plastic = {f.body: f.plastic_work_local for f in integ.nonlinear}
         v_end = self._mean_velocities()
         out = {}
         for name in self.model.bodies:
             dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
             strain = psi[name] if name in psi else 0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))
             local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
-                                                  integ.v_owned[dofs])), strain])
+                                                  integ.v_owned[dofs])), strain,
+                              plastic.get(name, 0.0)])
             comm.Allreduce(MPI.IN_PLACE, local)
             out[name] = {"mass": self.body_mass[name],
                          "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
                          "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
+            if name in plastic:
+                out[name]["plastic_work"] = float(local[2])
         Ku.destroy()
         return out
+
+    def _eps_p_max(self) -> float:
+        """The largest equivalent plastic strain (-) at a point of the path-dependent bodies
+        at the final displacement (the points' update there, as in the last frame; their
+        last update if the run diverged). Collective."""
+        forces = self.integrator.nonlinear
+        if self.status != "diverged":
+            u = forces[0].u  # (every force's displacement Function)
+            u.x.scatter_forward()
+            states = [f.point_stresses(u.x.array).state for f in forces]
+        else:
+            states = [f.qs.state for f in forces]
+        local = max(float(st[..., 0].max(initial=0.0)) for st in states)
+        return self.comm.allreduce(local, op=MPI.MAX)
 
     def _mean_velocities(self) -> dict[str, float]:
         """Mean z velocity (m/s) of every body now: momentum / mass; a rigid body's own."""
@@ -992,6 +1013,8 @@ class Simulation:
             "t_end": self.n_steps * s.dt,
             "wall_time": wall,
         }
+        if s.title is not None:
+            summary["title"] = s.title
         summary.update(_provenance())
         summary["setup_time"] = dict(self.setup_time)
         if self.dt_converged is not None:
@@ -1036,7 +1059,11 @@ class Simulation:
                 summary["plastic_dissipation"] = last["plastic_work"]
             summary["energy_balance_definition"] = (
                 "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
-                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n, W_n the work of loads and contact")
+                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n (the linear bodies) + the stored "
+                "elastic energy and the plastic work of the path-dependent ones, W_n the work "
+                "of loads and contact")
+        if self.integrator.nonlinear:
+            summary["eps_p_max"] = self._eps_p_max()
         if self.contacts:
             c = self.contacts[0]
             summary["contact"] = {  # the first contact set, or all of them for the figures below

@@ -153,3 +153,66 @@ def test_auto_region_frames_where_the_field_is():
     r0, r1, z0, z1 = plotting._auto_region(points, cells, [values], "Cell")
     assert (r0, z1) == (0.0, 1.0)  # clipped to the model
     assert abs(r1 - 0.3) < 1e-12 and abs(z0 - 0.7) < 1e-12  # the hot cells' nodes + 0.1
+
+
+# a soft J2 target under the tiny pair's impact, with a probe of every kind
+PLASTIC = replace(replace(PAIR, '[bodies.target]\nmaterial = "steel"',
+                          '[bodies.target]\nmaterial = "soft"\n\n[materials.soft]\nmodel = "j2"\n'
+                          'E = 200e9\nnu = 0.3\ndensity = 7850.0\nyield_stress = 1e6\n'
+                          'hardening = 1e9'),
+                  'quantity = "sigma_zz"\n', 'quantity = "sigma_zz"\n' + "".join(
+                      f'\n[[probes]]\nname = "{q}_t"\npoint = [0.01, 0.005]\nquantity = "{q}"\n'
+                      for q in ("von_mises", "u_z", "eps_p_eq", "yielded")))
+
+
+@pytest.fixture(scope="module")
+def plastic_run(tmp_path_factory):
+    base = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("plastic")), root=0)
+    scene = os.path.join(base, f"plastic{MPI.COMM_WORLD.rank}.toml")
+    with open(scene, "w") as f:
+        f.write(PLASTIC)
+    out = os.path.join(base, "plastic")
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    return out
+
+
+def _table(path: str) -> dict[str, np.ndarray]:
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    return {name: np.atleast_1d(data[name]) for name in data.dtype.names}
+
+
+def test_energy_picture_of_a_plastic_run(plastic_run):
+    """energy.png draws the plastic work, and its total is the sum the scheme conserves:
+    kinetic + strain + plastic work (the very sum of the table's columns), which follows
+    the initial energy plus the work of the load and of the contact (drawn too) to the
+    balance error of the run."""
+    e = _table(os.path.join(plastic_run, "energy.csv"))
+    curves = {name: y for name, _, y in plotting.energy_curves(e)}
+    assert e["plastic_work"][-1] > 0
+    assert {"kinetic", "strain", "plastic_work", "total", "external_work", "contact_work",
+            "balance"} <= set(curves)
+    assert np.array_equal(curves["total"], e["kinetic"] + e["strain"] + e["plastic_work"])
+    scale = np.abs(e["total"]).max()
+    assert np.abs(curves["balance"] - curves["total"]).max() <= \
+        (e["balance_error_rel"].max() + 4 * np.finfo(float).eps) * scale
+    assert all(np.any(y != 0.0) for name, y in curves.items() if name != "strain")
+    assert _is_drawing(os.path.join(plastic_run, "energy.png"))
+    # a run without plastic work: no such curve
+    e = _table(os.path.join(plastic_run, "energy.csv"))
+    e["plastic_work"][:] = 0.0
+    assert "plastic_work" not in {name for name, _, _ in plotting.energy_curves(e)}
+
+
+def test_history_picture_draws_every_probe(plastic_run):
+    """Every probe column of history.csv is in a panel of history.png: stresses, u_z,
+    eps_p_eq and yielded alike."""
+    with open(os.path.join(plastic_run, "summary.json")) as f:
+        summary = json.load(f)
+    h = _table(os.path.join(plastic_run, "history.csv"))
+    probes = [("s", "sigma_zz")] + [(f"{q}_t", q) for q in ("von_mises", "u_z", "eps_p_eq",
+                                                            "yielded")]
+    drawn = {name for _, curves in plotting.probe_panels(h, probes) for name, _ in curves}
+    assert drawn == {name for name, _ in probes}
+    assert h["eps_p_eq_t"][-1] > 0 and h["yielded_t"][-1] == 1.0
+    assert summary["title"] == "tiny impact"
+    assert _is_drawing(os.path.join(plastic_run, "history.png"))

@@ -102,3 +102,47 @@ def test_energy_row_and_peak_stresses_are_the_written_outputs(bars):
                                     ("sigma_zz_min", zz_min, zz_min.min())):
         assert peaks[key] == extreme, key
         assert peaks[f"{key}_time"] == series.times[np.flatnonzero(per_frame == extreme)[0]], key
+
+
+def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
+    """A J2 target yielding under the tiny pair's impact (with a load on its far end): the
+    console's energy line shows every term of the ledger that is not zero, kinetic +
+    strain + plastic work = total = initial + work of loads + contact work (to the
+    printed digits); the target's plastic work is the ledger's (the only plastic body;
+    the sums over ranks may differ in order: 1e-12); eps_p_max is the largest
+    equivalent plastic strain at a point at the end, so at least every cell mean of the
+    last frame."""
+    from scene_texts import PAIR, replace
+
+    from impact_fenics import cli, plotting
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
+    scene = os.path.join(base, f"plastic{comm.rank}.toml")
+    with open(scene, "w") as f:
+        f.write(replace(PAIR, '[bodies.target]\nmaterial = "steel"',
+                        '[bodies.target]\nmaterial = "soft"\n\n[materials.soft]\nmodel = "j2"\n'
+                        'E = 200e9\nnu = 0.3\ndensity = 7850.0\nyield_stress = 1e6\n'
+                        'hardening = 1e9'))
+    out = os.path.join(base, "out")
+    capsys.readouterr()
+    assert cli.main(["run", scene, "--out", out]) == 0
+    text = capsys.readouterr().out
+    with open(os.path.join(out, "summary.json")) as f:
+        s = json.load(f)
+    e = s["energy"]
+    assert e["plastic_work"] > 0 and e["external_work"] != 0 and e["contact_work"] != 0
+    assert s["bodies"]["target"]["plastic_work"] == pytest.approx(e["plastic_work"], rel=1e-12)
+    assert "plastic_work" not in s["bodies"]["striker"]
+    last = plotting.read_xdmf(os.path.join(out, "fields.xdmf"))
+    eps = last.values("eps_p_eq", last.fields["eps_p_eq"].times.size - 1)
+    assert 0 < eps.max() <= s["eps_p_max"]
+    if comm.rank != 0:
+        return
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("energy: ")]
+    assert f"plastic work {e['plastic_work']:.6g} J" in line
+    assert f"work of loads {e['external_work']:.4g} J" in line
+    assert f"contact work {e['contact_work']:.4g} J" in line
+    stored = e["kinetic"] + e["strain"] + e["plastic_work"]
+    assert f"= {stored:.6g} J = initial " in line
+    assert f"largest equivalent plastic strain {s['eps_p_max']:.4g}" in text

@@ -54,11 +54,13 @@ def _parser() -> argparse.ArgumentParser:
                       help="sigma_rr, sigma_zz, sigma_tt, sigma_rz, von_mises, displacement "
                            "or velocity (default sigma_zz)")
     plot.add_argument("--scale", type=float,
-                      help="displacement magnification (default: the largest displacement "
-                           "shows as 5 %% of the model size)")
+                      help="displacement magnification (default: 1 for a finite-strain "
+                           "run, its true shape; else the largest displacement shows as 5 %% "
+                           "of the model size)")
     plot.add_argument("--region", nargs=4, type=float, metavar=("R0", "R1", "Z0", "Z1"),
-                      help="show only r in [R0, R1], z in [Z0, Z1] (m); default: zoom to "
-                           "where the field is; --whole shows the whole model")
+                      help="frame the cells of r in [R0, R1], z in [Z0, Z1] (m, undeformed); "
+                           "default: frame where the field is; --whole shows the whole model "
+                           "(r to the right, z up in every picture)")
     plot.add_argument("--whole", action="store_true", help="show the whole model")
     return parser
 

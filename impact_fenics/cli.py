@@ -153,8 +153,8 @@ def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
               f"identity {s['kinetic_identity_error']:.1e} (relative)")
         for line in console_lines(s):
             print(line)
-        print(f"results in {out_dir}/ (open fields.xdmf in ParaView; Warp By Vector at scale 1 "
-              "shows the deformed body)")
+        print(_results_line(out_dir, "Warp By Vector at scale 1 shows the deformed body; "
+                                     f"impact-fenics plot {out_dir} renders it"))
     return _exit_code(run, f"t = {s['t_end']:.6g} s (step {s['n_steps']})", out_dir, comm)
 
 
@@ -187,8 +187,20 @@ def _report(title: str, s: dict, out_dir: str) -> None:
               f"max penetration {c['max_penetration']:.3g} m")
     for line in console_lines(s):
         print(line)
-    print(f"results in {out_dir}/ (open fields.xdmf in ParaView; "
-          f"impact-fenics plot {out_dir} renders it)")
+    print(_results_line(out_dir, f"impact-fenics plot {out_dir} renders it"))
+
+
+def _results_line(out_dir: str, hint: str) -> str:
+    """Where the results are: with fields.xdmf written, open it in ParaView (and ``hint``);
+    without (``[output] fields = false``), the files the run wrote instead."""
+    try:
+        names = sorted(n for n in os.listdir(out_dir) if not n.startswith("."))
+    except OSError:
+        names = []
+    if "fields.xdmf" in names:
+        return f"results in {out_dir}/ (open fields.xdmf in ParaView; {hint})"
+    return (f"results in {out_dir}/: {', '.join(names)} (no fields.xdmf: [output] fields = "
+            "false)")
 
 
 def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,

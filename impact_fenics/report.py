@@ -35,8 +35,9 @@ def contact_figures(time: np.ndarray, force: np.ndarray, n_active: np.ndarray,
 
 
 def restitution(v_lower: tuple[float, float], v_upper: tuple[float, float]) -> dict:
-    """Rebound figures of a lower body pushing up into an upper one: mean z velocities
-    (m/s) before (first) and after (second); e = separation / approach speed."""
+    """Rebound figures of a body below and one above it (whichever moves): mean z
+    velocities (m/s) before (first) and after (second); e = separation / approach speed
+    (None when they do not approach)."""
     approach = v_lower[0] - v_upper[0]
     separation = v_upper[1] - v_lower[1]
     return {"velocity_lower_before": v_lower[0], "velocity_upper_before": v_upper[0],

@@ -963,9 +963,11 @@ class Simulation:
         out.update({c.rigid.name: float(c.rigid.v) for c in self.contacts if c.rigid is not None})
         return out
 
-    def _contact_bodies(self, c) -> tuple[str, str]:
-        """(lower body, upper body or rigid body) of a contact set; (slave body, master body)
-        of a node-to-segment one."""
+    def _contact_bodies(self, c) -> dict[str, str]:
+        """The bodies of a contact set: {"lower": the body below, "upper": the body or rigid
+        body above}, as the scene names the faces of node pairs; for node to segment
+        the master's outward normals say which side the slave is on (their mean z
+        component > 0: above), and {"slave", "master"} name the two roles too."""
         def body_of(global_dofs):
             counts = np.array([np.isin(global_dofs, self.model.to_global(
                 self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
@@ -973,11 +975,14 @@ class Simulation:
             return list(self.model.bodies)[int(np.argmax(counts))]
 
         cons = c.constraints
-        if isinstance(cons, SegmentConstraints):  # (slave body, master body)
-            return body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
+        if isinstance(cons, SegmentConstraints):  # (replicated on every rank)
+            slave, master = body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
+            above = float(np.mean(cons.normal[:, 1])) > 0.0  # the slave above the master?
+            lower, upper = (master, slave) if above else (slave, master)
+            return {"lower": lower, "upper": upper, "slave": slave, "master": master}
         lower = body_of(cons.lower)
         upper = c.rigid.name if c.rigid is not None else body_of(cons.upper)
-        return lower, upper
+        return {"lower": lower, "upper": upper}
 
     def _impact_figures(self) -> list[dict]:
         """Per contact set: peak force, impulse, time in contact, separations and, where the
@@ -990,8 +995,9 @@ class Simulation:
         for k, c in enumerate(self.contacts):
             tag = f"c{k}_" if len(self.contacts) > 1 else ""
             force = f"{tag}{c.rigid.name}_force" if c.rigid is not None else f"{tag}contact_force"
-            lower, upper = self._contact_bodies(c)
-            fig = {"surfaces": "/".join(c.constraints.names), "lower": lower, "upper": upper}
+            bodies = self._contact_bodies(c)
+            lower, upper = bodies["lower"], bodies["upper"]
+            fig = {"surfaces": "/".join(c.constraints.names), **bodies}
             fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], self.settings.dt))
             fig.update(restitution((self._v_start[lower], v_end[lower]),
                                    (self._v_start[upper], v_end[upper])))

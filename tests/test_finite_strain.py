@@ -275,3 +275,28 @@ def test_cell_stress_is_the_mean_of_the_point_stresses(comm):
     assert np.all(vm_kirchhoff <= sy + slack)
     yielded = comm.allreduce(int((f.state[..., 0].max(axis=1) > 0).sum()))
     assert yielded > comm.allreduce(g.dofs.shape[0]) // 10  # the impact end yields
+
+
+def test_final_length_after_a_rebound_is_the_length_of_the_bar(comm):
+    """An elastic (neo-Hookean) bar at 10 m/s onto the wall leaves it after 2 L / c0 and flies
+    off: final_length is the axis length, z of the top axis node minus z of the bottom
+    one (both read here from the nodes), not the top's height above the wall. Oracle:
+    after the rebound the bar vibrates with a strain of at most v0 / c0 (the impact's
+    plane-wave strain), so its length is L (1 +- v0 / c0), while the top has risen by
+    the flight (several millimetres here)."""
+    R, L, v0 = 0.01, 0.03, 10.0
+    c0 = math.sqrt(RUBBERY.E / RUBBERY.density)
+    run = FiniteRun(quad_bar(comm, R, L, 2, 6), RUBBERY, FiniteSettings(t_end=600e-6),
+                    velocity=(0.0, -v0), wall="film")
+    s = run.run()
+    xy = run.node_xy[: run.n_owned_nodes] + run.u_owned.reshape(-1, 2)
+    axis = np.abs(run.node_xy[: run.n_owned_nodes, 0]) < 1e-12
+    x0 = run.node_xy[: run.n_owned_nodes]
+    top = comm.allreduce(float(xy[axis & (x0[:, 1] > L * (1 - 1e-12)), 1].max(initial=-np.inf)),
+                         op=MPI.MAX)
+    bottom = comm.allreduce(float(xy[axis & (x0[:, 1] < 1e-12 * L), 1].min(initial=np.inf)),
+                            op=MPI.MIN)
+    assert bottom > 10 * v0 / c0 * L  # off the wall, far beyond a vibration of the length
+    assert s["final_length"] == top - bottom
+    assert abs(s["final_length"] / L - 1) <= v0 / c0
+    assert s["activation_loss"] >= 0 and s["kinetic"] > 0.5 * s["initial_kinetic"]

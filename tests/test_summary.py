@@ -146,3 +146,59 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     stored = e["kinetic"] + e["strain"] + e["plastic_work"]
     assert f"= {stored:.6g} J = initial " in line
     assert f"largest equivalent plastic strain {s['eps_p_max']:.4g}" in text
+
+
+def test_node_to_segment_summary_names_the_bodies_below_and_above(tmp_path):
+    """Node to segment with the finer target face (above) as slave and the striker (below,
+    moving up) as master: the summary says lower = striker, upper = target (the master's
+    outward normals point up to the slave), names the slave and the master, and gives the
+    1D impact's rebound: the velocities exchanged, restitution 1 (within h / 2L each, as
+    the node-pair bars above)."""
+    from impact_fenics.contact import DME
+
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "nts") if MPI.COMM_WORLD.rank == 0 else None,
+                               root=0)
+    sim = scenes.bar_impact_sized(Settings(cfl=0.9, t_end=3 * L / C0, output_every=25,
+                                           out=out, quiet=True, plots=False, fields=False),
+                                  DME(), n_striker=6, n_target=9, v0=V0, radius=A,
+                                  striker_length=L, target_length=L)
+    s = sim.run()
+    (c,) = s["impact"]
+    assert (c["slave"], c["master"]) == ("target", "striker")
+    assert (c["lower"], c["upper"]) == ("striker", "target")
+    assert c["separated_at_end"]
+    assert abs(c["velocity_lower_before"] - V0) <= 1e-12 * V0
+    assert abs(c["velocity_lower_after"]) <= VEL * V0
+    assert abs(c["velocity_upper_after"] - V0) <= VEL * V0
+    assert abs(c["restitution"] - 1.0) <= 2 * VEL
+
+
+def test_results_line_says_what_was_written(tmp_path, capsys):
+    """'open fields.xdmf in ParaView' only when the run wrote it; with [output] fields =
+    false the line lists the files the run wrote instead."""
+    from scene_texts import PAIR, replace
+
+    from impact_fenics import cli
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
+    for fields in (True, False):
+        text = PAIR if fields else replace(PAIR, "output_every = 10",
+                                           "output_every = 10\nfields = false")
+        scene = os.path.join(base, f"pair{int(fields)}_{comm.rank}.toml")
+        with open(scene, "w") as f:
+            f.write(text)
+        out = os.path.join(base, f"out{int(fields)}")
+        capsys.readouterr()
+        assert cli.main(["run", scene, "--out", out]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        if comm.rank != 0:
+            continue
+        (line,) = [ln for ln in lines if ln.startswith("results in ")]
+        written = sorted(n for n in os.listdir(out) if not n.startswith("."))
+        if fields:
+            assert "fields.xdmf" in written and "open fields.xdmf in ParaView" in line
+        else:
+            assert "fields.xdmf" not in written and "ParaView" not in line
+            assert line == (f"results in {out}/: {', '.join(written)} (no fields.xdmf: "
+                            "[output] fields = false)")

@@ -45,26 +45,37 @@ def restitution(v_lower: tuple[float, float], v_upper: tuple[float, float]) -> d
             "restitution": separation / approach if approach > 0 else None}
 
 
+# a ledger term within this share of the largest is round-off (the ledger's sums run
+# over a few dozen rounded terms each): shown as zero
+ROUND_OFF = 64 * 2.0 ** -52
+
+
 def energy_line(s: dict) -> str:
     """The energy ledger of a small-strain summary in one console line: E_n = kinetic +
     strain (+ plastic work of path-dependent bodies), the sum the scheme conserves, and
     E_0 + W_n, W_n the work of loads and contact (activation losses: the part of the
-    contact work lost where constraints became active). Terms that are zero are left
-    out; E_0 = E_n - W_n - the balance error (its definition)."""
+    contact work lost where constraints became active). Terms that are zero, or
+    round-off (ROUND_OFF of the largest), are left out."""
     e = s["energy"]
+    terms = [e[k] for k in ("kinetic", "strain", "plastic_work", "total", "external_work",
+                            "contact_work", "initial") if k in e]
+    noise = ROUND_OFF * max(abs(x) for x in terms)
+
+    def shown(key: str) -> bool:
+        return abs(e.get(key, 0.0)) > noise
+
     stored = [("kinetic", e["kinetic"]), ("strain", e["strain"])]
-    if e.get("plastic_work", 0.0) != 0.0:
+    if shown("plastic_work"):
         stored.append(("plastic work", e["plastic_work"]))
-    work = [(name, e.get(key, 0.0)) for name, key in (("work of loads", "external_work"),
-                                                     ("contact work", "contact_work"))]
-    work = [(name, w) for name, w in work if w != 0.0]
+    work = [(name, e[key]) for name, key in (("work of loads", "external_work"),
+                                            ("contact work", "contact_work")) if shown(key)]
     line = "energy: " + " + ".join(f"{name} {v:.6g} J" for name, v in stored)
     line += f" = {e['total']:.6g} J"
     if work:
-        initial = e["total"] - sum(w for _, w in work) - e.get("balance_error", 0.0)
-        line += f" = initial {initial:.6g} J + " + " + ".join(f"{name} {w:.4g} J"
-                                                            for name, w in work)
-        if e.get("activation_loss", 0.0) != 0.0:
+        initial = e.get("initial", e["total"] - sum(w for _, w in work))
+        line += (f" = initial {initial if abs(initial) > noise else 0.0:.6g} J + "
+                 + " + ".join(f"{name} {w:.4g} J" for name, w in work))
+        if shown("activation_loss"):
             line += f" (activation losses {e['activation_loss']:.4g} J)"
     return line + f"; balance error {s['energy_balance_error_rel']:.1e} (relative)"
 

@@ -269,7 +269,7 @@ class Simulation:
         gc.collect()
         gc.freeze()
         self.probes = probes
-        ledger = Ledger(comm)
+        self.ledger = ledger = Ledger(comm)  # (its E_0 goes into the summary)
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v")}
@@ -1060,6 +1060,7 @@ class Simulation:
         if last_energy is not None:
             last = last_energy
             summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
+            summary["energy"]["initial"] = self.ledger.E0
             summary["energy_balance_error_rel"] = max_bal
             if self.integrator.nonlinear:
                 summary["plastic_dissipation"] = last["plastic_work"]

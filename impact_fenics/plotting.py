@@ -178,13 +178,22 @@ ALWAYS = ("kinetic", "strain", "total")
 
 def energy_curves(e: dict[str, np.ndarray]) -> list[tuple[str, str, np.ndarray]]:
     """The curves of energy.png, [(column, label, values in J)]: the ledger's terms of
-    :data:`ENERGY_CURVES` (a term zero at every output left out, but for the stored
-    energies and their total), then, when work was done on the bodies, the initial
-    energy plus that work ("balance"): the total follows it to round-off."""
+    :data:`ENERGY_CURVES` (a term that is zero, or round-off, at every output left out:
+    :data:`~.report.ROUND_OFF` of the largest, as in the console's line; the stored
+    energies and their total always drawn), then, when work was done on the bodies, the
+    initial energy plus that work ("balance"): the total follows it to round-off."""
+    from .report import ROUND_OFF
+
+    present = [name for name, _ in ENERGY_CURVES if name in e and e[name].size]
+    scale = max((float(np.nanmax(np.abs(e[n]))) for n in present), default=0.0)
+
+    def drawn(name: str) -> bool:
+        return name in ALWAYS or float(np.nanmax(np.abs(e[name]))) > ROUND_OFF * scale
+
     curves = [(name, label, _finite(e[name])) for name, label in ENERGY_CURVES
-              if name in e and (name in ALWAYS or np.any(_finite(e[name]) != 0.0))]
-    work = sum(e[k] for k in ("external_work", "contact_work") if k in e)
-    if "total" in e and e["total"].size and np.any(work != 0.0):
+              if name in present and drawn(name)]
+    work = sum(e[k] for k in ("external_work", "contact_work") if k in present and drawn(k))
+    if "total" in present and np.any(work != 0.0):
         curves.append(("balance", "initial + work of loads and contact",
                        _finite(e["total"][0] + work)))
     return curves

@@ -58,7 +58,7 @@ def energy_line(s: dict) -> str:
     round-off (ROUND_OFF of the largest), are left out."""
     e = s["energy"]
     terms = [e[k] for k in ("kinetic", "strain", "plastic_work", "total", "external_work",
-                            "contact_work", "initial") if k in e]
+                            "contact_work") if k in e]
     noise = ROUND_OFF * max(abs(x) for x in terms)
 
     def shown(key: str) -> bool:
@@ -72,7 +72,7 @@ def energy_line(s: dict) -> str:
     line = "energy: " + " + ".join(f"{name} {v:.6g} J" for name, v in stored)
     line += f" = {e['total']:.6g} J"
     if work:
-        initial = e.get("initial", e["total"] - sum(w for _, w in work))
+        initial = s.get("energy_initial", e["total"] - sum(w for _, w in work))
         line += (f" = initial {initial if abs(initial) > noise else 0.0:.6g} J + "
                  + " + ".join(f"{name} {w:.4g} J" for name, w in work))
         if shown("activation_loss"):

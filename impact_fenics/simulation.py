@@ -1059,8 +1059,8 @@ class Simulation:
             summary["peak_stress"] = dict(zip(PEAK_NAMES, self._peaks.tolist()))
         if last_energy is not None:
             last = last_energy
-            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
-            summary["energy"]["initial"] = self.ledger.E0
+            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}  # the last row's
+            summary["energy_initial"] = self.ledger.E0  # E_0 (J), the first row's total
             summary["energy_balance_error_rel"] = max_bal
             if self.integrator.nonlinear:
                 summary["plastic_dissipation"] = last["plastic_work"]

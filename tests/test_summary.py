@@ -134,7 +134,7 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     assert e["plastic_work"] > 0 and e["external_work"] != 0 and e["contact_work"] != 0
     # the initial energy closes the balance: E_n - E_0 - W_n is the balance error (the
     # ledger's expression, evaluated again on the same floats)
-    assert e["total"] - e["initial"] - e["external_work"] - e["contact_work"] == \
+    assert e["total"] - s["energy_initial"] - e["external_work"] - e["contact_work"] == \
         e["balance_error"]
     assert s["bodies"]["target"]["plastic_work"] == pytest.approx(e["plastic_work"], rel=1e-12)
     assert "plastic_work" not in s["bodies"]["striker"]
@@ -148,7 +148,7 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     assert f"work of loads {e['external_work']:.4g} J" in line
     assert f"contact work {e['contact_work']:.4g} J" in line
     stored = e["kinetic"] + e["strain"] + e["plastic_work"]
-    assert f"= {stored:.6g} J = initial {e['initial']:.6g} J + " in line
+    assert f"= {stored:.6g} J = initial {s['energy_initial']:.6g} J + " in line
     assert f"largest equivalent plastic strain {s['eps_p_max']:.4g}" in text
 
 

@@ -245,7 +245,7 @@ class FiniteRun:
         self.status = "set up"
         self.signal = 0
         # tracked nodes: the ends of the axis (0, Z_max) and (0, Z_min), whose distance is
-        # the bar's length, and the lower corner (R, Z_min)
+        # the bar's length, and the lower corner (R, Z_min), whose r is the face's radius
         self._top = self._owned_node(0.0, float(hi[1]))
         self._bottom = self._owned_node(0.0, float(lo[1]))
         self._corner = self._owned_node(r_max, float(lo[1]))
@@ -581,8 +581,8 @@ class FiniteRun:
             "j_min": self.force.j_min, "wall_time": wall_time,
             "length_definition": "final_length: the axis length, z of the node that started "
                                  "at (0, Z_max) minus z of the one that started at (0, Z_min) "
-                                 "(m); final_face_radius: r of the node that started at "
-                                 "(R, Z_min) (m)",
+                                 "(m), on the wall or off it; final_face_radius: r of the node "
+                                 "that started at (R, Z_min) (m)",
             "energy_definition": "kinetic 1/2 v M v at the last half step; internal_work the "
                                  "booked work of f_int (kinetic identity: kinetic + internal_work "
                                  "+ activation_loss + penalty_energy = initial_kinetic to "

@@ -1,4 +1,4 @@
-"""Node-to-node contact of two equal nu = 0 bars against the 1D impact solution (DESIGN 6).
+"""Node-to-node contact of two equal nu = 0 bars against the 1D impact solution.
 
 Two equal bars of length L meeting at relative speed v0 press with the contact
 stress rho c0 v0 / 2 for 2 L / c0, then part with their velocities exchanged.

@@ -1,12 +1,12 @@
 """Node-to-segment contact on meshes: reduction to node to node, non-matching nu = 0 bars,
 FILM against DME, partitions, bad input.
 
-* Reduction (DESIGN 11): on matching faces (xi snapped at the segment ends, one
+* Reduction: on matching faces (xi snapped at the segment ends, one
   segment per slave, n = (0, 1) up to the mesh's 1e-18 m round-off) each method
   applies the same forces to the same dofs as today's node-to-node method, so
   the runs agree to round-off: 1e-12 relative.
 * Non-matching bars (3:2, faces of 6 and 9 intervals, and refined to 12 and 18):
-  the 1D impact of DESIGN 6 with the tolerances of tests/test_contact_bars.py
+  the 1D impact of two equal bars (exact plane waves) with the tolerances of tests/test_contact_bars.py
   taken from the coarser face's h: contact stress within 1 % of rho c0 v0 / 2
   over the middle 80 %, the duration (where the total force crosses 5 % of the
   plateau) within 3 h / c0 of 2 L / c0, velocities exchanged within 2 % and

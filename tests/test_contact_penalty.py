@@ -1,6 +1,6 @@
 """Penalty contact: the committed penetration, and stability at the derived bound.
 
-Oracles: the algebra of the predictor-corrector (DESIGN 6: the predicted
+Oracles: the algebra of the predictor-corrector (the predicted
 penetration is force / p, the committed one (1 - beta) force / p for an
 isolated pair with beta = p S_ii), the 1D plateau stress of the bar impact,
 the exact eigenvalue of a diagonal-plus-rank-one matrix (dense LAPACK), and

@@ -108,7 +108,7 @@ def test_matching_and_parameters():
 
 
 def test_uniaxial_strain_closed_form():
-    """sigma_zz follows (K + 4 mu/3) e up to sigma_HEL, then slope M_p (issue 10)."""
+    """sigma_zz follows (K + 4 mu/3) e up to sigma_HEL, then slope M_p."""
     mat = DruckerPrager(**LOW_FRICTION)
     u = uniaxial_strain(mat)
     K, mu, af, ag, h = mat.bulk, mat.mu, mat.alpha_f, mat.alpha_g, mat.hardening

@@ -1,4 +1,4 @@
-"""The discrete energy ledger and the update form (DESIGN 1).
+"""The discrete energy ledger and the update form.
 
 Oracles: the exact conservation law of the modified Euler scheme,
 E_n = 1/2 v^n' M v^{n+1} + 1/2 u^n' K u^n, with the matching work of the

@@ -1,4 +1,4 @@
-"""The Taylor bar on 1, 2 and 3 ranks: the same numbers to 1e-10 relative (issue 11, Parallel).
+"""The Taylor bar on 1, 2 and 3 ranks: the same numbers to 1e-10 relative.
 
 The coarse mesh (n_r = 2: 2 x 20 quadrilaterals, 63 nodes) run 10 us through
 `impact-fenics run`: serially in this process, then on 2 and on 3 ranks launched

@@ -1,4 +1,4 @@
-"""A finite-strain scene through `impact-fenics run`, like every other scene (issue 11, part B).
+"""A finite-strain scene through `impact-fenics run`, like every other scene.
 
 Oracles, none taken from the writer under test:
 
@@ -14,7 +14,7 @@ Oracles, none taken from the writer under test:
 * the displacement written at the end time moves the node that started at (0, L) to
   the final length of the summary (two paths: the field writer and the tracked node);
 * history.csv has one row every history_every steps and the last state; its kinetic
-  identity column is round-off (the scheme's exact identity, DESIGN 9);
+  identity column is round-off (the scheme's exact identity);
 * bad input: one line naming the table and the key, exit 2, nothing written;
 * a signal in the loop stops the run at a step boundary with a complete directory.
 """

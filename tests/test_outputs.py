@@ -1,4 +1,4 @@
-"""What a run writes, checked against oracles outside the writer (issue 13).
+"""What a run writes, checked against oracles outside the writer.
 
 * fields.xdmf is read here with ElementTree and h5py, not with the writer's
   reader: one temporal collection, one grid per output time from t = 0 to the

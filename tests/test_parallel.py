@@ -1,4 +1,4 @@
-"""The same numbers for every partition (DESIGN 3).
+"""The same numbers for every partition.
 
 Each scene runs twice in one process: on all ranks (COMM_WORLD) and on this
 rank alone (COMM_SELF, the serial oracle). Under ``mpirun -n 2`` the two

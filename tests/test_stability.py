@@ -1,4 +1,4 @@
-"""Stability against a converged omega_max (DESIGN 1 and 6).
+"""Stability against a converged omega_max.
 
 The oracle is SLEPc's largest eigenvalue of M^-1 K (fixed dofs removed),
 converged to 1e-10: a forced run slightly above 2 / omega_max must blow up,

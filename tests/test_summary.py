@@ -1,5 +1,5 @@
 """The summary an impact researcher reads first, against the 1D impact of two equal nu = 0
-bars (DESIGN 6): contact stress rho c0 v0 / 2 for 2 L / c0, then the velocities
+bars: contact stress rho c0 v0 / 2 for 2 L / c0, then the velocities
 exchanged (the striker stops: it rebounds at ~0 m/s; the target leaves at v0;
 the coefficient of restitution of the pair is 1).
 

@@ -3,7 +3,7 @@
 Meshes n_r x 10 n_r for n_r = 4, 8, 12 (square cells, h = R / n_r), the impact face
 held on the wall (u_z = 0, sliding freely in r), the condition of the converged
 references (Simo 1992 keeps nodes that reach the wall on it; the Q1/P0 hexahedra of
-Foulk et al. 2021 fix u_z on the impact face). The goal of issue 11 against their
+Foulk et al. 2021 fix u_z on the impact face). The goal against their
 values (final length 21.42-21.48 mm, impact-face radius 7.22-7.23 mm): within 0.5 %
 (length) and 1 % (radius) at the finest mesh, and the ledger closing at every mesh.
 

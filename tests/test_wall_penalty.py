@@ -1,8 +1,8 @@
-"""The rigid wall's three methods against the 1D impact of an elastic bar (issue 11, item 5).
+"""The rigid wall's three methods against the 1D impact of an elastic bar.
 
 A bar of length L with nu = 0 at a small speed v0 (strain v0 / c0 = 2e-4: the
 neo-Hookean bar is linear to that order) onto a rigid wall: the continuum
-solution is the 1D one (nu = 0 admits exact plane waves, DESIGN 6): the bar
+solution is the 1D one (nu = 0 admits exact plane waves): the bar
 stays in contact for 2 L / c0 (c0 = sqrt(E / rho)) and leaves with +v0.
 The lumped chain reaches this only as h -> 0: the layer of nodes on the face
 (mass rho pi a^2 h / 2, exactly, the row sum of Q1's consistent mass) loses its

@@ -821,7 +821,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                         output_every=o["output_every"],
                         energy_every=o["energy_every"] or ENERGY_EVERY,
                         history_every=o["history_every"],
-                        pairs_every=o["pairs_every"], fields=o["fields"], plots=o["plots"])
+                        pairs_every=o["pairs_every"], fields=o["fields"], plots=o["plots"],
+                        title=scene.title)
     for key, value in (settings_overrides or {}).items():
         setattr(settings, key, value)
     velocity = {b.name: b.velocity for b in scene.bodies if b.velocity != (0.0, 0.0)}

@@ -93,39 +93,23 @@ def drop_stale_cache(kernel, modules) -> None:
             pass
 
 
-def cold_share(entry) -> float:
-    """The share (0 to 1) of the compiled kernels of impact_fenics that compile at their
-    next call rather than load from numba's on-disk cache: of the loaded modules' kernels
-    with a cache index, those whose index holds nothing for the current source and numba
-    (an edited module, another numba); 1 when ``entry``, a kernel every such run calls,
-    has no index at all (a first run: nothing was ever cached). A kernel only ever called
-    from other kernels has no index of its own and is not counted. Reads the index files
-    only."""
+def cold_share(kernels) -> float:
+    """The share (0 to 1) of numba ``kernels`` that will compile rather than load from
+    numba's on-disk cache: those whose cache index is absent (a first run) or holds
+    nothing for their current source and numba (an edited module, another numba). Give
+    the kernels every such run loads at set-up: their cache is then as fresh as the
+    last run left it, so the share says what the next run compiles. Reads the index
+    files only."""
     import os
 
-    from numba.core.dispatcher import Dispatcher
-
-    def index_of(kernel):
-        return getattr(getattr(kernel, "_cache", None), "_cache_file", None)
-
-    first = index_of(entry)
-    if first is not None and not os.path.exists(first._index_path):
-        return 1.0
-    cold = cached = 0
-    seen: set[int] = set()
-    for name, module in list(sys.modules.items()):
-        if module is None or not name.startswith("impact_fenics"):
+    cold = total = 0
+    for kernel in kernels:
+        index = getattr(getattr(kernel, "_cache", None), "_cache_file", None)
+        if index is None:  # (cache=False)
             continue
-        for obj in list(vars(module).values()):
-            if not isinstance(obj, Dispatcher) or id(obj) in seen:
-                continue
-            seen.add(id(obj))
-            index = index_of(obj)
-            if index is None or not os.path.exists(index._index_path):
-                continue
-            cached += 1
-            try:
-                cold += not index._load_index()  # {} when stale
-            except Exception:  # another numba's cache layout: count it as compiled
-                pass
-    return cold / cached if cached else 0.0
+        total += 1
+        try:
+            cold += not (os.path.exists(index._index_path) and index._load_index())
+        except Exception:  # another numba's cache layout: count it as compiled
+            pass
+    return cold / total if total else 0.0

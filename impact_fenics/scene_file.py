@@ -702,22 +702,21 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
 
 
 def kernels_cold(scene: Scene) -> float:
-    """The share (0 to 1) of the numba kernels of the scene's run whose on-disk cache is
-    cold (a first run): the modules the run calls are imported to see them."""
+    """The share (0 to 1) of the kernels the scene's run loads at set-up whose numba cache
+    is cold (a first run, or an edited module): see jit_watch.cold_share."""
     from . import jit_watch
 
     if scene.finite:
         from . import finite_run
-        from .materials import finite_j2, neo_hookean  # noqa: F401
 
-        entry = finite_run.velocity_update
+        kernels = (finite_run.velocity_update, finite_run.advance_positions,
+                   finite_run.trapezoid_work)
     else:
-        from . import energy, simulation  # noqa: F401
-        from .contact import segments  # noqa: F401
-        from .materials import j2  # noqa: F401
+        from . import energy, simulation, step_block  # noqa: F401  (the run's modules)
 
-        entry = energy.copy_state
-    return jit_watch.cold_share(entry)
+        kernels = (energy.copy_state, energy.strain_from_prediction, energy.half_dot,
+                   energy.energy_verdict, energy._output_sums, step_block.count_beyond)
+    return jit_watch.cold_share(kernels)
 
 
 def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool = False,

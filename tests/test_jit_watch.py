@@ -87,12 +87,12 @@ MODULE = textwrap.dedent('''
 
 
 def _cold_share(root: str, call: bool) -> float:
-    """jit_watch.cold_share with kernel a.value as the entry, in a new process that
+    """jit_watch.cold_share of the kernels a.value and b.value, in a new process that
     imports a scratch package of two modules (a, b) of one cached kernel each, then
     (``call``) calls both kernels (compiled or loaded)."""
     code = ("import sys; sys.path.insert(0, sys.argv[1]);"
             "from impact_fenics_scratch import a, b; from impact_fenics.jit_watch import "
-            "cold_share; print(cold_share(a.value));"
+            "cold_share; print(cold_share((a.value, b.value)));"
             + ("a.value(); b.value()" if call else ""))
     out = subprocess.run([sys.executable, "-c", code, root], capture_output=True, text=True,
                          check=True, env=clean_mpi_env()).stdout
@@ -100,11 +100,11 @@ def _cold_share(root: str, call: bool) -> float:
 
 
 def test_a_cold_cache_is_seen_before_anything_compiles(tmp_path):
-    """A first run (the entry kernel never cached): 1; everything cached: 0; one of the
-    two modules edited (its cache stale): 1/2 of the cached kernels compile again."""
+    """A first run (nothing cached): 1; everything cached: 0; one of the two modules
+    edited (its cache stale): 1/2 of the kernels compile again."""
     if COMM.rank != 0:  # one process writes the scratch package
         return
-    package = tmp_path / "impact_fenics_scratch"  # (cold_share looks at impact_fenics*)
+    package = tmp_path / "impact_fenics_scratch"
     package.mkdir()
     (package / "__init__.py").write_text("")
     (package / "a.py").write_text(MODULE.format(value=1))

@@ -100,9 +100,11 @@ def version() -> str:
         return "(not installed: pip install -e .)"
 
 
-def _checked(path: str, method: str | None, out: str | None, force: bool, quiet: bool):
+def _checked(path: str, method: str | None, out: str | None, force: bool, quiet: bool,
+             running: bool = True):
     """Read and check the scene, its output directory, its plausibility and its estimate
-    (printed unless ``quiet``), as a run does before it meshes: (scene, output directory)."""
+    (printed unless ``quiet``), as a run does before it meshes: (scene, output directory).
+    ``running``: a run follows (it says when it will compile kernels first)."""
     from mpi4py import MPI
 
     from . import interrupts
@@ -119,9 +121,11 @@ def _checked(path: str, method: str | None, out: str | None, force: bool, quiet:
     if force:
         scene.force = True
     out_dir = os.path.expanduser(out or scene.output["dir"] or os.path.join("results", scene.stem))
-    scene_file.check_output_dir(out_dir, "--out" if out else "[output] dir =", comm)
+    where = ("--out" if out else "[output] dir =" if scene.output["dir"] else
+             "the default output directory (results/<scene file's name>)")
+    scene_file.check_output_dir(out_dir, where, comm)
     scene_file.warn_implausible(scene, comm)
-    scene_file.check_resources(scene, comm, quiet, out_dir)
+    scene_file.check_resources(scene, comm, quiet, out_dir, running)
     return scene, out_dir
 
 
@@ -131,7 +135,7 @@ def check_scene(path: str, method: str | None = None, out: str | None = None,
     estimate; nothing is built (but a mesh file read for its counts) or written."""
     from mpi4py import MPI
 
-    _checked(path, method, out, force, quiet=False)
+    _checked(path, method, out, force, quiet=False, running=False)
     if MPI.COMM_WORLD.rank == 0:
         print(f"{path}: checked (the mesh's groups and the stable step are checked when "
               "the run builds the mesh)", flush=True)

@@ -720,10 +720,11 @@ def kernels_cold(scene: Scene) -> float:
 
 
 def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool = False,
-                    out_dir: str | None = None) -> resources.Estimate:
-    """Estimate the run before meshing; print it on rank 0 (and "compiling kernels (first
-    run only)" when numba's cache is cold); refuse a run beyond the available memory, or
-    whose outputs pass the free space of ``out_dir``'s disk, unless forced."""
+                    out_dir: str | None = None, running: bool = True) -> resources.Estimate:
+    """Estimate the run before meshing; print it on rank 0 (and, when the run follows
+    (``running``), "compiling kernels (first run only)" when numba's cache is cold);
+    refuse a run beyond the available memory, or whose outputs pass the free space of
+    ``out_dir``'s disk, unless forced."""
     cold = kernels_cold(scene)
     cold = max(comm.allgather(cold))
     est = estimate(scene, comm, cold)
@@ -733,7 +734,7 @@ def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool =
     if comm.rank == 0 and not quiet:
         for line in est.lines(available, disk[1] if disk else None):
             print(line, flush=True)
-        if cold:
+        if cold and running:
             print("compiling kernels (first run only)", flush=True)
     if scene.force:
         return est

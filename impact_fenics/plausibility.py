@@ -115,18 +115,14 @@ def findings(scene, dt: float | None = None, n_steps: int | None = None,
                                            "round-off and run time dominate; shorten t_end or "
                                            "coarsen the mesh",
                            f"{n_steps:,} steps are implausible"))
-    if size is not None and not SIZE[0] <= size <= SIZE[1]:
-        guess = "a mesh in millimetres?" if size > SIZE[1] else "check the units: m"
-        out.append(Finding("[mesh] size", f"[mesh] the model is {size:.4g} m across, outside "
-                                          f"[{SIZE[0]:g}, {SIZE[1]:g}] m: is the mesh in metres "
-                                          "(not millimetres)?",
-                           f"the model is {size:.4g} m across ({guess})"))
-    if h is not None and not ELEMENT[0] <= h <= ELEMENT[1]:
-        guess = "a mesh in millimetres?" if h > ELEMENT[1] else "check the units: m"
-        out.append(Finding("[mesh] h", f"[mesh] the elements are {h:.4g} m, outside "
-                                       f"[{ELEMENT[0]:g}, {ELEMENT[1]:g}] m: is the mesh in "
-                                       "metres (not millimetres)?",
-                           f"the elements are {h:.4g} m ({guess})"))
+    for key, what, value, (lo, hi) in (("size", "the model is {} m across", size, SIZE),
+                                       ("h", "the elements are {} m", h, ELEMENT)):
+        if value is not None and not lo <= value <= hi:
+            said = what.format(f"{value:.4g}")
+            guess = "a mesh in millimetres?" if value > hi else "check the units: m"
+            out.append(Finding(f"[mesh] {key}", f"[mesh] {said}, outside [{lo:g}, {hi:g}] m: "
+                                                "is the mesh in metres (not millimetres)?",
+                               f"{said} ({guess})"))
     return out
 
 

@@ -185,6 +185,16 @@ def test_a_replacement_interrupted_at_any_point_keeps_a_run(tmp_path, monkeypatc
         assert (final / "summary.json").read_text() == "new run"
 
 
+def _dead_pid() -> int:
+    """The pid of a process that has ended (rank 0's, on every rank)."""
+    dead = None
+    if COMM.rank == 0:
+        proc = subprocess.Popen(["true"])
+        proc.wait()
+        dead = proc.pid
+    return COMM.bcast(dead, root=0)
+
+
 def _write_lock(staging: str, pid: int) -> None:
     if COMM.rank == 0:
         os.makedirs(staging)
@@ -211,12 +221,7 @@ def test_the_lock_of_a_dead_run_is_taken_over(tmp_path, capsys):
     base = _shared(tmp_path)
     scene = _scene(base)
     out = os.path.join(base, "run")
-    dead = None
-    if COMM.rank == 0:
-        proc = subprocess.Popen(["true"])
-        proc.wait()
-        dead = proc.pid
-    dead = COMM.bcast(dead, root=0)
+    dead = _dead_pid()
     _write_lock(out + ".partial", dead)
     code, err = _run(["run", scene, "--out", out, "--quiet"], capsys)
     assert code == 0
@@ -388,12 +393,7 @@ def test_a_dead_runs_staging_directory_keeps_the_users_files(tmp_path, capsys):
     base = _shared(tmp_path)
     scene = _scene(base)
     out = os.path.join(base, "run")
-    dead = None
-    if COMM.rank == 0:
-        proc = subprocess.Popen(["true"])
-        proc.wait()
-        dead = proc.pid
-    dead = COMM.bcast(dead, root=0)
+    dead = _dead_pid()
     _write_lock(out + ".partial", dead)
     _write(os.path.join(out + ".partial", "history.csv"), b"step,time\n0,0\n")
     mine = {"what_went_wrong.txt": b"it died at step 8000\n"}

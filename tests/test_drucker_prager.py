@@ -1,8 +1,8 @@
 """Drucker-Prager point update (impact_fenics.materials.drucker_prager) against oracles
 that do not come from its closed-form return:
 
-- uniaxial strain: the closed form of tests/uniaxial_strain.py (sigma_HEL, M_p) and the
-  issue's formulas; pure shear with dilatancy: its own closed form (below);
+- uniaxial strain: the closed form of tests/uniaxial_strain.py (sigma_HEL, M_p), written
+  out again in the test; pure shear with dilatancy: its own closed form (below);
 - triaxial compression without hardening: the Mohr-Coulomb strength UCS + N sigma_conf
   that the cone is matched to (compression meridian), lateral stress held by a root
   solve around the update;

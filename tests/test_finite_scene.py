@@ -103,8 +103,9 @@ def taylor_run(tmp_path_factory):
         return out, json.load(f)
 
 
-def test_the_scene_file_is_the_issues_taylor_bar():
-    """scenes/taylor_bar.toml reads as a finite-strain scene with the issue's values."""
+def test_the_scene_file_is_the_literatures_taylor_bar():
+    """scenes/taylor_bar.toml reads as a finite-strain scene with the Taylor bar of the
+    literature (copper, R = 3.2 mm, L = 32.4 mm, 227 m/s, 80 us: docs/taylor_bar.md)."""
     from impact_fenics import scene_file
 
     sc = scene_file.read_scene(os.path.join(os.path.dirname(__file__), "..", "scenes",

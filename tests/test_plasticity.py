@@ -91,8 +91,9 @@ def test_generic_and_fast_f_int_agree_to_round_off():
 
     Round-off: a point's stress takes about 48 roundings on each path (strain from the
     gradients, the trial stress, its deviator and norm, the radial return), 96 between
-    the two, on the scale of the largest |sigma|; the plastic multiplier (q_tr - sigma_y) / (3 mu + H) carries that error of
-    q_tr divided by 3 mu + H, on each of the three steps; f_int at a node sums at most 6
+    the two, on the scale of the largest |sigma|; the plastic multiplier
+    (q_tr - sigma_y) / (3 mu + H) carries that error of q_tr divided by 3 mu + H, on each
+    of the three steps; f_int at a node sums at most 6
     cells x 3 points of B' sigma w (4 roundings each, 18 terms), terms no larger than
     the largest |f_int| (that of a boundary node, where they do not cancel)."""
     tm = meshing.bar(radius=0.05, length=0.2, h=0.01, structured=False)

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study study-taylor clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor docs clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -44,6 +44,12 @@ test-modern: setup-modern
 # the Taylor bar on three meshes against the literature (tests/test_taylor_study.py; long)
 study-taylor: setup
 	$(PY) -m pytest tests/test_taylor_study.py -m study -q -s
+
+# the generated pages: docs/scenes.md from the scene reader's table of keys, and
+# docs/performance.md from docs/bench.json (BENCH=results/bench.json takes a new benchmark
+# run, `python -m impact_fenics.bench`, first); tests/test_docs_pages.py checks both
+docs: setup
+	$(PY) -m impact_fenics.docs_pages $(if $(BENCH),--bench $(BENCH))
 
 clean:
 	rm -rf results .pytest_cache

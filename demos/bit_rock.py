@@ -22,18 +22,17 @@ import os
 import numpy as np
 from mpi4py import MPI
 
-from impact_fenics import loads, scenes
+from impact_fenics import loads, rundir, scenes
 from impact_fenics.errors import InputError, user_errors
 from impact_fenics.materials import DruckerPrager
 from impact_fenics.simulation import Settings
 
 # ## The scene
 #
-# Rock: granite-like, E = 60 GPa, nu = 0.25, rho = 2600 kg/m^3 (the values of
-# issue 10; Jaeger, Cook & Zimmerman, *Fundamentals of Rock Mechanics*, 4th ed.
+# Rock: granite-like, E = 60 GPa, nu = 0.25, rho = 2600 kg/m^3 (Jaeger, Cook & Zimmerman, *Fundamentals of Rock Mechanics*, 4th ed.
 # 2007, give E = 50-70 GPa and nu = 0.2-0.3 for intact granites). For the
 # Drucker-Prager rock: uniaxial compressive strength 200 MPa, tensile strength
-# 10 MPa (issue 10; Westerly granite is near both), friction angle 50 deg
+# 10 MPa (Westerly granite is near both), friction angle 50 deg
 # (intact granite 45-60 deg from Hoek-Brown fits, Hoek & Brown 1997, matched on
 # the compression meridian), dilatancy 10 deg (a fifth of it, as is usual for
 # rock, Vermeer & de Borst 1984), no hardening.
@@ -184,7 +183,9 @@ def main(argv=None):
     k_static = static_stiffness(sim)
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
-        plot(sim, os.path.join(out, "force_penetration.png"), k_static)
+        picture = os.path.join(sim.out_dir, "force_penetration.png")
+        plot(sim, picture, k_static)
+        rundir.record_files(sim.out_dir, [picture])  # the run's own, replaced with it
         print(f"bit_rock ({args.method}, {args.rock} rock): {s['n_cells']} cells, "
               f"{s['n_dofs']} dofs, {s['n_steps']} steps of {s['dt']:.4g} s, {s['n_ranks']} rank(s)")
         print(f"waves (J): incident {s['wave_incident']:.6f}, reflected {s['wave_reflected']:.6f}, "

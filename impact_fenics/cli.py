@@ -93,7 +93,7 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
         scene.set_method(method)
     if force:
         scene.force = True
-    out_dir = out or scene.output["dir"] or os.path.join("results", scene.stem)
+    out_dir = os.path.expanduser(out or scene.output["dir"] or os.path.join("results", scene.stem))
     scene_file.check_output_dir(out_dir, "--out" if out else "[output] dir =", comm)
     scene_file.check_resources(scene, comm, quiet)
     if scene.finite:
@@ -102,9 +102,9 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
     try:
         summary = sim.run(extra=lambda s: _scene_checks(s, scene.path))
     except UnstableRunError as exc:
-        raise UnstableRunError(f"{exc}; the output so far is in {out_dir}/") from None
+        raise UnstableRunError(f"{exc}; the output so far is in {_where(sim, out_dir)}") from None
     if comm.rank == 0 and not quiet:
-        _report(scene.title, summary, out_dir)
+        _report(scene.title, summary, _shown(sim, out_dir))
     if comm.rank == 0 and sim.status.startswith("completed ("):
         print(f"warning: {sim.status}", file=sys.stderr, flush=True)
     return _exit_code(sim, f"step {summary['stopped_at_step']} of {summary['n_steps']}",
@@ -120,10 +120,10 @@ def _exit_code(run, at: str, out_dir: str, comm) -> int:
         return 0
     if comm.rank == 0:
         if run.status.startswith("interrupted"):
-            what = f"run {run.status} at {at}; the output so far is in {out_dir}/"
+            what = f"run {run.status} at {at}; the output so far is in {_where(run, out_dir)}"
         else:
             what = (f"interrupted by {interrupts.name(run.signal)} after the last step; "
-                    f"the run is complete in {out_dir}/")
+                    f"the run is complete in {_where(run, out_dir)}")
         print(f"stopped: {what}", file=sys.stderr, flush=True)
     return 128 + run.signal
 
@@ -136,7 +136,7 @@ def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
     try:
         s = run.run()
     except UnstableRunError as exc:
-        raise UnstableRunError(f"{exc}; the output so far is in {out_dir}/") from None
+        raise UnstableRunError(f"{exc}; the output so far is in {_where(run, out_dir)}") from None
     if comm.rank == 0 and not quiet:
         from .report import console_lines
 
@@ -151,9 +151,28 @@ def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
               f"identity {s['kinetic_identity_error']:.1e} (relative)")
         for line in console_lines(s):
             print(line)
-        print(f"results in {out_dir}/ (open fields.xdmf in ParaView; Warp By Vector at scale 1 "
-              "shows the deformed body)")
+        print(f"results in {_shown(run, out_dir)}/ (open fields.xdmf in ParaView; Warp By Vector "
+              "at scale 1 shows the deformed body)")
     return _exit_code(run, f"t = {s['t_end']:.6g} s (step {s['n_steps']})", out_dir, comm)
+
+
+def _shown(run, out_dir: str) -> str:
+    """Where ``run`` (a Simulation or a FiniteRun) published its directory, said as the
+    user gave ``out_dir`` (without the final separator)."""
+    from .rundir import expand
+
+    went = getattr(run, "out_dir", None) or expand(out_dir)
+    return out_dir.rstrip(os.sep) + went[len(expand(out_dir)):] if went.startswith(
+        expand(out_dir)) else went
+
+
+def _where(run, out_dir: str) -> str:
+    """``_shown(run, out_dir)/``, and, when the run went beside a complete run (it did not
+    complete: ``DIR.interrupted``, ``DIR.diverged``), that the complete run is kept."""
+    shown = _shown(run, out_dir)
+    if shown == out_dir.rstrip(os.sep) or not shown.startswith(out_dir.rstrip(os.sep) + "."):
+        return f"{shown}/"
+    return f"{shown}/ (the complete run in {out_dir.rstrip(os.sep)}/ is kept)"
 
 
 def _scene_checks(sim, scene_path: str) -> dict:
@@ -196,14 +215,17 @@ def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = 
     """Render ``field`` of a finished run at ``times`` (s) into PNG files (rank 0)."""
     from mpi4py import MPI
 
-    from . import plotting
+    from . import plotting, rundir
 
+    run_dir = os.path.expanduser(run_dir)
     if not os.path.isdir(run_dir):
         raise InputError(f"run directory '{run_dir}' does not exist")
     if times:
         _check_plot_times(run_dir, times)
     if MPI.COMM_WORLD.rank == 0:
-        for path in plotting.render_fields(run_dir, field, times, scale, region=region):
+        paths = plotting.render_fields(run_dir, field, times, scale, region=region)
+        rundir.record_files(run_dir, paths)  # the pictures go with the run they show
+        for path in paths:
             print(path)
     return 0
 

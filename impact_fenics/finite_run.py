@@ -1,6 +1,6 @@
 """A finite-strain explicit run: Q1 mean-dilatation bodies, a variable time step, a rigid wall.
 
-The scheme with the velocity at half steps (DESIGN 10):
+The scheme with the velocity at half steps:
 
     v^{n+1/2} = v^{n-1/2} + 1/2 (dt_{n-1/2} + dt_{n+1/2}) M^-1 (f_ext^n - f_int(u^n)),
     u^{n+1}   = u^n + dt_{n+1/2} v^{n+1/2},
@@ -214,7 +214,7 @@ class FiniteRun:
         self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
         self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
         length, r_max = float(hi[1] - lo[1]), float(hi[0])
-        self.length0, self.radius0 = length, r_max
+        self.length0 = length
         owned_xy = self.node_xy[: self.n_owned_nodes]
         free = np.ones(self.n_owned, dtype=bool)
         free[2 * np.flatnonzero(np.abs(owned_xy[:, 0]) <= 1e-12 * max(r_max, 1e-300))] = False
@@ -339,11 +339,12 @@ class FiniteRun:
                  self.u_owned, self.v, w.impulse)
 
     # ------------------------------------------------------------ the run
-    def run(self, history_csv: str | None = None, fields_path: str | None = None) -> dict:
+    def run(self, extra=None) -> dict:
         """Step to t_end and return the summary. With ``settings.out`` the run directory gets
         history.csv, fields.xdmf, history.png and summary.json (staged, see rundir.py; a
-        signal stops the run at a step boundary with a complete directory); otherwise the
-        history and the fields go to ``history_csv`` and ``fields_path`` when given."""
+        signal stops the run at a step boundary with a complete directory). ``extra(run)``
+        may return more summary entries (checks of a demo) of a completed run; they are
+        written with the rest, before the output directory is published."""
         from .simulation import _StopFlag  # the signal flag every run shares
         from .xdmf import FieldWriter
 
@@ -361,9 +362,8 @@ class FiniteRun:
         staging = writer = table = None
         try:
             staging = rundir.prepare_directory(s.out, comm) if s.out else None
-            hist_path = os.path.join(staging, "history.csv") if staging else history_csv
-            xdmf = (os.path.join(staging, "fields.xdmf") if (staging and s.fields)
-                    else None if staging else fields_path)
+            hist_path = os.path.join(staging, "history.csv") if staging else None
+            xdmf = os.path.join(staging, "fields.xdmf") if (staging and s.fields) else None
             table = output.Table(hist_path, HISTORY_COLUMNS, comm) if hist_path else None
             names = CELL_FIELDS + (("temperature",) if self.has_temperature else ())
             writer = FieldWriter(xdmf, _OneBody(self, self.name), names) if xdmf else None
@@ -512,6 +512,9 @@ class FiniteRun:
             summary.update(s.summary_extra)
             if failure is not None:
                 summary["failure"] = failure
+            self.summary = summary
+            if extra is not None and self.status.startswith("completed"):
+                summary.update(extra(self))
             if staging:
                 scene = summary.get("scene_file")
                 if scene and comm.rank == 0 and os.path.isfile(scene):
@@ -524,7 +527,7 @@ class FiniteRun:
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")
                 output.write_json(os.path.join(staging, "summary.json"), summary, comm)
-                self.out_dir = rundir.finalize_directory(staging, s.out, comm)
+                self.out_dir = rundir.finalize_directory(staging, s.out, comm, self.status)
             stop.collective(comm)
         finally:
             stop.restore()

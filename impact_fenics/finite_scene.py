@@ -37,10 +37,8 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import InputError
+from .scene_keys import DT_INTERVAL  # steps between re-estimates, unless [time] dt_interval
 
-WALL_METHODS = ("film", "dme", "penalty")
-WALL_FACES = ("contact", "held")
-DT_INTERVAL = 10  # steps between re-estimates of the stable step, unless [time] dt_interval
 FINITE_MODELS = ("j2", "neo_hookean")
 
 
@@ -57,23 +55,12 @@ def read_wall(data: Any) -> WallSpec:
     """The [wall] table."""
     from .scene_file import _Table
 
-    t = _Table(data, "[wall]", ("z", "method", "penalty", "face"))
-    wall = WallSpec(t.number("z", "height of the wall plane in m", 0.0),
-                    t.text("method", f"the wall method: {', '.join(WALL_METHODS)}",
-                           choices=WALL_METHODS), given=tuple(t.data),
-                    face=t.text("face", f"the impact face: {', '.join(WALL_FACES)}", "contact",
-                                choices=WALL_FACES))
+    t = _Table(data, "[wall]", "wall")
+    wall = WallSpec(t.value("z"), t.value("method"), given=tuple(t.data), face=t.value("face"))
     if wall.face == "held" and wall.z != 0.0:
         raise t.error("face", f"it keeps the bar's face Z = 0 on the wall and needs z = 0 "
                       f"(got z = {wall.z!r} m)")
-    if "penalty" in t:
-        p = t.data["penalty"]
-        if isinstance(p, str):
-            if p != "scaled":
-                raise t.error("penalty", 'give a stiffness in N/m or "scaled"')
-            wall.penalty = p
-        else:
-            wall.penalty = t.positive("penalty", 'penalty stiffness in N/m, or "scaled"')
+    wall.penalty = t.value("penalty")
     return wall
 
 

@@ -65,20 +65,12 @@ def elastic_stress(material, eps: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
     return material.lmbda * ufl.tr(eps) * ufl.Identity(3) + 2.0 * material.mu * eps
 
 
-def _virtual_work(u: ufl.core.expr.Expr, w: ufl.core.expr.Expr, parts: Sequence[Part]):
-    r = radius(w.ufl_function_space().mesh)
-    return sum(ufl.inner(elastic_stress(mat, strain(u, r)), strain(w, r)) * 2 * math.pi * r * dx
-               for mat, dx in parts)
-
-
 def stiffness_form(V: fem.FunctionSpace, parts: Sequence[Part]):
     """Bilinear form of K (N/m): sum over parts of int sigma(eps(u)) : eps(w) 2 pi r dx."""
-    return _virtual_work(ufl.TrialFunction(V), ufl.TestFunction(V), parts)
-
-
-def internal_force_form(u: fem.Function, parts: Sequence[Part]):
-    """Linear form of f_int(u) (N), assembled every step for a nonlinear material."""
-    return _virtual_work(u, ufl.TestFunction(u.function_space), parts)
+    u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
+    r = radius(V.mesh)
+    return sum(ufl.inner(elastic_stress(mat, strain(u, r)), strain(w, r)) * 2 * math.pi * r * dx
+               for mat, dx in parts)
 
 
 def lumped_mass_form(V: fem.FunctionSpace, parts: Sequence[Part]):

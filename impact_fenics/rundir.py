@@ -1,15 +1,26 @@
 """The output directory of a run: what may be written, replaced or removed, and the lock.
 
-The rule. A run writes only into ``DIR.partial``, its staging directory, which it
-creates with one atomic ``mkdir``: that directory is the lock, and its lock file
-names the run (pid, host, start time). When the run ends the staging directory
-becomes DIR. An existing DIR is replaced only if it is a run directory (it
-carries the marker file written into every staging directory, or it is empty);
-anything else is refused before the run, and nothing outside the run's own
-directories is ever removed. A replaced run is first renamed aside, the new one
-moved in, and only then the old one deleted, so an interruption leaves the old
-run or the new one, never neither. A lock left by a run that died (its pid no
-longer exists on this host) is taken over, with a warning.
+The rule: a run never removes a file it did not write.
+
+* A run writes only into ``DIR.partial``, its staging directory, which it creates with
+  one atomic ``mkdir``: that directory is the lock, and its lock file names the run
+  (pid, host, start time).
+* When the run ends, the marker file of the staging directory gets the run's manifest
+  (every file the run wrote, with its size in bytes, and the run's status), and the
+  staging directory becomes DIR.
+* An existing DIR is replaced only if it is a run directory: empty, or carrying the
+  marker with every file in it listed in the manifest at its listed size. A directory
+  holding anything else (a user's notes, a post-processing folder, a run file the user
+  changed) is refused before the run, in one line that names the first such file.
+* A replaced run is renamed aside, the new one moved in, and then only the files of
+  the old run's manifest are deleted: an interruption leaves the old run or the new one,
+  never neither, and a file that appeared in the meantime is kept.
+* A run that did not complete (interrupted, diverged) never replaces a completed run:
+  it is published beside it, as ``DIR.interrupted`` or ``DIR.diverged``.
+* A lock left by a run that died (its pid no longer exists on this host) is taken over,
+  with a warning: the dead run's own files (the names a run writes, :data:`RUN_FILE`)
+  are removed; a staging directory that also holds other files is refused, naming one.
+* ``~`` in a path is the user's home directory.
 
 Only rank 0 touches the file system; errors reach every rank (InputError).
 """
@@ -18,7 +29,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import socket
 import sys
 import time
@@ -27,25 +37,82 @@ from mpi4py import MPI
 
 from .errors import InputError
 
-# A run directory carries MARKER (written first into the staging directory, kept);
-# the staging directory DIR.partial carries LOCK while a run owns it.
+# A run directory carries MARKER (written first into the staging directory; at the end
+# it holds the manifest); the staging directory DIR.partial carries LOCK while a run owns it.
 MARKER = ".impact_fenics_run"
 LOCK = ".impact_fenics_lock"
-# what a run directory written before the marker existed may hold (and nothing else)
-_LEGACY_FILES = re.compile(r"^(summary\.json|fields\.(xdmf|h5)|history\.csv|energy\.csv|"
-                           r"contact_pairs(_\d+)?\.csv|[\w.+-]+\.png)$")
+# every name a run (or ``impact-fenics plot``) writes into its directory: the files a
+# dead run may have left in its staging directory, and those of a run directory written
+# by a version without the manifest
+RUN_FILE = re.compile(r"^(summary\.json|fields\.(xdmf|h5)|history\.csv|energy\.csv|"
+                      r"contact_pairs(_\d+)?\.h5|history\.png|energy\.png|scene\.\w+|"
+                      r"\w+_t\d\.\d{6}e[-+]\d+\.png|\.impact_fenics_run(\.tmp)?|\.impact_fenics_lock)$")
+# where a run that did not complete goes when DIR holds a completed run
+_BESIDE = {"interrupted": ".interrupted", "diverged": ".diverged"}
+
+
+def expand(path: str) -> str:
+    """The absolute path of ``path``, with ``~`` the user's home directory."""
+    return os.path.abspath(os.path.expanduser(path))
+
+
+def read_marker(path: str) -> dict | None:
+    """The marker of directory ``path``: its manifest ("files": name -> bytes, "status"),
+    ``{}`` for a marker without one (a run not finished, or an older version's), or None."""
+    try:
+        with open(os.path.join(path, MARKER)) as f:
+            text = f.read()
+    except OSError:
+        return None
+    try:
+        marker = json.loads(text)
+    except ValueError:
+        return {}
+    return marker if isinstance(marker, dict) else {}
+
+
+def _files(path: str) -> list[str]:
+    """Every entry below ``path`` that is not a directory (relative, sorted), and every
+    empty directory (with a trailing separator)."""
+    found = []
+    for root, dirs, names in os.walk(path):
+        dirs.sort()
+        rel = os.path.relpath(root, path)
+        for name in sorted(names) + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
+            found.append(os.path.normpath(os.path.join(rel, name)))
+        if root != path and not names and not dirs:
+            found.append(rel + os.sep)
+    return sorted(found)
+
+
+def foreign_file(path: str) -> str | None:
+    """The first file in run directory ``path`` that its run did not write, said as
+    "'name' (why)", or None. With a manifest: any file not in it, or not at its size.
+    Without one (a run not finished, or an older version's): any file whose name is not
+    one a run writes (:data:`RUN_FILE`), and anything in a subdirectory."""
+    marker = read_marker(path) or {}
+    listed = marker.get("files")
+    for name in _files(path):
+        if name == MARKER:
+            continue
+        if not isinstance(listed, dict):
+            if os.sep in name or not RUN_FILE.match(name):
+                return f"'{name}' (no run wrote it)"
+        elif name not in listed:
+            return f"'{name}' (no run wrote it)"
+        elif os.path.getsize(os.path.join(path, name)) != listed[name]:
+            return f"'{name}' (changed since its run wrote it)"
+    return None
 
 
 def is_run_directory(path: str) -> bool:
-    """True if ``path`` is a directory this package may replace: it carries the run
-    marker, is empty, or (an older run) holds summary.json and only run files."""
+    """True if ``path`` is a directory this package may replace: empty, or carrying the
+    run marker and nothing its run did not write (:func:`foreign_file`)."""
     if not os.path.isdir(path) or os.path.islink(path):
         return False
-    names = os.listdir(path)
-    if MARKER in names or not names:
+    if not os.listdir(path):
         return True
-    return "summary.json" in names and all(
-        _LEGACY_FILES.match(n) and os.path.isfile(os.path.join(path, n)) for n in names)
+    return read_marker(path) is not None and foreign_file(path) is None
 
 
 def _read_lock(staging: str) -> dict | None:
@@ -86,7 +153,7 @@ def directory_problem(path: str) -> str | None:
     (:func:`is_run_directory`). Anything else is refused."""
     if not path or not path.strip():
         return "the output directory name is empty"
-    full = os.path.abspath(path)
+    full = expand(path)
     staging = full + ".partial"
     here = os.path.abspath(os.getcwd())
     if full == here or here.startswith(full.rstrip(os.sep) + os.sep):
@@ -94,8 +161,12 @@ def directory_problem(path: str) -> str | None:
     if os.path.lexists(full) and not os.path.isdir(full):
         return f"'{full}' exists and is not a directory"
     if os.path.isdir(full) and not is_run_directory(full):
-        return (f"'{full}' exists and is not a run directory (it has no {MARKER}): a run "
-                "never replaces it; choose a new directory")
+        if read_marker(full) is None:
+            return (f"'{full}' exists and is not a run directory (it has no {MARKER}): a run "
+                    "never replaces it; choose a new directory")
+        return (f"'{full}' is a run directory that also holds {foreign_file(full)}: a run "
+                "never removes a file it did not write; move that out or choose a new "
+                "directory")
     if os.path.lexists(staging):
         lock = _read_lock(staging) if os.path.isdir(staging) else None
         if lock is None:
@@ -103,6 +174,10 @@ def directory_problem(path: str) -> str | None:
                     f"{LOCK}): remove or rename it")
         if not _lock_is_stale(lock):
             return f"another run is writing it ({_lock_owner(lock)}; lock {staging})"
+        other = foreign_file(staging)
+        if other is not None:
+            return (f"'{staging}' was left by a run that died ({_lock_owner(lock)}) and also "
+                    f"holds {other}: move that out, and the dead run's files are replaced")
     parent = os.path.dirname(full)
     while not os.path.exists(parent):
         parent = os.path.dirname(parent)
@@ -122,6 +197,25 @@ def _version() -> str:
         return "unknown"
 
 
+def _remove_run(path: str) -> list[str]:
+    """Delete the files of run directory ``path`` that its run wrote (its manifest, or
+    without one the names a run writes), then the directories left empty. Returns what
+    was kept (a file that appeared meanwhile), relative to ``path``."""
+    marker = read_marker(path) or {}
+    listed = marker.get("files")
+    for name in _files(path):
+        own = (name in listed) if isinstance(listed, dict) else (
+            os.sep not in name and RUN_FILE.match(name) is not None)
+        if own or name == MARKER:
+            os.remove(os.path.join(path, name))
+    for root, _, _ in sorted(os.walk(path), key=lambda w: -len(w[0])):
+        try:
+            os.rmdir(root)  # only if empty
+        except OSError:
+            pass
+    return _files(path) if os.path.isdir(path) else []
+
+
 def _take_lock(staging: str) -> str | None:
     """Create ``staging`` atomically (the lock); take over a dead run's. Returns a note."""
     note = None
@@ -132,13 +226,15 @@ def _take_lock(staging: str) -> str | None:
             return note
         except FileExistsError:
             lock = _read_lock(staging)
-            if lock is None or not _lock_is_stale(lock):
+            if lock is None or not _lock_is_stale(lock) or foreign_file(staging) is not None:
                 raise
             aside = _unused(staging + f".stale-{os.getpid()}")
             os.rename(staging, aside)  # atomic: of two runs taking over, one wins
-            shutil.rmtree(aside)       # a dead run's staging directory: ours to remove
+            kept = _remove_run(aside)   # the dead run's files only
             note = (f"warning: took over the output of a run that died ({_lock_owner(lock)}); "
                     "its partial files were removed")
+            if kept:
+                note += f"; '{kept[0]}', saved there meanwhile, is kept in '{aside}'"
     os.mkdir(staging)
     return note
 
@@ -156,8 +252,7 @@ def prepare_directory(path: str, comm: MPI.Comm) -> str:
 
     Refused (InputError on every rank, nothing changed) when :func:`directory_problem`
     objects, when another run holds the lock, or when the location cannot be written."""
-    full = os.path.abspath(path)
-    staging = full + ".partial"
+    staging = expand(path) + ".partial"
     error = note = None
     if comm.rank == 0:
         error = directory_problem(path)
@@ -174,10 +269,10 @@ def prepare_directory(path: str, comm: MPI.Comm) -> str:
                 with open(os.path.join(staging, LOCK), "w") as f:
                     json.dump({"pid": os.getpid(), "host": socket.gethostname(),
                                "started": started, "ranks": comm.size}, f)
-                with open(os.path.join(staging, MARKER), "w") as f:
-                    f.write(f"impact_fenics {_version()} run directory, started {started}\n")
+                _write_marker(staging, {"impact_fenics": _version(), "started": started,
+                                        "status": "running"})
             except OSError as exc:
-                shutil.rmtree(staging, ignore_errors=True)
+                _remove_run(staging)
                 error = f"cannot be written: {exc.strerror or exc}"
         if note:
             print(note, file=sys.stderr, flush=True)
@@ -187,26 +282,40 @@ def prepare_directory(path: str, comm: MPI.Comm) -> str:
     return staging
 
 
+def _write_marker(path: str, marker: dict) -> None:
+    """Write the marker of ``path`` whole or not at all (a temporary file renamed)."""
+    tmp = os.path.join(path, MARKER + ".tmp")
+    with open(tmp, "w") as f:
+        json.dump(marker, f, indent=1, sort_keys=True)
+        f.write("\n")
+    os.replace(tmp, os.path.join(path, MARKER))
+
+
 def abandon_directory(staging: str, comm: MPI.Comm) -> None:
-    """Remove a staging directory this run created (set-up failed before any result)."""
+    """Remove a staging directory this run created (set-up failed before any result):
+    the files this run wrote, nothing else."""
     comm.barrier()
     if comm.rank == 0 and os.path.isfile(os.path.join(staging, LOCK)):
-        shutil.rmtree(staging, ignore_errors=True)
+        _remove_run(staging)
     comm.barrier()
 
 
-def finalize_directory(staging: str, path: str, comm: MPI.Comm) -> str:
+def finalize_directory(staging: str, path: str, comm: MPI.Comm,
+                       status: str = "completed") -> str:
     """Publish the finished staging directory as ``path`` and return where it went.
 
-    An older run in ``path`` is renamed aside, the new one moved in, then the old one
-    deleted: an interruption at any point leaves the old or the new run (or both).
-    A ``path`` that is no run directory (created meanwhile) is never touched: the
-    run then goes to ``path-<time>`` and a warning says so."""
+    The marker gets the manifest (the files written, ``status``). An older run in
+    ``path`` is renamed aside, the new one moved in, then the old one's files deleted:
+    an interruption at any point leaves the old or the new run (or both). A run whose
+    ``status`` is not "completed..." goes to ``path.interrupted`` (or ``.diverged``)
+    when ``path`` holds a completed run or anything else worth keeping. A ``path`` that
+    is no run directory (changed meanwhile) is never touched: the run then goes to
+    ``path-<time>`` and a warning says so."""
     comm.barrier()
     where = error = None
     if comm.rank == 0:
         try:
-            where = _publish(staging, os.path.abspath(path))
+            where = _publish(staging, expand(path), status)
         except OSError as exc:
             error = (f"the finished run could not be moved to '{path}': {exc.strerror or exc}; "
                      f"its files are in '{staging}'")
@@ -216,18 +325,53 @@ def finalize_directory(staging: str, path: str, comm: MPI.Comm) -> str:
     return where
 
 
-def _publish(staging: str, final: str) -> str:
+def _completed(path: str) -> bool:
+    """Whether ``path`` holds anything but an unfinished run (a run that did not
+    complete, or nothing): a completed run, a run of unknown status, a user's files."""
+    if not os.path.isdir(path) or not os.listdir(path):
+        return False
+    marker = read_marker(path)
+    status = marker.get("status") if marker else None
+    return not (isinstance(status, str) and status.split()[0] in _BESIDE
+                and is_run_directory(path))
+
+
+def _publish(staging: str, final: str, status: str = "completed") -> str:
     os.remove(os.path.join(staging, LOCK))
+    marker = read_marker(staging) or {}
+    marker.update(status=status, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                  files={name: os.path.getsize(os.path.join(staging, name))
+                         for name in _files(staging) if name != MARKER})
+    _write_marker(staging, marker)
+    kind = status.split()[0] if status else ""
+    if kind in _BESIDE and _completed(final):
+        final += _BESIDE[kind]
     aside = None
     if os.path.lexists(final) and not is_run_directory(final):
         moved = _unused(final + time.strftime("-%Y%m%d-%H%M%S"))
-        print(f"warning: '{final}' appeared during the run and is not a run directory; "
-              f"the run is in '{moved}'", file=sys.stderr, flush=True)
+        print(f"warning: '{final}' changed during the run and is no longer only a run's "
+              f"directory; the run is in '{moved}'", file=sys.stderr, flush=True)
         final = moved
     elif os.path.lexists(final):
         aside = _unused(final + f".old-{os.getpid()}")
         os.rename(final, aside)
     os.rename(staging, final)
     if aside is not None:
-        shutil.rmtree(aside)  # the old run: a run directory, renamed aside above
+        kept = _remove_run(aside)  # the old run's files, as its manifest lists them
+        if kept:
+            print(f"warning: '{kept[0]}' appeared in '{final}' while it was replaced; it is "
+                  f"kept in '{aside}'", file=sys.stderr, flush=True)
     return final
+
+
+def record_files(run_dir: str, paths: list[str]) -> None:
+    """Add files written into a finished run directory (``impact-fenics plot``'s
+    pictures) to its manifest, so that a later run may replace them with the rest."""
+    marker = read_marker(run_dir)
+    if not marker or not isinstance(marker.get("files"), dict):
+        return
+    for p in paths:
+        name = os.path.relpath(os.path.abspath(p), os.path.abspath(run_dir))
+        if not name.startswith(os.pardir) and os.path.isfile(p):
+            marker["files"][name] = os.path.getsize(p)
+    _write_marker(run_dir, marker)

@@ -1,9 +1,9 @@
 """Scene files: a run described in TOML, checked in full before anything is built or written.
 
 Units are SI: lengths in m, times in s, masses in kg, densities in kg/m^3,
-moduli, pressures and stresses in Pa, forces in N, velocities in m/s. The keys
-and their units are listed in the README ("Command line and scene files") and
-in ``scenes/*.toml``.
+moduli, pressures and stresses in Pa, forces in N, velocities in m/s. The keys,
+their kinds, units and defaults are the table of :mod:`impact_fenics.scene_keys`
+(the reference docs/scenes.md is written from it); this module reads by it.
 
 :func:`read_scene` parses the file and checks every value (types, signs,
 ranges, unknown and missing keys, names that refer to other tables) without
@@ -27,45 +27,11 @@ from mpi4py import MPI
 
 from . import plausibility, resources, rundir
 from .errors import InputError
+from .scene_keys import GENERATORS, METHODS, PULSES, REQUIRED, REQUIRED_PARAMS, SECTIONS
 
-QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
-              "eps_p_eq", "yielded")
-METHODS = ("penalty", "film", "dme")
 COMPONENTS = {"r": 0, "z": 1}
 _MISSING = object()
-
-# Mesh generators of impact_fenics.meshing: parameter -> (kind, meaning with unit).
-_LENGTH = "length"
-GENERATORS: dict[str, dict[str, tuple[str, str]]] = {
-    "bar": {"radius": (_LENGTH, "bar radius in m"), "length": (_LENGTH, "bar length in m"),
-            "h": (_LENGTH, "element size in m"),
-            "structured": ("bool", "structured grid of alternating diagonals")},
-    "coaxial_bars": {"radius": (_LENGTH, "bar radius in m"),
-                     "striker_length": (_LENGTH, "striker length in m"),
-                     "target_length": (_LENGTH, "target length in m"),
-                     "h": (_LENGTH, "element size in m"),
-                     "structured": ("bool", "structured grids")},
-    "punch_block": {"width": (_LENGTH, "block radius in m"), "depth": (_LENGTH, "block depth in m"),
-                    "h_surface": (_LENGTH, "element size at the surface in m"),
-                    "grading": (_LENGTH, "growth of the element size with depth (m/m)"),
-                    "h_max": (_LENGTH, "largest element size in m"),
-                    "breaks": ("breaks", "surface breaks [[r (m), intervals], ...]")},
-    "coaxial_bars_sized": {"radius": (_LENGTH, "bar radius in m"),
-                           "striker_length": (_LENGTH, "striker length in m"),
-                           "target_length": (_LENGTH, "target length in m"),
-                           "h_striker": (_LENGTH, "striker element size in m"),
-                           "h_target": (_LENGTH, "target element size in m"),
-                           "structured": ("bool", "structured grids")},
-    "quad_bar": {"radius": (_LENGTH, "bar radius in m"), "length": (_LENGTH, "bar length in m"),
-                 "n_r": ("count", "bilinear quadrilaterals across the radius (square cells; "
-                                  "round(n_r length / radius) along)")},
-    "nosed_striker_on_block": {"nose_radius": (_LENGTH, "striker (and nose) radius in m"),
-                               "shank_length": (_LENGTH, "striker length above the nose in m"),
-                               "block_width": (_LENGTH, "block radius in m"),
-                               "block_depth": (_LENGTH, "block depth in m"),
-                               "h_striker": (_LENGTH, "striker element size in m"),
-                               "h_block": (_LENGTH, "block element size in m")},
-}
+_TABLE = object()  # "the default of the key table"
 
 
 def _fmt(value: Any) -> str:
@@ -86,13 +52,16 @@ def _is_number(v: Any) -> bool:
 
 
 class _Table:
-    """One TOML table being read: unknown keys, missing keys and bad values name the
-    table and the key."""
+    """One TOML table being read by its section of the key table (scene_keys): unknown
+    keys, missing keys and bad values name the table and the key. ``groups``: the
+    variant of the entry (the keys of other variants are unknown here)."""
 
-    def __init__(self, data: Any, where: str, allowed: tuple[str, ...]):
+    def __init__(self, data: Any, where: str, section: str, groups: tuple[str, ...] = ()):
         if not isinstance(data, dict):
             raise InputError(f"{where} must be a table, not {_fmt(data)}")
         self.data, self.where = data, where
+        self.section = SECTIONS[section]
+        allowed = self.section.allowed(groups)
         for key in data:
             if key not in allowed:
                 raise InputError(f"{where} unknown key '{key}' (allowed here: "
@@ -103,6 +72,41 @@ class _Table:
 
     def error(self, key: str, problem: str) -> InputError:
         return InputError(f"{self.where} {key} = {_fmt(self.data[key])}: {problem}")
+
+    def value(self, key: str, default: Any = _TABLE) -> Any:
+        """The value of ``key`` checked by its kind in the key table; if absent, the
+        table's default (or ``default``, for a default the reader computes); a
+        required key that is absent is an error."""
+        spec = self.section.key(key)
+        if default is _TABLE:
+            default = spec.default
+            if isinstance(default, list):
+                default = tuple(default)
+        if default == REQUIRED:
+            default = _MISSING
+        what, kind = spec.described, spec.kind
+        if kind == "number":
+            return self.number(key, what, default)
+        if kind == "positive":
+            return self.positive(key, what, default)
+        if kind == "count":
+            return self.count(key, what, default)
+        if kind == "flag":
+            return self.flag(key, what, default)
+        if kind == "text":
+            return self.text(key, what, default, choices=spec.choices or None)
+        if kind == "pair":
+            return self.pair(key, what, default)
+        if kind == "stiffness":  # a penalty: N/m > 0, or one of the key's words
+            v = self.data.get(key)
+            if isinstance(v, str):
+                if v not in spec.choices:
+                    words = [f'"{w}"' for w in spec.choices]
+                    raise self.error(key, "give a stiffness in N/m"
+                                     + "".join(f", {w}" for w in words[:-1]) + f" or {words[-1]}")
+                return v
+            return self.positive(key, what, default)
+        raise ValueError(f"{self.section.toml} {key}: kind {kind} is read by its own code")
 
     def _get(self, key: str, what: str, default: Any) -> Any:
         if key in self.data:
@@ -306,10 +310,6 @@ class Scene:
             c.method = method
 
 
-TOP_KEYS = ("title", "mesh", "materials", "bodies", "rigid", "contact", "loads", "fixed",
-            "time", "output", "probes", "force", "wall")
-
-
 def read_scene(path: str) -> Scene:
     """Parse and check a scene file; raises InputError naming the table and the key."""
     if os.path.isdir(path):
@@ -324,8 +324,8 @@ def read_scene(path: str) -> Scene:
         raise InputError(f"{path}: not valid TOML: {exc}")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"scene file '{path}' cannot be read: {exc}")
-    top = _Table(data, f"[{os.path.basename(path)}, top level]", TOP_KEYS)
-    title = top.text("title", "a title for the run", os.path.basename(path))
+    top = _Table(data, f"[{os.path.basename(path)}, top level]", "top")
+    title = top.value("title", os.path.basename(path))
     for key in ("mesh", "time"):
         if key not in top:
             raise InputError(f"[{key}] is missing: the scene needs a [{key}] table")
@@ -363,8 +363,7 @@ def read_scene(path: str) -> Scene:
                 materials[b.material].model != "elastic" for b in bodies):
             raise InputError(f"{p.where} quantity = {_fmt(p.quantity)}: needs a body of a "
                              'plastic material ([materials.NAME] model = "j2")')
-    force = top.flag("force", "run what the checks refuse: dt above the stable limit, a "
-                              "penalty above its stable bound, a run beyond the memory", False)
+    force = top.value("force")
     scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
                   fixed, time, output, probes, force)
     from . import finite_scene
@@ -395,8 +394,8 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
     if "generator" in data and "file" in data:
         raise InputError(f"{where} give either generator or file, not both")
     if "file" in data:
-        t = _Table(data, where, ("file",))
-        name = t.text("file", "a 2D .msh file with named physical groups")
+        t = _Table(data, where, "mesh", ("file",))
+        name = t.value("file", _MISSING)
         full = name if os.path.isabs(name) else os.path.join(base, name)
         if not os.path.isfile(full):
             raise t.error("file", f"no such mesh file ({full})")
@@ -408,20 +407,18 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
     if not isinstance(generator, str) or generator not in GENERATORS:
         raise InputError(f"{where} generator = {_fmt(generator)}: unknown generator; use one of "
                          f"{', '.join(GENERATORS)}, or file = \"my_mesh.msh\"")
-    schema = GENERATORS[generator]
-    t = _Table(data, where, ("generator",) + tuple(schema))
+    t = _Table(data, where, "mesh", (generator,))
     params: dict[str, Any] = {}
-    for key, (kind, what) in schema.items():
-        if key not in t:
+    for spec in t.section.keys:
+        if generator not in spec.groups:
             continue
-        if kind == _LENGTH:
-            params[key] = t.positive(key, what)
-        elif kind == "bool":
-            params[key] = t.flag(key, what, False)
-        elif kind == "count":
-            params[key] = t.count(key, what)
-        else:
-            params[key] = _breaks(t, key, what)
+        if spec.kind == "breaks":
+            if spec.name in t:
+                params[spec.name] = _breaks(t, spec.name, spec.described)
+        elif spec.name in t:
+            params[spec.name] = t.value(spec.name)
+        elif spec.name in REQUIRED_PARAMS.get(generator, ()):
+            params[spec.name] = t.value(spec.name, _MISSING)
     return MeshSpec(generator, params, None)
 
 
@@ -435,108 +432,81 @@ def _breaks(t: _Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
     return tuple((float(r), int(n)) for r, n in v)
 
 
-PLASTIC_KEYS = ("yield_stress", "hardening", "viscosity")
-
-
 def _read_material(name: str, data: dict) -> MaterialSpec:
-    t = _Table(data, f"[materials.{name}]", ("model", "E", "nu", "density") + PLASTIC_KEYS)
-    model = t.text("model", "the material model", "elastic",
-                   choices=("elastic", "j2", "neo_hookean"))
-    E = t.positive("E", "Young's modulus in Pa")
-    nu = t.number("nu", "Poisson's ratio")
+    t = _Table(data, f"[materials.{name}]", "materials", ("j2",))
+    model = t.value("model")
+    E = t.value("E")
+    nu = t.value("nu")
     if not -1.0 < nu < 0.5:
         raise t.error("nu", "Poisson's ratio must lie in (-1, 0.5); nu >= 0.5 is "
                             "incompressible and has no explicit stable time step")
-    density = t.positive("density", "mass density in kg/m^3")
+    density = t.value("density")
     if model in ("elastic", "neo_hookean"):
-        for key in PLASTIC_KEYS:
-            if key in t:
+        for key in t.section.allowed(("j2",)):
+            if key in t and key not in t.section.allowed():
                 raise t.error(key, 'only for model = "j2"')
         return MaterialSpec(name, E, nu, density, model)
-    yield_stress = t.positive("yield_stress", "initial yield stress in Pa")
-    hardening = t.number("hardening", "hardening modulus d sigma_y / d eps_bar_p in Pa", 0.0)
+    yield_stress = t.value("yield_stress")
+    hardening = t.value("hardening")
     if hardening < 0:
         raise t.error("hardening", "must be >= 0 (softening makes the solution mesh-dependent)")
-    viscosity = t.number("viscosity", "overstress viscosity in Pa s", 0.0)
+    viscosity = t.value("viscosity")
     if viscosity < 0:
         raise t.error("viscosity", "must be >= 0 (0: rate-independent)")
     return MaterialSpec(name, E, nu, density, model, yield_stress, hardening, viscosity)
 
 
 def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> BodySpec:
-    t = _Table(data, f"[bodies.{name}]", ("material", "velocity", "strain"))
-    material = t.text("material", "the name of a [materials.NAME] table")
+    t = _Table(data, f"[bodies.{name}]", "bodies")
+    material = t.value("material")
     if material not in materials:
         raise t.error("material", f"no table [materials.{material}] "
                                   f"(materials: {', '.join(materials) or 'none'})")
-    velocity = t.pair("velocity", "initial (v_r, v_z) in m/s", (0.0, 0.0))
-    strain = t.text("strain", "small (the linear and small-strain paths) or finite (total "
-                              "Lagrangian, Q1 mean dilatation)", "small", choices=("small", "finite"))
-    return BodySpec(name, material, velocity, strain)
+    return BodySpec(name, material, t.value("velocity"), t.value("strain"))
 
 
 def _read_rigid(name: str, data: dict) -> RigidSpec:
-    t = _Table(data, f"[rigid.{name}]", ("mass", "velocity", "impedance"))
-    mass = t.positive("mass", "mass of the rigid body in kg")
-    spec = RigidSpec(name, mass, t.number("velocity", "initial z velocity in m/s", 0.0))
+    t = _Table(data, f"[rigid.{name}]", "rigid")
+    spec = RigidSpec(name, t.value("mass"), t.value("velocity"))
     if "impedance" in t:
-        spec.impedance = t.positive("impedance", "impedance rho c A of the driving rod in kg/s")
+        spec.impedance = t.value("impedance")
     return spec
-
-
-CONTACT_KEYS = ("method", "penalty", "restitution", "positions", "film_solver")
 
 
 def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpec:
     is_rigid = isinstance(data, dict) and "rigid" in data
     is_segment = isinstance(data, dict) and not is_rigid and ("slave" in data or "master" in data)
-    shape = ("surface", "rigid", "radius", "button") if is_rigid else ("lower", "upper")
-    if is_segment:
-        shape = ("slave", "master", "reach")
-    t = _Table(data, where, shape + CONTACT_KEYS)
-    method = t.text("method", f"the contact method: {', '.join(METHODS)}", choices=METHODS)
-    c = ContactSpec(where, method, given=tuple(t.data))
+    t = _Table(data, where, "contact",
+               ("rigid",) if is_rigid else ("segment",) if is_segment else ("pairs",))
+    c = ContactSpec(where, t.value("method"), given=tuple(t.data))
     if is_rigid:
-        c.surface = t.text("surface", "the facet group under the rigid body")
-        c.rigid = t.text("rigid", "the name of a [rigid.NAME] body")
+        c.surface = t.value("surface")
+        c.rigid = t.value("rigid")
         if c.rigid not in rigid:
             raise t.error("rigid", f"no table [rigid.{c.rigid}] "
                                    f"(rigid bodies: {', '.join(rigid) or 'none'})")
-        c.radius = t.positive("radius", "radius of the flat rigid face in m")
-        if "button" in t:
-            c.button = t.positive("button", "radius of the spherical button in m")
-            if c.button < c.radius:
-                raise t.error("button", f"must be >= the face radius {_fmt(t.data['radius'])} m")
+        c.radius = t.value("radius")
+        c.button = t.value("button")
+        if c.button is not None and c.button < c.radius:
+            raise t.error("button", f"must be >= the face radius {_fmt(t.data['radius'])} m")
     elif is_segment:
-        c.slave = t.text("slave", "the facet group of the slave nodes (the finer face)")
-        c.master = t.text("master", "the facet group of the master segments")
+        c.slave = t.value("slave")
+        c.master = t.value("master")
         if c.slave == c.master:
             raise t.error("master", "the two contact surfaces must differ")
-        if "reach" in t:
-            c.reach = t.positive("reach", "farthest master segment of a slave node in m")
+        c.reach = t.value("reach")
     else:
-        c.lower = t.text("lower", "the facet group of the body below")
-        c.upper = t.text("upper", "the facet group of the body above")
+        c.lower = t.value("lower")
+        c.upper = t.value("upper")
         if c.lower == c.upper:
             raise t.error("upper", "the two contact surfaces must differ")
-    if "penalty" in t:
-        p = t.data["penalty"]
-        if isinstance(p, str) and p not in ("auto", "scaled"):
-            raise t.error("penalty", "give a stiffness in N/m, \"auto\" or \"scaled\"")
-        if isinstance(p, str):
-            c.penalty = p
-        else:
-            c.penalty = t.positive("penalty", "penalty stiffness in N/m, or \"auto\" or \"scaled\"")
-    c.restitution = t.number("restitution", "DME restitution coefficient e", 0.0)
+    c.penalty = t.value("penalty")
+    c.restitution = t.value("restitution")
     if not 0.0 <= c.restitution <= 1.0:
         raise t.error("restitution", "must lie in [0, 1] (0: the pair sticks, 1: elastic)")
-    c.positions = t.text("positions", "DME pair positions", "mass_weighted",
-                         choices=("mass_weighted", "paper"))
-    c.film_solver = t.text("film_solver", "FILM solver", "fast", choices=("fast", "dense"))
+    c.positions = t.value("positions")
+    c.film_solver = t.value("film_solver")
     return c
-
-
-PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
 
 
 def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
@@ -545,54 +515,42 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
     pulse = data.get("pulse", "trapezoid")
     if not isinstance(pulse, str) or pulse not in PULSES:
         raise InputError(f"{where} pulse = {_fmt(pulse)}: use one of {', '.join(PULSES)}")
-    params = PULSES[pulse]
     on_rigid = "rigid" in data
-    extra = ("rigid", "area", "incident") if on_rigid else ("facet", "traction")
-    t = _Table(data, where, ("pulse",) + extra + params)
-    t.text("pulse", "the time function", "trapezoid", choices=tuple(PULSES))
-    unit = ("Pa" if "area" in t else "N") if on_rigid else "Pa"
-    load = LoadSpec(where, pulse, {})
+    t = _Table(data, where, "loads", ("rigid" if on_rigid else "facet", pulse))
+    load = LoadSpec(where, t.value("pulse"), {})
+    for key in PULSES[pulse]:
+        load.params[key] = t.value(key)
     if pulse == "trapezoid":
-        load.params["peak"] = t.number("peak", f"the plateau value in {unit}")
-        t_rise = load.params["t_rise"] = t.number("t_rise", "end of the rise in s")
-        t_fall = load.params["t_fall"] = t.number("t_fall", "start of the fall in s")
-        t_end = load.params["t_end"] = t.number("t_end", "end of the pulse in s")
+        t_rise, t_fall, t_end = (load.params[k] for k in ("t_rise", "t_fall", "t_end"))
         if t_rise < 0:
             raise t.error("t_rise", "must be >= 0 (s)")
         if t_fall < t_rise:
             raise t.error("t_fall", f"must be >= t_rise = {_fmt(t.data['t_rise'])} (s)")
         if not t_end > 0 or t_end < t_fall:
             raise t.error("t_end", f"must be > 0 and >= t_fall = {_fmt(t.data['t_fall'])} (s)")
-    else:
-        load.params["value"] = t.number("value", f"the load in {unit}")
     if on_rigid:
-        load.rigid = t.text("rigid", "the name of a [rigid.NAME] body")
+        load.rigid = t.value("rigid")
         if load.rigid not in rigid:
             raise t.error("rigid", f"no table [rigid.{load.rigid}] "
                                    f"(rigid bodies: {', '.join(rigid) or 'none'})")
-        if "area" in t:
-            load.area = t.positive("area", "area in m^2 on which the pulse, a pressure in Pa, "
-                                           "pushes the body down (-z)")
-        load.incident = t.flag("incident", "the pulse is the incident compressive force wave "
-                                           "(N) of the body's rod", False)
+        load.area = t.value("area")
+        load.incident = t.value("incident")
         if load.incident and load.area is not None:
             raise t.error("area", "an incident wave is a force in N: give no area")
         if load.incident and not rigid[load.rigid].impedance > 0:
             raise t.error("incident", f"[rigid.{load.rigid}] needs impedance (kg/s) > 0")
     else:
-        load.facet = t.text("facet", "the facet group loaded")
-        if "traction" in t:
-            load.traction = t.pair("traction", "(t_r, t_z) traction per unit of the pulse")
-            if load.traction == (0.0, 0.0):
-                raise t.error("traction", "must not be zero")
+        load.facet = t.value("facet")
+        load.traction = t.value("traction")
+        if load.traction == (0.0, 0.0):
+            raise t.error("traction", "must not be zero")
     return load
 
 
 def _read_fixed(where: str, data: dict) -> FixedSpec:
-    t = _Table(data, where, ("facet", "components"))
-    facet = t.text("facet", "the facet group held fixed")
-    comps = t._get("components", "the fixed displacement components, [\"r\"], [\"z\"] "
-                                 "or [\"r\", \"z\"]", _MISSING)
+    t = _Table(data, where, "fixed")
+    facet = t.value("facet")
+    comps = t._get("components", t.section.key("components").described, _MISSING)
     if (not isinstance(comps, list) or not comps or len(set(map(str, comps))) != len(comps)
             or not all(isinstance(c, str) and c in COMPONENTS for c in comps)):
         raise t.error("components", "must be a list of distinct components \"r\" and \"z\"")
@@ -600,41 +558,27 @@ def _read_fixed(where: str, data: dict) -> FixedSpec:
 
 
 def _read_time(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[time]", ("dt", "cfl", "t_end", "n_steps", "force_dt", "converged_dt",
-                                "dt_interval"))
+    t = _Table(data, "[time]", "time")
     if ("dt" in t) == ("cfl" in t):
         raise InputError("[time] give exactly one of dt (the time step in s) or cfl "
                          "(a fraction of the stable limit)")
     if ("t_end" in t) == ("n_steps" in t):
         raise InputError("[time] give exactly one of t_end (the end time in s) or n_steps")
-    return {"dt": t.positive("dt", "the time step in s", None),
-            "cfl": t.positive("cfl", "dt as a fraction of the stable limit", None),
-            "t_end": t.positive("t_end", "the end time in s", None),
-            "n_steps": t.count("n_steps", "the number of steps", None),
-            "force_dt": t.flag("force_dt", "run with a dt above the stable limit", False),
-            "converged_dt": t.flag("converged_dt", "also compute the converged stable dt", False),
-            "dt_interval": t.count("dt_interval", "steps between re-estimates of the stable "
-                                                  "step (finite strain)", None)}
+    return {key: t.value(key) for key in t.section.allowed()}
 
 
 def _read_output(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[output]", ("dir", "output_every", "history_every", "pairs_every", "fields",
-                                  "plots"))
-    return {"dir": t.text("dir", "the output directory", None),
-            "output_every": t.count("output_every", "steps between field and energy outputs", 50),
-            "history_every": t.count("history_every", "steps between history rows", 1),
-            "pairs_every": t.count("pairs_every", "steps between per-pair contact rows", 10),
-            "fields": t.flag("fields", "write fields.xdmf", True),
-            "plots": t.flag("plots", "write history.png and energy.png", True)}
+    t = _Table(data, "[output]", "output")
+    return {key: t.value(key) for key in t.section.allowed()}
 
 
 def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
-    t = _Table(data, where, ("name", "point", "quantity"))
-    quantity = t.text("quantity", f"one of {', '.join(QUANTITIES)}", choices=QUANTITIES)
-    point = t.pair("point", "the (r, z) point in m")
+    t = _Table(data, where, "probes")
+    quantity = t.value("quantity")
+    point = t.value("point")
     if point[0] < 0:
         raise t.error("point", "r must be >= 0 (m)")
-    name = t.text("name", "the history column", f"{quantity}_{k}")
+    name = t.value("name", f"{quantity}_{k}")
     return ProbeSpec(where, name, point, quantity)
 
 

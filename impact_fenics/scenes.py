@@ -95,8 +95,8 @@ def punch_indentation(settings: Settings, method, radius: float = 1.0, punch_mas
     return sim
 
 
-# The bit-rock scene of percussive drilling (issue 10). Granite-like rock (E, nu, rho of
-# the issue) and a steel rod of 32 mm diameter: Z = rho c0 A (kg/s).
+# The bit-rock scene of percussive drilling (demos/bit_rock.py gives the sources). Granite-like
+# rock and a steel rod of 32 mm diameter: Z = rho c0 A (kg/s).
 GRANITE = LinearElastic(E=60e9, nu=0.25, density=2600.0)
 ROD_IMPEDANCE = 7850.0 * math.sqrt(200e9 / 7850.0) * math.pi * 0.016 ** 2
 

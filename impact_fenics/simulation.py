@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
-from numba import njit
 
 from . import console, interrupts, output, plotting, rundir
 from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
@@ -517,7 +516,7 @@ class Simulation:
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")
                 output.write_json(os.path.join(staging, "summary.json"), summary, comm)
-                self.out_dir = rundir.finalize_directory(staging, s.out, comm)
+                self.out_dir = rundir.finalize_directory(staging, s.out, comm, self.status)
                 for tbl in tables.values():
                     tbl.moved(self.out_dir)
             stop.collective(comm)  # a signal while the directory was moved into place

@@ -1,5 +1,5 @@
 """Run by pvbatch (tests/test_outputs.py): open a fields.xdmf with ParaView's default reader
-and print, as JSON, what every block holds at every time, then apply the README recipe
+and print, as JSON, what every block holds at every time, then apply the recipe of docs/outputs.md
 (colour by sigma_zz, Warp By Vector) and print the colour range it gets.
 
     pvbatch tests/pvbatch_fields.py RUN/fields.xdmf

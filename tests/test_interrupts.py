@@ -1,6 +1,6 @@
 """SIGINT and SIGTERM at every moment of a run: one line, exit 128 + signal, nothing lost.
 
-Oracles: the specification in impact_fenics/interrupts.py and the README
+Oracles: the specification in impact_fenics/interrupts.py and docs/outputs.md
 (before the run nothing is written and an older run in the directory is kept;
 in the loop the run stops at the next step (serial) or at the next multiple of
 64 steps or after the last step (MPI, where the ranks agree); after the last

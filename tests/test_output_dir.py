@@ -96,53 +96,70 @@ def test_the_working_directory_is_refused(tmp_path, capsys, monkeypatch):
 
 
 def test_an_older_run_is_replaced_and_nothing_else_is_left(tmp_path, capsys):
+    """A run with plots, then one without: the pictures of the first go with it."""
     base = _shared(tmp_path)
-    scene = _scene(base)
     out = os.path.join(base, "run")
-    assert _run(["run", scene, "--out", out, "--quiet"], capsys)[0] == 0
+    assert _run(["run", _scene(base), "--out", out, "--quiet"], capsys)[0] == 0
     assert os.path.isfile(os.path.join(out, rundir.MARKER))
     assert not os.path.exists(os.path.join(out, rundir.LOCK))
-    if COMM.rank == 0:  # a file of the old run that the new one does not write
-        with open(os.path.join(out, "contact_pairs.csv"), "w") as f:
-            f.write("old\n")
-    COMM.barrier()
-    assert _run(["run", scene, "--out", out, "--quiet"], capsys)[0] == 0
-    assert not os.path.exists(os.path.join(out, "contact_pairs.csv"))
+    assert os.path.isfile(os.path.join(out, "history.png"))
+    no_plots = _scene(base, replace(SHORT, "[output]\n", "[output]\nplots = false\n"))
+    assert _run(["run", no_plots, "--out", out, "--quiet"], capsys)[0] == 0
+    assert not os.path.exists(os.path.join(out, "history.png"))
     assert sorted(os.listdir(base)) == ["bar.toml", "run"]  # no .partial, no .old-*
 
 
-def test_an_older_run_without_the_marker_is_recognised(tmp_path):
-    """Runs written before the marker existed hold summary.json and run files only."""
+def test_what_a_run_directory_is(tmp_path):
+    """Empty, or marked and holding only what its run wrote. Without the marker a folder
+    is the user's whatever it holds; a marker without a manifest (an older version's)
+    vouches only for the names a run writes."""
     old = tmp_path / "old"
     old.mkdir()
-    for name in ("summary.json", "history.csv", "energy.csv", "fields.xdmf", "fields.h5",
-                 "history.png", "sigma_zz_t1e-04.png", "contact_pairs_1.csv"):
+    names = ("summary.json", "history.csv", "energy.csv", "fields.xdmf", "fields.h5",
+             "history.png", "sigma_zz_t1.000000e-04.png", "contact_pairs_1.h5", "scene.toml")
+    for name in names:
         (old / name).write_text("x")
+    assert not rundir.is_run_directory(str(old))  # no marker: the user's
+    (old / rundir.MARKER).write_text("impact_fenics 0.1 run directory\n")
     assert rundir.is_run_directory(str(old))
     (old / "notes.txt").write_text("mine")
     assert not rundir.is_run_directory(str(old))
+    assert rundir.foreign_file(str(old)) == "'notes.txt' (no run wrote it)"
     empty = tmp_path / "empty"
     empty.mkdir()
     assert rundir.is_run_directory(str(empty))
     assert not rundir.is_run_directory(str(tmp_path / "missing"))
+    # a manifest: exactly its files, at their sizes; an empty folder of the user's too
+    new = tmp_path / "new"
+    new.mkdir()
+    (new / "history.csv").write_text("step\n")
+    (new / rundir.MARKER).write_text(json.dumps({"files": {"history.csv": 5}}))
+    assert rundir.is_run_directory(str(new))
+    (new / "figures").mkdir()
+    assert rundir.foreign_file(str(new)) == f"'figures{os.sep}' (no run wrote it)"
+    (new / "figures").rmdir()
+    (new / "history.csv").write_text("step\n1\n")
+    assert rundir.foreign_file(str(new)) == "'history.csv' (changed since its run wrote it)"
 
 
-@pytest.mark.parametrize("fail_at", [1, 2, 3])
+@pytest.mark.parametrize("fail_at", [1, 2, 3, 4])
 def test_a_replacement_interrupted_at_any_point_keeps_a_run(tmp_path, monkeypatch, fail_at):
-    """Fail the k-th file-system operation of publishing a new run over an old one: the
-    old run or the new one (or both) is still on disk, complete."""
+    """Fail the k-th file-system operation of publishing a new run over an old one (the
+    lock's removal, the old run renamed aside, the new one moved in, the old run's first
+    file deleted): the old run or the new one (or both) is still on disk, complete."""
     if COMM.size > 1:
         pytest.skip("file-system states of rank 0; one rank suffices")
     final, staging = tmp_path / "run", tmp_path / "run.partial"
     final.mkdir()
-    (final / rundir.MARKER).write_text("old")
+    (final / rundir.MARKER).write_text(json.dumps({"status": "completed",
+                                                   "files": {"summary.json": 7}}))
     (final / "summary.json").write_text("old run")
     staging.mkdir()
-    (staging / rundir.MARKER).write_text("new")
+    (staging / rundir.MARKER).write_text("{}")
     (staging / rundir.LOCK).write_text("{}")
     (staging / "summary.json").write_text("new run")
     calls = {"n": 0}
-    real = {"rename": os.rename, "rmtree": shutil.rmtree}
+    real = {"rename": os.rename, "remove": os.remove}
 
     def failing(name):
         def op(*args, **kwargs):
@@ -153,7 +170,7 @@ def test_a_replacement_interrupted_at_any_point_keeps_a_run(tmp_path, monkeypatc
         return op
 
     monkeypatch.setattr(rundir.os, "rename", failing("rename"))
-    monkeypatch.setattr(rundir.shutil, "rmtree", failing("rmtree"))
+    monkeypatch.setattr(rundir.os, "remove", failing("remove"))
     try:
         rundir._publish(str(staging), str(final))
     except OSError:
@@ -164,7 +181,7 @@ def test_a_replacement_interrupted_at_any_point_keeps_a_run(tmp_path, monkeypatc
         if (d / "summary.json").is_file():
             runs.add((d / "summary.json").read_text())
     assert runs and runs <= {"old run", "new run"}
-    if fail_at == 3:  # only the old run's removal failed: the new run is in place
+    if fail_at == 4:  # only the old run's removal failed: the new run is in place
         assert (final / "summary.json").read_text() == "new run"
 
 
@@ -243,3 +260,190 @@ def test_two_concurrent_runs_one_is_refused(tmp_path):
     with open(out / "summary.json") as f:
         s = json.load(f)
     assert s["n_steps"] == 5000000 and s["status"] == "interrupted by SIGTERM"
+
+
+# ----------------------------------------------------------------------------- nothing a user saved is lost
+# Each case below deleted a user's file before the manifest rule (a run directory lists
+# the files its run wrote; only those are ever removed).
+
+def _write(path: str, content: bytes) -> None:
+    if COMM.rank == 0:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path, "wb") as f:
+            f.write(content)
+    COMM.barrier()
+
+
+def _summary(path: str) -> dict:
+    with open(os.path.join(path, "summary.json")) as f:
+        return json.load(f)
+
+
+def test_a_users_file_inside_an_earlier_run_is_kept(tmp_path, capsys):
+    """Notes and a post-processing folder saved in a run directory: the next run into it
+    is refused in one line that names the first of them; the earlier run is untouched."""
+    base = _shared(tmp_path)
+    scene = _scene(base)
+    out = os.path.join(base, "run")
+    assert _run(["run", scene, "--out", out, "--quiet"], capsys)[0] == 0
+    before = COMM.bcast(sorted(os.listdir(out)), root=0)
+    notes = {"my_notes.txt": b"the wave arrives at 20 us\n",
+             os.path.join("post", "plot.py"): b"import numpy\n"}
+    for name, content in notes.items():
+        _write(os.path.join(out, name), content)
+    code, err = _run(["run", scene, "--out", out, "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "my_notes.txt" in err and "no run wrote" in err, err
+    assert _unchanged(out, notes)
+    assert sorted(os.listdir(out)) == sorted(before + ["my_notes.txt", "post"])
+    assert not os.path.exists(out + ".partial")
+
+
+def test_a_changed_run_file_is_kept(tmp_path, capsys):
+    """A run file the user appended to is no longer only the run's: refused, kept."""
+    base = _shared(tmp_path)
+    scene = _scene(base)
+    out = os.path.join(base, "run")
+    assert _run(["run", scene, "--out", out, "--quiet"], capsys)[0] == 0
+    if COMM.rank == 0:
+        with open(os.path.join(out, "history.csv"), "a") as f:
+            f.write("# my remark\n")
+    COMM.barrier()
+    code, err = _run(["run", scene, "--out", out, "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "history.csv" in err, err
+    with open(os.path.join(out, "history.csv")) as f:
+        assert f.read().endswith("# my remark\n")
+
+
+def test_a_folder_that_looks_like_an_old_run_is_not_one(tmp_path, capsys):
+    """summary.json and a picture, but no marker: a folder of the user's, refused."""
+    base = _shared(tmp_path)
+    scene = _scene(base)
+    folder = os.path.join(base, "paper_figures")
+    files = {"summary.json": b"{}\n", "figure_3.png": b"\x89PNG my figure"}
+    for name, content in files.items():
+        _write(os.path.join(folder, name), content)
+    assert not rundir.is_run_directory(folder)
+    code, err = _run(["run", scene, "--out", folder, "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "not a run directory" in err, err
+    assert _unchanged(folder, files) and sorted(os.listdir(folder)) == sorted(files)
+
+
+def test_a_diverged_rerun_keeps_the_complete_run(tmp_path, capsys):
+    """A run that diverges (dt three times the stable limit, forced) into the directory of
+    a complete run: the complete run stays in DIR, the diverged one goes beside it."""
+    base = _shared(tmp_path)
+    scene = _scene(base)
+    out = os.path.join(base, "run")
+    assert _run(["run", scene, "--out", out, "--quiet"], capsys)[0] == 0
+    unstable = _scene(os.path.join(base), replace(
+        replace(SHORT, "cfl = 0.9", "cfl = 3.0\nforce_dt = true"), "n_steps = 5",
+        "n_steps = 2000"))
+    code, err = _run(["run", unstable, "--out", out, "--quiet"], capsys)
+    assert code == 3, err
+    assert f"{out}.diverged" in err and f"complete run in {out}/ is kept" in err, err
+    assert _summary(out)["status"] == "completed" and _summary(out)["n_steps"] == 5
+    assert _summary(out + ".diverged")["status"] == "diverged"
+    # the next complete run replaces the complete one; the diverged one stays beside it
+    stable = _scene(base, SHORT)
+    assert _run(["run", stable, "--out", out, "--quiet"], capsys)[0] == 0
+    assert _summary(out + ".diverged")["status"] == "diverged"
+
+
+@serial_only
+def test_an_interrupted_rerun_keeps_the_complete_run(tmp_path):
+    """Ctrl-C during a re-run into the directory of a complete run: the complete run stays
+    in DIR, the interrupted one is kept in DIR.interrupted, and the stop line says so."""
+    (tmp_path / "short.toml").write_text(SHORT)
+    (tmp_path / "long.toml").write_text(replace(BAR, "n_steps = 100", "n_steps = 5000000"))
+    out = tmp_path / "run"
+    env = clean_mpi_env()
+    done = subprocess.run([sys.executable, "-m", "impact_fenics", "run",
+                           str(tmp_path / "short.toml"), "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
+    assert done.returncode == 0, done.stderr
+    second = subprocess.Popen([sys.executable, "-m", "impact_fenics", "run",
+                               str(tmp_path / "long.toml"), "--out", str(out), "--quiet"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env=env, cwd=ROOT)
+    try:
+        energy = os.path.join(str(out) + ".partial", "energy.csv")
+        deadline = time.monotonic() + 300
+        while not (os.path.isfile(energy) and len(open(energy).readlines()) >= 2):
+            assert second.poll() is None and time.monotonic() < deadline, second.communicate()
+            time.sleep(0.02)  # (polling a state the run writes: its first energy row)
+    finally:
+        second.send_signal(2)  # SIGINT, as Ctrl-C
+        _, err = second.communicate(timeout=120)
+    assert second.returncode == 130, err
+    assert f"{out}.interrupted" in err and f"complete run in {out}/ is kept" in err, err
+    assert _summary(str(out))["status"] == "completed"
+    assert _summary(str(out))["n_steps"] == 5
+    assert _summary(str(out) + ".interrupted")["status"] == "interrupted by SIGINT"
+
+
+def test_a_dead_runs_staging_directory_keeps_the_users_files(tmp_path, capsys):
+    """A run died; the user saved a file in its DIR.partial. Taking over removes only the
+    dead run's own files: here the user's file is named and nothing is removed."""
+    base = _shared(tmp_path)
+    scene = _scene(base)
+    out = os.path.join(base, "run")
+    dead = None
+    if COMM.rank == 0:
+        proc = subprocess.Popen(["true"])
+        proc.wait()
+        dead = proc.pid
+    dead = COMM.bcast(dead, root=0)
+    _write_lock(out + ".partial", dead)
+    _write(os.path.join(out + ".partial", "history.csv"), b"step,time\n0,0\n")
+    mine = {"what_went_wrong.txt": b"it died at step 8000\n"}
+    _write(os.path.join(out + ".partial", "what_went_wrong.txt"), mine["what_went_wrong.txt"])
+    code, err = _run(["run", scene, "--out", out, "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "what_went_wrong.txt" in err, err
+    assert _unchanged(out + ".partial", mine)
+    assert os.path.isfile(os.path.join(out + ".partial", "history.csv"))
+    # the user moves the file out: the dead run's own files go, the run takes over
+    if COMM.rank == 0:
+        os.remove(os.path.join(out + ".partial", "what_went_wrong.txt"))
+    COMM.barrier()
+    code, err = _run(["run", scene, "--out", out, "--quiet"], capsys)
+    assert code == 0 and "took over the output of a run that died" in err, err
+    assert _summary(out)["status"] == "completed"
+
+
+@pytest.mark.parametrize("route", ["--out", "[output] dir"])
+def test_a_tilde_is_the_home_directory(tmp_path, capsys, monkeypatch, route):
+    base = _shared(tmp_path)
+    home = os.path.join(base, "home")
+    work = os.path.join(base, "work")
+    if COMM.rank == 0:
+        os.makedirs(home)
+        os.makedirs(work)
+    COMM.barrier()
+    monkeypatch.setenv("HOME", home)
+    monkeypatch.chdir(work)
+    if route == "--out":
+        code, err = _run(["run", _scene(base), "--out", "~/runs/x", "--quiet"], capsys)
+    else:
+        text = SHORT.replace("[output]\n", "[output]\ndir = \"~/runs/x\"\n")
+        code, err = _run(["run", _scene(base, text), "--quiet"], capsys)
+    assert code == 0, err
+    assert _summary(os.path.join(home, "runs", "x"))["status"] == "completed"
+    assert os.listdir(work) == []
+
+
+def test_every_file_a_run_writes_has_a_run_files_name(tmp_path, capsys):
+    """The names by which a dead run's staging directory is cleaned (rundir.RUN_FILE)
+    cover every file a run writes: contact pairs, probes, plots, fields, a finite-strain
+    run; else a dead run's own file would block the next run forever."""
+    from scene_texts import PAIR
+    from test_finite_scene import TAYLOR
+
+    base = _shared(tmp_path)
+    for k, text in enumerate((PAIR, TAYLOR)):
+        out = os.path.join(base, f"run{k}")
+        code, err = _run(["run", _scene(base, text), "--out", out, "--quiet"], capsys)
+        assert code == 0, err
+        names = sorted(os.listdir(out))
+        assert "fields.h5" in names and "history.png" in names, names
+        assert all(rundir.RUN_FILE.match(n) for n in names), names

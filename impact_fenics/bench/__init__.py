@@ -1,4 +1,4 @@
-"""The benchmark harness of issue 5: where the time of a step goes, and how far it is from the floor.
+"""The benchmark harness: where the time of a step goes, and how far it is from the floor.
 
     python -m impact_fenics.bench            # the full run (< 10 min on 2 cores)
     python -m impact_fenics.bench --quick    # about a minute

@@ -31,7 +31,7 @@ SERIAL_ONLY = ("ranks", "matfree", "akantu")  # launchers and serial prototypes
 
 def parse_args(argv=None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m impact_fenics.bench",
-                                description="The benchmark harness of issue 5: where the time of a "
+                                description="The benchmark harness: where the time of a "
                                             "step goes, and how far it is from the floor.")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--quick", action="store_const", const="quick", dest="mode", help="about a minute")

@@ -41,7 +41,7 @@ from ..jit_watch import drop_stale_cache
 from . import dme, film, interface, penalty
 from .dme import _cluster, _pairs
 from .film import _film_fast
-from .interface import (ALL_POS, B, CODE, D, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
+from .interface import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
                         FROM_V, GAP, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV, LEDGER, LO,
                         LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, P,
                         POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS,
@@ -236,8 +236,7 @@ def _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc):
     n = int(misc[N_CONS])
     u, v, u_pred, v_pred, u_now, v_now = F[U], F[V], F[U_PRED], F[V_PRED], F[U_NOW], F[V_NOW]
     mass, dt_over_m, m_over_dt = F[MASS], F[DT_OVER_M], F[M_OVER_DT]
-    b, gap, force, d, d_inv, p = F[B][:n], F[GAP][:n], F[FORCE][:n], F[D][:n], F[D_INV][:n], \
-        F[P][:n]
+    b, gap, force, d_inv, p = F[B][:n], F[GAP][:n], F[FORCE][:n], F[D_INV][:n], F[P][:n]
     lo, up, work = ints[LO][:n], ints[UP][:n], ints[WORK][:n]
     n_local = int(misc[N_LOCAL])
     local, pos = ints[LOCAL][:n_local], ints[POS][:n_local]

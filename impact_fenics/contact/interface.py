@@ -341,7 +341,6 @@ class ContactSet:
                              "and node pairs need none")
         self.rigid = rigid
         self.r = constraints.r
-        self.pair_index = np.arange(n)
         dofs = constraints.lower if rigid else np.concatenate([constraints.lower, constraints.upper])
         self.n_deformable = nd = dofs.size
         self.n_slots = ns = nd + (1 if rigid else 0)
@@ -621,10 +620,6 @@ class ContactSet:
     def min_gap(self) -> float:
         """The smallest committed gap (m) after the last step."""
         return float(self.stats[2])
-
-    def max_penetration(self) -> float:
-        """Committed penetration max(0, -g) (m) of the last step."""
-        return max(0.0, -float(self.stats[2]))
 
 
 class _ContactWork:

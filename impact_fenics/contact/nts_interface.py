@@ -3,7 +3,7 @@
 It stands beside the node-to-node :class:`~impact_fenics.contact.ContactSet`
 with the same outward API the simulation uses (``step``, ``times``, ``force``,
 ``active``, ``committed_gap``, ``min_gap``, ``any_active``, ``contact_work``,
-``activation_loss``, ``max_penetration``, ``initialize``). Each step:
+``activation_loss``, ``initialize``). Each step:
 
 1. *detection*: one Allgatherv brings the predicted displacement and velocity
    of every contact dof (both components of slave and master nodes) to every
@@ -140,7 +140,6 @@ class NodeToSegmentSet:
         self.dt = integrator.dt
         self.n = n = constraints.n
         self.r = constraints.r
-        self.pair_index = np.arange(n)
         dofs = constraints.dofs.astype(np.int64)
         self.n_slots = ns = dofs.size
         n_slave = constraints.slave_xy.shape[0]
@@ -280,7 +279,3 @@ class NodeToSegmentSet:
     def committed_gap(self) -> np.ndarray:
         """Gap (m) of the committed state, in global constraint order."""
         return gap_of(self.g0, self.cs, self.cc, self.u_now, np.empty(self.n))
-
-    def max_penetration(self) -> float:
-        """Committed penetration max(0, -g) (m) of the last step."""
-        return max(0.0, -self.min_gap)

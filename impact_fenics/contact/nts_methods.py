@@ -75,7 +75,7 @@ class _Pivoting:
         """(kernel, arguments) of the position problem's solver, for loading at set-up."""
         ws = self.ws
         if self.solver == "dense":
-            return [(lcp_dense, (self.S, c.gap, ws.lam, self.max_iter))]
+            return []  # lcp_dense is numpy and LAPACK: nothing to compile
         return [(lcp_bpp, (c.band, c.bw, c.gap, ws.lam, ws.w, ws.free, ws.idx, ws.rhs, ws.sol,
                            ws.L, self.max_iter, ws.factored, ws.everywhere))]
 

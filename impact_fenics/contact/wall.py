@@ -119,7 +119,6 @@ class RigidWall:
         self.contact_loss_local = 0.0  # J, energy the wall took (cumulative, this rank)
         self.spring_energy_local = 0.0  # J, 1/2 p g~^2 of the active nodes (penalty)
         self.n_active_local = 0
-        self.gap_min_local = np.inf
         self.force_local = 0.0  # total reaction (N), this rank
 
     def beta_max_local(self, dt: float, dt_avg: float) -> float:
@@ -137,12 +136,11 @@ class RigidWall:
         step. Returns the correction of the internal work booked with the prediction (J)."""
         if self.method == "penalty" and isinstance(self.penalty, str):
             np.multiply(self.mass, self.beta_target / (dt * dt_avg), out=self.p)
-        taken, w_fix, n, g, spring = correct(self.nodes, self.Z, self.mass, self.z_wall, dt,
+        taken, w_fix, n, _, spring = correct(self.nodes, self.Z, self.mass, self.z_wall, dt,
                                              dt_avg, _CODE[self.method], self.p, f_int, u, v,
                                              self.impulse)
         self.contact_loss_local += taken
         self.spring_energy_local = spring
         self.n_active_local = n
-        self.gap_min_local = g
         self.force_local = float(self.impulse.sum())
         return w_fix

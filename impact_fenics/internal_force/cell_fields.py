@@ -15,8 +15,6 @@ from .. import compat
 from ..bodies import DeformableModel
 from .quadrature import N_COMP, QuadratureForce
 
-NAMES = ("eps_p_eq", "yielded")
-
 
 class PlasticCellFields:
     """DG0 Functions ``eps_p`` (4 components), ``eps_p_eq`` (-) and ``yielded`` (0/1)."""
@@ -36,8 +34,6 @@ class PlasticCellFields:
                          for f in forces]
         self._owned_dofs = dof[: self.n_cells].astype(np.intp)
 
-        self._probe: list[tuple[int, np.ndarray]] = []
-
     def refresh(self) -> None:
         """Copy the current cell means into the Functions (owned cells)."""
         eps_p = self.eps_p.x.array.reshape(-1, N_COMP)
@@ -46,27 +42,6 @@ class PlasticCellFields:
             eps_p[dofs_vec] = mean_eps_p
             self.eps_p_eq.x.array[dofs] = eps_bar
             self.yielded.x.array[dofs] = yielded
-
-    def watch(self, cell: int) -> None:
-        """Keep owned local ``cell`` current in :meth:`refresh_watched` (a probe's cell)."""
-        for k, force in enumerate(self.forces):
-            pos = np.flatnonzero(force.cells == cell)
-            if pos.size:
-                self._probe.append((k, pos.astype(np.intp)))
-
-    def refresh_watched(self) -> None:
-        """Bring the watched cells (probes) up to date: a few cells, every history row."""
-        eps_p = self.eps_p.x.array.reshape(-1, N_COMP)
-        for k, pos in self._probe:
-            force = self.forces[k]
-            mean_eps_p, eps_bar, yielded = force.cell_values(pos)
-            eps_p[self._dof_vec[k][pos]] = mean_eps_p[pos]
-            self.eps_p_eq.x.array[self._dofs[k][pos]] = eps_bar[pos]
-            self.yielded.x.array[self._dofs[k][pos]] = yielded[pos]
-
-    def expression(self, quantity: str):
-        """The DG0 Function of ``quantity`` ('eps_p_eq' or 'yielded')."""
-        return {"eps_p_eq": self.eps_p_eq, "yielded": self.yielded}[quantity]
 
     def arrays(self) -> dict[str, np.ndarray]:
         """{name: values over this rank's owned cells} of eps_p_eq and yielded, current."""

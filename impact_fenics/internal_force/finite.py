@@ -1,6 +1,6 @@
 """Finite-strain internal force: total Lagrangian, bilinear quadrilaterals with mean dilatation.
 
-Kinematics (DESIGN 10), in the reference coordinates (R, Z) (m):
+Kinematics, in the reference coordinates (R, Z) (m):
 
     F = [[1 + du_r/dR, du_r/dZ, 0], [du_z/dR, 1 + du_z/dZ, 0], [0, 0, 1 + u_r/R]],  J = det F > 0,
     f_int,a = int P : Grad N_a 2 pi R dX   (N),   P = tau F^-T the first Piola-Kirchhoff stress.
@@ -60,7 +60,6 @@ from .. import compat
 from ..errors import UnstableRunError
 
 N_POINTS = 4
-N_NODES = 4
 _G = 0.5 / math.sqrt(3.0)
 # 2x2 Gauss points on the reference square [0, 1]^2, and dolfinx's vertex order of a
 # quadrilateral: (0, 0), (1, 0), (0, 1), (1, 1)

@@ -29,7 +29,3 @@ class LinearForce:
         self.A.diagonalScale(L=scale)
         self.A.zeroRows(fixed_global.astype(PETSc.IntType), diag=0.0)
         scale.destroy()
-
-    def add_velocity_increment(self, u: PETSc.Vec, v: PETSc.Vec) -> None:
-        """v += -dt M^-1 K u (one MatMultAdd)."""
-        self.A.multAdd(u, v, v)

@@ -104,9 +104,6 @@ class QuadratureState:
         self.state = np.zeros((n_cells, N_POINTS, max(n_state, 1)))
         self.sigma = np.zeros((n_cells, N_POINTS, N_COMP))
 
-    def copy_from(self, other: "QuadratureState") -> None:
-        self.eps_p[:], self.state[:], self.sigma[:] = other.eps_p, other.state, other.sigma
-
 
 # ---------------------------------------------------------------- compiled kernels
 _KERNELS: dict = {}

@@ -35,26 +35,9 @@ SQRT_2_3 = math.sqrt(2.0 / 3.0)
 
 
 @njit(cache=True)
-def trace(a) -> float:
-    """tr a."""
-    return a[0] + a[1] + a[2]
-
-
-@njit(cache=True)
 def contract(a, b) -> float:
     """a : b (full double contraction of the 3x3 tensors)."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + 2.0 * a[3] * b[3]
-
-
-@njit(cache=True)
-def deviator(a, out) -> float:
-    """out = dev a = a - (tr a / 3) I; returns tr a / 3."""
-    m = (a[0] + a[1] + a[2]) / 3.0
-    out[0] = a[0] - m
-    out[1] = a[1] - m
-    out[2] = a[2] - m
-    out[3] = a[3]
-    return m
 
 
 @njit(cache=True)

@@ -2,7 +2,7 @@
 cut-off, non-associated flow, linear cohesion hardening or softening, optional
 Perzyna viscosity. Small strain, the point update of :mod:`.axisym`.
 
-Signs (DESIGN section 9): tension positive; the pressure p = -tr(sigma)/3 is
+Signs (those of every material here): tension positive; the pressure p = -tr(sigma)/3 is
 positive in compression; q = sqrt(3/2 s : s) with s = dev sigma (Pa).
 
 Yield surfaces (Pa) and plastic potential, de Souza Neto, Peric & Owen (2008),
@@ -83,7 +83,7 @@ with k = k_res and h = 0, which is the solution on that branch.
 
 Point update (the seam of :mod:`.axisym`): ``update(eps, eps_p, state, params,
 dt, sigma)``; state[0] the equivalent plastic strain int sqrt(2/3 deps_p :
-deps_p) (DESIGN section 9, volumetric flow included), state[1] kappa.
+deps_p) (the volumetric flow included, as in J2's definition of eps_bar_p), state[1] kappa.
 """
 from __future__ import annotations
 
@@ -172,7 +172,7 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
     eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
     equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
     """
-    lmbda, mu, K = params[LMBDA], params[MU], params[BULK]
+    lmbda, mu = params[LMBDA], params[MU]
     af, p_t = params[ALPHA_F], params[P_T]
     elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
     s0 = sigma[0]

@@ -1,4 +1,4 @@
-"""The paper's studies (issue 4): one module per part, sequenced by demos/paper_study.py.
+"""The paper's studies (docs/results.md): one module per part, sequenced by demos/paper_study.py.
 
 punch       parts 1-2: Sim1/2/3 with every method; the penalty against the coupled bound
 bars        part 3: per-pair gaps and forces; sigma_zz against a mesh-converged reference

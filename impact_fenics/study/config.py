@@ -9,7 +9,7 @@ import copy
 
 import numpy as np
 
-# the paper's punch scene (our reading: DESIGN 5); the block of scenes.punch_indentation
+# the paper's punch scene (our reading of its section 3.1: docs/results.md); the block of scenes.punch_indentation
 PUNCH_BLOCK = dict(width=6.9, depth=0.45, h_surface=0.01, grading=0.055, h_max=0.25,
                    breaks=((1.0, 106), (3.0, 201), (6.0, 302)))
 

@@ -83,7 +83,7 @@ def write(folder: str, path: str) -> None:
           "are taken inside an MPI run that also writes histories: read them as ratios and orders of "
           "magnitude; `python -m impact_fenics.bench` measures the step itself. Contact CPU times are "
           "per step, the minimum over repeated runs where stated, and the largest over the ranks.\n")
-    w("Conventions (DESIGN.md): axisymmetric CST (P1) elements with the full ring measure 2πr, so "
+    w("Conventions: axisymmetric CST (P1) elements with the full ring measure 2πr, so "
       "lumped masses are in kg and penalties in N/m; gaps g ≥ 0 open, g < 0 penetration; "
       "E = 200 GPa, ν = 0.3, ρ = 7850 kg/m³; c1 = √((λ+2μ)/ρ) = "
       f"{_g((d['bars_reference'] or {}).get('c1', 5875.0), 4)} m/s. A penalty's stability number is "
@@ -581,7 +581,7 @@ def _claims(w, d, sims):
                      "penalty/DME contact time: " + ", ".join(_g(d[k]['dme_vs_penalty']) for k in sims),
                      "differ", "our penalty step has no sort and no cluster search; both are dominated by gather/scatter of the contact dofs"))
         rows.append(("f_int = Ku takes 1–2 ms per step at 23k dofs, comparable to DME's contact time",
-                     "not a study output here: see the benchmark (DESIGN 7); DME's contact step is " + _g(f['dme']['contact_cpu_median'] * 1e6) + " µs at 610 constraints",
+                     "not a study output here: see the benchmark (docs/performance.md); DME's contact step is " + _g(f['dme']['contact_cpu_median'] * 1e6) + " µs at 610 constraints",
                      "–", "PETSc's MatMult at 23k dofs is far below Matlab's 2009 figure"))
     bars = d["bars_contact"]
     ref = d["bars_reference"]

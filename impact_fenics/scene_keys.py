@@ -1,0 +1,313 @@
+"""The keys of a scene file, in one table: name, kind, unit, default and a one-line meaning.
+
+The scene reader (:mod:`impact_fenics.scene_file`) takes from here the keys a
+table may hold, how each value is checked and its default; the documentation
+generator (:mod:`impact_fenics.docs_pages`) writes ``docs/scenes.md`` from the
+same table. A key added here is both accepted and documented; a key missing
+here is refused. Pure data: no dolfinx, no mesh.
+
+Kinds of value (how the reader checks them):
+
+    number    a finite int or float            positive  a number > 0
+    count     an integer >= 1                  flag      true or false
+    text      a non-empty string (``choices``: one of them)
+    pair      two finite numbers [a, b]        breaks    [[r (m), intervals], ...]
+    list      a list of ``choices``            stiffness a number > 0 or one of ``choices``
+    table / tables / array   a sub-table [name], named tables [name.NAME], [[name]]
+
+Units are SI; ``-`` marks a dimensionless number.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+REQUIRED = "required"  # a Key's default when the key must be given
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a scene table. ``groups``: the variants of the table that accept it
+    (empty: every variant), e.g. the mesh generators that take a parameter."""
+
+    name: str
+    kind: str
+    unit: str
+    default: Any
+    what: str
+    choices: tuple[str, ...] = ()
+    groups: tuple[str, ...] = ()
+    default_text: str = ""  # the default in words, when the reader computes it
+    note: str = ""  # more for the reference (not quoted in error messages)
+
+    @property
+    def described(self) -> str:
+        """The meaning with its unit, as error messages quote it."""
+        return self.what if self.unit in ("", "-") else f"{self.what} ({self.unit})"
+
+
+@dataclass(frozen=True)
+class Section:
+    """A table of the scene file: its TOML form, what it is, its keys and its variants."""
+
+    name: str        # the key of the top level ("top" for the top level itself)
+    toml: str        # how it is written: [mesh], [materials.NAME], [[contact]]
+    what: str        # one paragraph for the reference
+    keys: tuple[Key, ...]
+    variants: str = ""  # how the variant (the groups) of an entry is chosen, for the reference
+
+    def key(self, name: str) -> Key:
+        for k in self.keys:
+            if k.name == name:
+                return k
+        raise KeyError(f"{self.toml} has no key '{name}'")
+
+    def allowed(self, groups: tuple[str, ...] = ()) -> tuple[str, ...]:
+        """The keys an entry of the variant ``groups`` may hold, in table order."""
+        return tuple(k.name for k in self.keys if not k.groups or set(k.groups) & set(groups))
+
+
+METHODS = ("penalty", "film", "dme")
+QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
+              "eps_p_eq", "yielded")
+MODELS = ("elastic", "j2", "neo_hookean")
+PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
+WALL_METHODS = ("film", "dme", "penalty")
+WALL_FACES = ("contact", "held")
+DT_INTERVAL = 10  # finite strain: steps between re-estimates of the stable step (default)
+
+# the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
+# (impact_fenics.finite_run) for a finite-strain body
+GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
+              "nosed_striker_on_block")
+# parameters a generator has no default for (quad_bar: impact_fenics.finite_run.quad_bar)
+REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
+_BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
+_TWO_BARS = ("coaxial_bars", "coaxial_bars_sized")
+_GEN = "the generator's"
+
+_MESH = Section("mesh", "[mesh]", (
+    "The mesh: a generator of the package with its parameters, or a `.msh` file of "
+    "your own. Every cell group of the mesh is a body ([bodies.NAME]); contact, loads "
+    "and fixed faces name its facet groups. The generators, their groups and their "
+    "defaults are listed below the table."), (
+    Key("generator", "text", "", REQUIRED, "a mesh generator (or give `file`)",
+        choices=GENERATORS, default_text="required, or `file`"),
+    Key("file", "text", "", None, "instead of `generator`: a 2D `.msh` file (r = x, z = y) "
+        "with named physical groups, relative to the scene file", default_text="none"),
+    Key("radius", "positive", "m", _GEN, "radius of the bar (both bars)", groups=_BARS),
+    Key("length", "positive", "m", _GEN, "length of the bar", groups=("bar", "quad_bar")),
+    Key("striker_length", "positive", "m", _GEN, "striker length (z in [-striker_length, 0])",
+        groups=_TWO_BARS),
+    Key("target_length", "positive", "m", _GEN, "target length (z in [0, target_length])",
+        groups=_TWO_BARS),
+    Key("h", "positive", "m", _GEN, "element size", groups=("bar", "coaxial_bars")),
+    Key("h_striker", "positive", "m", _GEN, "element size of the striker",
+        groups=("coaxial_bars_sized", "nosed_striker_on_block")),
+    Key("h_target", "positive", "m", _GEN, "element size of the target",
+        groups=("coaxial_bars_sized",)),
+    Key("structured", "flag", "", _GEN, "a structured grid of alternating diagonals",
+        groups=("bar", "coaxial_bars", "coaxial_bars_sized")),
+    Key("width", "positive", "m", _GEN, "block radius", groups=("punch_block",)),
+    Key("depth", "positive", "m", _GEN, "block depth (z in [-depth, 0])", groups=("punch_block",)),
+    Key("h_surface", "positive", "m", _GEN, "element size at the surface", groups=("punch_block",)),
+    Key("grading", "positive", "m/m", _GEN, "growth of the element size with the distance "
+        "from the surface", groups=("punch_block",)),
+    Key("h_max", "positive", "m", _GEN, "largest element size", groups=("punch_block",)),
+    Key("breaks", "breaks", "m, -", _GEN, "surface breaks [[r, intervals], ...]: equal "
+        "intervals up to each radius r", groups=("punch_block",)),
+    Key("n_r", "count", "-", _GEN, "quadrilaterals across the radius (square cells, "
+        "round(n_r length / radius) along)", groups=("quad_bar",)),
+    Key("nose_radius", "positive", "m", _GEN, "striker and nose radius",
+        groups=("nosed_striker_on_block",)),
+    Key("shank_length", "positive", "m", _GEN, "striker length above the nose",
+        groups=("nosed_striker_on_block",)),
+    Key("block_width", "positive", "m", _GEN, "block radius", groups=("nosed_striker_on_block",)),
+    Key("block_depth", "positive", "m", _GEN, "block depth", groups=("nosed_striker_on_block",)),
+    Key("h_block", "positive", "m", _GEN, "element size of the block",
+        groups=("nosed_striker_on_block",)),
+), variants="`generator` chooses the parameters the table may hold; `file` takes none.")
+
+_MATERIALS = Section("materials", "[materials.NAME]", (
+    "A material, named for the bodies that use it. From Python any object with the "
+    "material interface can be used ([materials.md](materials.md)); a scene file builds "
+    "these."), (
+    Key("model", "text", "", "elastic", "the constitutive model", choices=MODELS,
+        note="Linear elastic; J2 (von Mises, linear isotropic hardening, radial return; at "
+        "finite strain the multiplicative Hencky J2, rate-independent); neo-Hookean (finite "
+        "strain only)."),
+    Key("E", "positive", "Pa", REQUIRED, "Young's modulus"),
+    Key("nu", "number", "-", REQUIRED, "Poisson's ratio, in (-1, 0.5)"),
+    Key("density", "positive", "kg/m^3", REQUIRED, "mass density"),
+    Key("yield_stress", "positive", "Pa", REQUIRED, "initial yield stress sigma_y",
+        groups=("j2",), default_text="required (j2)"),
+    Key("hardening", "number", "Pa", 0.0, "hardening modulus H = d sigma_y / d eps_bar_p, >= 0",
+        groups=("j2",)),
+    Key("viscosity", "number", "Pa s", 0.0, "overstress viscosity eta >= 0", groups=("j2",),
+        note="The rate of eps_bar_p is <sigma_eq - sigma_y> / eta; 0: rate-independent. Small "
+        "strain only."),
+), variants='`yield_stress`, `hardening` and `viscosity` only with `model = "j2"`.')
+
+_BODIES = Section("bodies", "[bodies.NAME]", (
+    "A deformable body: one per cell group NAME of the mesh, and every cell group "
+    "must be one."), (
+    Key("material", "text", "", REQUIRED, "the name of a [materials.NAME] table"),
+    Key("velocity", "pair", "m/s", [0.0, 0.0], "initial velocity [v_r, v_z]"),
+    Key("strain", "text", "", "small", "the kinematics", choices=("small", "finite"),
+        note="Small strain: the linear and small-strain plastic paths on triangles. Finite "
+        "strain: total Lagrangian, Q1 quadrilaterals with mean dilatation, a variable step "
+        "(below)."),
+))
+
+_RIGID = Section("rigid", "[rigid.NAME]", (
+    "A rigid body with one z degree of freedom (a punch, a drill bit), in exactly one "
+    "[[contact]]."), (
+    Key("mass", "positive", "kg", REQUIRED, "mass"),
+    Key("velocity", "number", "m/s", 0.0, "initial z velocity"),
+    Key("impedance", "positive", "kg/s", None, "impedance Z = rho c A of a rod driving the body "
+        "from above", default_text="none", note="The rod pushes with 2 F_i - Z w (w the "
+        "downward velocity, F_i its incident wave: [[loads]] incident)."),
+))
+
+_CONTACT = Section("contact", "[[contact]]", (
+    "A contact between two facet groups, or between a facet group and a rigid body, "
+    "enforced by one method ([contact.md](contact.md)). A facet group may be in one "
+    "[[contact]] only."), (
+    Key("lower", "text", "", REQUIRED, "node pairs: the facet group of the body below",
+        groups=("pairs",)),
+    Key("upper", "text", "", REQUIRED, "node pairs: the facet group of the body above (its "
+        "nodes pair with the lower ones by radius)", groups=("pairs",)),
+    Key("surface", "text", "", REQUIRED, "rigid face: the facet group under the rigid body",
+        groups=("rigid",)),
+    Key("rigid", "text", "", REQUIRED, "rigid face: the name of a [rigid.NAME] body",
+        groups=("rigid",)),
+    Key("radius", "positive", "m", REQUIRED, "rigid face: the radius of its flat face",
+        groups=("rigid",)),
+    Key("button", "positive", "m", None, "rigid face: a spherical button of this radius "
+        "R_s >= radius instead of the flat face (initial gaps R_s - sqrt(R_s^2 - r^2))",
+        groups=("rigid",), default_text="flat face"),
+    Key("slave", "text", "", REQUIRED, "node to segment: the facet group of the slave nodes "
+        "(the finer face)", groups=("segment",)),
+    Key("master", "text", "", REQUIRED, "node to segment: the facet group of the master "
+        "segments", groups=("segment",)),
+    Key("reach", "positive", "m", None, "node to segment: the farthest master segment a slave "
+        "may use", groups=("segment",), default_text="the longest master segment"),
+    Key("method", "text", "", REQUIRED, "the contact method", choices=METHODS),
+    Key("penalty", "stiffness", "N/m", "scaled", "penalty: a stiffness p", choices=("auto", "scaled"),
+        note="\"auto\": the paper's rule (both readings reported); \"scaled\": from the "
+        "coupled operator, beta_max = 1. A stiffness whose beta_max exceeds 4/3 is refused "
+        "unless forced."),
+    Key("restitution", "number", "-", 0.0, "dme: restitution e in [0, 1], per node pair at each "
+        "activation", note="It is not the bodies' coefficient of restitution: on elastic bodies "
+        "the waves bring nodes back into contact and each re-activation bounces again, so a "
+        "Hertz impact with e > 0 shows 2 to 4 separations ([contact.md](contact.md#the-"
+        "parameters))."),
+    Key("positions", "text", "", "mass_weighted", "dme: the positions of a merged pair: "
+        "mass-weighted, or the paper's equal weights (its eq. 9)",
+        choices=("mass_weighted", "paper")),
+    Key("film_solver", "text", "", "fast", "film: the exact O(n log n) solver, or the dense "
+        "factorisation the paper timed", choices=("fast", "dense")),
+), variants="`rigid` makes a rigid face, `slave`/`master` node to segment, else `lower`/"
+            "`upper` node pairs. `penalty`, `restitution`, `positions` and `film_solver` are "
+            "read by their method only (a warning names a key the method ignores).")
+
+_LOADS = Section("loads", "[[loads]]", (
+    "A time-dependent load: a pressure or traction on a facet group, or a z force on "
+    "a rigid body. The pulse (its time function) multiplies it."), (
+    Key("facet", "text", "", REQUIRED, "a facet group under a pressure (Pa, pushing into the "
+        "body)", groups=("facet",)),
+    Key("traction", "pair", "Pa", None, "instead of a pressure: the traction [t_r, t_z] per unit "
+        "of the pulse", groups=("facet",), default_text="a pressure"),
+    Key("rigid", "text", "", REQUIRED, "a [rigid.NAME] body pushed by a z force (N)",
+        groups=("rigid",)),
+    Key("area", "positive", "m^2", None, "the pulse is a pressure (Pa) on this area pushing the "
+        "rigid body down: force = -area x pulse", groups=("rigid",), default_text="a force"),
+    Key("incident", "flag", "", False, "the pulse is the incident compressive force wave F_i "
+        "(N) in the rod of a rigid body with `impedance`; the summary gets the incident, "
+        "reflected and delivered wave energies", groups=("rigid",)),
+    Key("pulse", "text", "", "trapezoid", "the time function", choices=tuple(PULSES)),
+    Key("peak", "number", "Pa or N", REQUIRED, "trapezoid: the plateau value",
+        groups=("trapezoid",)),
+    Key("t_rise", "number", "s", REQUIRED, "trapezoid: end of the linear rise from 0, >= 0",
+        groups=("trapezoid",)),
+    Key("t_fall", "number", "s", REQUIRED, "trapezoid: start of the linear fall, >= t_rise",
+        groups=("trapezoid",)),
+    Key("t_end", "number", "s", REQUIRED, "trapezoid: end of the pulse (0 after), >= t_fall",
+        groups=("trapezoid",)),
+    Key("value", "number", "Pa or N", REQUIRED, "constant: the load", groups=("constant",)),
+), variants="`rigid` makes a load on a rigid body, else on `facet`; `pulse` chooses the "
+            "pulse's keys.")
+
+_FIXED = Section("fixed", "[[fixed]]", (
+    "Displacement components held at zero on a facet group (u_r = 0 on the axis is "
+    "automatic)."), (
+    Key("facet", "text", "", REQUIRED, "the facet group held"),
+    Key("components", "list", "", REQUIRED, "the components held: [\"r\"], [\"z\"] or "
+        "[\"r\", \"z\"]", choices=("r", "z")),
+))
+
+_TIME = Section("time", "[time]", (
+    "The step and the duration: exactly one of `dt` and `cfl`, and one of `t_end` and "
+    "`n_steps`."), (
+    Key("dt", "positive", "s", None, "the time step", default_text="one of dt, cfl"),
+    Key("cfl", "positive", "-", None, "the step as a fraction of the stable limit (element "
+        "bound; finite strain: <= 1 of the current cells' limit, re-estimated)",
+        default_text="one of dt, cfl"),
+    Key("t_end", "positive", "s", None, "the end time", default_text="one of t_end, n_steps"),
+    Key("n_steps", "count", "-", None, "the number of steps (small strain)",
+        default_text="one of t_end, n_steps"),
+    Key("force_dt", "flag", "", False, "run although dt is above the stable limit (small strain)"),
+    Key("converged_dt", "flag", "", False, "also compute the converged stable dt 2 / omega_max "
+        "(SLEPc) into the summary (small strain)"),
+    Key("dt_interval", "count", "-", None, "finite strain: steps between re-estimates of the "
+        "stable step", default_text=str(DT_INTERVAL)),
+))
+
+_OUTPUT = Section("output", "[output]", (
+    "What a run writes and where ([outputs.md](outputs.md))."), (
+    Key("dir", "text", "", None, "the output directory, relative to the working directory "
+        "(`--out` replaces it)", default_text="results/<scene file name>"),
+    Key("output_every", "count", "-", 50, "steps between field (fields.xdmf) and energy outputs"),
+    Key("history_every", "count", "-", 1, "steps between history.csv rows"),
+    Key("pairs_every", "count", "-", 10, "steps between the per-pair rows of contact_pairs.h5 "
+        "(24 B a pair each)"),
+    Key("fields", "flag", "", True, "write fields.xdmf"),
+    Key("plots", "flag", "", True, "write history.png and energy.png"),
+))
+
+_PROBES = Section("probes", "[[probes]]", (
+    "A history column: a quantity in the cell that holds a point (not on the interface "
+    "of two bodies)."), (
+    Key("name", "text", "", None, "the column's name (unique; not step or time)",
+        default_text="<quantity>_<k>"),
+    Key("point", "pair", "m", REQUIRED, "the point [r, z], r >= 0"),
+    Key("quantity", "text", "", REQUIRED, "stresses in Pa, displacements in m; eps_p_eq and "
+        "yielded with a j2 body", choices=QUANTITIES),
+))
+
+_WALL = Section("wall", "[wall]", (
+    "Finite strain only: a fixed rigid frictionless plane z = const (normal +z) at or "
+    "below the body."), (
+    Key("z", "number", "m", 0.0, "height of the plane"),
+    Key("method", "text", "", REQUIRED, "the wall's contact method", choices=WALL_METHODS),
+    Key("penalty", "stiffness", "N/m", "scaled", "penalty: a stiffness p", choices=("scaled",),
+        note="beta = p dt^2 / m <= 4/3 at the lightest node, else refused unless forced; "
+        "\"scaled\": beta = 1 at every step (FILM's correction as a spring)."),
+    Key("face", "text", "", "contact", "the impact face", choices=WALL_FACES,
+        note="contact: unilateral (its rim may lift off); held: u_z = 0 on Z = 0 from t = 0, "
+        "sliding radially (the Taylor references' condition; needs z = 0)."),
+))
+
+_TABLES = (_MESH, _MATERIALS, _BODIES, _RIGID, _CONTACT, _LOADS, _FIXED, _TIME, _OUTPUT, _PROBES,
+           _WALL)
+
+TOP = Section("top", "top level", "Keys outside every table.", (
+    Key("title", "text", "", None, "a name for the run's report", default_text="the file name"),
+    Key("force", "flag", "", False, "run what the checks refuse: dt above the stable limit, a "
+        "penalty above its stable bound, a run estimated beyond the memory"),
+) + tuple(Key(s.name, "array" if s.toml.startswith("[[") else
+              "tables" if ".NAME" in s.toml else "table", "",
+              REQUIRED if s.name in ("mesh", "time") else None, s.toml)
+          for s in _TABLES))
+
+SECTIONS: dict[str, Section] = {"top": TOP, **{s.name: s for s in _TABLES}}

@@ -16,6 +16,18 @@ evaluated with a compiled UFL Expression per body instead (slower, the same valu
 Output components (Pa): sigma_rr, sigma_zz, sigma_tt, sigma_rz and von Mises,
 sqrt(3/2 dev(sigma) : dev(sigma)).
 
+**What a cell's stress is.** For every body it is the mean of the stresses at the
+points of the stiffness rule, weighted as the rule weights them (w_q |J| 2 pi r_q):
+sum_q w_q sigma_q / sum_q w_q. A path-dependent body outputs exactly that, from the
+stresses its material's point update computes at the displacement written
+(:meth:`~.internal_force.quadrature.QuadratureForce.point_stresses`,
+:func:`point_mean_stress`); each point stress satisfies the yield condition, and so
+does their mean (the yield surfaces here are convex). A linear body outputs D eps at
+the centroid, which is that mean in exact arithmetic: eps_rr, eps_zz and eps_rz are
+constant on a P1 triangle, and with the three equal rule weights times r_q the mean
+hoop strain is sum_q u_r(x_q) / sum_q r_q = u_r / r at the centroid (the points'
+mean is the centroid); D is linear.
+
 Per output (:class:`CellStress`), with each cell's inverse Jacobian computed once at
 set-up: one pass gathers the nodal displacements and writes the four components
 (straight into a field writer's frame, when given its rows), a second computes von
@@ -145,7 +157,7 @@ def cell_stress(dofs, g, u, D, eps_p, cells, out) -> None:
     ``dofs`` (n, 3) the u_r dofs of the cells' nodes (2 x the node's block index; an
     unsigned type spares each read of u a check for a negative index), ``g`` (n, 5)
     their :func:`gradient_factors`, ``u`` the unrolled displacement (m); ``eps_p`` (n, 4) a
-    strain (rr, tt, zz, rz) to subtract per cell (the mean plastic strain), or an empty
+    strain (rr, tt, zz, rz) to subtract per cell, or an empty
     (0, 4) array. The strain is :func:`triangle_strain`'s, with the inverse Jacobian
     computed once."""
     plastic = eps_p.shape[0] > 0
@@ -230,6 +242,28 @@ def isotropic_stress_range(dofs, g, u, lmbda, two_mu, eps_p, first, out, peaks) 
 
 
 @njit(cache=True)
+def point_mean_stress(sigma, w, cells, out) -> None:
+    """out[0:4, cells[k]] = (sigma_rr, sigma_zz, sigma_tt, sigma_rz) (Pa) of the k-th cell:
+    the mean of its point stresses sigma[k, q] ((rr, tt, zz, rz), Pa) weighted by the
+    points' w[k, q] (m^3: rule weight x |J| x 2 pi r_q), sum_q w_q sigma_q / sum_q w_q.
+    (Von Mises follows in a pass of its own.)"""
+    for k in range(cells.size):
+        total = s_rr = s_tt = s_zz = s_rz = 0.0
+        for q in range(sigma.shape[1]):
+            wq = w[k, q]
+            total += wq
+            s_rr += wq * sigma[k, q, 0]
+            s_tt += wq * sigma[k, q, 1]
+            s_zz += wq * sigma[k, q, 2]
+            s_rz += wq * sigma[k, q, 3]
+        c = cells[k]
+        out[0, c] = s_rr / total
+        out[1, c] = s_zz / total
+        out[2, c] = s_tt / total
+        out[3, c] = s_rz / total
+
+
+@njit(cache=True)
 def stress_peaks(vm, zz, peaks) -> None:
     """peaks = (max von Mises, max sigma_zz, -min sigma_zz) (Pa) of the rows ``vm`` and
     ``zz``, in one pass (contiguous rows: 12 us on 21,792 cells, numpy's three 14 us)."""
@@ -299,8 +333,12 @@ class CellStress:
     array to fill instead of its own); :attr:`peaks` then holds (max von Mises, max
     sigma_zz, -min sigma_zz) (Pa) over this rank's owned cells.
 
-    The common mesh (bodies of one isotropic D over a range of cells, no plastic
-    strain, no UFL Expression) is one compiled call, :func:`isotropic_stress_range`;
+    A path-dependent body's cells get the weighted mean of the stresses of its points
+    at ``u`` (:func:`point_mean_stress`; its force's :attr:`frame` then holds that
+    state, for the frame's other cell fields).
+
+    The common mesh (bodies of one isotropic D over a range of cells, no path-dependent
+    body, no UFL Expression) is one compiled call, :func:`isotropic_stress_range`;
     called again with the very arrays ``u`` and ``out`` of the first call (an output
     loop's), it goes through the kernel's compiled entry, without numba's search by
     argument types."""
@@ -314,19 +352,16 @@ class CellStress:
         self.xy = np.ascontiguousarray(model.node_xy)
         self.values = np.zeros((len(STRESS_NAMES), self.n_cells))
         self.peaks = np.full(3, -np.inf)
-        self._no_plastic = np.empty((0, 4))  # eps_p of a body that has none
+        self._no_plastic = np.empty((0, 4))  # the kernels' eps_p to subtract: none
         self._no_peaks = np.empty(0)  # a range kernel that leaves the peaks to the end
-        # per body of a constant D: (owned cells, their u_r dofs, gradient factors, D, its
-        # (lambda, 2 mu) if isotropic, plastic force or None, (first, end) when the cells
-        # are the range first..end-1)
+        # per group of bodies of a constant D: (owned cells, their u_r dofs, gradient
+        # factors, D, its (lambda, 2 mu) if isotropic, (first, end) when the cells are the
+        # range first..end-1)
         self._kernel = []
         self._ufl = []  # (owned cells, [compiled Expression per output])
-        # path-dependent bodies: C : (eps - mean eps_p of the cell's points)
-        for f in plastic_forces:
-            cells = f.cells.astype(np.int64)
-            D = isotropic_stiffness(f.material.lmbda, f.material.mu)
-            self._kernel.append((cells, *self._geometry(dofs[cells]), D, isotropic_lame(D), f,
-                                 _range(cells)))
+        # path-dependent bodies: the mean of their point stresses (owned cells, the force,
+        # (first, end) or None as above)
+        self._points = [(f.cells.astype(np.int64), f, _range(f.cells)) for f in plastic_forces]
         plastic = {f.body for f in plastic_forces}
         by_d = []  # (D, [cells of the bodies of that D])
         for body in model.bodies.values():
@@ -348,13 +383,13 @@ class CellStress:
         # the per-call cost (a few us a call) is most of a small mesh's frame
         for D, parts in by_d:
             cells = np.sort(np.concatenate(parts))
-            self._kernel.append((cells, *self._geometry(dofs[cells]), D, isotropic_lame(D), None,
+            self._kernel.append((cells, *self._geometry(dofs[cells]), D, isotropic_lame(D),
                                  _range(cells)))
         self._u_fn = None
         # the whole evaluation in one call of isotropic_stress_range (peaks included)?
-        one = self._kernel[0] if len(self._kernel) == 1 and not self._ufl else None
-        self._single = (one is not None and one[4] is not None and one[5] is None
-                        and one[6] is not None)
+        one = (self._kernel[0] if len(self._kernel) == 1 and not self._ufl and not self._points
+               else None)
+        self._single = one is not None and one[4] is not None and one[5] is not None
         self._bound = None  # (u, out, compiled entry, its arguments) once bound
 
     def _geometry(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -385,7 +420,7 @@ class CellStress:
             bound[2](*bound[3])
             return values
         if self._single:
-            _, dofs, g, _, lame, _, (first, _) = self._kernel[0]
+            _, dofs, g, _, lame, (first, _) = self._kernel[0]
             args = (dofs, g, u, lame[0], lame[1], self._no_plastic, first, values, self.peaks)
             if bound is None and contiguous_float64(u, 1) and contiguous_float64(values, 2):
                 # the first call binds the compiled entry to these arrays (an output
@@ -394,8 +429,8 @@ class CellStress:
                 self._bound = (u, values, direct(isotropic_stress_range, *args), args)
             isotropic_stress_range(*args)
             return values
-        for cells, dofs, g, D, lame, force, run in self._kernel:
-            eps_p = self._no_plastic if force is None else force.cell_values()[0]
+        eps_p = self._no_plastic
+        for cells, dofs, g, D, lame, run in self._kernel:
             if lame is not None and run is not None:
                 isotropic_stress_range(dofs, g, u, lame[0], lame[1], eps_p, run[0], values,
                                        self._no_peaks)
@@ -404,12 +439,10 @@ class CellStress:
                 cell_stress(dofs, g, u, D, eps_p, cells, values)
             else:
                 isotropic_cell_stress(dofs, g, u, lame[0], lame[1], eps_p, cells, values)
-            if run is None:
-                von_mises_cells(values, cells)
-            else:
-                a, b = run
-                von_mises_rows(values[0, a:b], values[1, a:b], values[2, a:b], values[3, a:b],
-                               values[4, a:b])
+            _von_mises(values, cells, run)
+        for cells, force, run in self._points:
+            point_mean_stress(force.point_stresses(u).sigma, force.geometry.w, cells, values)
+            _von_mises(values, cells, run)
         if self._ufl:
             self._u_fn.x.array[:] = u
             for cells, exprs in self._ufl:
@@ -417,6 +450,16 @@ class CellStress:
                     values[k, cells] = eval_expression(expr, self.model.mesh, cells)[:, 0]
         stress_peaks(values[_VM], values[_ZZ], self.peaks)
         return values
+
+
+def _von_mises(values: np.ndarray, cells: np.ndarray, run: tuple[int, int] | None) -> None:
+    """values[4] = von Mises of values[0:4] (Pa) on ``cells`` (the range ``run`` if given)."""
+    if run is None:
+        von_mises_cells(values, cells)
+    else:
+        a, b = run
+        von_mises_rows(values[0, a:b], values[1, a:b], values[2, a:b], values[3, a:b],
+                       values[4, a:b])
 
 
 def _range(cells: np.ndarray) -> tuple[int, int] | None:

@@ -54,11 +54,13 @@ def _parser() -> argparse.ArgumentParser:
                       help="sigma_rr, sigma_zz, sigma_tt, sigma_rz, von_mises, displacement "
                            "or velocity (default sigma_zz)")
     plot.add_argument("--scale", type=float,
-                      help="displacement magnification (default: the largest displacement "
-                           "shows as 5 %% of the model size)")
+                      help="displacement magnification (default: 1 for a finite-strain "
+                           "run, its true shape; else the largest displacement shows as 5 %% "
+                           "of the model size)")
     plot.add_argument("--region", nargs=4, type=float, metavar=("R0", "R1", "Z0", "Z1"),
-                      help="show only r in [R0, R1], z in [Z0, Z1] (m); default: zoom to "
-                           "where the field is; --whole shows the whole model")
+                      help="frame the cells of r in [R0, R1], z in [Z0, Z1] (m, undeformed); "
+                           "default: frame where the field is; --whole shows the whole model "
+                           "(r to the right, z up in every picture)")
     plot.add_argument("--whole", action="store_true", help="show the whole model")
     return parser
 
@@ -151,8 +153,9 @@ def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
               f"identity {s['kinetic_identity_error']:.1e} (relative)")
         for line in console_lines(s):
             print(line)
-        print(f"results in {_shown(run, out_dir)}/ (open fields.xdmf in ParaView; Warp By Vector "
-              "at scale 1 shows the deformed body)")
+        shown = _shown(run, out_dir)
+        print(_results_line(shown, "Warp By Vector at scale 1 shows the deformed body; "
+                                   f"impact-fenics plot {shown} renders it"))
     return _exit_code(run, f"t = {s['t_end']:.6g} s (step {s['n_steps']})", out_dir, comm)
 
 
@@ -191,10 +194,10 @@ def _report(title: str, s: dict, out_dir: str) -> None:
     print(f"{title}: {s['status']}, {s['stopped_at_step']} of {s['n_steps']} steps of "
           f"{s['dt']:.4g} s (stable limit {s['dt_critical']:.4g} s), {s['n_dofs']} dofs on "
           f"{s['n_ranks']} rank(s), {s['wall_time']:.1f} s")
+    from .report import console_lines, energy_line
+
     if "energy" in s:
-        e = s["energy"]
-        print(f"energy: kinetic {e['kinetic']:.6g} J, strain {e['strain']:.6g} J, balance "
-              f"error {s['energy_balance_error_rel']:.1e} (relative)")
+        print(energy_line(s))
     if "contact" in s:
         c = s["contact"]
         first, last = c["first_contact_step"], c["last_contact_step"]
@@ -202,12 +205,24 @@ def _report(title: str, s: dict, out_dir: str) -> None:
                 if first is not None else "never active")
         print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
               f"max penetration {c['max_penetration']:.3g} m")
-    from .report import console_lines
-
     for line in console_lines(s):
         print(line)
-    print(f"results in {out_dir}/ (open fields.xdmf in ParaView; "
-          f"impact-fenics plot {out_dir} renders it)")
+    print(_results_line(out_dir, f"impact-fenics plot {out_dir} renders it"))
+
+
+def _results_line(out_dir: str, hint: str) -> str:
+    """Where the results are (``out_dir`` as the user gave it): with fields.xdmf written,
+    open it in ParaView (and ``hint``); without (``[output] fields = false``), the files
+    the run wrote instead."""
+    try:
+        names = sorted(n for n in os.listdir(os.path.expanduser(out_dir))
+                       if not n.startswith("."))
+    except OSError:
+        names = []
+    if "fields.xdmf" in names:
+        return f"results in {out_dir}/ (open fields.xdmf in ParaView; {hint})"
+    return (f"results in {out_dir}/: {', '.join(names)} (no fields.xdmf: [output] fields = "
+            "false)")
 
 
 def plot_run(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,

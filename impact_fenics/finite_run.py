@@ -244,11 +244,11 @@ class FiniteRun:
         self.name = name
         self.status = "set up"
         self.signal = 0
-        # tracked nodes: the top of the axis (0, Z_max) and the lower corner (R, Z_min); the
-        # length is measured from the wall (from Z_min without one)
+        # tracked nodes: the ends of the axis (0, Z_max) and (0, Z_min), whose distance is
+        # the bar's length, and the lower corner (R, Z_min), whose r is the face's radius
         self._top = self._owned_node(0.0, float(hi[1]))
+        self._bottom = self._owned_node(0.0, float(lo[1]))
         self._corner = self._owned_node(r_max, float(lo[1]))
-        self._z_base = z_wall if wall is not None else float(lo[1])
         self._f_prev = np.zeros(self.n_owned)
         self._u_prev = np.zeros(self.n_owned)
 
@@ -267,15 +267,18 @@ class FiniteRun:
         return self.comm.allreduce(self.force.length_min_local(), op=MPI.MIN) / self.wave_speed
 
     def tracked(self) -> tuple[float, float]:
-        """(current length = z of the top axis node above the wall (m), current r of the node
-        that started at (R, Z_min) (m))."""
-        vals = np.array([-np.inf, -np.inf])
+        """(current length (m): the axis length, z of the node that started at (0, Z_max)
+        minus z of the one that started at (0, Z_min), on the wall or off it after a
+        rebound; current r (m) of the node that started at (R, Z_min))."""
+        vals = np.full(3, -np.inf)  # top z, -bottom z, corner r (one MAX reduction)
         if self._top >= 0:
-            vals[0] = self.node_xy[self._top, 1] + self.u[2 * self._top + 1] - self._z_base
+            vals[0] = self.node_xy[self._top, 1] + self.u[2 * self._top + 1]
+        if self._bottom >= 0:
+            vals[1] = -(self.node_xy[self._bottom, 1] + self.u[2 * self._bottom + 1])
         if self._corner >= 0:
-            vals[1] = self.node_xy[self._corner, 0] + self.u[2 * self._corner]
+            vals[2] = self.node_xy[self._corner, 0] + self.u[2 * self._corner]
         self.comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.MAX)
-        return float(vals[0]), float(vals[1])
+        return float(vals[0] + vals[1]), float(vals[2])
 
     def kinetic(self) -> float:
         return self.comm.allreduce(0.5 * float(np.dot(self.mass, self.v * self.v)))
@@ -522,7 +525,7 @@ class FiniteRun:
                 if s.plots and comm.rank == 0 and not stop.signum:
                     from .plotting import write_finite_plots
 
-                    write_finite_plots(staging, self.history)
+                    write_finite_plots(staging, self.history, summary.get("title"))
                 if not self.status.startswith("interrupted") and stop.collective(comm):
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")
@@ -579,6 +582,10 @@ class FiniteRun:
             "work_gap": (comm.allreduce(w_trap) - stored - wp),
             "final_length": length, "final_face_radius": radius, "eps_p_max": self.eps_p_max(),
             "j_min": self.force.j_min, "wall_time": wall_time,
+            "length_definition": "final_length: the axis length, z of the node that started "
+                                 "at (0, Z_max) minus z of the one that started at (0, Z_min) "
+                                 "(m), on the wall or off it; final_face_radius: r of the node "
+                                 "that started at (R, Z_min) (m)",
             "energy_definition": "kinetic 1/2 v M v at the last half step; internal_work the "
                                  "booked work of f_int (kinetic identity: kinetic + internal_work "
                                  "+ activation_loss + penalty_energy = initial_kinetic to "

@@ -1,9 +1,10 @@
 """Pictures of a run: history plots (matplotlib) and field renders from the XDMF (pyvista).
 
-* :func:`write_history_plots` writes ``history.png`` (probes, contact force and
-  gap, rigid body motion) and ``energy.png`` (the energy ledger and its balance
-  error) into a run directory; :class:`~impact_fenics.simulation.Simulation`
-  calls it on rank 0 at the end of every run with an output directory.
+* :func:`write_history_plots` writes ``history.png`` (every probe, contact force
+  and gap, rigid body motion) and ``energy.png`` (every term of the energy ledger
+  that is not zero, plastic work included, their total and the balance error)
+  into a run directory; :class:`~impact_fenics.simulation.Simulation` calls it on
+  rank 0 at the end of every run with an output directory.
 * :func:`render_fields` reads ``fields.xdmf`` and its HDF5 file as dolfinx
   writes them and renders one field on the deformed mesh (displacement scaled
   for visibility) at chosen times, offscreen, as PNG files.
@@ -27,19 +28,26 @@ DISPLACEMENTS = ("u_r", "u_z")
 
 # ----------------------------------------------------------------------------- histories
 
+def _run_name(run_dir: str) -> str:
+    """The name of a run without a title: its directory's (a staging suffix dropped)."""
+    return os.path.basename(os.path.normpath(run_dir)).removesuffix(".partial")
+
+
 def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
                         energy: dict[str, np.ndarray],
-                        probes: list[tuple[str, str]] | None = None) -> list[str]:
+                        probes: list[tuple[str, str]] | None = None,
+                        title: str | None = None) -> list[str]:
     """Write history.png and energy.png into ``run_dir``; returns the paths written.
 
     ``history`` and ``energy`` map column names to arrays (time in s);
-    ``probes`` lists (column, quantity) of the probe columns. A failure to plot
-    never loses a run: it is reported in one line on stderr and skipped."""
+    ``probes`` lists (column, quantity) of the probe columns; ``title`` names the run
+    (a scene's title; default: the directory's name). A failure to plot never loses a
+    run: it is reported in one line on stderr and skipped."""
     try:
         import matplotlib
 
         matplotlib.use("Agg")
-        title = os.path.basename(os.path.normpath(run_dir)).removesuffix(".partial")
+        title = title or _run_name(run_dir)
         written = []
         path = os.path.join(run_dir, "history.png")
         if _plot_history(path, history, probes or [], title):
@@ -53,10 +61,11 @@ def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
         return []
 
 
-def write_finite_plots(run_dir: str, h: dict[str, np.ndarray]) -> list[str]:
+def write_finite_plots(run_dir: str, h: dict[str, np.ndarray], title: str | None = None) -> list[str]:
     """history.png of a finite-strain run (finite_run.HISTORY_COLUMNS): length and
     impact-face radius (mm), the largest eps_bar_p, the energies (J) and dt with its
-    limit (s) against time; returns the paths written (a failure is one warning line)."""
+    limit (s) against time, under ``title`` (default: the directory's name); returns the
+    paths written (a failure is one warning line)."""
     try:
         import matplotlib
 
@@ -82,6 +91,7 @@ def write_finite_plots(run_dir: str, h: dict[str, np.ndarray]) -> list[str]:
         ax[1, 1].legend()
         for a in ax.ravel():
             a.set_xlabel("t (µs)")
+        fig.suptitle(f"{title or _run_name(run_dir)}: histories")
         fig.tight_layout()
         path = os.path.join(run_dir, "history.png")
         fig.savefig(path, dpi=110)
@@ -96,6 +106,29 @@ def _finite(y: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(y), y, np.nan)
 
 
+# the probe panels: (quantities, y label, factor to the plotted unit)
+PROBE_PANELS = ((STRESSES, "probe stress (MPa)", 1e-6),
+                (DISPLACEMENTS, "probe displacement (mm)", 1e3),
+                (("eps_p_eq",), "probe eps_p_eq (-)", 1.0),
+                (("yielded",), "probe yielded (0 / 1)", 1.0))
+
+
+def probe_panels(h: dict[str, np.ndarray], probes: list[tuple[str, str]]) -> list:
+    """[(y label, [(column, values)])]: every probe column of ``h`` in a panel of its
+    quantity's kind (a quantity of no listed kind in a panel of its own)."""
+    panels = []
+    shown = set()
+    for quantities, label, factor in PROBE_PANELS:
+        curves = [(n, h[n] * factor) for n, q in probes if q in quantities and n in h]
+        shown.update(n for n, _ in curves)
+        if curves:
+            panels.append((label, curves))
+    for n, q in probes:
+        if n in h and n not in shown:
+            panels.append((f"probe {q}", [(n, h[n])]))
+    return panels
+
+
 def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, str]],
                   title: str) -> bool:
     import matplotlib.pyplot as plt
@@ -104,13 +137,7 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
         return False
     t = h["time"] * 1e6
     probe_names = {name for name, _ in probes}
-    panels = []  # (ylabel, [(label, values)])
-    stress = [(n, h[n] / 1e6) for n, q in probes if q in STRESSES and n in h]
-    disp = [(n, h[n] * 1e3) for n, q in probes if q in DISPLACEMENTS and n in h]
-    if stress:
-        panels.append(("probe stress (MPa)", stress))
-    if disp:
-        panels.append(("probe displacement (mm)", disp))
+    panels = probe_panels(h, probes)  # (ylabel, [(label, values)])
     force = [(c, h[c]) for c in h if c.endswith("_force")]
     if force:
         panels.append(("contact force (N)", force))
@@ -139,18 +166,54 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
     return True
 
 
+# the energy panel's curves: (column, label); a column that is zero at every output is
+# left out, except the stored energies and their total
+ENERGY_CURVES = (("kinetic", "kinetic"), ("strain", "strain (stored elastic)"),
+                 ("plastic_work", "plastic work (dissipated)"),
+                 ("total", "total = kinetic + strain + plastic work"),
+                 ("external_work", "work of loads"), ("contact_work", "work of contact"),
+                 ("activation_loss", "activation losses (in the work of contact)"))
+ALWAYS = ("kinetic", "strain", "total")
+
+
+def energy_curves(e: dict[str, np.ndarray]) -> list[tuple[str, str, np.ndarray]]:
+    """The curves of energy.png, [(column, label, values in J)]: the ledger's terms of
+    :data:`ENERGY_CURVES` (a term that is zero, or round-off, at every output left out:
+    :data:`~.report.ROUND_OFF` of the largest, as in the console's line; the stored
+    energies and their total always drawn), then, when work was done on the bodies, the
+    initial energy plus that work ("balance"): the total follows it to round-off."""
+    from .report import ROUND_OFF
+
+    present = [name for name, _ in ENERGY_CURVES if name in e and e[name].size]
+    scale = max((float(np.nanmax(np.abs(e[n]))) for n in present), default=0.0)
+
+    def drawn(name: str) -> bool:
+        return name in ALWAYS or float(np.nanmax(np.abs(e[name]))) > ROUND_OFF * scale
+
+    curves = [(name, label, _finite(e[name])) for name, label in ENERGY_CURVES
+              if name in present and drawn(name)]
+    work = sum(e[k] for k in ("external_work", "contact_work") if k in present and drawn(k))
+    if "total" in present and np.any(work != 0.0):
+        curves.append(("balance", "initial + work of loads and contact",
+                       _finite(e["total"][0] + work)))
+    return curves
+
+
 def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
+    """energy.png: :func:`energy_curves` and the relative balance error."""
     import matplotlib.pyplot as plt
 
     if "time" not in e or e["time"].size == 0:
         return False
     t = e["time"] * 1e6
-    fig, (ax, ax_err) = plt.subplots(2, 1, sharex=True, figsize=(8, 6),
+    fig, (ax, ax_err) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5),
                                      gridspec_kw={"height_ratios": [2, 1]})
-    for name in ("kinetic", "strain", "total", "external_work", "contact_work"):
-        if name in e:
-            ax.plot(t, _finite(e[name]), lw=1.4 if name == "total" else 1.0, label=name,
-                    marker="." if t.size < 40 else None)
+    marker = "." if t.size < 40 else None
+    for name, label, y in energy_curves(e):
+        if name == "balance":
+            ax.plot(t, y, "k--", lw=0.8, label=label)
+        else:
+            ax.plot(t, y, lw=1.6 if name == "total" else 1.0, label=label, marker=marker)
     ax.set_ylabel("energy, work (J)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small", loc="best")
@@ -158,7 +221,7 @@ def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
     err = np.abs(_finite(e.get("balance_error_rel", np.full(t.size, np.nan))))
     shown = np.where(err > 0, err, np.nan)
     ax_err.semilogy(t, shown, ".-", lw=1.0, color="k")
-    ax_err.set_ylabel("|balance error| / scale")
+    ax_err.set_ylabel("|total - initial - work|\n/ largest term")
     ax_err.set_xlabel("t (µs)")
     ax_err.grid(alpha=0.3, which="both")
     if not np.any(np.isfinite(shown)):
@@ -228,6 +291,7 @@ def _pick_times(series: Series, times: list[float] | None, n_default: int = 4) -
 
 
 CLIP = (1.0, 99.0)  # percentiles of the colour range
+MIN_WIDTH = 900  # pixels: the narrowest picture (its title and colour bar fit)
 
 
 def _auto_region(points: np.ndarray, cells: np.ndarray, values: list[np.ndarray], center: str,
@@ -247,6 +311,25 @@ def _auto_region(points: np.ndarray, cells: np.ndarray, values: list[np.ndarray]
     return float(a[0]), float(b[0]), float(a[1]), float(b[1])
 
 
+def _run_facts(run_dir: str, data: XdmfRun) -> tuple[str, bool]:
+    """(title, finite strain?) of a run: the scene's title and the kinematics from its
+    summary.json; without one, the directory's name, and finite strain where the cells
+    are quadrilaterals (only the finite-strain runs write those)."""
+    import json
+
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            summary = json.load(f)
+    except (OSError, ValueError):
+        summary = {}
+    if not isinstance(summary, dict):
+        summary = {}
+    title = summary.get("title") or _run_name(run_dir)
+    finite = (summary["strain"] == "finite" if "strain" in summary
+              else data.cells.shape[1] == 4)
+    return str(title), finite
+
+
 def _unit(field: str) -> tuple[float, str]:
     """Scale and unit label of a field for display."""
     if field in STRESSES:
@@ -258,18 +341,33 @@ def _unit(field: str) -> tuple[float, str]:
     return 1.0, ""
 
 
-def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
-                  scale: float | None = None, width: int = 1400,
-                  region: tuple[float, float, float, float] | str | None = "auto") -> list[str]:
-    """Render ``field`` on the deformed mesh at the stored times nearest to ``times`` (s).
+@dataclass
+class Picture:
+    """One field render, planned: where it goes, its texts and what it draws.
 
-    The displacement is multiplied by ``scale`` (default: the largest
-    displacement of the chosen times shows as 5 % of the model size); the
-    factor is stated in each title. ``region`` (r0, r1, z0, z1) in m shows only the
-    cells inside it; "auto" zooms to where |field| reaches 5 % of its largest value;
-    None shows the whole model. The colour range is clipped to the 1st-99th
-    percentile of the shown values (said in the title when it clips). One PNG per
-    time in ``run_dir``, named ``<field>_t<time in s>.png``; returns their paths."""
+    ``points`` (n, 2) the nodes at their drawn positions (r, z + scale x u, m); ``cells``
+    every cell of the mesh; ``values`` per cell or node (``center``) in the unit of
+    ``label``; ``frame`` (r0, r1, z0, z1), m, the drawn extent of the framed cells: the
+    view fits it and the cells are cut at it (r to the right, z up, always)."""
+
+    path: str
+    title: str
+    caption: str
+    points: np.ndarray
+    cells: np.ndarray
+    values: np.ndarray
+    center: str
+    label: str
+    clim: tuple[float, float]
+    cmap: str
+    frame: tuple[float, float, float, float]
+
+
+def plan_pictures(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
+                  scale: float | None = None,
+                  region: tuple[float, float, float, float] | str | None = "auto"
+                  ) -> list[Picture]:
+    """The pictures :func:`render_fields` draws (see there), without drawing them."""
     from .errors import InputError
 
     data = read_xdmf(os.path.join(run_dir, "fields.xdmf"))
@@ -281,10 +379,7 @@ def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | No
     if region not in (None, "auto") and not (len(region) == 4 and region[0] < region[1]
                                              and region[2] < region[3]):
         raise InputError(f"--region {region}: give r0 < r1 and z0 < z1 (m)")
-    if "dolfinx.cpp" in sys.modules:
-        if os.environ.get("IMPACT_FENICS_RENDER_CHILD"):
-            raise RuntimeError("the rendering process loaded dolfinx (VTK cannot share it)")
-        return _render_in_fresh_process(run_dir, field, times, scale, width, region)
+    name, finite = _run_facts(run_dir, data)
     series = data.fields[field]
     picks = _pick_times(series, times)
     disp = data.fields.get("displacement")
@@ -299,35 +394,91 @@ def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | No
     size = float(np.ptp(data.points, axis=0).max())
     if scale is None:
         u_max = max(float(np.abs(u).max()) for u in u_at.values())
-        scale = _round_scale(0.05 * size / u_max) if u_max > 0 else 0.0
+        scale = 1.0 if finite else (_round_scale(0.05 * size / u_max) if u_max > 0 else 0.0)
     factor, unit = _unit(field)
     values = {k: _scalar(data.values(field, k)) * factor for k in picks}
     if region == "auto":
         region = _auto_region(data.points, data.cells, list(values.values()), series.center)
-    keep = np.ones(len(data.cells), dtype=bool)
+    framed = np.ones(len(data.cells), dtype=bool)
     if region is not None:
         c = data.points[data.cells].mean(axis=1)
-        keep = ((c[:, 0] >= region[0]) & (c[:, 0] <= region[1]) & (c[:, 1] >= region[2])
-                & (c[:, 1] <= region[3]))
-    shown = np.concatenate([v[keep] if series.center == "Cell" else v for v in values.values()])
+        framed = ((c[:, 0] >= region[0]) & (c[:, 0] <= region[1]) & (c[:, 1] >= region[2])
+                  & (c[:, 1] <= region[3]))
+        if not framed.any():
+            raise InputError(f"--region {' '.join(f'{x:g}' for x in region)}: no cell has "
+                             "its centre inside it")
+    framed_nodes = np.unique(data.cells[framed])
+    shown = np.concatenate([v[framed] if series.center == "Cell" else v[framed_nodes]
+                            for v in values.values()])
     lo, hi = (float(x) for x in np.nanpercentile(shown, CLIP))
     clipped = lo > float(np.nanmin(shown)) or hi < float(np.nanmax(shown))
     diverging = field in STRESSES and field != "von_mises" and lo < 0 < hi
     if diverging:
         lo, hi = -max(-lo, hi), max(-lo, hi)
-    name = os.path.basename(os.path.normpath(run_dir))
-    written = []
+    label = f"{field} ({unit})" if unit else field
+    if not scale:
+        shape = "undeformed"
+    elif scale == 1.0:
+        shape = "true shape (displacement x 1)"
+    else:
+        shape = f"displacement x {scale:g}"
+    pictures = []
     for k in picks:
         t = float(series.times[k])
-        path = os.path.join(run_dir, f"{field}_t{t:.6e}.png")
-        label = f"{field} ({unit})" if unit else field
-        title = (f"{name}: {label} at t = {t * 1e6:.2f} µs, displacement x {scale:g}"
-                 if scale else f"{name}: {label} at t = {t * 1e6:.2f} µs, undeformed")
+        title = f"{name}: {label} at t = {t * 1e6:.2f} µs, {shape}"
         if clipped:
             title += f"\ncolours clipped to the {CLIP[0]:g}-{CLIP[1]:g} percentile range"
-        _render(path, data, u_at[k] * scale, values[k], series.center, (lo, hi),
-                "coolwarm" if diverging else "viridis", label, title, width, keep)
-        written.append(path)
+        xy = data.points + scale * u_at[k]
+        lo_xy, hi_xy = xy[framed_nodes].min(axis=0), xy[framed_nodes].max(axis=0)
+        frame = (float(lo_xy[0]), float(hi_xy[0]), float(lo_xy[1]), float(hi_xy[1]))
+        pictures.append(Picture(os.path.join(run_dir, f"{field}_t{t:.6e}.png"), title,
+                                _caption(frame, "deformed" if scale else "undeformed"), xy,
+                                data.cells, values[k], series.center, label, (lo, hi),
+                                "coolwarm" if diverging else "viridis", frame))
+    return pictures
+
+
+def _caption(frame: tuple[float, float, float, float], shape: str) -> str:
+    """The extent shown, (r0, r1, z0, z1) in m, in mm below a metre (a node on the axis
+    at r = -4e-19, mesh round-off, printed as 0), and the orientation."""
+    lo, hi = np.array(frame[::2]), np.array(frame[1::2])
+    size = float(max(hi - lo))
+    lo = np.where(np.abs(lo) < 1e-12 * size, 0.0, lo)
+    hi = np.where(np.abs(hi) < 1e-12 * size, 0.0, hi)
+    f, unit = (1e3, "mm") if size < 1.0 else (1.0, "m")
+    return (f"shown: r {lo[0] * f:.4g} to {hi[0] * f:.4g} {unit}, z {lo[1] * f:.4g} to "
+            f"{hi[1] * f:.4g} {unit} ({shape}); r to the right, z up")
+
+
+def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,
+                  scale: float | None = None, width: int = 1400,
+                  region: tuple[float, float, float, float] | str | None = "auto") -> list[str]:
+    """Render ``field`` on the deformed mesh at the stored times nearest to ``times`` (s).
+
+    The displacement is multiplied by ``scale``. By default a finite-strain run is drawn
+    at 1, its true shape; a small-strain run at the factor that shows the largest
+    displacement of the chosen times as 5 % of the model size. The factor is stated in
+    each title. ``region`` (r0, r1, z0, z1), in m of the undeformed body, frames the
+    picture around the cells whose centre lies inside it; "auto" around the cells where
+    |field| reaches 5 % of its largest value, with a margin of a tenth of the model
+    size; None frames the whole model. The picture shows the frame: the cells across
+    its edges are cut there, so the edges are straight lines, never the cells' outline,
+    and the framed cells are shown whole. The colour
+    range is that of the framed cells, clipped to their 1st-99th percentile (said in the
+    title when it clips). Every picture has r to the right and z up (as ParaView shows
+    fields.xdmf); its caption gives the drawn extent of the framed cells. The title is
+    the scene's (summary.json; else the directory's name). One PNG per time in
+    ``run_dir``, named ``<field>_t<time in s>.png`` (``width`` pixels wide at most);
+    returns their paths."""
+    if "dolfinx.cpp" in sys.modules:
+        if os.environ.get("IMPACT_FENICS_RENDER_CHILD"):
+            raise RuntimeError("the rendering process loaded dolfinx (VTK cannot share it)")
+        plan_pictures(run_dir, field, times, scale, region)  # bad input: said here
+        return _render_in_fresh_process(run_dir, field, times, scale, width, region)
+    written = []
+    for picture in plan_pictures(run_dir, field, times, scale, region):
+        _render(picture, width)
+        written.append(picture.path)
     return written
 
 
@@ -363,67 +514,52 @@ def _round_scale(s: float) -> float:
     return float(10 ** exp)
 
 
-def _render(path: str, data: XdmfRun, u: np.ndarray, values: np.ndarray, center: str,
-            clim: tuple[float, float], cmap: str, label: str, title: str, width: int,
-            keep: np.ndarray) -> None:
+def _render(pic: Picture, width: int) -> None:
+    """Draw ``pic`` into its PNG: the cells cut at its frame (straight edges), r to the
+    right and z up, the view fitted to the frame; a tall frame makes a narrower picture
+    (at least MIN_WIDTH pixels)."""
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
-    xy_all = data.points + u
-    used = np.unique(data.cells[keep])  # the nodes of the shown cells
-    renumber = np.full(len(xy_all), -1)
-    renumber[used] = np.arange(used.size)
-    xy = xy_all[used]
-    tri = renumber[data.cells[keep]]
-    points = np.column_stack([xy, np.zeros(len(xy))])
-    npc = tri.shape[1]  # 3: triangles; 4: quadrilaterals (finite strain), nodes in cycle order
-    cells = np.column_stack([np.full(len(tri), npc), tri]).ravel()
+    cells = pic.cells
+    points = np.column_stack([pic.points, np.zeros(len(pic.points))])
+    npc = cells.shape[1]  # 3: triangles; 4: quadrilaterals (finite strain), nodes in cycle order
+    vtk_cells = np.column_stack([np.full(len(cells), npc), cells]).ravel()
     kind = pv.CellType.TRIANGLE if npc == 3 else pv.CellType.QUAD
-    grid = pv.UnstructuredGrid(cells, np.full(len(tri), kind), points)
-    if center == "Cell":
-        grid.cell_data[label] = values[keep]
+    grid = pv.UnstructuredGrid(vtk_cells, np.full(len(cells), kind), points)
+    if pic.center == "Cell":
+        grid.cell_data[pic.label] = pic.values
     else:
-        grid.point_data[label] = values[used]
-    extent = np.ptp(xy, axis=0)
-    tall = extent[1] > extent[0]  # show the longer side horizontally
-    across, along = (extent[0], extent[1]) if tall else (extent[1], extent[0])
+        grid.point_data[pic.label] = pic.values
+    r0, r1, z0, z1 = pic.frame
+    lo, hi = pic.points.min(axis=0), pic.points.max(axis=0)
+    if lo[0] < r0 or hi[0] > r1 or lo[1] < z0 or hi[1] > z1:  # crop: cut the cells at the frame
+        grid = grid.clip_box((r0, r1, z0, z1, -1.0, 1.0), invert=False)
+    along, across = max(r1 - r0, 1e-300), max(z1 - z0, 1e-300)  # horizontal, vertical
     margin_top, margin_bottom = 70, 150  # pixels for the title and the colour bar
-    height = int(np.clip(0.9 * width * across / max(along, 1e-300), 200, 900)) \
-        + margin_top + margin_bottom
+    plot_h = float(np.clip(0.92 * width * across / along, 200, 1600))
+    width = int(min(width, max(MIN_WIDTH, plot_h * along / across / 0.92)))
+    plot_w = 0.92 * width
+    height = int(plot_h / 0.92) + margin_top + margin_bottom
     plotter = pv.Plotter(off_screen=True, window_size=(width, height))
     plotter.set_background("white")
-    plotter.add_mesh(grid, scalars=label, cmap=cmap, clim=clim, lighting=False,
-                     scalar_bar_args={"title": label, "color": "black", "vertical": False,
+    plotter.add_mesh(grid, scalars=pic.label, cmap=pic.cmap, clim=pic.clim, lighting=False,
+                     scalar_bar_args={"title": pic.label, "color": "black", "vertical": False,
                                       "position_x": 0.25, "position_y": 0.04,
                                       "width": 0.5, "height": 0.08, "fmt": "%.3g"})
-    plotter.add_text(title, position="upper_edge", font_size=11, color="black")
-    ref = data.points[used]  # the undeformed extent of what is shown
-    lo_xy, hi_xy = ref.min(axis=0), ref.max(axis=0)
-    size = float(np.ptp(ref, axis=0).max())
-    mm = size < 1.0  # lengths in mm below a metre
-    # a node on the axis may sit at r = -4e-19 (mesh round-off): print it as 0
-    lo_xy = np.where(np.abs(lo_xy) < 1e-12 * size, 0.0, lo_xy)
-    hi_xy = np.where(np.abs(hi_xy) < 1e-12 * size, 0.0, hi_xy)
-    f, u_len = (1e3, "mm") if mm else (1.0, "m")
-    axes = (f"r {lo_xy[0] * f:.4g} to {hi_xy[0] * f:.4g} {u_len}, "
-            f"z {lo_xy[1] * f:.4g} to {hi_xy[1] * f:.4g} {u_len}; "
-            + ("z to the right, r up" if tall else "r to the right, z up"))
-    plotter.add_text(axes, position="lower_left", font_size=8, color="gray")
-    if tall:  # look from -z': z to the right, r up
-        plotter.view_yx()
-    else:
-        plotter.view_xy()
+    plotter.add_text(pic.title, position="upper_edge", font_size=11, color="black")
+    plotter.add_text(pic.caption, position="lower_left", font_size=8, color="gray")
+    plotter.view_xy()
     plotter.enable_parallel_projection()
-    # world units per pixel so that the model fills the space between title and bar
-    per_px = max(along / (0.92 * width), across / (0.92 * (height - margin_top - margin_bottom)))
-    centre = np.append(0.5 * (xy.min(axis=0) + xy.max(axis=0)), 0.0)
-    up = np.array([1.0, 0.0, 0.0]) if tall else np.array([0.0, 1.0, 0.0])
-    centre -= up * per_px * 0.5 * (margin_bottom - margin_top)  # model above the bar
+    # world units per pixel so that the frame fills the space between title and bar
+    per_px = max(along / plot_w, across / plot_h)
+    centre = np.array([0.5 * (r0 + r1), 0.5 * (z0 + z1), 0.0])
+    centre[1] -= per_px * 0.5 * (margin_bottom - margin_top)  # the picture above the bar
     camera = plotter.camera
     offset = np.array(camera.position) - np.array(camera.focal_point)
     camera.focal_point = tuple(centre)
     camera.position = tuple(centre + offset)
     camera.parallel_scale = 0.5 * height * per_px
-    plotter.screenshot(path)
+    plotter.screenshot(pic.path)
     plotter.close()

@@ -1,16 +1,22 @@
 """Point probes: a field's value in the cell that contains a point (DG0, as CST gives it).
 
-A probe reads the six displacement dofs of its cell's three nodes, nothing else:
-each rank copies the ones it owns into the history row (one compiled call for
-all probes, no communication), the rows are summed over the ranks once per
-block of rows, and the values follow from the dofs by
+A probe reads the six displacement dofs of its cell's three nodes: each rank
+copies the ones it owns into the history row (one compiled call for all probes,
+no communication), the rows are summed over the ranks once per block of rows,
+and the values follow from the dofs. In the cell of a linear body the stress is
 :func:`~impact_fenics.cell_fields.triangle_strain` and the material's constant
 stiffness D, the value a UFL Expression of the stress gives at the cell's
 midpoint, to round-off. u_r and u_z probes are the cell means of the nodal values.
-In the cell of a path-dependent body the row also holds the cell means of its
-plastic strain, equivalent plastic strain and yielded flag (from the quadrature
-state, :class:`~impact_fenics.internal_force.QuadratureForce`), and the stress is
-D (eps - eps_p) with the elastic D.
+
+In the cell of a path-dependent body the row also holds the state of the cell's
+three points (plastic strain, the material's variables, stress) as the owning
+rank's last update left it, the update at the step's start. From the summed row
+the block's finish runs the points' update at the row's displacement (the
+force's own compiled cell kernel on that one cell: what the next step computes
+there), so the probe's stress is the weighted mean of the point stresses
+(:func:`~impact_fenics.cell_fields.point_mean_stress`), as in the fields, and
+``eps_p_eq`` and ``yielded`` are of the same state: the mean equivalent plastic
+strain of the points and 1 if one has yielded.
 """
 from __future__ import annotations
 
@@ -20,18 +26,18 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
-from .cell_fields import (STRESS_NAMES, isotropic_stiffness, stiffness_matrix, stress_outputs,
-                          triangle_strain)
+from .cell_fields import (STRESS_NAMES, point_mean_stress, stiffness_matrix, stress_outputs,
+                          triangle_strain, von_mises)
 from .compat import cell_dofs, colliding_cells
 from .errors import InputError
-from .jit_watch import direct
+from .jit_watch import direct, load
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
 QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES
-# raw history entries per probe: u_r, u_z of the cell's three nodes, then the cell means
-# of the plastic strain (rr, tt, zz, rz), of eps_bar_p and the yielded flag (0 in the
-# cells of linear bodies)
-RAW = 12
+# raw history entries per probe: u_r, u_z of the cell's three nodes; a probe in a cell of
+# a path-dependent body has its points' state after all of them (CellPoints.size)
+RAW = 6
+_U_R, _U_Z = QUANTITIES.index("u_r"), QUANTITIES.index("u_z")
 
 
 def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
@@ -71,36 +77,131 @@ def _record_at(u_owned, index, block, offset) -> None:
 
 
 @njit(cache=True)
-def _record_plastic(eps_p, state, pos, row, start) -> None:
-    """Cell means of eps_p (4), eps_bar_p and yielded (any point with eps_bar_p > 0) of
-    the quadrature cell ``pos`` into row[start:start + 6]."""
-    for i in range(4):
-        row[start + i] = (eps_p[pos, 0, i] + eps_p[pos, 1, i] + eps_p[pos, 2, i]) / 3.0
-    row[start + 4] = (state[pos, 0, 0] + state[pos, 1, 0] + state[pos, 2, 0]) / 3.0
-    yielded = 0.0
-    for q in range(3):
-        if state[pos, q, 0] > 0.0:
-            yielded = 1.0
-    row[start + 5] = yielded
+def _record_points(eps_p, state, sigma, pos, row, start) -> None:
+    """The state of the points of cell ``pos`` (eps_p (3, 4), state (3, n_state), sigma
+    (3, 4)) into row[start:], in that order (:func:`_unpack_points` reads it back)."""
+    k = start
+    for q in range(eps_p.shape[1]):
+        for i in range(eps_p.shape[2]):
+            row[k] = eps_p[pos, q, i]
+            k += 1
+    for q in range(state.shape[1]):
+        for i in range(state.shape[2]):
+            row[k] = state[pos, q, i]
+            k += 1
+    for q in range(sigma.shape[1]):
+        for i in range(sigma.shape[2]):
+            row[k] = sigma[pos, q, i]
+            k += 1
 
 
 @njit(cache=True)
-def _values(raw, xy, D, code, out) -> None:
-    """Probe values of each row of ``raw`` (rows x RAW per probe, see RAW)."""
+def _unpack_points(row, u_start, start, u, eps_p, state, sigma) -> None:
+    """The six nodal displacements row[u_start:u_start + 6] into u and the points' state
+    recorded by :func:`_record_points` at row[start:] into the one-cell arrays."""
+    for i in range(6):
+        u[i] = row[u_start + i]
+    k = start
+    for q in range(eps_p.shape[1]):
+        for i in range(eps_p.shape[2]):
+            eps_p[0, q, i] = row[k]
+            k += 1
+    for q in range(state.shape[1]):
+        for i in range(state.shape[2]):
+            state[0, q, i] = row[k]
+            k += 1
+    for q in range(sigma.shape[1]):
+        for i in range(sigma.shape[2]):
+            sigma[0, q, i] = row[k]
+            k += 1
+
+
+@njit(cache=True)
+def _point_value(sigma, state, w, code, cells, mean) -> float:
+    """The probe value ``code`` (QUANTITIES) of the one-cell point state: the weighted mean
+    stress (Pa; ``mean`` (5, 1) scratch), the mean eps_bar_p or the yielded flag."""
+    if code < 5:
+        point_mean_stress(sigma, w, cells, mean)
+        if code < 4:
+            return mean[code, 0]
+        return von_mises(mean[0, 0], mean[2, 0], mean[1, 0], mean[3, 0])
+    n = state.shape[1]
+    if code == 7:
+        e = 0.0
+        for q in range(n):
+            e += state[0, q, 0]
+        return e / n
+    for q in range(n):
+        if state[0, q, 0] > 0.0:
+            return 1.0
+    return 0.0
+
+
+@njit(cache=True)
+def _values(raw, xy, D, code, pointwise, out) -> None:
+    """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
+    the cell means of the nodal values (m); in the cell of a linear body a stress D eps
+    (Pa), eps_p_eq and yielded 0; the other values of a probe in a path-dependent body's
+    cell (``pointwise`` true) are left to :class:`CellPoints`."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
-            q = raw[i, 12 * p: 12 * p + 12]
+            q = raw[i, RAW * p: RAW * p + RAW]
             c = code[p]
-            if c == 5 or c == 6:
-                out[i, p] = (q[c - 5] + q[c - 3] + q[c - 1]) / 3.0
+            if c == _U_R or c == _U_Z:
+                k = c - _U_R
+                out[i, p] = (q[k] + q[k + 2] + q[k + 4]) / 3.0
+            elif pointwise[p]:
                 continue
-            if c == 7 or c == 8:
-                out[i, p] = q[c + 3]
-                continue
-            e = triangle_strain(xy[p, 0, 0], xy[p, 0, 1], xy[p, 1, 0], xy[p, 1, 1],
-                                xy[p, 2, 0], xy[p, 2, 1], q[0], q[1], q[2], q[3], q[4], q[5])
-            out[i, p] = stress_outputs(D[p], e[0] - q[6], e[1] - q[7], e[2] - q[8],
-                                       e[3] - q[9])[c]
+            elif c > _U_Z:  # eps_p_eq, yielded
+                out[i, p] = 0.0
+            else:
+                e = triangle_strain(xy[p, 0, 0], xy[p, 0, 1], xy[p, 1, 0], xy[p, 1, 1],
+                                    xy[p, 2, 0], xy[p, 2, 1], q[0], q[1], q[2], q[3], q[4], q[5])
+                out[i, p] = stress_outputs(D[p], e[0], e[1], e[2], e[3])[c]
+
+
+class CellPoints:
+    """The points of one cell of a path-dependent body, known on every rank: their
+    geometry (copied from the owning rank) and the update of their state at a given
+    displacement by the force's compiled cell kernel (:attr:`~.internal_force.quadrature.
+    QuadratureForce.cell_kernel`), on one-cell arrays of the types the force's own
+    arrays have (no new compilation)."""
+
+    def __init__(self, force, pos: int, comm: MPI.Comm):
+        """``pos``: the cell's position in ``force.cells`` on the rank that owns it, -1 on
+        the others."""
+        g = force.geometry
+        geo = np.zeros((4, 3))
+        if pos >= 0:
+            geo[:] = g.dNdr[pos], g.dNdz[pos], g.inv_r[pos], g.w[pos]
+        comm.Allreduce(MPI.IN_PLACE, geo, op=MPI.SUM)
+        self.dNdr, self.dNdz, self.inv_r, self.w = (np.ascontiguousarray(geo[i: i + 1])
+                                                    for i in range(4))
+        self.N = g.N
+        self.dofs = np.array([[0, 1, 2]], dtype=g.dofs.dtype)
+        self.params, self.dt = force.params, force.dt
+        n_points, n_comp = force.qs.eps_p.shape[1:]
+        ns = force.qs.state.shape[2]
+        self.u, self.f = np.zeros(6), np.zeros(6)
+        self.eps_p = np.zeros((1, n_points, n_comp))
+        self.state = np.zeros((1, n_points, ns))
+        self.sigma = np.zeros((1, n_points, n_comp))
+        self.work = np.zeros_like(force.work)
+        self.size = n_points * (2 * n_comp + ns)  # raw floats of the state
+        self._cells = np.zeros(1, dtype=np.int64)
+        self._mean = np.zeros((5, 1))
+        self._update = direct(force.cell_kernel, *self._arguments())
+
+    def _arguments(self) -> tuple:
+        return (self.params, self.dt, self.dofs, self.dNdr, self.dNdz, self.N, self.inv_r, self.w,
+                self.u, self.f, self.eps_p, self.state, self.sigma, self.work)
+
+    def value(self, row: np.ndarray, u_start: int, start: int, code: int) -> float:
+        """Probe value ``code`` of a summed raw row: the nodal displacements at
+        row[u_start:], the points' state at row[start:], updated at that displacement."""
+        _unpack_points(row, u_start, start, self.u, self.eps_p, self.state, self.sigma)
+        self._update(*self._arguments())
+        return _point_value(self.sigma, self.state, self.w, code, self._cells, self._mean)
 
 
 class Probes:
@@ -123,7 +224,7 @@ class Probes:
         imap = model.V.dofmap.index_map
         cell_nodes = cell_dofs(model.V)
         forces = {f.body: f for f in plastic_forces}
-        self._plastic = []  # (force, position of the cell in force.cells, row offset)
+        owned_pos = {}  # probe -> position of its cell in its force's cells (owning rank)
         bodies = list(model.bodies.values())
         which = np.full(n, -1, dtype=np.int64)  # body of each probe cell
         for k, (name, point, quantity) in enumerate(probes):
@@ -142,40 +243,54 @@ class Probes:
                                 if cell in model.tmesh.cells(body.name))
                 force = forces.get(bodies[which[k]].name)
                 if force is not None:
-                    pos = int(np.searchsorted(force.cells, cell))
-                    self._plastic.append((force.qs, pos, RAW * k + 6))
+                    owned_pos[k] = int(np.searchsorted(force.cells, cell))
         for arr in (dofs, self.xy, self.midpoints):
             self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
         self.comm.Allreduce(MPI.IN_PLACE, which, op=MPI.MAX)
+        # probes of a stress or a plastic quantity in the cell of a path-dependent body:
+        # (probe, its CellPoints, where its points' state starts in a raw row) on every
+        # rank; (the force's state, the cell's position, that start) of those this rank owns
+        self.pointwise = np.zeros(n, dtype=np.bool_)
+        self._points: list[tuple[int, CellPoints, int]] = []
+        self._plastic: list[tuple] = []
         for k, (name, _, quantity) in enumerate(probes):
             material = bodies[which[k]].material
-            if self.code[k] < len(STRESS_NAMES):
+            force = forces.get(bodies[which[k]].name)
+            if quantity in PLASTIC_QUANTITIES and not plastic_forces:
+                raise InputError(f"probe '{name}': {quantity} needs a path-dependent body in "
+                                 "the run (it reads 0 in the cells of linear bodies)")
+            if self.code[k] in (_U_R, _U_Z):
+                continue
+            if force is not None:
+                pos = owned_pos.get(k, -1)
+                cell_points = CellPoints(force, pos, self.comm)  # (collective)
+                self._points.append((k, cell_points, self.n_raw))
+                if pos >= 0:
+                    self._plastic.append((force.qs, pos, self.n_raw))
+                self.pointwise[k] = True
+                self.n_raw += cell_points.size
+            elif self.code[k] < len(STRESS_NAMES):
                 D = stiffness_matrix(material)
-                if D is None and not material.linear:  # stress = C : (eps - eps_p)
-                    D = isotropic_stiffness(material.lmbda, material.mu)
                 if D is None:
                     raise InputError(f"probe '{name}': {quantity} of body '{bodies[which[k]].name}' "
                                      "needs a material with a constant (elastic) stiffness")
                 self.D[k] = D
-            if quantity in PLASTIC_QUANTITIES and not plastic_forces:
-                raise InputError(f"probe '{name}': {quantity} needs a path-dependent body in "
-                                 "the run (it reads 0 in the cells of linear bodies)")
         owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned)
-        index = np.full((n, RAW), -1, dtype=np.int64)
-        index[:, :6] = np.where(owned, dofs - model.offset, -1).reshape(n, 6)
-        self._index = index.ravel()
-        # load the compiled calls now, not in the first timed step
+        index = np.full(self.n_raw, -1, dtype=np.int64)
+        index[: RAW * n] = np.where(owned, dofs - model.offset, -1)
+        self._index = index
+        # load the compiled calls now, not in the first timed step: the recorder, and the
+        # values with ``out`` of its own and a column slice of a wider block, as a history
+        # table passes it (a view numpy does not call contiguous)
         self.recorder(np.zeros(model.n_owned), np.zeros(self.n_raw))(0)
-        self.values(np.zeros((1, self.n_raw)))
-        # and with ``out`` a column slice of a wider block, as a history table passes it
-        # (two rows and a column either side: a view numpy does not call contiguous)
-        self.values(np.zeros((2, self.n_raw)), np.zeros((2, n + 2))[:, 1: n + 1])
+        for out in (np.zeros((1, n)), np.zeros((2, n + 2))[:, 1: n + 1]):
+            load(_values, np.zeros((1, self.n_raw)), self.xy, self.D, self.code, self.pointwise, out)
 
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
-        """``record(offset)``: the probe dofs this rank owns (m), and the plastic state of
-        the probe cells it owns, into block[offset: offset + n_raw] (a flat block of rows,
-        zero elsewhere; ``offset`` a Python int), for the u_owned of the run; one compiled call
-        without plastic probe cells (~0.25 us)."""
+        """``record(offset)``: the probe dofs this rank owns (m), and the points' state of
+        the probe cells of path-dependent bodies it owns, into block[offset: offset +
+        n_raw] (a flat block of rows, zero elsewhere; ``offset`` a Python int), for the
+        u_owned of the run; one compiled call without such cells (~0.25 us)."""
         fill = functools.partial(direct(_record_at, u_owned, self._index, block, 0),
                                  u_owned, self._index, block)
         if not self._plastic:
@@ -185,14 +300,19 @@ class Probes:
         def record(offset: int) -> None:
             fill(offset)
             for qs, pos, start in plastic:
-                _record_plastic(qs.eps_p, qs.state, pos, block, offset + start)
+                _record_points(qs.eps_p, qs.state, qs.sigma, pos, block, offset + start)
         return record
 
     def values(self, raw: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Probe values (rows x probes) of summed raw rows (rows x n_raw)."""
         if out is None:
             out = np.empty((raw.shape[0], self.code.size))
-        _values(np.ascontiguousarray(raw), self.xy, self.D, self.code, out)
+        raw = np.ascontiguousarray(raw)
+        _values(raw, self.xy, self.D, self.code, self.pointwise, out)
+        for k, cell_points, start in self._points:
+            code = int(self.code[k])
+            for i in range(raw.shape[0]):
+                out[i, k] = cell_points.value(raw[i], RAW * k, start, code)
         return out
 
 

@@ -7,7 +7,7 @@ time in contact and the number of separations, and for two bodies that
 separate their rebound velocities and the coefficient of restitution
 e = (v_upper' - v_lower') / (v_lower - v_upper) (body-mean z velocities before
 the first and after the last output). :func:`console_lines` formats the
-summary for the console.
+summary for the console, :func:`energy_line` its energy ledger.
 """
 from __future__ import annotations
 
@@ -35,8 +35,9 @@ def contact_figures(time: np.ndarray, force: np.ndarray, n_active: np.ndarray,
 
 
 def restitution(v_lower: tuple[float, float], v_upper: tuple[float, float]) -> dict:
-    """Rebound figures of a lower body pushing up into an upper one: mean z velocities
-    (m/s) before (first) and after (second); e = separation / approach speed."""
+    """Rebound figures of a body below and one above it (whichever moves): mean z
+    velocities (m/s) before (first) and after (second); e = separation / approach speed
+    (None when they do not approach)."""
     approach = v_lower[0] - v_upper[0]
     separation = v_upper[1] - v_lower[1]
     return {"velocity_lower_before": v_lower[0], "velocity_upper_before": v_upper[0],
@@ -44,13 +45,52 @@ def restitution(v_lower: tuple[float, float], v_upper: tuple[float, float]) -> d
             "restitution": separation / approach if approach > 0 else None}
 
 
+# a ledger term within this share of the largest is round-off (the ledger's sums run
+# over a few dozen rounded terms each): shown as zero
+ROUND_OFF = 64 * 2.0 ** -52
+
+
+def energy_line(s: dict) -> str:
+    """The energy ledger of a small-strain summary in one console line: E_n = kinetic +
+    strain (+ plastic work of path-dependent bodies), the sum the scheme conserves, and
+    E_0 + W_n, W_n the work of loads and contact (activation losses: the part of the
+    contact work lost where constraints became active). Terms that are zero, or
+    round-off (ROUND_OFF of the largest), are left out."""
+    e = s["energy"]
+    terms = [e[k] for k in ("kinetic", "strain", "plastic_work", "total", "external_work",
+                            "contact_work") if k in e]
+    noise = ROUND_OFF * max(abs(x) for x in terms)
+
+    def shown(key: str) -> bool:
+        return abs(e.get(key, 0.0)) > noise
+
+    stored = [("kinetic", e["kinetic"]), ("strain", e["strain"])]
+    if shown("plastic_work"):
+        stored.append(("plastic work", e["plastic_work"]))
+    work = [(name, e[key]) for name, key in (("work of loads", "external_work"),
+                                            ("contact work", "contact_work")) if shown(key)]
+    line = "energy: " + " + ".join(f"{name} {v:.6g} J" for name, v in stored)
+    line += f" = {e['total']:.6g} J"
+    if work:
+        initial = s.get("energy_initial", e["total"] - sum(w for _, w in work))
+        line += (f" = initial {initial if abs(initial) > noise else 0.0:.6g} J + "
+                 + " + ".join(f"{name} {w:.4g} J" for name, w in work))
+        if shown("activation_loss"):
+            line += f" (activation losses {e['activation_loss']:.4g} J)"
+    return line + f"; balance error {s['energy_balance_error_rel']:.1e} (relative)"
+
+
 def console_lines(s: dict) -> list[str]:
     """The summary's impact figures and timing as console lines."""
     lines = []
+    if s.get("strain") != "finite" and "eps_p_max" in s:
+        lines.append(f"plastic strain: largest equivalent plastic strain {s['eps_p_max']:.4g} "
+                     "at the end (at a point of the stiffness rule)")
     for name, b in s.get("bodies", {}).items():
         lines.append(f"body {name}: mass {b['mass']:.6g} kg, v_z {b['velocity_z_final']:.4g} m/s "
                      f"at the end, kinetic {b['kinetic_energy']:.4g} J, strain "
-                     f"{b['strain_energy']:.4g} J")
+                     f"{b['strain_energy']:.4g} J"
+                     + (f", plastic work {b['plastic_work']:.4g} J" if "plastic_work" in b else ""))
     for c in s.get("impact", []):
         if "peak_force" not in c:
             continue

@@ -701,7 +701,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                         force_dt=t["force_dt"] or scene.force, force=scene.force,
                         converged_dt=t["converged_dt"], out=o["dir"],
                         output_every=o["output_every"], history_every=o["history_every"],
-                        pairs_every=o["pairs_every"], fields=o["fields"], plots=o["plots"])
+                        pairs_every=o["pairs_every"], fields=o["fields"], plots=o["plots"],
+                        title=scene.title)
     for key, value in (settings_overrides or {}).items():
         setattr(settings, key, value)
     velocity = {b.name: b.velocity for b in scene.bodies if b.velocity != (0.0, 0.0)}

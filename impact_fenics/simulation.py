@@ -91,6 +91,7 @@ class Settings:
     plots: bool = True  # history.png and energy.png in the output directory (rank 0)
     f_int_path: str = "fast"  # path-dependent bodies: "fast" (fused cell kernel) or "generic"
     compiled_steps: bool = True  # the steps between events as compiled blocks where they apply
+    title: str | None = None  # the run's name in its summary and pictures (a scene's title)
 
     def steps(self) -> int:
         """Number of steps to run."""
@@ -174,8 +175,8 @@ class Simulation:
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
         self._cell_field_providers: list = []
-        if self.plastic_fields is not None:  # eps_p_eq and yielded with the stresses
-            self.add_cell_fields(self.cell_fields)
+        if self.plastic_fields is not None:  # eps_p_eq and yielded of the frame's stresses
+            self.add_cell_fields(self.plastic_fields.frame_arrays)
         self._peaks = np.zeros(len(PEAK_NAMES) + 1)  # cell_fields.track_peaks' state
         self.status = "not started"
 
@@ -267,7 +268,7 @@ class Simulation:
         gc.collect()
         gc.freeze()
         self.probes = probes
-        ledger = Ledger(comm)
+        self.ledger = ledger = Ledger(comm)  # (its E_0 goes into the summary)
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         times = PhaseTimers(PHASES) if s.timers else None
         buf = {k: np.empty(model.n_owned) for k in ("u", "v")}
@@ -511,7 +512,8 @@ class Simulation:
                 # after an interrupt the data files are complete: skip the plots, finish fast
                 if s.plots and comm.rank == 0 and not stop.signum:
                     plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
-                                                 [(name, q) for name, _, q in self._probe_specs])
+                                                 [(name, q) for name, _, q in self._probe_specs],
+                                                 s.title)
                 if not self.status.startswith("interrupted") and stop.collective(comm):
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "
                                               "output was finished (it is complete)")
@@ -909,7 +911,8 @@ class Simulation:
     def _body_figures(self) -> dict:
         """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
         and at the end kinetic 1/2 sum m v^2 and strain energy (J): 1/2 u . K u over its dofs,
-        or the stored elastic energy psi_e of a path-dependent body."""
+        or the stored elastic energy psi_e of a path-dependent body, which also gets its
+        plastic work (J)."""
         integ, comm = self.integrator, self.comm
         Ku = integ.u_vec.duplicate()
         if integ.K is not None:  # the linear bodies' stiffness
@@ -918,19 +921,37 @@ class Simulation:
             Ku.set(0.0)
         ku = Ku.array
         psi = {f.body: f.elastic_energy_local() for f in integ.nonlinear}  # path-dependent
+        plastic = {f.body: f.plastic_work_local for f in integ.nonlinear}
         v_end = self._mean_velocities()
         out = {}
         for name in self.model.bodies:
             dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
             strain = psi[name] if name in psi else 0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))
             local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
-                                                  integ.v_owned[dofs])), strain])
+                                                  integ.v_owned[dofs])), strain,
+                              plastic.get(name, 0.0)])
             comm.Allreduce(MPI.IN_PLACE, local)
             out[name] = {"mass": self.body_mass[name],
                          "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
                          "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
+            if name in plastic:
+                out[name]["plastic_work"] = float(local[2])
         Ku.destroy()
         return out
+
+    def _eps_p_max(self) -> float:
+        """The largest equivalent plastic strain (-) at a point of the path-dependent bodies
+        at the final displacement (the points' update there, as in the last frame; their
+        last update if the run diverged). Collective."""
+        forces = self.integrator.nonlinear
+        if self.status != "diverged":
+            u = forces[0].u  # (every force's displacement Function)
+            u.x.scatter_forward()
+            states = [f.point_stresses(u.x.array).state for f in forces]
+        else:
+            states = [f.qs.state for f in forces]
+        local = max(float(st[..., 0].max(initial=0.0)) for st in states)
+        return self.comm.allreduce(local, op=MPI.MAX)
 
     def _mean_velocities(self) -> dict[str, float]:
         """Mean z velocity (m/s) of every body now: momentum / mass; a rigid body's own."""
@@ -941,9 +962,11 @@ class Simulation:
         out.update({c.rigid.name: float(c.rigid.v) for c in self.contacts if c.rigid is not None})
         return out
 
-    def _contact_bodies(self, c) -> tuple[str, str]:
-        """(lower body, upper body or rigid body) of a contact set; (slave body, master body)
-        of a node-to-segment one."""
+    def _contact_bodies(self, c) -> dict[str, str]:
+        """The bodies of a contact set: {"lower": the body below, "upper": the body or rigid
+        body above}, as the scene names the faces of node pairs; for node to segment
+        the master's outward normals say which side the slave is on (their mean z
+        component > 0: above), and {"slave", "master"} name the two roles too."""
         def body_of(global_dofs):
             counts = np.array([np.isin(global_dofs, self.model.to_global(
                 self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
@@ -951,11 +974,14 @@ class Simulation:
             return list(self.model.bodies)[int(np.argmax(counts))]
 
         cons = c.constraints
-        if isinstance(cons, SegmentConstraints):  # (slave body, master body)
-            return body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
+        if isinstance(cons, SegmentConstraints):  # (replicated on every rank)
+            slave, master = body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
+            above = float(np.mean(cons.normal[:, 1])) > 0.0  # the slave above the master?
+            lower, upper = (master, slave) if above else (slave, master)
+            return {"lower": lower, "upper": upper, "slave": slave, "master": master}
         lower = body_of(cons.lower)
         upper = c.rigid.name if c.rigid is not None else body_of(cons.upper)
-        return lower, upper
+        return {"lower": lower, "upper": upper}
 
     def _impact_figures(self) -> list[dict]:
         """Per contact set: peak force, impulse, time in contact, separations and, where the
@@ -968,8 +994,9 @@ class Simulation:
         for k, c in enumerate(self.contacts):
             tag = f"c{k}_" if len(self.contacts) > 1 else ""
             force = f"{tag}{c.rigid.name}_force" if c.rigid is not None else f"{tag}contact_force"
-            lower, upper = self._contact_bodies(c)
-            fig = {"surfaces": "/".join(c.constraints.names), "lower": lower, "upper": upper}
+            bodies = self._contact_bodies(c)
+            lower, upper = bodies["lower"], bodies["upper"]
+            fig = {"surfaces": "/".join(c.constraints.names), **bodies}
             fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], self.settings.dt))
             fig.update(restitution((self._v_start[lower], v_end[lower]),
                                    (self._v_start[upper], v_end[upper])))
@@ -991,6 +1018,8 @@ class Simulation:
             "t_end": self.n_steps * s.dt,
             "wall_time": wall,
         }
+        if s.title is not None:
+            summary["title"] = s.title
         summary.update(_provenance())
         summary["setup_time"] = dict(self.setup_time)
         if self.dt_converged is not None:
@@ -1029,13 +1058,18 @@ class Simulation:
             summary["peak_stress"] = dict(zip(PEAK_NAMES, self._peaks.tolist()))
         if last_energy is not None:
             last = last_energy
-            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}
+            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}  # the last row's
+            summary["energy_initial"] = self.ledger.E0  # E_0 (J), the first row's total
             summary["energy_balance_error_rel"] = max_bal
             if self.integrator.nonlinear:
                 summary["plastic_dissipation"] = last["plastic_work"]
             summary["energy_balance_definition"] = (
                 "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
-                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n, W_n the work of loads and contact")
+                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n (the linear bodies) + the stored "
+                "elastic energy and the plastic work of the path-dependent ones, W_n the work "
+                "of loads and contact")
+        if self.integrator.nonlinear:
+            summary["eps_p_max"] = self._eps_p_max()
         if self.contacts:
             c = self.contacts[0]
             summary["contact"] = {  # the first contact set, or all of them for the figures below

@@ -436,7 +436,7 @@ class StepBlock:
         self.energy = np.array([math.nan, growth_limit])  # layout E_*
         if frames is not None:  # the writer's batch, the stress kernel's arrays
             self.writer, stress, self.fields_at, peak_state = frames
-            _, s_dofs, s_g, _, lame, _, (first, _) = stress._kernel[0]
+            _, s_dofs, s_g, _, lame, (first, _) = stress._kernel[0]
             points, cells, _, _ = self.writer.batch_rows()
             frame_arrays = (points, cells, self.writer._nodes, s_dofs, s_g, np.array(lame),
                             stress._no_plastic, stress.peaks, peak_state)

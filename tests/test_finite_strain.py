@@ -243,3 +243,79 @@ def test_inverted_element_is_diagnosed(comm):
     run = FiniteRun(quad_bar(comm, 0.01, 0.03, 2, 4), RUBBERY, FiniteSettings())
     with pytest.raises(UnstableRunError, match=r"inverted: J = det F = .* <= 0 \(cell at R"):
         force_at(run, set_field(run, lambda r, z: (0 * r, -2.0 * z)))
+
+
+def _ring_volumes(x: np.ndarray) -> np.ndarray:
+    """2 pi r_c A of quadrilaterals with vertices x (n, 4, 2) in dolfinx's order (0,0), (1,0),
+    (0,1), (1,1) (m^3, Pappus: the ring volume of a plane figure is its area times the
+    path of its centroid); the shoelace formula on the cycle 0, 1, 3, 2, about the first
+    vertex (coordinates of the cell's size: no cancellation of the bar's)."""
+    origin = x[:, :1, :]
+    p = (x - origin)[:, [0, 1, 3, 2], :]
+    q = np.roll(p, -1, axis=1)
+    cross = p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1]
+    area = 0.5 * cross.sum(axis=1)
+    r_c = origin[:, 0, 0] + ((p[..., 0] + q[..., 0]) * cross).sum(axis=1) / (6.0 * area)
+    return np.abs(2.0 * math.pi * r_c * area)
+
+
+def test_cell_stress_is_the_mean_of_the_point_stresses(comm):
+    """What a finite-strain run outputs per cell: the Cauchy stress sum_q w_q tau_q /
+    (J_bar V_0), the mean of the material's point Cauchy stresses tau_q / J_bar (with
+    mean dilatation the point update sees F_bar_q, det F_bar_q = J_bar) weighted by the
+    points' current volumes w_q J_bar. Oracle for J_bar: the current ring volume of the
+    cell over the reference one, by Pappus (2x2 Gauss integrates 2 pi r dA exactly on a
+    bilinear cell); round-off bound 64 eps of the largest stress: some 30 rounded
+    operations on each side (Gauss sums, shoelace, the means), the cell's coordinates
+    taken about its first vertex. And the yield condition on the output: J_bar times its von Mises is
+    within the points' largest Kirchhoff yield stress sigma_y0 + H eps_bar_p (the finite J2
+    yields in the Kirchhoff stress), to 64 eps of its largest stress component (the
+    return's logarithms and principal axes, the mean and the von Mises)."""
+    sy0, H = 400e6, 100e6
+    mesh = quad_bar(comm, 3.2e-3, 32.4e-3, 4, 40)
+    run = FiniteRun(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=sy0,
+                                   hardening=H),
+                    FiniteSettings(t_end=10e-6, history_every=50), velocity=(0.0, -227.0),
+                    wall="film")
+    run.run()  # ends with the force at the final u: tau and the state are of that u
+    f, g = run.force, run.force.geometry
+    sig, _, _ = f.cell_values()  # (rr, tt, zz, rz), Pa: the cell output
+    X = run.node_xy[g.dofs]
+    u = run.u_fn.x.array.reshape(-1, 2)[g.dofs]
+    j_bar = _ring_volumes(X + u) / _ring_volumes(X)
+    mean_tau = np.einsum("nq,nqi->ni", g.w, f.tau) / g.volume[:, None]
+    assert np.abs(sig * j_bar[:, None] - mean_tau).max() <= \
+        64 * np.finfo(float).eps * np.abs(mean_tau).max()
+    kirchhoff = sig * j_bar[:, None]  # the output, back to the points' measure
+    d = kirchhoff[:, :3] - kirchhoff[:, :3].mean(axis=1, keepdims=True)
+    vm_kirchhoff = np.sqrt(1.5 * ((d * d).sum(axis=1) + 2.0 * kirchhoff[:, 3] ** 2))
+    sy = sy0 + H * f.state[..., 0].max(axis=1)
+    slack = 64 * np.finfo(float).eps * np.abs(f.tau).max(axis=(1, 2))
+    assert np.all(vm_kirchhoff <= sy + slack)
+    yielded = comm.allreduce(int((f.state[..., 0].max(axis=1) > 0).sum()))
+    assert yielded > comm.allreduce(g.dofs.shape[0]) // 10  # the impact end yields
+
+
+def test_final_length_after_a_rebound_is_the_length_of_the_bar(comm):
+    """An elastic (neo-Hookean) bar at 10 m/s onto the wall leaves it after 2 L / c0 and flies
+    off: final_length is the axis length, z of the top axis node minus z of the bottom
+    one (both read here from the nodes), not the top's height above the wall. Oracle:
+    after the rebound the bar vibrates with a strain of at most v0 / c0 (the impact's
+    plane-wave strain), so its length is L (1 +- v0 / c0), while the top has risen by
+    the flight (several millimetres here)."""
+    R, L, v0 = 0.01, 0.03, 10.0
+    c0 = math.sqrt(RUBBERY.E / RUBBERY.density)
+    run = FiniteRun(quad_bar(comm, R, L, 2, 6), RUBBERY, FiniteSettings(t_end=600e-6),
+                    velocity=(0.0, -v0), wall="film")
+    s = run.run()
+    x0 = run.node_xy[: run.n_owned_nodes]
+    z = x0[:, 1] + run.u_owned[1::2]
+    axis = np.abs(x0[:, 0]) < 1e-12
+    top = comm.allreduce(float(z[axis & (x0[:, 1] > L * (1 - 1e-12))].max(initial=-np.inf)),
+                         op=MPI.MAX)
+    bottom = comm.allreduce(float(z[axis & (x0[:, 1] < 1e-12 * L)].min(initial=np.inf)),
+                            op=MPI.MIN)
+    assert bottom > 10 * v0 / c0 * L  # off the wall, far beyond a vibration of the length
+    assert s["final_length"] == top - bottom
+    assert abs(s["final_length"] / L - 1) <= v0 / c0
+    assert s["activation_loss"] >= 0 and s["kinetic"] > 0.5 * s["initial_kinetic"]

@@ -630,3 +630,49 @@ def test_a_worker_write_error_stops_the_writes(tmp_path_factory, monkeypatch):
     os.close(read_only)
     comm.barrier()
     _check_frames(out, 2)
+
+
+def test_linear_cell_stress_is_the_weighted_mean_of_its_point_stresses():
+    """A linear body's cell stress (D eps at the centroid) is the mean of the stresses at the
+    three points of the stiffness rule weighted by w_q |J| 2 pi r_q, the output of a
+    path-dependent body: computed here from the rule's points and P1 shape functions
+    with numpy, for a displacement with every strain component and cells on the axis.
+    Round-off: 64 eps of the largest stress (some 30 rounded operations a side)."""
+    from impact_fenics.compat import cell_dofs
+
+    sim = scenes.bar_impact(Settings(dt=1e-7, n_steps=1, quiet=True), FILM(), h=0.01, nu=0.3,
+                            radius=A, striker_length=L, target_length=L, structured=False,
+                            observe=None)
+    model = sim.model
+    xy = model.node_xy
+    u = np.zeros(2 * xy.shape[0])
+    u[0::2] = 1e-3 * xy[:, 0] + 2e-3 * xy[:, 0] * xy[:, 1] ** 2
+    u[1::2] = -1e-3 * xy[:, 1] + 3e-3 * xy[:, 0] * xy[:, 1] + 4e-3 * xy[:, 0] ** 2
+    values = CellStress(model).evaluate(u)
+    n_cells = model.mesh.topology.index_map(2).size_local
+    nodes = cell_dofs(model.V)[:n_cells]
+    X, U = xy[nodes], u.reshape(-1, 2)[nodes]  # (n, 3, 2)
+    ref = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])  # the rule: weights 1/6
+    N = np.column_stack([1 - ref.sum(axis=1), ref])  # (points, nodes)
+    J = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]], axis=2)  # dx_a / dxi_b
+    grad_u = np.einsum("nia,nab->nib", np.stack([U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]], 2),
+                       np.linalg.inv(J))  # du_i / dx_b (constant)
+    r_q = N @ X[:, :, 0].T  # (points, n)
+    ur_q = N @ U[:, :, 0].T
+    w = np.abs(np.linalg.det(J)) / 6 * 2 * np.pi * r_q
+    material = next(iter(model.bodies.values())).material
+    assert all(b.material == material for b in model.bodies.values())
+    lam, mu = material.lmbda, material.mu
+    e_rr, e_zz = grad_u[:, 0, 0], grad_u[:, 1, 1]
+    e_rz = 0.5 * (grad_u[:, 0, 1] + grad_u[:, 1, 0])
+    e_tt = ur_q / r_q
+    tr = e_rr + e_zz + e_tt
+    mean = lambda s: (w * s).sum(axis=0) / w.sum(axis=0)  # noqa: E731
+    expected = {"sigma_rr": mean(lam * tr + 2 * mu * e_rr), "sigma_zz": mean(lam * tr + 2 * mu * e_zz),
+                "sigma_tt": mean(lam * tr + 2 * mu * e_tt), "sigma_rz": mean(2 * mu * e_rz + 0 * r_q)}
+    scale = MPI.COMM_WORLD.allreduce(max(float(np.abs(v).max()) for v in expected.values()),
+                                     op=MPI.MAX)
+    for k, name in enumerate(STRESS_NAMES[:4]):
+        assert np.abs(values[k, :n_cells] - expected[name]).max() <= 64 * np.finfo(float).eps * scale, name
+    on_axis = np.abs(X[:, :, 0]).min(axis=1) < 1e-12 * A  # (r = +-1e-19 there: mesh round-off)
+    assert MPI.COMM_WORLD.allreduce(int(on_axis.sum())) > 0

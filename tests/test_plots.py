@@ -159,3 +159,181 @@ def test_auto_region_frames_where_the_field_is():
     assert (r0, z1) == (0.0, 1.0)  # clipped to the model
     # the hot cells' nodes (linspace: 2 roundings) + a tenth of the extent (2 more)
     assert abs(r1 - 0.3) <= rounding(4) and abs(z0 - 0.7) <= rounding(4)
+
+
+# a soft J2 target under the tiny pair's impact, with a probe of every kind
+PLASTIC = replace(replace(PAIR, '[bodies.target]\nmaterial = "steel"',
+                          '[bodies.target]\nmaterial = "soft"\n\n[materials.soft]\nmodel = "j2"\n'
+                          'E = 200e9\nnu = 0.3\ndensity = 7850.0\nyield_stress = 1e6\n'
+                          'hardening = 1e9'),
+                  'quantity = "sigma_zz"\n', 'quantity = "sigma_zz"\n' + "".join(
+                      f'\n[[probes]]\nname = "{q}_t"\npoint = [0.01, 0.005]\nquantity = "{q}"\n'
+                      for q in ("von_mises", "u_z", "eps_p_eq", "yielded")))
+
+
+@pytest.fixture(scope="module")
+def plastic_run(tmp_path_factory):
+    base = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("plastic")), root=0)
+    scene = os.path.join(base, f"plastic{MPI.COMM_WORLD.rank}.toml")
+    with open(scene, "w") as f:
+        f.write(PLASTIC)
+    out = os.path.join(base, "plastic")
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    return out
+
+
+def _table(path: str) -> dict[str, np.ndarray]:
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    return {name: np.atleast_1d(data[name]) for name in data.dtype.names}
+
+
+def test_energy_picture_of_a_plastic_run(plastic_run):
+    """energy.png draws the plastic work, and its total is the sum the scheme conserves:
+    kinetic + strain + plastic work (the very sum of the table's columns), which follows
+    the initial energy plus the work of the load and of the contact (drawn too) to the
+    balance error of the run."""
+    e = _table(os.path.join(plastic_run, "energy.csv"))
+    curves = {name: y for name, _, y in plotting.energy_curves(e)}
+    assert e["plastic_work"][-1] > 0
+    assert {"kinetic", "strain", "plastic_work", "total", "external_work", "contact_work",
+            "balance"} <= set(curves)
+    assert np.array_equal(curves["total"], e["kinetic"] + e["strain"] + e["plastic_work"])
+    scale = np.abs(e["total"]).max()
+    assert np.abs(curves["balance"] - curves["total"]).max() <= \
+        (e["balance_error_rel"].max() + 4 * np.finfo(float).eps) * scale
+    assert all(np.any(y != 0.0) for name, y in curves.items() if name != "strain")
+    assert _is_drawing(os.path.join(plastic_run, "energy.png"))
+    # a run without plastic work: no such curve
+    e = _table(os.path.join(plastic_run, "energy.csv"))
+    e["plastic_work"][:] = 0.0
+    assert "plastic_work" not in {name for name, _, _ in plotting.energy_curves(e)}
+
+
+def test_history_picture_draws_every_probe(plastic_run):
+    """Every probe column of history.csv is in a panel of history.png: stresses, u_z,
+    eps_p_eq and yielded alike."""
+    with open(os.path.join(plastic_run, "summary.json")) as f:
+        summary = json.load(f)
+    h = _table(os.path.join(plastic_run, "history.csv"))
+    probes = [("s", "sigma_zz")] + [(f"{q}_t", q) for q in ("von_mises", "u_z", "eps_p_eq",
+                                                            "yielded")]
+    drawn = {name for _, curves in plotting.probe_panels(h, probes) for name, _ in curves}
+    assert drawn == {name for name, _ in probes}
+    assert h["eps_p_eq_t"][-1] > 0 and h["yielded_t"][-1] == 1.0
+    assert summary["title"] == "tiny impact"
+    assert _is_drawing(os.path.join(plastic_run, "history.png"))
+
+
+# ----------------------------------------------------------------------------- field pictures
+def _taylor_text() -> str:
+    from scene_texts import ROOT
+
+    with open(os.path.join(ROOT, "scenes", "taylor_bar.toml")) as f:
+        text = f.read()
+    text = replace(text, "n_r = 8", "n_r = 2")
+    return replace(text, "t_end = 80e-6", "t_end = 20e-6")
+
+
+def _run(base: str, name: str, text: str) -> str:
+    scene = os.path.join(base, f"{name}{MPI.COMM_WORLD.rank}.toml")
+    with open(scene, "w") as f:
+        f.write(text)
+    out = os.path.join(base, name)
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def taylor_run(tmp_path_factory):
+    base = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("taylor")), root=0)
+    return _run(base, "taylor", _taylor_text())
+
+
+@pytest.fixture(scope="module")
+def punch_run(tmp_path_factory):
+    from scene_texts import RIGID
+
+    base = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("punch")), root=0)
+    return _run(base, "punch", 'title = "small punch"\n' + RIGID)
+
+
+def _extent(caption: str) -> tuple[float, float, float, float]:
+    """(r0, r1, z0, z1) of a caption 'shown: r A to B mm, z C to D mm (...)' in mm."""
+    words = caption.replace(",", "").split()
+    r = words.index("r")
+    z = words.index("z")
+    return (float(words[r + 1]), float(words[r + 3]), float(words[z + 1]), float(words[z + 3]))
+
+
+def test_a_finite_strain_run_is_drawn_at_its_true_shape(taylor_run):
+    """The Taylor bar (finite strain) is drawn at displacement x 1 by default, under the
+    scene's title; the caption gives the deformed extent: z up to the length the run
+    measured (the top of the axis, summary.json), r out to at least the impact face's
+    radius. An explicit --scale still rules."""
+    with open(os.path.join(taylor_run, "summary.json")) as f:
+        s = json.load(f)
+    data = plotting.read_xdmf(os.path.join(taylor_run, "fields.xdmf"))
+    (last,) = plotting.plan_pictures(taylor_run, "von_mises", [s["t_end"]], region=None)
+    assert last.title.startswith("Taylor bar: von_mises (MPa) at t = 20.00 µs, true shape "
+                                 "(displacement x 1)")
+    u = data.values("displacement", data.fields["displacement"].times.size - 1)[:, :2]
+    assert np.array_equal(last.points, data.points + u)
+    r0, r1, z0, z1 = _extent(last.caption)
+    assert (r0, z0) == (0.0, 0.0) and "(deformed)" in last.caption
+    assert z1 == float(f"{s['final_length'] * 1e3:.4g}")  # the printed digits
+    assert r1 >= float(f"{s['final_face_radius'] * 1e3:.4g}") > 3.2  # wider than at rest
+    (half,) = plotting.plan_pictures(taylor_run, "von_mises", [s["t_end"]], scale=0.5)
+    assert "displacement x 0.5" in half.title
+
+
+def test_the_frame_is_the_deformed_extent_of_the_framed_cells(bar_run):
+    """A region frames the cells whose undeformed centre lies in it; the picture's frame
+    (and caption) is the extent of their nodes at the drawn positions, every cell is
+    handed to the drawing (it cuts them at the frame), and the small-strain scale shows
+    the largest displacement as 5 % of the model, rounded down to 1, 2 or 5 x 10^k."""
+    data = plotting.read_xdmf(os.path.join(bar_run, "fields.xdmf"))
+    region = (0.0, 0.015, 0.02, 0.06)
+    (pic,) = plotting.plan_pictures(bar_run, "sigma_zz", [5e-6], region=region)
+    c = data.points[data.cells].mean(axis=1)
+    inside = ((c[:, 0] >= region[0]) & (c[:, 0] <= region[1]) & (c[:, 1] >= region[2])
+              & (c[:, 1] <= region[3]))
+    nodes = np.unique(data.cells[inside])
+    k = int(np.argmin(np.abs(data.fields["displacement"].times - 5e-6)))
+    u = data.values("displacement", k)[:, :2]
+    scale = float(pic.title.split("displacement x ")[1].split()[0])
+    u_max = np.abs(u).max()
+    assert 0.02 * 0.1 < scale * u_max <= 0.05 * 0.1  # 5 % of the model size, rounded down
+    assert f"{scale:.0e}"[0] in "125"
+    xy = data.points + scale * u
+    assert pic.frame == (xy[nodes, 0].min(), xy[nodes, 0].max(), xy[nodes, 1].min(),
+                         xy[nodes, 1].max())
+    assert np.array_equal(pic.points, xy) and pic.cells.shape == data.cells.shape
+
+
+def _coloured(rgb: np.ndarray) -> np.ndarray:
+    hi, lo = rgb.max(axis=2), rgb.min(axis=2)
+    return (hi - lo) > 0.25 * np.maximum(hi, 1e-9)
+
+
+def test_pictures_keep_r_to_the_right_and_z_up_with_straight_edges(taylor_run, punch_run):
+    """One orientation for every picture, r to the right and z up: the tall Taylor bar makes
+    a picture taller than wide, the wide punch block one wider than tall. A region that
+    cuts the block at r = 0.15 m ends the coloured mesh at one column of pixels in every
+    row (the cells are cut at the frame: no sawtooth of whole cells)."""
+    if MPI.COMM_WORLD.rank == 0:
+        (tall,) = plotting.render_fields(taylor_run, "von_mises", [20e-6], region=None)
+        h, w = _image(tall).shape[:2]
+        assert h > w
+        (wide,) = plotting.render_fields(punch_run, "sigma_zz", [2e-6], region=None)
+        h, w = _image(wide).shape[:2]
+        assert w > h
+        (cut,) = plotting.render_fields(punch_run, "von_mises", [2e-6], scale=0.0,
+                                        region=(0.0, 0.15, -0.1, 0.0))
+        rgb = _image(cut)
+        mesh = _coloured(rgb)[80: rgb.shape[0] - 160]  # between the title and the colour bar
+        rows = np.flatnonzero(mesh.any(axis=1))
+        right = np.array([np.flatnonzero(mesh[i])[-1] for i in rows])
+        assert rows.size > 100 and np.ptp(right) <= 1
+        assert "small punch: von_mises" in plotting.plan_pictures(punch_run, "von_mises",
+                                                                 [2e-6])[0].title
+    MPI.COMM_WORLD.barrier()

@@ -111,3 +111,107 @@ def test_energy_row_and_peak_stresses_are_the_written_outputs(bars):
                                     ("sigma_zz_min", zz_min, zz_min.min())):
         assert peaks[key] == extreme, key
         assert peaks[f"{key}_time"] == series.times[np.flatnonzero(per_frame == extreme)[0]], key
+
+
+def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
+    """A J2 target yielding under the tiny pair's impact (with a load on its far end): the
+    console's energy line shows every term of the ledger that is not zero, kinetic +
+    strain + plastic work = total = initial + work of loads + contact work (to the
+    printed digits); the target's plastic work is the ledger's (the only plastic body;
+    the sums over ranks may differ in order: 1e-12); eps_p_max is the largest
+    equivalent plastic strain at a point at the end, so at least every cell mean of the
+    last frame."""
+    from scene_texts import PAIR, replace
+
+    from impact_fenics import cli, plotting
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
+    scene = os.path.join(base, f"plastic{comm.rank}.toml")
+    with open(scene, "w") as f:
+        f.write(replace(PAIR, '[bodies.target]\nmaterial = "steel"',
+                        '[bodies.target]\nmaterial = "soft"\n\n[materials.soft]\nmodel = "j2"\n'
+                        'E = 200e9\nnu = 0.3\ndensity = 7850.0\nyield_stress = 1e6\n'
+                        'hardening = 1e9'))
+    out = os.path.join(base, "out")
+    capsys.readouterr()
+    assert cli.main(["run", scene, "--out", out]) == 0
+    text = capsys.readouterr().out
+    with open(os.path.join(out, "summary.json")) as f:
+        s = json.load(f)
+    e = s["energy"]
+    assert e["plastic_work"] > 0 and e["external_work"] != 0 and e["contact_work"] != 0
+    # the initial energy closes the balance: E_n - E_0 - W_n is the balance error (the
+    # ledger's expression, evaluated again on the same floats)
+    assert e["total"] - s["energy_initial"] - e["external_work"] - e["contact_work"] == \
+        e["balance_error"]
+    assert s["bodies"]["target"]["plastic_work"] == pytest.approx(e["plastic_work"], rel=1e-12)
+    assert "plastic_work" not in s["bodies"]["striker"]
+    last = plotting.read_xdmf(os.path.join(out, "fields.xdmf"))
+    eps = last.values("eps_p_eq", last.fields["eps_p_eq"].times.size - 1)
+    assert 0 < eps.max() <= s["eps_p_max"]
+    if comm.rank != 0:
+        return
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("energy: ")]
+    assert f"plastic work {e['plastic_work']:.6g} J" in line
+    assert f"work of loads {e['external_work']:.4g} J" in line
+    assert f"contact work {e['contact_work']:.4g} J" in line
+    stored = e["kinetic"] + e["strain"] + e["plastic_work"]
+    assert f"= {stored:.6g} J = initial {s['energy_initial']:.6g} J + " in line
+    assert f"largest equivalent plastic strain {s['eps_p_max']:.4g}" in text
+
+
+def test_node_to_segment_summary_names_the_bodies_below_and_above(tmp_path):
+    """Node to segment with the finer target face (above) as slave and the striker (below,
+    moving up) as master: the summary says lower = striker, upper = target (the master's
+    outward normals point up to the slave), names the slave and the master, and gives the
+    1D impact's rebound: the velocities exchanged, restitution 1 (within h / 2L each, as
+    the node-pair bars above)."""
+    from impact_fenics.contact import DME
+
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "nts") if MPI.COMM_WORLD.rank == 0 else None,
+                               root=0)
+    sim = scenes.bar_impact_sized(Settings(cfl=0.9, t_end=3 * L / C0, output_every=25,
+                                           out=out, quiet=True, plots=False, fields=False),
+                                  DME(), n_striker=6, n_target=9, v0=V0, radius=A,
+                                  striker_length=L, target_length=L)
+    s = sim.run()
+    (c,) = s["impact"]
+    assert (c["slave"], c["master"]) == ("target", "striker")
+    assert (c["lower"], c["upper"]) == ("striker", "target")
+    assert c["separated_at_end"]
+    assert abs(c["velocity_lower_before"] - V0) <= 1e-12 * V0
+    assert abs(c["velocity_lower_after"]) <= VEL * V0
+    assert abs(c["velocity_upper_after"] - V0) <= VEL * V0
+    assert abs(c["restitution"] - 1.0) <= 2 * VEL
+
+
+def test_results_line_says_what_was_written(tmp_path, capsys):
+    """'open fields.xdmf in ParaView' only when the run wrote it; with [output] fields =
+    false the line lists the files the run wrote instead."""
+    from scene_texts import PAIR, replace
+
+    from impact_fenics import cli
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
+    for fields in (True, False):
+        text = PAIR if fields else replace(PAIR, "output_every = 10",
+                                           "output_every = 10\nfields = false")
+        scene = os.path.join(base, f"pair{int(fields)}_{comm.rank}.toml")
+        with open(scene, "w") as f:
+            f.write(text)
+        out = os.path.join(base, f"out{int(fields)}")
+        capsys.readouterr()
+        assert cli.main(["run", scene, "--out", out]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        if comm.rank != 0:
+            continue
+        (line,) = [ln for ln in lines if ln.startswith("results in ")]
+        written = sorted(n for n in os.listdir(out) if not n.startswith("."))
+        if fields:
+            assert "fields.xdmf" in written and "open fields.xdmf in ParaView" in line
+        else:
+            assert "fields.xdmf" not in written and "ParaView" not in line
+            assert line == (f"results in {out}/: {', '.join(written)} (no fields.xdmf: "
+                            "[output] fields = false)")

@@ -286,6 +286,10 @@ class QuadratureForce:
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()
+        # the points at an output's displacement (point_stresses): their own state and a
+        # force array that is written, never read
+        self.frame = QuadratureState(self.cells.size, self.material.n_state)
+        self._frame_f = np.zeros_like(self.f.x.array)
         self._load_kernels()
 
     def _load_kernels(self) -> None:
@@ -296,10 +300,10 @@ class QuadratureForce:
         from ..jit_watch import load
 
         g, qs, n = self.geometry, self.qs, self.model.n_owned
-        if self.path == "fast":
-            load(self._fused, self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
-                 self.u.x.array, self.f.x.array, qs.eps_p, qs.state, qs.sigma, self._work)
-        else:
+        # the fused kernel on either path: point_stresses runs it
+        load(self._fused, self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
+             self.u.x.array, self.f.x.array, qs.eps_p, qs.state, qs.sigma, self._work)
+        if self.path == "generic":
             load(self._points, self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
                  qs.sigma, self._qdofs, self._sigma_q.x.array, self._work)
         owned = self.u.x.array[:n]
@@ -375,11 +379,44 @@ class QuadratureForce:
         self._cell_eps_bar = np.zeros(n)
         self._cell_yielded = np.zeros(n)
 
-    def cell_values(self, which: np.ndarray | None = None
+    def cell_values(self, which: np.ndarray | None = None, qs: QuadratureState | None = None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per owned cell of the body: mean eps_p (n, 4), mean eps_bar_p (n,) and the
-        yielded flag (n,) (1 if any point has eps_bar_p > 0); only the positions
+        yielded flag (n,) (1 if any point has eps_bar_p > 0) of the state ``qs`` (default:
+        the committed one, :attr:`qs`; :attr:`frame` for an output's); only the positions
         ``which`` (into ``cells``) are brought up to date when given."""
-        cell_means(self._all if which is None else which, self.qs.eps_p, self.qs.state,
+        qs = self.qs if qs is None else qs
+        cell_means(self._all if which is None else which, qs.eps_p, qs.state,
                    self._cell_eps_p, self._cell_eps_bar, self._cell_yielded)
         return self._cell_eps_p, self._cell_eps_bar, self._cell_yielded
+
+    @property
+    def cell_kernel(self):
+        """The material's fused cell kernel (:func:`kernels`): called with the arguments of
+        :meth:`compute`'s call (for any cells: their geometry, a displacement, a force
+        array and the points' state), it updates the points and adds the force."""
+        return self._fused
+
+    @property
+    def work(self) -> np.ndarray:
+        """The cell kernel's scratch array (its shape is what the kernel needs)."""
+        return self._work
+
+    def point_stresses(self, u: np.ndarray) -> QuadratureState:
+        """The points' update at the displacement ``u`` (m; the local array, owned and ghost
+        entries current, laid out as the Function's) from the committed state, into
+        :attr:`frame`, which it returns; the committed state is left as it is.
+
+        An output comes after the step that moved u^n to u^{n+1}, while the points hold
+        the update at u^n. This is the update the next step makes at u^{n+1}, by the same
+        kernel (the fused one, on either path) from the same state: its stresses are what
+        the material computes for the displacement written with them, and satisfy its
+        yield condition. One pass over the body's cells."""
+        qs, fr, g = self.qs, self.frame, self.geometry
+        np.copyto(fr.eps_p, qs.eps_p)
+        np.copyto(fr.state, qs.state)
+        np.copyto(fr.sigma, qs.sigma)
+        self._frame_f.fill(0.0)
+        self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, u,
+                    self._frame_f, fr.eps_p, fr.state, fr.sigma, self._work)
+        return fr

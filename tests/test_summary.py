@@ -117,8 +117,9 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     """A J2 target yielding under the tiny pair's impact (with a load on its far end): the
     console's energy line shows every term of the ledger that is not zero, kinetic +
     strain + plastic work = total = initial + work of loads + contact work (to the
-    printed digits); the target's plastic work is the ledger's (the only plastic body;
-    the sums over ranks may differ in order: 1e-12); eps_p_max is the largest
+    printed digits); the target's plastic work is the ledger's (the only plastic body:
+    the same points' works, >= 0, summed in another order, a rounding a point); eps_p_max
+    is the largest
     equivalent plastic strain at a point at the end, so at least every cell mean of the
     last frame."""
     from scene_texts import PAIR, replace
@@ -145,7 +146,9 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     # ledger's expression, evaluated again on the same floats)
     assert e["total"] - s["energy_initial"] - e["external_work"] - e["contact_work"] == \
         e["balance_error"]
-    assert s["bodies"]["target"]["plastic_work"] == pytest.approx(e["plastic_work"], rel=1e-12)
+    n_points = 3 * s["n_cells"]  # the degree-2 rule of the stiffness: 3 points a cell
+    assert s["bodies"]["target"]["plastic_work"] == pytest.approx(e["plastic_work"],
+                                                                  rel=rounding(n_points))
     assert "plastic_work" not in s["bodies"]["striker"]
     last = plotting.read_xdmf(os.path.join(out, "fields.xdmf"))
     eps = last.values("eps_p_eq", last.fields["eps_p_eq"].times.size - 1)
@@ -180,7 +183,8 @@ def test_node_to_segment_summary_names_the_bodies_below_and_above(tmp_path):
     assert (c["slave"], c["master"]) == ("target", "striker")
     assert (c["lower"], c["upper"]) == ("striker", "target")
     assert c["separated_at_end"]
-    assert abs(c["velocity_lower_before"] - V0) <= 1e-12 * V0
+    # the striker moving as one: a ledger's round-off, as above
+    assert abs(c["velocity_lower_before"] - V0) <= ledger(s["n_steps"], s["n_dofs"]) * V0
     assert abs(c["velocity_lower_after"]) <= VEL * V0
     assert abs(c["velocity_upper_after"] - V0) <= VEL * V0
     assert abs(c["restitution"] - 1.0) <= 2 * VEL

@@ -141,7 +141,14 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     with open(os.path.join(out, "summary.json")) as f:
         s = json.load(f)
     e = s["energy"]
-    assert e["plastic_work"] > 0 and e["external_work"] != 0 and e["contact_work"] != 0
+    assert e["plastic_work"] > 0 and e["external_work"] != 0
+    # the pairs touch at t = 0 and the first step's impact is in E_0 = 1/2 v^0 M v^1: the
+    # contact's work after it is round-off here (4 to 90 EPS of the total, by the
+    # partition), shown only above the console's round-off threshold
+    from impact_fenics.report import ROUND_OFF
+
+    noise = ROUND_OFF * max(abs(e[k]) for k in ("kinetic", "strain", "plastic_work", "total",
+                                                 "external_work", "contact_work"))
     # the initial energy closes the balance: E_n - E_0 - W_n is the balance error (the
     # ledger's expression, evaluated again on the same floats)
     assert e["total"] - s["energy_initial"] - e["external_work"] - e["contact_work"] == \
@@ -158,7 +165,7 @@ def test_plastic_work_and_strain_in_the_summary_and_console(tmp_path, capsys):
     (line,) = [ln for ln in text.splitlines() if ln.startswith("energy: ")]
     assert f"plastic work {e['plastic_work']:.6g} J" in line
     assert f"work of loads {e['external_work']:.4g} J" in line
-    assert f"contact work {e['contact_work']:.4g} J" in line
+    assert (f"contact work {e['contact_work']:.4g} J" in line) == (abs(e["contact_work"]) > noise)
     stored = e["kinetic"] + e["strain"] + e["plastic_work"]
     assert f"= {stored:.6g} J = initial {s['energy_initial']:.6g} J + " in line
     assert f"largest equivalent plastic strain {s['eps_p_max']:.4g}" in text

@@ -15,6 +15,7 @@ from mpi4py import MPI
 from impact_fenics.bench import main
 from impact_fenics.bench.contact import CONTACT_METHODS
 from impact_fenics.bench.step import scipy_equivalence
+from roundoff import rounding
 
 # akantu needs a venv of its own that CI does not have: left out here
 PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite"
@@ -72,7 +73,10 @@ def test_smoke_run_writes_the_expected_figures(smoke):
     for variant in ("aij", "baij"):
         assert all(v > 0 for v in smoke["format"][variant]["ns_per_dof"].values())
     assert smoke["format"]["baij"]["block_size"] == 2
-    assert smoke["format"]["baij"]["same_A_as_aij"] < 1e-12  # the same operator in another format
+    # the same operator in another format, times a random x: a row's 18 products summed in
+    # another order, 18 roundings of sum_j |A_ij x_j| (within sqrt(18) of max |A x| for a
+    # random x)
+    assert smoke["format"]["baij"]["same_A_as_aij"] <= rounding(18 * math.sqrt(18))
 
     if comm.size == 1:
         for k in ("scipy_plain", "scipy_inplace"):
@@ -83,7 +87,11 @@ def test_smoke_run_writes_the_expected_figures(smoke):
         for s in ranks["speedup"]:
             assert all(v > 0 for v in s["speedup"].values())
         mf = smoke["matfree"]
-        assert mf["rel_diff_to_K_u"] < 1e-12 and mf["ns_per_dof"]["matfree"] > 0
+        # another assembly: each path an element matrix from quadrature (about 26
+        # roundings an entry) and a row of 18 products, on sum_j |K_ij u_j| (within
+        # sqrt(18) of max |K u| for the random u)
+        assert mf["rel_diff_to_K_u"] <= rounding(2 * (26 + 18) * math.sqrt(18))
+        assert mf["ns_per_dof"]["matfree"] > 0
     else:
         for part in ("ranks", "matfree"):
             assert "skipped" in smoke[part]
@@ -106,11 +114,15 @@ def test_smoke_run_writes_the_expected_figures(smoke):
 
 
 def test_scipy_loop_is_the_integrator_update():
-    """Same u and v after a few steps, loads included (each rank on its own mesh)."""
-    e = scipy_equivalence(MPI.COMM_SELF, dofs=3000, steps=8)
+    """Same u and v after a few steps, loads included (each rank on its own mesh): each of
+    the 8 steps rounds about 32 times (a row of K and the update, the ledger's count of
+    tests/roundoff.py), and the stable linear step carries the earlier errors along
+    without growth, so the two stay within 32 x 8 roundings."""
+    steps = 8
+    e = scipy_equivalence(MPI.COMM_SELF, dofs=3000, steps=steps)
     assert e["load_steps"] > 0 and e["u_max"] > 0
     for k in ("plain_u_rel", "plain_v_rel", "inplace_u_rel", "inplace_v_rel"):
-        assert e[k] <= 1e-12, (k, e[k])
+        assert e[k] <= rounding(32 * steps), (k, e[k])
 
 
 def test_unknown_part_is_refused():

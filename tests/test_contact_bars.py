@@ -1,7 +1,8 @@
 """Node-to-node contact of two equal nu = 0 bars against the 1D impact solution.
 
 Two equal bars of length L meeting at relative speed v0 press with the contact
-stress rho c0 v0 / 2 for 2 L / c0, then part with their velocities exchanged.
+stress rho c0 v0 / 2 for 2 L / c0, then part with their velocities exchanged (nu = 0
+admits exact plane waves: every section moves as one, d'Alembert's solution).
 The CST mesh only converges to this, so the checks are on face-integrated or
 body-averaged quantities with tolerances tied to the element size h:
 
@@ -12,7 +13,8 @@ body-averaged quantities with tolerances tied to the element size h:
   element scale), and its error shrinks when h halves;
 * mean velocities after separation exchanged within 2 % of v0 (checked at the
   finer mesh; the error shrinks with h);
-* momentum conserved to 1e-10; no penetration while in contact.
+* momentum conserved to the round-off of a ledger; no penetration while in contact
+  beyond the round-off of the gap arithmetic (tests/roundoff.py).
 """
 import math
 
@@ -23,6 +25,7 @@ from impact_fenics import scenes
 from impact_fenics.contact import DME, FILM, pair_surfaces
 from impact_fenics.errors import InputError
 from impact_fenics.simulation import Settings
+from roundoff import ledger, rounding
 from test_meshing import owned_cells
 
 RHO, E = 7850.0, 200e9
@@ -52,6 +55,10 @@ def impact(method, h):
                           / abs(energy["momentum_z"][0]),
         "max_penetration": summary["contact"]["max_penetration"],
         "separated": hist["n_active"][-1] == 0,
+        "ledger": ledger(summary["n_steps"], summary["n_dofs"]),
+        # the committed gap b + u_up - u_lo (2 roundings) after the correction that closed
+        # it (6 more) on displacements up to v0 t_end
+        "gap_round": rounding(8, V0 * sim.settings.t_end),
     }
 
 
@@ -85,8 +92,8 @@ def test_velocities_are_exchanged(runs):
 
 @pytest.mark.parametrize("h", [0.01, 0.005])
 def test_momentum_conserved_and_no_penetration(runs, h):
-    assert runs[h]["momentum_error"] <= 1e-10
-    assert runs[h]["max_penetration"] <= 1e-12 * h
+    assert runs[h]["momentum_error"] <= runs[h]["ledger"]
+    assert runs[h]["max_penetration"] <= runs[h]["gap_round"]
 
 
 def test_mismatched_contact_faces_are_refused(tmp_path):
@@ -137,7 +144,10 @@ def _write_mismatched_bars(path: str) -> None:
 @pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
 @pytest.mark.parametrize("positions", ["mass_weighted", "paper"])
 def test_dme_pair_collision_law(e, positions):
-    """One activation step of DME case 2 against Newton's law and momentum."""
+    """One activation step of DME case 2 against Newton's law and momentum. Round-off:
+    the pair's velocities take about 12 roundings (the mass share, the approach velocity,
+    the mean and the restitution) of the largest |v|; the positions 5 of the largest
+    |u| + |b|; the reported force those of the velocity times m / dt."""
     from types import SimpleNamespace
 
     m_lo, m_up = np.array([2.0, 1.0, 3.0]), np.array([1.0, 4.0, 3.0])
@@ -157,12 +167,19 @@ def test_dme_pair_collision_law(e, positions):
     a = c.active
     new_u_lo, new_u_up, new_v_lo, new_v_up = c.u[:3], c.u[3:], c.v[:3], c.v[3:]
     rel_before = v_up[a] - v_lo[a]
-    assert np.allclose(new_v_up[a] - new_v_lo[a], -e * rel_before, rtol=0, atol=1e-14)
-    assert np.allclose(m_lo * new_v_lo + m_up * new_v_up, m_lo * v_lo + m_up * v_up, rtol=1e-14)
-    assert np.allclose(new_u_lo[a], new_u_up[a] + b[a], rtol=0, atol=1e-20)  # on the manifold
+    v_round = rounding(12, np.abs(np.concatenate([v_lo, v_up])).max())
+    assert np.allclose(new_v_up[a] - new_v_lo[a], -e * rel_before, rtol=0, atol=v_round)
+    p_scale = np.abs(m_lo * v_lo).max() + np.abs(m_up * v_up).max()
+    assert np.allclose(m_lo * new_v_lo + m_up * new_v_up, m_lo * v_lo + m_up * v_up, rtol=0,
+                       atol=rounding(14, p_scale))
+    u_scale = np.abs(np.concatenate([u_lo, u_up])).max() + np.abs(b).max()
+    assert np.allclose(new_u_lo[a], new_u_up[a] + b[a], rtol=0,
+                       atol=rounding(5, u_scale))  # on the manifold
     w = m_lo / (m_lo + m_up) if positions == "mass_weighted" else np.full(3, 0.5)
-    assert np.allclose(new_u_lo[a], (w * u_lo + (1 - w) * (u_up + b))[a], rtol=1e-14)
+    assert np.allclose(new_u_lo[a], (w * u_lo + (1 - w) * (u_up + b))[a], rtol=0,
+                       atol=rounding(10, u_scale))
     assert new_u_lo[2] == u_lo[2] and new_v_up[2] == v_up[2]  # the open pair is untouched
     # the reported force is the momentum change of the upper node over dt
-    assert np.allclose(c.force[a], m_up[a] * (new_v_up[a] - v_up[a]) / c.dt, rtol=1e-12)
+    assert np.allclose(c.force[a], m_up[a] * (new_v_up[a] - v_up[a]) / c.dt, rtol=0,
+                       atol=v_round * m_up.max() / c.dt)
     assert np.all(c.force[a] > 0) and c.force[2] == 0.0

@@ -127,8 +127,10 @@ def test_a_full_disk_exits_4_in_one_line(tmp_path, capsys, monkeypatch):
     assert not os.path.exists(out) and os.path.isdir(out + ".partial")
 
 
-def _wait_for_loop(proc, out, timeout=60.0) -> None:
-    """Wait until the run is in its loop: the first output row is in the staging directory."""
+def _wait_for_loop(proc, out, timeout=300.0) -> None:
+    """Wait until the run is in its loop: the first output row is in the staging directory
+    (a state the run reports, checked again and again; ``timeout`` (s) only keeps a broken
+    run from hanging the suite: a first run compiles its kernels for tens of seconds)."""
     energy = os.path.join(str(out) + ".partial", "energy.csv")
     deadline = time.monotonic() + timeout
     while True:

@@ -33,7 +33,7 @@ def exact(r):
 def inner_loads(xy, n_dofs):
     """Nodal forces of the pressure on r = a: p 2 pi a l / 2 to each end of each edge (N)."""
     f = np.zeros(n_dofs)
-    inner = np.flatnonzero(np.abs(xy[:, 0] - A) < 1e-12)
+    inner = np.flatnonzero(np.abs(xy[:, 0] - A) < 1e-12)  # m: far above round-off, below h
     z = xy[inner, 1]
     order = np.argsort(z)
     for i, j in zip(inner[order][:-1], inner[order][1:]):

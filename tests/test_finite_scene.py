@@ -10,11 +10,13 @@ Oracles, none taken from the writer under test:
   pieces, their nodes going round the cell (the shoelace area is the cell's), and
   their ring volumes
   sum(2 pi r_c A) add up to pi R^2 L (exact for a rectangle, whose centroid is its
-  mean radius: round-off only), on any number of ranks;
+  mean radius: round-off only, counted as in tests/roundoff.py), on any number of ranks;
 * the displacement written at the end time moves the node that started at (0, L) to
-  the final length of the summary (two paths: the field writer and the tracked node);
+  the final length of the summary (two paths, the field writer and the tracked node,
+  adding the same two doubles: equal);
 * history.csv has one row every history_every steps and the last state; its kinetic
-  identity column is round-off (the scheme's exact identity);
+  identity column is round-off (the scheme's kinetic identity, K + W_int + L_wall = K_0
+  exactly in exact arithmetic: roundoff.ledger);
 * bad input: one line naming the table and the key, exit 2, nothing written;
 * a signal in the loop stops the run at a step boundary with a complete directory.
 """
@@ -31,6 +33,7 @@ from mpi4py import MPI
 
 from impact_fenics import cli
 from impact_fenics.finite_run import FiniteRun
+from roundoff import ledger, rounding
 from scene_texts import launch, replace
 
 COMM = MPI.COMM_WORLD
@@ -100,8 +103,9 @@ def taylor_run(tmp_path_factory):
         return out, json.load(f)
 
 
-def test_the_scene_file_is_the_issues_taylor_bar():
-    """scenes/taylor_bar.toml reads as a finite-strain scene with the issue's values."""
+def test_the_scene_file_is_the_literatures_taylor_bar():
+    """scenes/taylor_bar.toml reads as a finite-strain scene with the Taylor bar of the
+    literature (copper, R = 3.2 mm, L = 32.4 mm, 227 m/s, 80 us: docs/taylor_bar.md)."""
     from impact_fenics import scene_file
 
     sc = scene_file.read_scene(os.path.join(os.path.dirname(__file__), "..", "scenes",
@@ -122,10 +126,14 @@ def test_run_directory_and_summary(taylor_run):
     assert {".impact_fenics_run", "scene.toml", "summary.json", "history.csv", "history.png",
             "fields.xdmf"} <= names
     assert s["status"] == "completed" and s["strain"] == "finite" and s["n_ranks"] == COMM.size
+    # the loop stops once t >= t_end (1 - 1e-12) (finite_run.py: a sum of steps that
+    # lands within that of t_end ends the run), so the end time is t_end to 1e-12
     assert s["t_end"] == pytest.approx(8e-6, rel=1e-12)
-    K0 = 0.5 * 8930.0 * math.pi * R * R * L * V0 ** 2  # the lumped mass is exact: round-off
-    assert s["initial_kinetic"] == pytest.approx(K0, rel=1e-12)
-    assert abs(s["kinetic_identity_error"]) < 1e-12
+    # the lumped mass is exact: round-off (a node's mass about 30 roundings, the sums one
+    # per node of the 3 x 21)
+    K0 = 0.5 * 8930.0 * math.pi * R * R * L * V0 ** 2
+    assert s["initial_kinetic"] == pytest.approx(K0, rel=rounding(40 + 2 * 3 * 21))
+    assert abs(s["kinetic_identity_error"]) <= ledger(s["n_steps"], s["n_dofs"])
     assert s["eps_p_max"] > 0.5 and s["wall"]["method"] == "film"
     assert 0 < s["dt_min"] <= s["dt_max"]
     for key in ("final_length", "final_face_radius", "plastic_work", "stored_elastic",
@@ -147,7 +155,8 @@ def test_history_rows_and_identity(taylor_run):
     n = s["n_steps"]
     expected = list(range(0, n, 3)) + [n]
     assert step.tolist() == expected
-    assert np.abs(h[:, head.index("balance_error")]).max() < 1e-12 * s["initial_kinetic"]
+    bound = ledger(s["n_steps"], s["n_dofs"]) * s["initial_kinetic"]
+    assert np.abs(h[:, head.index("balance_error")]).max() <= bound
     assert h[-1, head.index("length")] == s["final_length"]
 
 
@@ -160,7 +169,7 @@ def test_fields_one_grid_per_output_with_every_field(taylor_run):
     names = [g.get("Name") for g in steps]
     n = s["n_steps"]
     assert names == [f"step_{k}" for k in range(0, n, 25)] + ([f"step_{n}"] if n % 25 else [])
-    assert float(steps[-1].find("Time").get("Value")) == pytest.approx(s["t_end"], rel=1e-14)
+    assert float(steps[-1].find("Time").get("Value")) == s["t_end"]  # written with repr()
     volume = 0.0
     n_cells = 0
     for step in steps:
@@ -177,20 +186,26 @@ def test_fields_one_grid_per_output_with_every_field(taylor_run):
                 c = xy[cells]  # (m, 4, 2), nodes going round the cell
                 x, y = c[..., 0], c[..., 1]
                 area = 0.5 * (x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1)
-                # going round: the shoelace area is the cell's (a bow-tie order gives 0)
-                assert np.allclose(np.abs(area), (R / 2) * (L / 20), rtol=1e-12, atol=0)
+                # going round: the shoelace area is the cell's (a bow-tie order gives 0);
+                # its 8 products and sums round on the coordinates' size, R L
+                assert np.allclose(np.abs(area), (R / 2) * (L / 20), rtol=0,
+                                   atol=rounding(8, R * L))
                 volume += float((2 * math.pi * c[..., 0].mean(axis=1) * np.abs(area)).sum())
                 n_cells += cells.shape[0]
     assert n_cells == s["n_cells"] == 2 * 20
-    assert volume == pytest.approx(math.pi * R * R * L, rel=1e-13)
+    # each ring: its area's rounding relative to the area (8 R L / A), the centroid and
+    # the products (8); the sum of 40 rings (40)
+    cell = (R / 2) * (L / 20)
+    assert volume == pytest.approx(math.pi * R * R * L, rel=rounding(8 * R * L / cell + 48))
     # the last displacement moves the node (0, L) to the summary's final length
     z_top = []
     for p in steps[-1].findall("Grid"):
         xy = _item(p.find("Geometry/DataItem"), out)
         u = _item(p.find("Attribute[@Name='displacement']/DataItem"), out)
+        # the node (0, L): 1e-12 m, far above round-off, far below h
         k = np.flatnonzero(np.hypot(xy[:, 0], xy[:, 1] - L) < 1e-12)
         z_top += list(xy[k, 1] + u[k, 1])
-    assert z_top and np.allclose(z_top, s["final_length"], rtol=1e-14, atol=0)
+    assert z_top and np.all(np.array(z_top) == s["final_length"])
 
 
 def test_a_held_face_stays_on_the_wall(tmp_path_factory):
@@ -199,7 +214,8 @@ def test_a_held_face_stays_on_the_wall(tmp_path_factory):
     face's nodes sliding outward (u_r > 0 at the rim), and the face's stop at t = 0
     booked as impact_face_loss = 1/2 m_face v0^2, where the row-sum lumped mass of the
     face is half the bottom cell row's, rho pi R^2 (L / 20) / 2, exactly (the Q1 shape
-    functions are linear in Z and the 2 pi R weight does not depend on Z): round-off."""
+    functions are linear in Z and the 2 pi R weight does not depend on Z): round-off
+    (each face node's mass about 30 roundings, their sum 3, 1/2 m v0^2 3 more)."""
     base = COMM.bcast(str(tmp_path_factory.mktemp("held_face")), root=0)
     scene = os.path.join(base, "held.toml")
     if COMM.rank == 0:
@@ -212,22 +228,26 @@ def test_a_held_face_stays_on_the_wall(tmp_path_factory):
         s = json.load(f)
     assert s["wall_face"] == "held"
     m_face = 0.5 * 8930.0 * math.pi * R * R * (L / 20)
-    assert s["impact_face_loss"] == pytest.approx(0.5 * m_face * V0 ** 2, rel=1e-12)
+    assert s["impact_face_loss"] == pytest.approx(0.5 * m_face * V0 ** 2, rel=rounding(40))
     root = ET.parse(os.path.join(out, "fields.xdmf")).getroot()
     u_face, r_face = [], []
     for p in root.findall("Domain/Grid")[0].findall("Grid")[-1].findall("Grid"):
         xy = _item(p.find("Geometry/DataItem"), out)
         u = _item(p.find("Attribute[@Name='displacement']/DataItem"), out)
-        k = np.flatnonzero(np.abs(xy[:, 1]) < 1e-12)
+        k = np.flatnonzero(np.abs(xy[:, 1]) < 1e-12)  # the face Z = 0 (m): far above round-off
         u_face += list(u[k, 1])
         r_face += list(xy[k, 0] + u[k, 0])
     u_face, r_face = COMM.allgather(u_face), COMM.allgather(r_face)
     u_face = np.concatenate([np.asarray(a, dtype=float) for a in u_face])
     r_face = np.concatenate([np.asarray(a, dtype=float) for a in r_face])
     # zero to round-off of the bar's length (the face's nodes are wall candidates too, and
-    # the wall's projection of a node on it adds a few 1e-18 m)
-    assert u_face.size >= 3 and np.abs(u_face).max() <= 1e-14 * L
-    assert r_face.max() == pytest.approx(s["final_face_radius"], rel=1e-14) and r_face.max() > R
+    # the wall's projection u = z_wall - Z of a node on it keeps the rounding of its
+    # coordinate Z, a few 1e-18 m)
+    assert u_face.size >= 3 and np.abs(u_face).max() <= rounding(4, L)
+    # the written geometry and the tracked node's coordinate: the same point through two
+    # maps (a few roundings of R)
+    assert r_face.max() == pytest.approx(s["final_face_radius"], rel=rounding(4))
+    assert r_face.max() > R
 
 
 def _paraview(xdmf: str):

@@ -1,4 +1,7 @@
-"""Finite-strain element, variable step, wall and the Taylor bar (serial and mpirun -n 2)."""
+"""Finite-strain element, variable step, wall and the Taylor bar (serial and mpirun -n 2).
+
+Round-off bounds count roundings, whole runs compare within the spread of a one-ulp
+change of the initial velocity, ledgers within roundoff.ledger (tests/roundoff.py)."""
 import math
 
 import numpy as np
@@ -8,6 +11,7 @@ from mpi4py import MPI
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.finite_j2 import FiniteJ2
 from impact_fenics.materials.neo_hookean import NeoHookean
+from roundoff import LIBM, assert_runs_agree, assert_within_spread, ledger, one_ulp, rounding
 
 RUBBERY = NeoHookean(E=1e9, nu=0.3, density=1000.0)
 
@@ -30,14 +34,17 @@ def force_at(run, u_owned):
 
 def test_rigid_translation_and_homogeneous_stretch(comm):
     """A z translation of 3.7 m gives f_int = 0 to round-off (F = I + sum_a Grad N_a u, with
-    sum_a Grad N_a = 0 to eps: |F - I| ~ eps u / h, forces ~ eps u mu 2 pi R). A homogeneous stretch
+    sum_a Grad N_a = 0 to eps: |F - I| ~ eps u / h, forces ~ eps u mu 2 pi R; the sum
+    over the cell's 4 nodes and the stress from it: 10 roundings). A homogeneous stretch
     u = ((l_r - 1) R, (l_z - 1) Z) of tens of percent gives, with the virtual fields
     w = (R, 0) and (0, Z), f.w = (P_rr + P_tt) V_0 and P_zz V_0 (the closed-form
-    neo-Hookean Piola stress, V_0 = pi R^2 L): 2x2 Gauss integrates them exactly."""
+    neo-Hookean Piola stress, V_0 = pi R^2 L): 2x2 Gauss integrates them exactly, to
+    round-off (a point's stress, about 40 roundings and a log, in both; f.w sums the 48
+    dofs' terms, all of one sign here)."""
     R, L = 0.01, 0.03
     run = FiniteRun(quad_bar(comm, R, L, 3, 5), RUBBERY, FiniteSettings())
     f = force_at(run, set_field(run, lambda r, z: (0 * r, 0 * r + 3.7)))
-    bound = 10 * np.finfo(float).eps * 3.7 * RUBBERY.mu * 2 * math.pi * R
+    bound = rounding(10, 3.7 * RUBBERY.mu * 2 * math.pi * R)
     assert comm.allreduce(np.abs(f).max(), op=MPI.MAX) < bound
     m = RUBBERY
     for lr, lz in ((1.0, 1.4), (1.3, 1.0), (0.8, 1.25)):
@@ -49,7 +56,7 @@ def test_rigid_translation_and_homogeneous_stretch(comm):
         P = [m.mu * (x - 1 / x) + m.lmbda * lnj / x for x in (lr, lr, lz)]
         V0 = math.pi * R * R * L
         expected = np.array([(P[0] + P[1]) * V0, P[2] * V0])
-        assert np.allclose(got, expected, rtol=1e-12)
+        assert np.allclose(got, expected, atol=0, rtol=rounding(2 * (40 + LIBM) + 48))
 
 
 def modified_euler_reference(run, u0, v0, dt, n):
@@ -64,8 +71,9 @@ def modified_euler_reference(run, u0, v0, dt, n):
 
 def test_constant_step_is_modified_euler_and_kinetic_identity(comm):
     """With a fixed dt the half-step scheme is the modified Euler scheme of the Integrator
-    (to round-off: only the order of two products differs); with the adaptive step the
-    kinetic identity K + W_int = K_0 holds to round-off."""
+    (to round-off: only the order of two products differs, at every one of the 120 steps,
+    so within 120 x the spread of the reference under a one-ulp change of v0); with the
+    adaptive step the kinetic identity K + W_int = K_0 holds to the round-off of a ledger."""
     R, L = 0.01, 0.03
     mesh = quad_bar(comm, R, L, 3, 6)
     vel = lambda r, z: (300 * r / R * z / L, -150 * np.sin(math.pi * z / L))  # noqa: E731
@@ -77,15 +85,18 @@ def test_constant_step_is_modified_euler_and_kinetic_identity(comm):
     assert s["n_steps"] == n
     ref = FiniteRun(mesh, RUBBERY, FiniteSettings())
     u_ref, v_ref = modified_euler_reference(ref, np.zeros(run.n_owned), v0, dt, n)
-    scale = comm.allreduce(np.abs(u_ref).max(), op=MPI.MAX)
-    assert comm.allreduce(np.abs(run.u_owned - u_ref).max(), op=MPI.MAX) <= 1e-12 * scale
+    u_ulp, _ = modified_euler_reference(ref, np.zeros(run.n_owned), np.nextafter(v0, np.inf),
+                                        dt, n)
+    gather = lambda x: np.concatenate(comm.allgather(x))  # noqa: E731
+    assert_within_spread(gather(run.u_owned), gather(u_ref), gather(u_ulp), n, "u")
     # adaptive: the step varies (the bar deforms), the identity still closes
     run = FiniteRun(mesh, RUBBERY, FiniteSettings(t_end=n * dt, dt_interval=3, history_every=1))
     run.v[:] = v0
     s = run.run()
     assert s["dt_max"] > s["dt_min"]
-    assert abs(s["kinetic_identity_error"]) < 1e-13
-    assert np.abs(run.history["balance_error"]).max() < 1e-13 * s["initial_kinetic"]
+    bound = ledger(s["n_steps"], s["n_dofs"])
+    assert abs(s["kinetic_identity_error"]) <= bound
+    assert np.abs(run.history["balance_error"]).max() <= bound * s["initial_kinetic"]
 
 
 @pytest.mark.parametrize("material", [RUBBERY, FiniteJ2(E=1e9, nu=0.3, density=1000.0,
@@ -107,7 +118,7 @@ def test_stored_energy_plus_dissipation_equals_internal_work(comm, material):
         run.v[:] = set_field(run, vel)
         s = run.run()
         gaps.append(abs(s["work_gap"]) / (s["stored_elastic"] + s["plastic_work"]))
-        assert abs(s["kinetic_identity_error"]) < 1e-13
+        assert abs(s["kinetic_identity_error"]) <= ledger(s["n_steps"], s["n_dofs"])
     if material is not RUBBERY:
         assert s["plastic_work"] > 0.25 * s["stored_elastic"]  # a third of the work dissipated
     print("relative work gaps at dt, dt/2:", gaps)
@@ -156,26 +167,27 @@ def test_stable_step_estimate_is_below_the_converged_limit():
         assert 0.5 * run.dt_limit() > 0.3 * dt_true  # and not needlessly small
 
 
-def taylor(comm, n_r, t_end=80e-6, method="film"):
+def taylor(comm, n_r, t_end=80e-6, method="film", v0=227.0):
     mesh = quad_bar(comm, 3.2e-3, 32.4e-3, n_r, 10 * n_r)
     run = FiniteRun(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6,
                                    hardening=100e6),
-                    FiniteSettings(t_end=t_end, history_every=50), velocity=(0.0, -227.0), wall=method)
+                    FiniteSettings(t_end=t_end, history_every=50), velocity=(0.0, -v0), wall=method)
     return run.run()
 
 
 def test_taylor_bar_coarse(comm):
     """The Taylor bar on a 2 x 20 mesh: initial kinetic energy = 1/2 rho pi R^2 L v0^2
-    (239.8 J, to the round-off of the lumped mass), the kinetic identity to round-off,
+    (239.8 J, to the round-off of the lumped mass: each node's about 30 roundings, the
+    sums one a node), the kinetic identity to the round-off of a ledger,
     the ledger (kinetic + stored + plastic + wall losses = 239.8 J) to the time
     discretisation (0.5 %), and the shape within the coarse mesh's error of the
     converged Q1/P0 results (21.42-21.48 mm, 7.22-7.23 mm): the convergence table of
     docs/taylor_bar.md measures 2-4 % at h = R/2, less on finer meshes."""
     s = taylor(comm, 2)
     K0 = 0.5 * 8930.0 * math.pi * 3.2e-3 ** 2 * 32.4e-3 * 227.0 ** 2
-    assert s["initial_kinetic"] == pytest.approx(K0, rel=1e-12)
+    assert s["initial_kinetic"] == pytest.approx(K0, rel=rounding(40 + 2 * 3 * 21))
     assert K0 == pytest.approx(239.8, abs=0.05)
-    assert abs(s["kinetic_identity_error"]) < 1e-12
+    assert abs(s["kinetic_identity_error"]) <= ledger(s["n_steps"], s["n_dofs"])
     total = s["kinetic"] + s["stored_elastic"] + s["plastic_work"] + s["activation_loss"]
     assert total == pytest.approx(K0, rel=5e-3)
     assert s["plastic_work"] > 0.9 * K0
@@ -184,22 +196,25 @@ def test_taylor_bar_coarse(comm):
 
 
 def test_taylor_bar_partitions(comm):
-    """The same numbers on any number of ranks (1e-10): this rank alone against all ranks."""
+    """The same numbers on any number of ranks: this rank alone against all ranks, within
+    the steps x the spread of the serial run under a one-ulp change of v0."""
     if comm.size == 1:
         pytest.skip("needs mpirun -n 2 (the MPI pass runs it)")
     a = taylor(comm, 2, t_end=15e-6)
     b = taylor(MPI.COMM_SELF, 2, t_end=15e-6)
+    ulp = taylor(MPI.COMM_SELF, 2, t_end=15e-6, v0=one_ulp(227.0))
+    assert a["n_steps"] == b["n_steps"]
     for k in ("final_length", "final_face_radius", "eps_p_max", "plastic_work", "kinetic",
               "activation_loss"):
-        assert a[k] == pytest.approx(b[k], rel=1e-10), k
-    assert a["n_steps"] == b["n_steps"]
+        assert_runs_agree(a[k], b[k], ulp[k], b["n_steps"], k)
 
 
 def test_johnson_cook_bar_heats_by_its_plastic_work(comm):
     """A Johnson-Cook copper bar onto the wall (coarse, 10 us): the heat in the bar,
     sum_q w_q rho c_p (T_q - T_room), equals chi times the plastic work of the ledger to
     round-off (both book the step's trapezoid of sigma_y); the temperature reaches the
-    cell output."""
+    cell output. Round-off: a point's temperature is a running sum, rounded each step on
+    its size T (not on T - T_room), twice with the increment's own roundings."""
     from impact_fenics.materials.johnson_cook import JohnsonCook
 
     jc = JohnsonCook()
@@ -207,9 +222,13 @@ def test_johnson_cook_bar_heats_by_its_plastic_work(comm):
     run = FiniteRun(mesh, jc, FiniteSettings(t_end=10e-6), velocity=(0.0, -227.0), wall="dme")
     s = run.run()
     g = run.force.geometry
-    heat = comm.allreduce(float((g.w * jc.density * jc.c_p * (run.force.state[..., 5] - jc.t_room)).sum()))
+    temp = run.force.state[..., 5]
+    heat = comm.allreduce(float((g.w * jc.density * jc.c_p * (temp - jc.t_room)).sum()))
+    capacity = comm.allreduce(float((g.w * jc.density * jc.c_p).sum()))  # J/K
+    t_max = comm.allreduce(float(temp.max(initial=0.0)), op=MPI.MAX)
     assert s["plastic_work"] > 10.0
-    assert heat == pytest.approx(jc.chi * s["plastic_work"], rel=1e-12)
+    assert heat == pytest.approx(jc.chi * s["plastic_work"], rel=0,
+                                 abs=rounding(2 * s["n_steps"], capacity * t_max))
     _, eps, temp = run.force.cell_values()
     hot = comm.allreduce(float(temp.max(initial=0.0)), op=MPI.MAX)
     assert hot > jc.t_room + 20.0  # tens of kelvin at the impact face

@@ -1,4 +1,4 @@
-"""history.csv's numbers read back exactly.
+"""history.csv's numbers read back exactly (the history is written without a per-step cost).
 
 The compiled formatter (impact_fenics.float_text) writes 17 significant digits; the
 oracle is the reader, not the writer: numpy's loadtxt (and Python's float(), both

@@ -7,10 +7,16 @@ in the loop the run stops at the next step (serial) or at the next multiple of
 step the output is finished and complete), checked on the files. In-process
 tests send the signal from inside the run at a chosen step (to one rank only
 under MPI, so the agreement is tested); the subprocess tests send it as a user
-or a batch system does (serial pass only; the MPI ones launch mpirun).
+or a batch system does (serial pass only; the MPI ones launch mpirun), each once
+the program has reached the moment the test is about, as the program shows it: MPI's
+library mapped (start-up: the package's one-line handling is installed before it
+loads), the estimate line (set-up: printed before meshing, after the handlers are in
+place), the first output row in the staging directory (the loop). Never after a fixed
+time: how long start-up takes depends on the machine and its load.
 """
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -134,10 +140,17 @@ def _cli(args, env=None):
                             env=env or clean_mpi_env(), cwd=ROOT)
 
 
-def _wait_for_mpi(proc, timeout=60.0) -> None:
-    """Wait until the process has MPI's library mapped: it is importing the package (a
-    signal before Python runs any of its code is Python's, not the program's)."""
-    deadline = time.monotonic() + timeout
+# The state a test waits for is checked again and again until it holds; the deadline
+# only keeps a broken program from hanging the suite, it is no assumption on timing.
+DEADLINE = 300.0  # s
+
+
+def _wait_for_mpi(proc) -> None:
+    """Wait until the process has MPI's library mapped: it is importing the package, whose
+    start-up handling (interrupts.held_at_start) is installed before mpi4py loads the
+    library (a signal before Python runs any of the package's code is Python's, not the
+    program's)."""
+    deadline = time.monotonic() + DEADLINE
     while True:
         try:
             with open(f"/proc/{proc.pid}/maps") as f:
@@ -149,26 +162,54 @@ def _wait_for_mpi(proc, timeout=60.0) -> None:
         time.sleep(0.005)
 
 
+def _wait_for_line(proc, prefix: str) -> str:
+    """Wait until the process has printed a line starting with ``prefix`` on its stdout
+    (read unbuffered from the pipe, so that the rest stays for communicate())."""
+    fd = proc.stdout.fileno()
+    deadline = time.monotonic() + DEADLINE
+    text = b""
+    while True:
+        for line in text.split(b"\n")[:-1]:  # complete lines only
+            if line.startswith(prefix.encode()):
+                return line.decode()
+        ready, _, _ = select.select([fd], [], [], 0.1)
+        if ready:
+            chunk = os.read(fd, 65536)
+            assert chunk, (text.decode(errors="replace"), proc.communicate())  # closed
+            text += chunk
+        assert proc.poll() is None and time.monotonic() < deadline, (text, proc.communicate())
+
+
+# the line the command line prints during set-up, before meshing (rank 0; the handlers
+# of every rank are in place: MPI_Init, which each rank enters within them, has returned)
+SET_UP_LINE = "estimate"
+
+
 @serial_only
-@pytest.mark.parametrize("sig, delay", [(signal.SIGINT, 0.0), (signal.SIGTERM, 0.5)],
+@pytest.mark.parametrize("sig, phase", [(signal.SIGINT, "imports"), (signal.SIGTERM, "set_up")],
                          ids=["SIGINT_imports", "SIGTERM_set_up"])
-def test_signal_before_the_run_prints_one_line(tmp_path, sig, delay):
+def test_signal_before_the_run_prints_one_line(tmp_path, sig, phase):
     """A signal while the package is imported (MPI starts) or the scene is built: one
-    line, exit 128 + signum, the older run untouched. (The signal goes once MPI's
-    library is loaded, at once or ``delay`` s later: before the run, which takes about
-    1.5 s on a quiet machine; the message names the phase.)"""
+    line, exit 128 + signum, the older run untouched. The signal goes once MPI's library
+    is mapped (the message says start-up, or set-up if the program got there first), or
+    once the estimate line is printed (set-up: before meshing)."""
     (tmp_path / "bar.toml").write_text(BAR)
     out = str(tmp_path / "run")
     _old_run(out)
-    proc = _cli(["run", tmp_path / "bar.toml", "--out", out, "--quiet"])
-    _wait_for_mpi(proc)
-    time.sleep(delay)
+    quiet = ["--quiet"] if phase == "imports" else []  # --quiet prints no estimate
+    proc = _cli(["run", tmp_path / "bar.toml", "--out", out, *quiet])
+    if phase == "imports":
+        _wait_for_mpi(proc)
+        phases = ("start-up", "set-up")
+    else:
+        _wait_for_line(proc, SET_UP_LINE)
+        phases = ("set-up",)
     proc.send_signal(sig)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=DEADLINE)
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert proc.returncode == 128 + sig.value, err
-    assert lines in ([f"stopped: interrupted by {sig.name} during {phase}; nothing was written"]
-                     for phase in ("start-up", "set-up")), err
+    assert lines in ([f"stopped: interrupted by {sig.name} during {p}; nothing was written"]
+                     for p in phases), err
     assert _summary(out) == {"status": "old"} and not os.path.exists(out + ".partial")
 
 
@@ -298,21 +339,18 @@ def test_ctrl_c_on_the_launcher_stops_the_run_cleanly(tmp_path):
 
 @serial_only
 def test_signal_during_set_up_under_mpirun_ends_every_rank(tmp_path):
-    """SIGTERM to every rank before the run (while importing or building the scene): every
-    rank ends, the one line names the phase, nothing is written."""
+    """SIGTERM to every rank before the run (while rank 0 builds the scene: after its
+    estimate line): every rank ends, the one line names the phase, nothing is written."""
     (tmp_path / "bar.toml").write_text(BAR)
     out = str(tmp_path / "run")
     tag = uuid.uuid4().hex
-    proc = _mpirun(["run", tmp_path / "bar.toml", "--out", out, "--quiet"], tag)
-    pids = {}
-    deadline = time.monotonic() + 30
-    while len(pids) != 2 and time.monotonic() < deadline:
-        pids = _rank_pids(tag)
-        time.sleep(0.05)
-    time.sleep(0.5)  # importing (start-up) or building the scene (set-up) on a loaded machine
+    proc = _mpirun(["run", tmp_path / "bar.toml", "--out", out], tag)
+    _wait_for_line(proc, SET_UP_LINE)
+    pids = _rank_pids(tag)
+    assert sorted(pids) == [0, 1], pids
     for pid in pids.values():
         os.kill(pid, signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=DEADLINE)
     assert proc.returncode != 0
     assert any(f"stopped: interrupted by SIGTERM during {phase}; nothing was written" in err
                for phase in ("start-up", "set-up")), err

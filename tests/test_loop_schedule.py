@@ -1,4 +1,5 @@
-"""The loop's step counters give the steps of their modulo definitions.
+"""The loop's step counters give the steps of their modulo definitions (the loop kept as
+short as its step).
 
 The run's loop keeps the next output, field, per-pair, divergence-check and agreement
 step as counters (simulation._Schedule) instead of testing n % every at each step. The

@@ -1,4 +1,5 @@
-"""Assembled operators against exact values: mass = rho * volume, K kills rigid z motion."""
+"""Assembled operators against exact values: mass = rho * volume, K kills rigid z motion,
+both to a count of roundings (tests/roundoff.py)."""
 import math
 
 import numpy as np
@@ -8,6 +9,7 @@ from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.materials import LinearElastic
 from impact_fenics.operators import assemble_stiffness, lumped_mass
+from roundoff import rounding
 
 STEEL = LinearElastic(E=200e9, nu=0.3, density=7850.0)
 ALU = LinearElastic(E=70e9, nu=0.33, density=2700.0)
@@ -15,6 +17,12 @@ ALU = LinearElastic(E=70e9, nu=0.33, density=2700.0)
 
 def _sum(comm, a):
     return comm.allreduce(float(np.sum(a)))
+
+
+def _mass_round(comm, n_nodes_local: int) -> float:
+    """Relative round-off of a body's mass: each node's lumped mass sums its cells' ring
+    integrals (about 30 roundings), the total sums the nodes (one rounding each)."""
+    return rounding(30 + comm.allreduce(n_nodes_local))
 
 
 @pytest.mark.parametrize("structured", [True, False])
@@ -26,7 +34,8 @@ def test_total_mass_is_rho_times_ring_volume(structured):
     m = lumped_mass(model)
     exact = STEEL.density * math.pi * a ** 2 * L
     for comp in (0, 1):
-        assert abs(_sum(model.comm, m[comp::2]) - exact) <= 1e-12 * exact
+        assert abs(_sum(model.comm, m[comp::2]) - exact) <= _mass_round(
+            model.comm, m.size // 2) * exact
 
 
 def test_total_mass_per_body_with_two_materials():
@@ -37,7 +46,7 @@ def test_total_mass_per_body_with_two_materials():
     for body, mat, length in (("striker", STEEL, ls), ("target", ALU, lt)):
         exact = mat.density * math.pi * a ** 2 * length
         dofs = model.body_dofs(body, 1)
-        assert abs(_sum(model.comm, m[dofs]) - exact) <= 1e-12 * exact
+        assert abs(_sum(model.comm, m[dofs]) - exact) <= _mass_round(model.comm, dofs.size) * exact
 
 
 def test_lumped_mass_is_positive_on_the_axis():
@@ -57,7 +66,9 @@ def test_stiffness_annihilates_rigid_z_translation(matrix_type):
     t.array[1::2] = 1.0  # u_z = 1 m everywhere
     K.mult(t, f)
     scale = K.norm(2)  # Frobenius norm (N/m), the size of a typical K entry times sqrt(nnz)
-    assert f.norm(3) <= 1e-13 * scale  # NORM_INFINITY
+    # a row sum of at most 18 entries, each assembled from up to 6 cells' entries (about
+    # 20 roundings of a quadrature each): 44 roundings of sum_j |K_ij| <= sqrt(18) |K|_F
+    assert f.norm(3) <= rounding(44 * math.sqrt(18), scale)  # NORM_INFINITY
     # and a radial translation is not rigid in axisymmetry (eps_tt = u_r / r)
     t.array[:] = 0.0
     t.array[0::2] = 1.0

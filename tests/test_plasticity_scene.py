@@ -11,6 +11,7 @@ import pytest
 from mpi4py import MPI
 
 from impact_fenics import cli
+from roundoff import ledger
 from scene_texts import PAIR, ROOT, replace
 
 J2_TARGET = replace(PAIR, '[bodies.target]\nmaterial = "steel"',
@@ -66,7 +67,8 @@ def test_j2_scene_runs_and_books_plastic_work(tmp_path):
         with open(os.path.join(out, "summary.json")) as f:
             summary = json.load(f)
         assert summary["plastic_dissipation"] > 0
-        assert summary["energy_balance_error_rel"] <= 1e-10
+        assert summary["energy_balance_error_rel"] <= ledger(summary["n_steps"],
+                                                             summary["n_dofs"])
         # the cell kernel specialised on the material's update compiles at set-up (about
         # a second), never inside the timed loop
         assert summary["timing"]["compiled_in_loop"] == []

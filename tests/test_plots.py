@@ -14,6 +14,7 @@ import pytest
 from mpi4py import MPI
 
 from impact_fenics import cli, plotting
+from roundoff import rounding
 from scene_texts import BAR, PAIR, launch, replace
 
 serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
@@ -91,15 +92,19 @@ def test_xdmf_reader_gives_back_the_probes(bar_run):
     assert np.array_equal(u_series.times, s_series.times) and u_series.times.size == 11
     checked = 0
     for k, t in enumerate(u_series.times):
-        row = np.flatnonzero(np.isclose(history["time"], t, rtol=1e-9, atol=0))
+        row = np.flatnonzero(history["time"] == t)  # both n dt, written with all 17 digits
         if row.size == 0:  # t = 0: history starts after the first step
             continue
-        u_z = data.values("displacement", k)[data.cells[cell], 1].mean()
+        nodal = data.values("displacement", k)[data.cells[cell]]
+        u_z = nodal[:, 1].mean()
         s_zz = data.values("sigma_zz", k)[cell]
+        # the probe and the writer: the mean of the cell's 3 nodal values (3 roundings);
+        # the stress, on each path a strain from the 6 nodal values (rounded on E |u| / h,
+        # h = 0.01 m, E = 200 GPa) and the stress: about 24 roundings
         scale_u = np.abs(history["u_mid"]).max()
-        scale_s = np.abs(history["s_mid"]).max()
-        assert abs(u_z - history["u_mid"][row[0]]) <= 1e-10 * scale_u
-        assert abs(s_zz - history["s_mid"][row[0]]) <= 1e-10 * scale_s
+        assert abs(u_z - history["u_mid"][row[0]]) <= rounding(3, scale_u)
+        s_round = rounding(2 * 24, 200e9 * np.abs(nodal).max() / 0.01)
+        assert abs(s_zz - history["s_mid"][row[0]]) <= s_round
         checked += 1
     assert checked == u_series.times.size - 1
 
@@ -152,7 +157,8 @@ def test_auto_region_frames_where_the_field_is():
     values = np.where((c[:, 0] < 0.2) & (c[:, 1] > 0.8), 1.0, 0.0)
     r0, r1, z0, z1 = plotting._auto_region(points, cells, [values], "Cell")
     assert (r0, z1) == (0.0, 1.0)  # clipped to the model
-    assert abs(r1 - 0.3) < 1e-12 and abs(z0 - 0.7) < 1e-12  # the hot cells' nodes + 0.1
+    # the hot cells' nodes (linspace: 2 roundings) + a tenth of the extent (2 more)
+    assert abs(r1 - 0.3) <= rounding(4) and abs(z0 - 0.7) <= rounding(4)
 
 
 # a soft J2 target under the tiny pair's impact, with a probe of every kind
@@ -186,15 +192,27 @@ def test_energy_picture_of_a_plastic_run(plastic_run):
     kinetic + strain + plastic work (the very sum of the table's columns), which follows
     the initial energy plus the work of the load and of the contact (drawn too) to the
     balance error of the run."""
+    from impact_fenics.report import ROUND_OFF
+
     e = _table(os.path.join(plastic_run, "energy.csv"))
     curves = {name: y for name, _, y in plotting.energy_curves(e)}
     assert e["plastic_work"][-1] > 0
-    assert {"kinetic", "strain", "plastic_work", "total", "external_work", "contact_work",
+    assert {"kinetic", "strain", "plastic_work", "total", "external_work",
             "balance"} <= set(curves)
+    # the pairs touch at t = 0 (the first step's impact is in E_0 = 1/2 v^0 M v^1): the
+    # contact's work after it is round-off here (4 to 90 EPS of the total, by the
+    # partition), drawn only above the round-off threshold of the console's line
+    scale = max(np.abs(e[k]).max() for k in ("kinetic", "strain", "plastic_work", "total",
+                                             "external_work", "contact_work"))
+    assert ("contact_work" in curves) == (np.abs(e["contact_work"]).max() > ROUND_OFF * scale)
     assert np.array_equal(curves["total"], e["kinetic"] + e["strain"] + e["plastic_work"])
+    # the balance: E_0 + the drawn work terms (a sum of 3: 4 roundings); a work term left
+    # out as round-off is missing from it by its size
     scale = np.abs(e["total"]).max()
+    left_out = sum(np.abs(e[k]).max() for k in ("external_work", "contact_work")
+                   if k not in curves)
     assert np.abs(curves["balance"] - curves["total"]).max() <= \
-        (e["balance_error_rel"].max() + 4 * np.finfo(float).eps) * scale
+        (e["balance_error_rel"].max() + rounding(4)) * scale + left_out
     assert all(np.any(y != 0.0) for name, y in curves.items() if name != "strain")
     assert _is_drawing(os.path.join(plastic_run, "energy.png"))
     # a run without plastic work: no such curve

@@ -3,10 +3,12 @@
 Oracles: the definition of the Pareto front (an exact property, checked against
 brute force); the stability bound of the penalty (beta_max < 4/3, derived in
 contact/penalty.py) against FILM and DME, which are stable up to the converged
-dt_crit; the exact equality of FILM and DME while the active set holds; the
-energy ledger of a clamped bar; and the mesh convergence of the reference.
+dt_crit; the exact equality of FILM and DME while the active set holds (whole runs:
+within the spread of a one-ulp change of their start, tests/roundoff.py); the energy
+ledgers of the long runs; and the mesh convergence of the reference.
 No timing is asserted.
 """
+import copy
 import os
 import shutil
 import tempfile
@@ -16,7 +18,12 @@ import pytest
 from mpi4py import MPI
 
 from conftest import load_demo
-from impact_fenics.study.common import BETA_BOUND, dominated, pareto_front, rel_l2
+from impact_fenics.contact import FILM
+from impact_fenics.study.bars import run_bar, window_time
+from impact_fenics.study.common import BETA_BOUND, dominated, pareto_front, rel_l2, settings
+from impact_fenics.study.config import QUICK
+from impact_fenics.study.punch import run_punch
+from roundoff import LIBM, STEP_ROUNDINGS, ledger, one_ulp, rounding
 
 
 def test_pareto_front_is_exactly_the_non_dominated_set():
@@ -32,7 +39,10 @@ def test_relative_l2_of_a_history():
     t = np.linspace(0.0, 1.0, 101)
     y = np.sin(3 * t) + 2
     assert rel_l2(t, y, t, y, (0.0, 1.0)) == 0.0
-    assert abs(rel_l2(t, 1.1 * y, t, y, (0.0, 1.0)) - 0.1) <= 1e-12
+    # 1.1 y - y rounds on 1.1 y (11 roundings of the difference's size), each trapezoid
+    # sums 101 squared terms, then a ratio and a sqrt
+    n = 11 + 2 * (t.size + 2) + LIBM
+    assert abs(rel_l2(t, 1.1 * y, t, y, (0.0, 1.0)) - 0.1) <= rounding(n, 0.1)
     assert rel_l2(t[:50], y[:50], t, y, (0.0, 1.0)) == float("inf")  # stopped early
 
 
@@ -80,9 +90,13 @@ def test_pareto_front_of_the_accuracy_study(quick):
 
 def test_exact_methods_keep_the_constraint_and_converge(quick):
     pts = quick[0]["accuracy"]["points"]
+    # the committed gap b + u_up - u_lo (2 roundings) after the correction that closed it
+    # (6 more), on displacements up to v0 t_end
+    bars = QUICK["bars"]
+    gap_round = rounding(8, bars["v0"] * bars["t_end"])
     for method in ("film", "dme_e0"):
         rows = sorted((p for p in pts if p["method"] == method), key=lambda p: -p["h"])
-        assert all(p["max_penetration"] <= 1e-12 * p["h"] for p in rows)
+        assert all(p["max_penetration"] <= gap_round for p in rows)
         assert rows[-1]["err_sigma"] < rows[0]["err_sigma"]  # finer mesh, closer to the reference
 
 
@@ -121,16 +135,48 @@ def test_penalty_fails_where_the_coupled_beta_crosses_the_bound(quick):
 
 
 def test_film_and_dme_agree_on_the_punch_and_bars(quick):
+    """FILM's dense solver and its fast one, and DME (e = 0) and FILM on the bars, are the
+    same motion by other expressions: whole runs, within the steps x (the spread (the
+    same relative L2 difference) of the reference run under a one-ulp change of its start
+    (the punch's load peak, the striker's v0) + a step's roundings; tests/roundoff.py)."""
+    p = QUICK["punch"]
+    window = (0.0, p["pulse"]["t_end"])
     for sim in quick[0]["punch"]["radii"].values():
         assert sim["methods"]["dme"]["err_u"] <= 1e-3
-        assert sim["methods"]["film_dense"]["err_u"] <= 1e-10
+        ref = sim["methods"]["film_fast"]["series"]
+        rec = run_punch(QUICK, FILM("fast"), sim["radius"],
+                        pulse=dict(p["pulse"], peak=one_ulp(p["pulse"]["peak"])))
+        spread = rel_l2(rec["history"]["time"], rec["history"]["punch_u"], ref["time"],
+                        ref["punch_u"], window)
+        assert sim["methods"]["film_dense"]["err_u"] <= p["n_steps"] * (
+            spread + rounding(STEP_ROUNDINGS))
     # node pairs: with e = 0 and mass-weighted positions DME moves a closed pair exactly as
     # FILM does (an exact equivalence, round-off only)
-    assert quick[0]["bars"]["film_vs_dme_e0_sigma"] <= 1e-10
+    bars = QUICK["bars"]
+    film = quick[0]["bars"]["methods"]["film"]["series"]
+    cfg = copy.deepcopy(QUICK)
+    cfg["bars"]["v0"] = one_ulp(bars["v0"])
+    rec = run_bar(cfg, FILM(), bars["h"], bars["t_end"], output_every=25)
+    spread = rel_l2(rec["history"]["time"], rec["history"]["sigma_zz_obs"], film["time"],
+                    film["sigma"], (0.0, window_time(QUICK)))
+    n_steps = round(bars["t_end"] / bars["dt"])
+    assert quick[0]["bars"]["film_vs_dme_e0_sigma"] <= n_steps * (spread
+                                                                    + rounding(STEP_ROUNDINGS))
 
 
 def test_energy_balance_of_long_runs(quick):
+    """The ledgers of the long runs close to the round-off of a ledger (tests/roundoff.py);
+    the bars separate and fly apart, drifting rigidly for most of the run."""
+    from impact_fenics import scenes
+
     runs = quick[0]["stability"]["long"]["runs"]
-    assert runs["clamped_bar"]["balance_max"] <= 1e-11
+    n = QUICK["stability"]["long_steps"]
+    clamped = scenes.elastic_bar(settings(cfl=0.9, n_steps=1), h=QUICK["bars"]["h"], length=0.5,
+                                 nu=0.3, peak=50e6, structured=False, clamp_far_end=True)
+    assert runs["clamped_bar"]["balance_max"] <= ledger(n, clamped.model.n_global)
+    bars = scenes.bar_impact(settings(dt=QUICK["bars"]["dt"], n_steps=1), FILM(),
+                             h=QUICK["bars"]["h"], nu=0.3, radius=QUICK["bars"]["radius"],
+                             striker_length=QUICK["bars"]["striker_length"],
+                             target_length=QUICK["bars"]["target_length"], observe=None)
     for key in ("film", "dme_e0", "p_scaled"):
-        assert runs[key]["balance_max"] <= 1e-8
+        assert runs[key]["balance_max"] <= ledger(n, bars.model.n_global, drifting=True)

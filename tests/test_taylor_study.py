@@ -3,8 +3,8 @@
 Meshes n_r x 10 n_r for n_r = 4, 8, 12 (square cells, h = R / n_r), the impact face
 held on the wall (u_z = 0, sliding freely in r), the condition of the converged
 references (Simo 1992 keeps nodes that reach the wall on it; the Q1/P0 hexahedra of
-Foulk et al. 2021 fix u_z on the impact face). The goal against their
-values (final length 21.42-21.48 mm, impact-face radius 7.22-7.23 mm): within 0.5 %
+Foulk et al. 2021 fix u_z on the impact face). The target against their values
+(final length 21.42-21.48 mm, impact-face radius 7.22-7.23 mm): within 0.5 %
 (length) and 1 % (radius) at the finest mesh, and the ledger closing at every mesh.
 
 The unilateral wall (the face free to lift off, the demo's default) is a different
@@ -14,19 +14,22 @@ problem: the rim of the impact face lifts off and the radius converges near 7.33
 import pytest
 
 from conftest import load_demo
+from roundoff import ledger, rounding
 
 
 def check_ledger(s):
     """kinetic + stored + plastic + wall losses (+ the held face's stop at t = 0) = the
     closed-form 1/2 rho pi R^2 L v0^2; the remainder is the O(dt^2) gap between the
     scheme's internal work and stored + plastic (0.06 % measured; 0.2 % allowed); the
-    kinetic identity of the variable-step scheme closes to round-off."""
+    kinetic identity of the variable-step scheme closes to the round-off of a ledger, the
+    lumped masses sum to rho V to theirs (a node's mass about 30 roundings, the sums one
+    a node)."""
     total = (s["kinetic"] + s["stored_elastic"] + s["plastic_work"] + s["activation_loss"]
              + s["impact_face_loss"])
     assert total == pytest.approx(s["initial_kinetic_closed_form"], rel=2e-3)
     assert s["initial_kinetic"] + s["impact_face_loss"] == pytest.approx(
-        s["initial_kinetic_closed_form"], rel=1e-12)
-    assert abs(s["kinetic_identity_error"]) < 1e-12
+        s["initial_kinetic_closed_form"], rel=rounding(40 + s["n_dofs"]))
+    assert abs(s["kinetic_identity_error"]) <= ledger(s["n_steps"], s["n_dofs"])
 
 
 @pytest.mark.study

@@ -1,4 +1,4 @@
-"""The nu = 0 bar against the exact 1D wave.
+"""The nu = 0 bar against the exact 1D wave (d'Alembert's solution).
 
 With nu = 0 a z-only field is an exact solution of the axisymmetric continuum:
 the pressure pulse p(t) travels at c0 = sqrt(E/rho) with sigma_zz = -p and

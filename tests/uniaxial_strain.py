@@ -30,8 +30,8 @@ plastic modulus is
     M_p = K + 4 mu/3 - (2 mu - K alpha_f)(2 mu - K alpha_g) / (3 mu + K alpha_f alpha_g + h),
 
 which must be > 0 (else the stress falls under growing strain: no plastic
-wave). Here h = dk/dkappa per unit kappa
-(not per unit of eps_bar_p, which also counts the volumetric flow).
+wave). Here h = dk/dkappa per unit kappa (the deviatoric plastic strain; not per unit
+of an eps_bar_p that also counts the volumetric flow).
 A bar in uniaxial strain then carries an elastic precursor sigma_HEL at
 c_L = sqrt((K + 4 mu/3)/rho) and a plastic front at c_p = sqrt(M_p / rho).
 """

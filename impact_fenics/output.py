@@ -21,9 +21,6 @@ from . import float_text
 from .errors import output_failed
 from .worker import Worker, failure, write_all
 
-# the output directory rules and the lock live in rundir.py (no dolfinx import there)
-from .rundir import abandon_directory, finalize_directory, prepare_directory  # noqa: F401
-
 
 def write_json(path: str, data: dict, comm: MPI.Comm) -> None:
     """Write ``data`` as indented, strict JSON from rank 0 (NaN and infinities become null)."""

@@ -2,6 +2,7 @@
 import os
 import subprocess
 import sys
+import time
 
 from conftest import clean_mpi_env
 
@@ -149,3 +150,20 @@ def launch(args, timeout=120, **kwargs) -> subprocess.CompletedProcess:
     cmd = [sys.executable, "-m", "impact_fenics"] + [str(a) for a in args]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout,
                           env=clean_mpi_env(), cwd=ROOT, **kwargs)
+
+
+def wait_for_loop(proc, out, timeout=300.0) -> None:
+    """Wait until the run is in its loop: the first output row is in the staging directory
+    (a state the run reports, checked again and again; ``timeout`` (s) only keeps a broken
+    run from hanging the suite: a first run compiles its kernels for tens of seconds)."""
+    energy = os.path.join(str(out) + ".partial", "energy.csv")
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with open(energy) as f:
+                if len(f.read().splitlines()) >= 2:
+                    return
+        except OSError:
+            pass
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.01)

@@ -13,7 +13,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -22,7 +21,7 @@ from mpi4py import MPI
 
 from conftest import clean_mpi_env
 from impact_fenics import cli
-from scene_texts import BAR, ROOT, launch, replace
+from scene_texts import BAR, ROOT, launch, replace, wait_for_loop
 
 serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
 
@@ -127,23 +126,6 @@ def test_a_full_disk_exits_4_in_one_line(tmp_path, capsys, monkeypatch):
     assert not os.path.exists(out) and os.path.isdir(out + ".partial")
 
 
-def _wait_for_loop(proc, out, timeout=300.0) -> None:
-    """Wait until the run is in its loop: the first output row is in the staging directory
-    (a state the run reports, checked again and again; ``timeout`` (s) only keeps a broken
-    run from hanging the suite: a first run compiles its kernels for tens of seconds)."""
-    energy = os.path.join(str(out) + ".partial", "energy.csv")
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            with open(energy) as f:
-                if len(f.read().splitlines()) >= 2:
-                    return
-        except OSError:
-            pass
-        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
-        time.sleep(0.01)
-
-
 LONG = replace(replace(BAR, "n_steps = 100", "n_steps = 5000000"),
                "output_every = 10", "output_every = 1000\nhistory_every = 10")
 
@@ -157,7 +139,7 @@ def test_signal_stops_cleanly(tmp_path, sig):
            "--out", str(out), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=clean_mpi_env(), cwd=ROOT)
-    _wait_for_loop(proc, out)
+    wait_for_loop(proc, out)
     proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=60)
     lines = [ln for ln in stderr.splitlines() if ln.strip()]

@@ -12,7 +12,6 @@ small-strain form (forms.stiffness_form). Each process solves on its own
 import math
 
 import numpy as np
-import pytest
 from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 

@@ -31,8 +31,8 @@ from impact_fenics import interrupts, plotting, scenes
 from impact_fenics.compat import launcher_ctrl_c_signal, launcher_rank_variable
 from impact_fenics.integrator import Integrator
 from impact_fenics.simulation import Settings, Simulation
-from scene_texts import BAR, ROOT, replace
-from test_failure import LONG, _wait_for_loop
+from scene_texts import BAR, ROOT, wait_for_loop
+from test_failure import LONG
 
 serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
 COMM = MPI.COMM_WORLD
@@ -293,7 +293,7 @@ def test_signal_to_the_ranks_under_mpirun(tmp_path, to):
     out = tmp_path / "run"
     tag = uuid.uuid4().hex
     proc = _mpirun(["run", tmp_path / "scene.toml", "--out", out, "--quiet"], tag)
-    _wait_for_loop(proc, out)
+    wait_for_loop(proc, out)
     pids = _rank_pids(tag)
     assert sorted(pids) == [0, 1], pids
     sig = signal.SIGTERM if to == "both" else signal.SIGINT
@@ -323,7 +323,7 @@ def test_ctrl_c_on_the_launcher_stops_the_run_cleanly(tmp_path):
                              str(tmp_path / "scene.toml"), "--out", str(out), "--quiet"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env, cwd=ROOT, start_new_session=True)  # a terminal's group
-    _wait_for_loop(proc, out)
+    wait_for_loop(proc, out)
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     sig = signal.Signals(launcher_ctrl_c_signal())

@@ -9,7 +9,6 @@ every intermediate state of a replacement.
 """
 import json
 import os
-import shutil
 import socket
 import subprocess
 import sys
@@ -20,7 +19,7 @@ from mpi4py import MPI
 
 from conftest import clean_mpi_env
 from impact_fenics import cli, rundir
-from scene_texts import BAR, ROOT, replace
+from scene_texts import BAR, ROOT, replace, wait_for_loop
 
 serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
 COMM = MPI.COMM_WORLD
@@ -244,7 +243,7 @@ def test_two_concurrent_runs_one_is_refused(tmp_path):
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              env=env, cwd=ROOT)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 300  # against a hang only: a first run compiles
         while not os.path.isfile(os.path.join(str(out) + ".partial", rundir.LOCK)):
             assert first.poll() is None and time.monotonic() < deadline, first.communicate()
             time.sleep(0.02)
@@ -254,10 +253,7 @@ def test_two_concurrent_runs_one_is_refused(tmp_path):
         lines = [ln for ln in second.stderr.splitlines() if ln.strip()]
         assert second.returncode == 2 and len(lines) == 1, second.stderr
         assert f"another run is writing it (pid {first.pid} on" in lines[0]
-        energy = os.path.join(str(out) + ".partial", "energy.csv")
-        while not (os.path.isfile(energy) and len(open(energy).readlines()) >= 2):
-            assert first.poll() is None and time.monotonic() < deadline, first.communicate()
-            time.sleep(0.02)  # the first run is in its loop: a stop keeps its directory
+        wait_for_loop(first, out)  # the first run is in its loop: a stop keeps its directory
     finally:
         first.terminate()
         first.communicate(timeout=60)
@@ -372,11 +368,7 @@ def test_an_interrupted_rerun_keeps_the_complete_run(tmp_path):
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env=env, cwd=ROOT)
     try:
-        energy = os.path.join(str(out) + ".partial", "energy.csv")
-        deadline = time.monotonic() + 300
-        while not (os.path.isfile(energy) and len(open(energy).readlines()) >= 2):
-            assert second.poll() is None and time.monotonic() < deadline, second.communicate()
-            time.sleep(0.02)  # (polling a state the run writes: its first energy row)
+        wait_for_loop(second, out)  # a state the run writes: its first energy row
     finally:
         second.send_signal(2)  # SIGINT, as Ctrl-C
         _, err = second.communicate(timeout=120)

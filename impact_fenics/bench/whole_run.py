@@ -180,13 +180,13 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
     record) and, per row, writing a block of rows to history.csv."""
     import gc
 
-    from .. import output
+    from .. import rundir
     from ..probes import Probes
 
     scratch = tempfile.mkdtemp(prefix="ifx_rows_") if comm.rank == 0 else None
     scratch = comm.bcast(scratch, root=0)
     sim, _ = _scene(kind, os.path.join(scratch, "run"), comm)
-    staging = output.prepare_directory(os.path.join(scratch, "run"), comm)
+    staging = rundir.prepare_directory(os.path.join(scratch, "run"), comm)
     probes = Probes(sim.model, sim._probe_specs) if sim._probe_specs else None
     tables = sim._tables(staging, probes)
     sim.integrator.predict()

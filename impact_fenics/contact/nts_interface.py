@@ -29,8 +29,8 @@ from numba import njit
 
 from ..errors import InputError
 from .banded import band_of_s, bandwidth, gap_of
-from .interface import PhaseTimes, _take, owned_slots
 from .segments import SegmentConstraints
+from .state import PhaseTimes, _take, owned_slots
 
 
 # ----------------------------------------------------------------------------- kernels

@@ -110,7 +110,7 @@ def _checked(path: str, method: str | None, out: str | None, force: bool, quiet:
     from . import interrupts
 
     with interrupts.whole():  # the compiled modules a run needs (dolfinx, PETSc, numba)
-        from . import meshing, scene_file, simulation  # noqa: F401
+        from . import meshing, plausibility, scene_file, simulation  # noqa: F401
 
     comm = MPI.COMM_WORLD
     if out is not None and not out.strip():
@@ -124,7 +124,7 @@ def _checked(path: str, method: str | None, out: str | None, force: bool, quiet:
     where = ("--out" if out else "[output] dir =" if scene.output["dir"] else
              "the default output directory (results/<scene file's name>)")
     scene_file.check_output_dir(out_dir, where, comm)
-    scene_file.warn_implausible(scene, comm)
+    plausibility.warn_implausible(scene, comm)
     scene_file.check_resources(scene, comm, quiet, out_dir, running)
     return scene, out_dir
 

@@ -38,6 +38,7 @@ from mpi4py import MPI
 
 from .errors import InputError
 from .scene_keys import DT_INTERVAL  # steps between re-estimates, unless [time] dt_interval
+from .scene_table import Table, within
 
 FINITE_MODELS = ("j2", "neo_hookean")
 
@@ -53,9 +54,7 @@ class WallSpec:
 
 def read_wall(data: Any) -> WallSpec:
     """The [wall] table."""
-    from .scene_file import _Table
-
-    t = _Table(data, "[wall]", "wall")
+    t = Table(data, "[wall]", "wall")
     wall = WallSpec(t.value("z"), t.value("method"), given=tuple(t.data), face=t.value("face"))
     if wall.face == "held" and wall.z != 0.0:
         raise t.error("face", f"it keeps the bar's face Z = 0 on the wall and needs z = 0 "
@@ -132,12 +131,11 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     from .finite_run import FiniteRun, FiniteSettings, quad_bar
     from .materials.finite_j2 import FiniteJ2
     from .materials.neo_hookean import NeoHookean
-    from .scene_file import _at, explained_refusal, mesh_sizes, warn_implausible
 
-    warn_implausible(scene, comm)
+    plausibility.warn_implausible(scene, comm)
     body = scene.bodies[0]
     spec = scene.materials[body.material]
-    with _at(f"[materials.{spec.name}]"):
+    with within(f"[materials.{spec.name}]"):
         if spec.model == "j2":
             material = FiniteJ2(E=spec.E, nu=spec.nu, density=spec.density,
                                 yield_stress=spec.yield_stress, hardening=spec.hardening)
@@ -145,7 +143,7 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
             material = NeoHookean(E=spec.E, nu=spec.nu, density=spec.density)
     p = scene.mesh.params
     n_z = max(1, round(p["n_r"] * p["length"] / p["radius"]))
-    with _at("[mesh]"):
+    with within("[mesh]"):
         mesh = quad_bar(comm, p["radius"], p["length"], p["n_r"], n_z)
     t, o = scene.time, scene.output
     settings = FiniteSettings(t_end=t["t_end"], dt=t["dt"],
@@ -163,7 +161,7 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     held = None
     if wall is not None and wall.face == "held":
         held = face_nodes(mesh, 0.0, 1e-9 * p["length"])
-    with _at("[wall]" if wall is not None else "[bodies]"):
+    with within("[wall]" if wall is not None else "[bodies]"):
         run = FiniteRun(mesh, material, settings, velocity=body.velocity,
                         wall=wall.method if wall else None, z_wall=wall.z if wall else 0.0,
                         penalty=wall.penalty if wall else "scaled", name=body.name,
@@ -178,12 +176,13 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     size = plausibility.model_size(mesh, comm)
     dt = settings.dt if settings.dt is not None else settings.safety * run.dt_limit()
     if settings.dt is not None and settings.dt > run.dt_limit():
-        raise InputError(explained_refusal(
+        raise InputError(plausibility.explained_refusal(
             f"[time] dt = {settings.dt!r} s is above the stable limit {run.dt_limit():.4g} s "
             "of the undeformed cells; use cfl or a smaller dt", scene, size))
     n_steps = math.ceil(settings.t_end / dt)
     plausibility.report(plausibility.findings(scene, dt=dt, n_steps=n_steps,
-                                              **mesh_sizes(scene, size)), scene.warned, comm)
+                                              **plausibility.mesh_sizes(scene, size)),
+                        scene.warned, comm)
     return run
 
 

@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 from mpi4py import MPI
 
+from . import resources
+
 WAVE_SPEED = (100.0, 20000.0)  # m/s
 DENSITY = (25.0, 25000.0)      # kg/m^3
 MODULUS = (1e5, 1.2e12)        # Pa
@@ -150,3 +152,32 @@ def explained(message: str, found: list[Finding]) -> str:
     if not found:
         return message
     return f"{message}; {'; '.join(f.cause for f in found)}"
+
+
+# ----------------------------------------------------------------------------- a scene before meshing
+
+def warn_implausible(scene, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """Warn (rank 0, once each) about the scene's values that no real impact has, as far as
+    they are known before meshing (the rules above): materials, speeds, a given dt, the
+    size of a generator mesh."""
+    report(findings(scene, dt=scene.time["dt"], **mesh_sizes(scene)), scene.warned, comm)
+
+
+def mesh_sizes(scene, size: float | None = None) -> dict[str, float | None]:
+    """The model's largest extent ``size`` and smallest element size ``h`` (m) as far as
+    known before meshing (a generator's parameters; ``size`` if given)."""
+    if scene.mesh.generator is None:
+        return {"size": size, "h": None}
+    params = resources.generator_params(scene)
+    return {"size": resources.generator_size(scene.mesh.generator, params) if size is None
+            else size,
+            "h": min(r.h for r in resources.generator_regions(scene.mesh.generator, params))}
+
+
+def explained_refusal(message: str, scene, size: float | None) -> str:
+    """A refusal of the step (above the stable limit, longer than the run) with the scene's
+    implausible units that may cause it (materials, the model's size (m) ``size``, its
+    elements, dt)."""
+    found = [f for f in findings(scene, dt=scene.time["dt"], **mesh_sizes(scene, size))
+             if f.key.startswith(("[materials", "[mesh]", "[time] dt"))]
+    return explained(message, found)

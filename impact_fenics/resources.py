@@ -45,6 +45,7 @@ import math
 import os
 import shutil
 from dataclasses import dataclass, field
+from typing import Any
 
 BASE_BYTES_PER_RANK = 250e6
 BYTES_PER_DOF = 1.5e3
@@ -321,3 +322,17 @@ def free_disk(path: str) -> tuple[str, float] | None:
         return parent, float(shutil.disk_usage(parent).free)
     except OSError:
         return None
+
+
+def generator_params(scene) -> dict[str, Any]:
+    """The parameters of the scene's generator mesh, its defaults filled in."""
+    import inspect
+
+    from . import meshing
+
+    params = {} if scene.mesh.generator == "quad_bar" else {  # quad_bar: every key given
+        k: v.default for k, v in
+        inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
+        if v.default is not inspect.Parameter.empty}
+    params.update(scene.mesh.params)
+    return params

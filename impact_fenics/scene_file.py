@@ -19,173 +19,17 @@ from __future__ import annotations
 import math
 import os
 import tomllib
-from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Iterator
+from typing import Any
 
 from mpi4py import MPI
 
 from . import plausibility, resources, rundir
 from .errors import InputError
-from .scene_keys import (ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED,
-                         REQUIRED_PARAMS, SECTIONS)
+from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED_PARAMS
+from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
 
 COMPONENTS = {"r": 0, "z": 1}
-_MISSING = object()
-_TABLE = object()  # "the default of the key table"
-
-
-def _fmt(value: Any) -> str:
-    """A value as TOML spells it."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, list):
-        return "[" + ", ".join(_fmt(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + "}"
-    return repr(value)
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-class _Table:
-    """One TOML table being read by its section of the key table (scene_keys): unknown
-    keys, missing keys and bad values name the table and the key. ``groups``: the
-    variant of the entry (the keys of other variants are unknown here)."""
-
-    def __init__(self, data: Any, where: str, section: str, groups: tuple[str, ...] = ()):
-        if not isinstance(data, dict):
-            raise InputError(f"{where} must be a table, not {_fmt(data)}")
-        self.data, self.where = data, where
-        self.section = SECTIONS[section]
-        allowed = self.section.allowed(groups)
-        for key in data:
-            if key not in allowed:
-                raise InputError(f"{where} unknown key '{key}' (allowed here: "
-                                 f"{', '.join(allowed)})")
-
-    def __contains__(self, key: str) -> bool:
-        return key in self.data
-
-    def error(self, key: str, problem: str) -> InputError:
-        return InputError(f"{self.where} {key} = {_fmt(self.data[key])}: {problem}")
-
-    def value(self, key: str, default: Any = _TABLE) -> Any:
-        """The value of ``key`` checked by its kind in the key table; if absent, the
-        table's default (or ``default``, for a default the reader computes); a
-        required key that is absent is an error."""
-        spec = self.section.key(key)
-        if default is _TABLE:
-            default = spec.default
-            if isinstance(default, list):
-                default = tuple(default)
-        if default == REQUIRED:
-            default = _MISSING
-        what, kind = spec.described, spec.kind
-        if kind == "number":
-            return self.number(key, what, default)
-        if kind == "positive":
-            return self.positive(key, what, default)
-        if kind == "count":
-            return self.count(key, what, default)
-        if kind == "flag":
-            return self.flag(key, what, default)
-        if kind == "text":
-            return self.text(key, what, default, choices=spec.choices or None)
-        if kind == "pair":
-            return self.pair(key, what, default)
-        if kind == "stiffness":  # a penalty: N/m > 0, or one of the key's words
-            v = self.data.get(key)
-            if isinstance(v, str):
-                if v not in spec.choices:
-                    words = [f'"{w}"' for w in spec.choices]
-                    raise self.error(key, "give a stiffness in N/m"
-                                     + "".join(f", {w}" for w in words[:-1]) + f" or {words[-1]}")
-                return v
-            return self.positive(key, what, default)
-        raise ValueError(f"{self.section.toml} {key}: kind {kind} is read by its own code")
-
-    def _get(self, key: str, what: str, default: Any) -> Any:
-        if key in self.data:
-            return self.data[key]
-        if default is _MISSING:
-            raise InputError(f"{self.where} {key} is missing: {what}")
-        return default
-
-    def number(self, key: str, what: str, default: Any = _MISSING) -> float:
-        """A finite number (int or float)."""
-        v = self._get(key, what, default)
-        if key not in self.data:
-            return v
-        if not _is_number(v):
-            raise self.error(key, f"must be a finite number ({what})")
-        return float(v)
-
-    def positive(self, key: str, what: str, default: Any = _MISSING) -> float:
-        v = self.number(key, what, default)
-        if key in self.data and not v > 0:
-            raise self.error(key, f"must be > 0 ({what})")
-        return v
-
-    def count(self, key: str, what: str, default: Any = _MISSING) -> int:
-        """An integer >= 1."""
-        v = self._get(key, what, default)
-        if key not in self.data:
-            return v
-        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-            raise self.error(key, f"must be an integer >= 1 ({what})")
-        return v
-
-    def flag(self, key: str, what: str, default: bool) -> bool:
-        v = self._get(key, what, default)
-        if not isinstance(v, bool):
-            raise self.error(key, f"must be true or false ({what})")
-        return v
-
-    def text(self, key: str, what: str, default: Any = _MISSING,
-             choices: tuple[str, ...] | None = None) -> str:
-        v = self._get(key, what, default)
-        if key not in self.data:
-            return v
-        if not isinstance(v, str) or not v:
-            raise self.error(key, f"must be a non-empty string ({what})")
-        if choices is not None and v not in choices:
-            raise self.error(key, f"use one of {', '.join(choices)}")
-        return v
-
-    def pair(self, key: str, what: str, default: Any = _MISSING) -> tuple[float, float]:
-        v = self._get(key, what, default)
-        if key not in self.data:
-            return v
-        if not isinstance(v, list) or len(v) != 2 or not all(_is_number(x) for x in v):
-            raise self.error(key, f"must be two finite numbers [a, b] ({what})")
-        return float(v[0]), float(v[1])
-
-
-def _tables_of(parent: _Table, key: str, what: str) -> list[tuple[str, Any]]:
-    """The named sub-tables [key.NAME] of a table (name, data)."""
-    data = parent.data.get(key, {})
-    if not isinstance(data, dict):
-        raise InputError(f"{parent.where} {key} must be a table of [{key}.NAME] tables ({what})")
-    for name, value in data.items():
-        if not isinstance(value, dict):
-            raise InputError(f"[{key}] {name} = {_fmt(value)}: must be a table [{key}.{name}] "
-                             f"({what})")
-    return list(data.items())
-
-
-def _array_of(parent: _Table, key: str) -> list[tuple[str, Any]]:
-    """The entries of an array of tables [[key]], each with its label '[key #k]'."""
-    data = parent.data.get(key, [])
-    if not isinstance(data, list) or not all(isinstance(d, dict) for d in data):
-        raise InputError(f"[{key}] must be an array of tables: write [[{key}]] above each entry")
-    return [(f"[{key} #{k + 1}]", d) for k, d in enumerate(data)]
-
-
 # ----------------------------------------------------------------------------- the scene
 
 @dataclass
@@ -326,44 +170,44 @@ def read_scene(path: str) -> Scene:
         raise InputError(f"{path}: not valid TOML: {exc}")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"scene file '{path}' cannot be read: {exc}")
-    top = _Table(data, f"[{os.path.basename(path)}, top level]", "top")
+    top = Table(data, f"[{os.path.basename(path)}, top level]", "top")
     title = top.value("title", os.path.basename(path))
     for key in ("mesh", "time"):
         if key not in top:
             raise InputError(f"[{key}] is missing: the scene needs a [{key}] table")
     mesh = _read_mesh(top.data["mesh"], os.path.dirname(os.path.abspath(path)))
     materials = {name: _read_material(name, d) for name, d in
-                 _tables_of(top, "materials", "E (Pa), nu, density (kg/m^3)")}
+                 tables_of(top, "materials", "E (Pa), nu, density (kg/m^3)")}
     bodies = [_read_body(name, d, materials) for name, d in
-              _tables_of(top, "bodies", "a cell group of the mesh and its material")]
+              tables_of(top, "bodies", "a cell group of the mesh and its material")]
     if not bodies:
         raise InputError("[bodies] the scene has no deformable body: add a table [bodies.NAME] "
                          "for each cell group NAME of the mesh")
     rigid = {name: _read_rigid(name, d) for name, d in
-             _tables_of(top, "rigid", "a rigid body: mass (kg)")}
+             tables_of(top, "rigid", "a rigid body: mass (kg)")}
     for name in rigid:
         if any(b.name == name for b in bodies):
             raise InputError(f"[rigid.{name}] the name '{name}' is also a deformable body")
-    contacts = [_read_contact(where, d, rigid) for where, d in _array_of(top, "contact")]
+    contacts = [_read_contact(where, d, rigid) for where, d in array_of(top, "contact")]
     _check_contact_surfaces(contacts)
     for name in rigid:
         users = [c.where for c in contacts if c.rigid == name]
         if len(users) != 1:
             raise InputError(f"[rigid.{name}] a rigid body must be in exactly one [[contact]] "
                              f"(it is in {len(users)})")
-    loads = [_read_load(where, d, rigid) for where, d in _array_of(top, "loads")]
-    fixed = [_read_fixed(where, d) for where, d in _array_of(top, "fixed")]
+    loads = [_read_load(where, d, rigid) for where, d in array_of(top, "loads")]
+    fixed = [_read_fixed(where, d) for where, d in array_of(top, "fixed")]
     time = _read_time(top.data["time"])
     output = _read_output(top.data.get("output", {}))
-    probes = [_read_probe(where, d, k) for k, (where, d) in enumerate(_array_of(top, "probes"))]
+    probes = [_read_probe(where, d, k) for k, (where, d) in enumerate(array_of(top, "probes"))]
     names = [p.name for p in probes]
     for p in probes:
         if names.count(p.name) > 1 or p.name in ("step", "time"):
-            raise InputError(f"{p.where} name = {_fmt(p.name)}: probe names must be unique "
+            raise InputError(f"{p.where} name = {toml_text(p.name)}: probe names must be unique "
                              "and not 'step' or 'time'")
         if p.quantity in ("eps_p_eq", "yielded") and not any(
                 materials[b.material].model != "elastic" for b in bodies):
-            raise InputError(f"{p.where} quantity = {_fmt(p.quantity)}: needs a body of a "
+            raise InputError(f"{p.where} quantity = {toml_text(p.quantity)}: needs a body of a "
                              'plastic material ([materials.NAME] model = "j2")')
     force = top.value("force")
     scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
@@ -392,12 +236,12 @@ def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:
 def _read_mesh(data: Any, base: str) -> MeshSpec:
     where = "[mesh]"
     if not isinstance(data, dict):
-        raise InputError(f"{where} must be a table, not {_fmt(data)}")
+        raise InputError(f"{where} must be a table, not {toml_text(data)}")
     if "generator" in data and "file" in data:
         raise InputError(f"{where} give either generator or file, not both")
     if "file" in data:
-        t = _Table(data, where, "mesh", ("file",))
-        name = t.value("file", _MISSING)
+        t = Table(data, where, "mesh", ("file",))
+        name = t.value("file", MISSING)
         full = name if os.path.isabs(name) else os.path.join(base, name)
         if not os.path.isfile(full):
             raise t.error("file", f"no such mesh file ({full})")
@@ -407,9 +251,9 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
                          f"{', '.join(GENERATORS)}, or file = \"my_mesh.msh\"")
     generator = data["generator"]
     if not isinstance(generator, str) or generator not in GENERATORS:
-        raise InputError(f"{where} generator = {_fmt(generator)}: unknown generator; use one of "
+        raise InputError(f"{where} generator = {toml_text(generator)}: unknown generator; use one of "
                          f"{', '.join(GENERATORS)}, or file = \"my_mesh.msh\"")
-    t = _Table(data, where, "mesh", (generator,))
+    t = Table(data, where, "mesh", (generator,))
     params: dict[str, Any] = {}
     for spec in t.section.keys:
         if generator not in spec.groups:
@@ -420,14 +264,14 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
         elif spec.name in t:
             params[spec.name] = t.value(spec.name)
         elif spec.name in REQUIRED_PARAMS.get(generator, ()):
-            params[spec.name] = t.value(spec.name, _MISSING)
+            params[spec.name] = t.value(spec.name, MISSING)
     return MeshSpec(generator, params, None)
 
 
-def _breaks(t: _Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
+def _breaks(t: Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
     v = t.data[key]
     ok = isinstance(v, list) and len(v) > 0 and all(
-        isinstance(b, list) and len(b) == 2 and _is_number(b[0]) and b[0] > 0
+        isinstance(b, list) and len(b) == 2 and is_number(b[0]) and b[0] > 0
         and isinstance(b[1], int) and not isinstance(b[1], bool) and b[1] >= 1 for b in v)
     if not ok or any(v[k + 1][0] <= v[k][0] for k in range(len(v) - 1)):
         raise t.error(key, f"must be increasing radii with interval counts ({what})")
@@ -435,7 +279,7 @@ def _breaks(t: _Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
 
 
 def _read_material(name: str, data: dict) -> MaterialSpec:
-    t = _Table(data, f"[materials.{name}]", "materials", ("j2",))
+    t = Table(data, f"[materials.{name}]", "materials", ("j2",))
     model = t.value("model")
     E = t.value("E")
     nu = t.value("nu")
@@ -459,7 +303,7 @@ def _read_material(name: str, data: dict) -> MaterialSpec:
 
 
 def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> BodySpec:
-    t = _Table(data, f"[bodies.{name}]", "bodies")
+    t = Table(data, f"[bodies.{name}]", "bodies")
     material = t.value("material")
     if material not in materials:
         raise t.error("material", f"no table [materials.{material}] "
@@ -468,7 +312,7 @@ def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> Bod
 
 
 def _read_rigid(name: str, data: dict) -> RigidSpec:
-    t = _Table(data, f"[rigid.{name}]", "rigid")
+    t = Table(data, f"[rigid.{name}]", "rigid")
     spec = RigidSpec(name, t.value("mass"), t.value("velocity"))
     if "impedance" in t:
         spec.impedance = t.value("impedance")
@@ -478,7 +322,7 @@ def _read_rigid(name: str, data: dict) -> RigidSpec:
 def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpec:
     is_rigid = isinstance(data, dict) and "rigid" in data
     is_segment = isinstance(data, dict) and not is_rigid and ("slave" in data or "master" in data)
-    t = _Table(data, where, "contact",
+    t = Table(data, where, "contact",
                ("rigid",) if is_rigid else ("segment",) if is_segment else ("pairs",))
     c = ContactSpec(where, t.value("method"), given=tuple(t.data))
     if is_rigid:
@@ -490,7 +334,7 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
         c.radius = t.value("radius")
         c.button = t.value("button")
         if c.button is not None and c.button < c.radius:
-            raise t.error("button", f"must be >= the face radius {_fmt(t.data['radius'])} m")
+            raise t.error("button", f"must be >= the face radius {toml_text(t.data['radius'])} m")
     elif is_segment:
         c.slave = t.value("slave")
         c.master = t.value("master")
@@ -516,9 +360,9 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
         raise InputError(f"{where} must be a table")
     pulse = data.get("pulse", "trapezoid")
     if not isinstance(pulse, str) or pulse not in PULSES:
-        raise InputError(f"{where} pulse = {_fmt(pulse)}: use one of {', '.join(PULSES)}")
+        raise InputError(f"{where} pulse = {toml_text(pulse)}: use one of {', '.join(PULSES)}")
     on_rigid = "rigid" in data
-    t = _Table(data, where, "loads", ("rigid" if on_rigid else "facet", pulse))
+    t = Table(data, where, "loads", ("rigid" if on_rigid else "facet", pulse))
     load = LoadSpec(where, t.value("pulse"), {})
     for key in PULSES[pulse]:
         load.params[key] = t.value(key)
@@ -527,9 +371,9 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
         if t_rise < 0:
             raise t.error("t_rise", "must be >= 0 (s)")
         if t_fall < t_rise:
-            raise t.error("t_fall", f"must be >= t_rise = {_fmt(t.data['t_rise'])} (s)")
+            raise t.error("t_fall", f"must be >= t_rise = {toml_text(t.data['t_rise'])} (s)")
         if not t_end > 0 or t_end < t_fall:
-            raise t.error("t_end", f"must be > 0 and >= t_fall = {_fmt(t.data['t_fall'])} (s)")
+            raise t.error("t_end", f"must be > 0 and >= t_fall = {toml_text(t.data['t_fall'])} (s)")
     if on_rigid:
         load.rigid = t.value("rigid")
         if load.rigid not in rigid:
@@ -550,9 +394,9 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
 
 
 def _read_fixed(where: str, data: dict) -> FixedSpec:
-    t = _Table(data, where, "fixed")
+    t = Table(data, where, "fixed")
     facet = t.value("facet")
-    comps = t._get("components", t.section.key("components").described, _MISSING)
+    comps = t._get("components", t.section.key("components").described, MISSING)
     if (not isinstance(comps, list) or not comps or len(set(map(str, comps))) != len(comps)
             or not all(isinstance(c, str) and c in COMPONENTS for c in comps)):
         raise t.error("components", "must be a list of distinct components \"r\" and \"z\"")
@@ -560,7 +404,7 @@ def _read_fixed(where: str, data: dict) -> FixedSpec:
 
 
 def _read_time(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[time]", "time")
+    t = Table(data, "[time]", "time")
     if ("dt" in t) == ("cfl" in t):
         raise InputError("[time] give exactly one of dt (the time step in s) or cfl "
                          "(a fraction of the stable limit)")
@@ -570,12 +414,12 @@ def _read_time(data: Any) -> dict[str, Any]:
 
 
 def _read_output(data: Any) -> dict[str, Any]:
-    t = _Table(data, "[output]", "output")
+    t = Table(data, "[output]", "output")
     return {key: t.value(key) for key in t.section.allowed()}
 
 
 def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
-    t = _Table(data, where, "probes")
+    t = Table(data, where, "probes")
     quantity = t.value("quantity")
     point = t.value("point")
     if point[0] < 0:
@@ -594,52 +438,7 @@ def check_output_dir(path: str, where: str, comm: MPI.Comm = MPI.COMM_WORLD) -> 
     error = rundir.directory_problem(path) if comm.rank == 0 else None
     error = comm.bcast(error, root=0)
     if error:
-        raise InputError(f"{where} {_fmt(path)}: the output directory cannot be used: {error}")
-
-
-# ----------------------------------------------------------------------------- plausibility
-
-def generator_params(scene: Scene) -> dict[str, Any]:
-    """The parameters of the scene's generator mesh, its defaults filled in."""
-    import inspect
-
-    from . import meshing
-
-    params = {} if scene.mesh.generator == "quad_bar" else {  # quad_bar: every key given
-        k: v.default for k, v in
-        inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
-        if v.default is not inspect.Parameter.empty}
-    params.update(scene.mesh.params)
-    return params
-
-
-def warn_implausible(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
-    """Warn (rank 0, once each) about the scene's values that no real impact has, as far as
-    they are known before meshing (plausibility.py): materials, speeds, a given dt, the
-    size of a generator mesh."""
-    plausibility.report(plausibility.findings(scene, dt=scene.time["dt"], **mesh_sizes(scene)),
-                        scene.warned, comm)
-
-
-def mesh_sizes(scene: Scene, size: float | None = None) -> dict[str, float | None]:
-    """The model's largest extent ``size`` and smallest element size ``h`` (m) as far as
-    known before meshing (a generator's parameters; ``size`` if given)."""
-    if scene.mesh.generator is None:
-        return {"size": size, "h": None}
-    params = generator_params(scene)
-    return {"size": resources.generator_size(scene.mesh.generator, params) if size is None
-            else size,
-            "h": min(r.h for r in resources.generator_regions(scene.mesh.generator, params))}
-
-
-def explained_refusal(message: str, scene: Scene, size: float | None) -> str:
-    """A refusal of the step (above the stable limit, longer than the run) with the scene's
-    implausible units that may cause it (materials, the model's size (m) ``size``, its
-    elements, dt)."""
-    found = [f for f in plausibility.findings(scene, dt=scene.time["dt"],
-                                              **mesh_sizes(scene, size))
-             if f.key.startswith(("[materials", "[mesh]", "[time] dt"))]
-    return plausibility.explained(message, found)
+        raise InputError(f"{where} {toml_text(path)}: the output directory cannot be used: {error}")
 
 
 # ----------------------------------------------------------------------------- resources
@@ -651,14 +450,14 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
     kernels that compile (jit_watch.cold_share)."""
     o = scene.output
     if scene.mesh.generator is not None:
-        params = generator_params(scene)
+        params = resources.generator_params(scene)
         regions = resources.generator_regions(scene.mesh.generator, params)
         nodes = sum(r.nodes for r in regions)
         radius = resources.contact_radius(scene.mesh.generator, params)
     else:
         from . import meshing
 
-        with _at("[mesh]"):
+        with within("[mesh]"):
             counts = meshing.msh_size(scene.mesh.file, comm)
         regions = [resources.Region(name, float(n), 0.0, h, "unstructured")
                    for name, (n, h) in counts["groups"].items()]
@@ -755,15 +554,6 @@ def check_resources(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, quiet: bool =
 
 # ----------------------------------------------------------------------------- building
 
-@contextmanager
-def _at(where: str) -> Iterator[None]:
-    """Prefix the InputErrors of the library with the table they come from."""
-    try:
-        yield
-    except InputError as exc:
-        raise InputError(f"{where} {exc}") from None
-
-
 def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
           comm: MPI.Comm = MPI.COMM_WORLD):
     """The mesh and the :class:`~impact_fenics.simulation.Simulation` of a checked scene.
@@ -778,8 +568,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from .scenes import make_method
     from .simulation import Settings, Simulation
 
-    warn_implausible(scene, comm)
-    with _at("[mesh]"):
+    plausibility.warn_implausible(scene, comm)
+    with within("[mesh]"):
         if scene.mesh.file is not None:
             tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
         else:
@@ -789,18 +579,18 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     size = plausibility.model_size(tmesh.mesh, comm)
     materials = {}
     for m in scene.materials.values():
-        with _at(f"[materials.{m.name}]"):
+        with within(f"[materials.{m.name}]"):
             if m.model == "j2":
                 materials[m.name] = J2(E=m.E, nu=m.nu, density=m.density,
                                        yield_stress=m.yield_stress, hardening=m.hardening,
                                        viscosity=m.viscosity)
             else:
                 materials[m.name] = LinearElastic(E=m.E, nu=m.nu, density=m.density)
-    with _at("[bodies]"):
+    with within("[bodies]"):
         model = DeformableModel(tmesh, [Body(b.name, materials[b.material]) for b in scene.bodies])
     fixed = []
     for f in scene.fixed:
-        with _at(f.where):
+        with within(f.where):
             fixed += [model.facet_dofs(f.facet, COMPONENTS[c]) for c in f.components]
     surface_loads, rigid_loads = [], {name: [] for name in scene.rigid}
     incident = {name: [] for name in scene.rigid}
@@ -812,7 +602,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         elif spec.rigid is not None:
             rigid_loads[spec.rigid].append((-spec.area if spec.area else 1.0, pulse))
         else:
-            with _at(spec.where):
+            with within(spec.where):
                 surface_loads.append(ld.SurfaceLoad(model, spec.facet, pulse, spec.traction))
     t, o = scene.time, scene.output
     settings = Settings(dt=t["dt"], cfl=t["cfl"], t_end=t["t_end"], n_steps=t["n_steps"],
@@ -831,10 +621,10 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                          initial_velocity=velocity)
     except InputError as exc:  # (with the implausible units that may cause it)
         hint = " with force_dt = true" if "stable limit" in str(exc) else ""
-        raise InputError(explained_refusal(f"[time] {exc}{hint}", scene, size)) from None
+        raise InputError(plausibility.explained_refusal(f"[time] {exc}{hint}", scene, size)) from None
     for c in scene.contacts:
         _warn_ignored_keys(c, comm)
-        with _at(c.where):
+        with within(c.where):
             method = make_method(c.method, penalty=c.penalty, restitution=c.restitution,
                                  positions=c.positions, film_solver=c.film_solver)
             if c.slave is not None:
@@ -853,12 +643,12 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
                                 method, rigid=body)
     for p in scene.probes:
-        with _at(p.where):
+        with within(p.where):
             locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()
             _one_body_at(tmesh, p.point, comm)
         sim.add_probe(p.name, p.point, p.quantity)
     plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
-                                              **mesh_sizes(scene, size)), scene.warned, comm)
+                                              **plausibility.mesh_sizes(scene, size)), scene.warned, comm)
     return sim
 
 
@@ -871,7 +661,7 @@ def _warn_ignored_keys(c: ContactSpec, comm: MPI.Comm) -> None:
     """One warning line per key of a [[contact]] that its method does not read."""
     for key, methods in _METHOD_KEYS.items():
         if c.method not in methods and key in c.given:
-            plausibility.warn(f"{c.where} {key} = {_fmt(getattr(c, key))} is ignored by "
+            plausibility.warn(f"{c.where} {key} = {toml_text(getattr(c, key))} is ignored by "
                               f"method = \"{c.method}\" (only {', '.join(methods)} reads it)",
                               comm)
 
@@ -924,5 +714,5 @@ def _check_groups(scene: Scene, tmesh) -> None:
     refs += [(f.where, "facet", f.facet) for f in scene.fixed]
     for where, key, name in refs:
         if name not in facets:
-            raise InputError(f"{where} {key} = {_fmt(name)}: the mesh has no facet group named "
+            raise InputError(f"{where} {key} = {toml_text(name)}: the mesh has no facet group named "
                              f"'{name}' (it has: {have_f})")

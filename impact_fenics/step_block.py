@@ -55,9 +55,9 @@ from .cell_fields import STRESS_NAMES, isotropic_stress_range, track_peaks
 from .energy import (STABLE, _output_sums, copy_state, energy_verdict,
                      strain_from_prediction)
 from .jit_watch import drop_stale_cache
-from .contact.interface import (B, FORCE, LEDGER, LO, MISC_SIZE, N_CONS, RIGID_MASS,
-                                RIGID_WORK, STATS, U, U_NOW, UP, V, WAVES, ContactSet,
-                                _committed_gap, _pack)
+from .contact.interface import ContactSet
+from .contact.state import (B, FORCE, LEDGER, LO, MISC_SIZE, N_CONS, RIGID_MASS, RIGID_WORK,
+                            STATS, U, U_NOW, UP, V, WAVES, _committed_gap, _pack)
 from .output import _pair_row
 from .probes import _record_at
 from .timers import _book
@@ -354,10 +354,10 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
 # run_steps compiles the kernels of these modules into itself: its cache goes with theirs
 def _callees():
     from . import cell_fields, energy, output, probes, timers, xdmf
-    from .contact import dme, film, fused, interface, penalty
+    from .contact import dme, film, fused, penalty, state
 
     return (native, cell_fields, energy, output, probes, timers, xdmf, dme, film, fused,
-            interface, penalty)
+            penalty, state)
 
 
 drop_stale_cache(run_steps, _callees())

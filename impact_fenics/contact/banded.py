@@ -36,6 +36,21 @@ def gap_of(g0, cs, cc, u, out):
 
 
 @njit(cache=True)
+def apply_multipliers(lam, cs, cc, mass, free, dt, u, v):
+    """Forces G' lam (N) over one step: v += dt M^-1 G' lam, u += dt (that change)."""
+    for i in range(lam.size):
+        f = lam[i]
+        if f == 0.0:
+            continue
+        for k in range(cs.shape[1]):
+            s = cs[i, k]
+            if free[s] and cc[i, k] != 0.0:
+                dv = dt * (cc[i, k] * f) / mass[s]
+                v[s] += dv
+                u[s] += dt * dv
+
+
+@njit(cache=True)
 def band_of_s(cs, cc, minv, dt, bw, band):
     """band[i, k] = S[i, i - k] for k = 0..bw (m/N), S = dt^2 G M^-1 G'."""
     n = cs.shape[0]

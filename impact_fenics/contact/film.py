@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .interface import apply_forces
+from .state import apply_forces
 
 
 @njit(cache=True)

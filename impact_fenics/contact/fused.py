@@ -22,11 +22,11 @@ the call unboxes seven arrays:
   mass, f_prev, dt/m, m/dt, ku_prev, jump (the last two over the deformable
   slots), then the constraint rows b, gap, force, d, 1/d, p (their first n
   entries, n <= slots);
-- ``ints`` (int32, 11 x deformable slots; layout interface.LO ... POS): lo, up
+- ``ints`` (int32, 11 x deformable slots; layout state.LO ... POS): lo, up
   and a scratch row per constraint, the slot maps of the gather and write-back;
 - ``flags`` (active, was_active);
 - ``misc``: the ledger, the stats, the rigid body's work and waves, the
-  constants (layout: interface.LEDGER ... N_LOCAL);
+  constants (layout: state.LEDGER ... N_LOCAL);
 - ``recv``: under MPI the Allgatherv buffer (empty in serial), and the owned
   displacement and velocity.
 
@@ -38,16 +38,16 @@ import numpy as np
 from numba import njit
 
 from ..jit_watch import drop_stale_cache
-from . import dme, film, interface, penalty
+from . import dme, film, penalty, state
 from .dme import _cluster, _pairs
 from .film import _film_fast
-from .interface import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
-                        FROM_V, GAP, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV, LEDGER, LO,
-                        LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, P,
-                        POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS,
-                        RIGID_WORK, STATS, TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED, WAVES,
-                        WORK, _commit, _predicted_gaps, _take, _unpack)
 from .penalty import _penalty
+from .state import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
+                    FROM_V, GAP, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV, LEDGER, LO,
+                    LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, P,
+                    POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS,
+                    RIGID_WORK, STATS, TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED, WAVES,
+                    WORK, _commit, _predicted_gaps, _take, _unpack)
 
 # the methods the fused call runs (misc[CODE]); another method runs its own correct()
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
@@ -329,4 +329,4 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
 
 
 # contact_step compiles the method kernels into itself: its cache goes with theirs
-drop_stale_cache(contact_step, (dme, film, interface, penalty))
+drop_stale_cache(contact_step, (dme, film, penalty, state))

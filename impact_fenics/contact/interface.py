@@ -25,7 +25,8 @@ State lives in *slots*: one per contact dof (the lower nodes first, then the
 upper nodes of node pairs) and one more for a rigid upper body. Constraint i
 ties slot ``lo[i]`` to slot ``up[i]``; every constraint on a rigid body points
 to its single slot, so scatter-adding the forces sums them on the body. The
-numeric kernels are compiled with numba; every rank runs them on the same
+slots' layout and the kernels of detection, write-back and booking are in
+:mod:`.state`, compiled with numba; every rank runs them on the same
 gathered data, so the answer does not depend on the partition.
 
 Signs: the contact force ``force`` (N) is compressive-positive; it pushes the
@@ -39,10 +40,18 @@ from typing import Callable, Protocol
 
 import numpy as np
 from mpi4py import MPI
-from numba import njit
 
 from ..errors import InputError
+from . import fused
+from .dme import DME
+from .film import FILM
 from .pairing import Constraints
+from .penalty import Penalty
+from .state import (ALL_POS, CODE, DT, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER, LOCAL,
+                    MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, POS, RECV_U,
+                    RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK, STATS, TO, WAVES,
+                    PhaseTimes, _commit, _committed_gap, _detect_gathered, _detect_local, _pack,
+                    _take, _unpack, apply_forces, owned_slots)
 
 
 @dataclass
@@ -139,178 +148,7 @@ class ContactMethod(Protocol):
         """Correct ``c.u``, ``c.v`` in place from the predicted state; set ``c.force``, ``c.active``."""
 
 
-# the set's scalars in one float array (ContactSet._misc), read and written by the fused
-# call: the contact-work ledger (work, activation loss, jumped, grew), the stats of a
-# history row, the rigid body's external work and last force, its rod's wave energies,
-# then the run's constants
-LEDGER, STATS, RIGID_WORK, RIGID_F_PREV, WAVES = 0, 4, 7, 8, 9
-CODE, DT, KAPPA, RESTITUTION, MASS_WEIGHTED, JUMPS, N_DEFORMABLE = 12, 13, 14, 15, 16, 17, 18
-RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL = 19, 20, 21, 22, 23, 24
-MISC_SIZE = 25
-# the rows of ContactSet._floats: per slot, then per constraint (their first n entries)
-U, V, U_PRED, V_PRED, U_NOW, V_NOW, MASS, F_PREV, DT_OVER_M, M_OVER_DT, KU_PREV, JUMP = range(12)
-B, GAP, FORCE, D, D_INV, P = range(12, 18)
-# the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
-# slot where its u and v are in the Allgatherv buffer and its slot (recv_u, recv_v,
-# all_pos: in gathered order), where its predicted u and v are read and the owned dof it
-# is written back to (from_u, from_v, to: in slot order); the owned contact dofs and
-# their slots (local, pos)
-LO, UP, WORK, RECV_U, RECV_V, ALL_POS, FROM_U, FROM_V, TO, LOCAL, POS = range(11)
-
-
-@dataclass
-class PhaseTimes:
-    """CPU time (s) of the last step's contact phases."""
-
-    detection: float = 0.0
-    solve: float = 0.0
-    update: float = 0.0
-
-
-# ----------------------------------------------------------------------------- kernels
-
-@njit(cache=True)
-def apply_forces(force, lo, up, dt_over_m, dt, u, v):
-    """Compressive forces (N) move each lower slot down and each upper slot up:
-    velocities by dt F/m, positions by dt^2 F/m (a rigid slot sums its forces).
-    ``dt_over_m``: dt / m of each slot (s/kg), a set-up constant."""
-    for i in range(force.size):
-        f = force[i]
-        if f != 0.0:
-            a, b = lo[i], up[i]
-            dv_a = f * dt_over_m[a]
-            dv_b = f * dt_over_m[b]
-            v[a] -= dv_a
-            u[a] -= dt * dv_a
-            v[b] += dv_b
-            u[b] += dt * dv_b
-
-
-@njit(cache=True)
-def _take(src_u, src_v, local, pos, u_out, v_out):
-    for k in range(local.size):
-        u_out[pos[k]] = src_u[local[k]]
-        v_out[pos[k]] = src_v[local[k]]
-
-
-@njit(cache=True)
-def _pack(src_u, src_v, local, send):
-    m = local.size
-    for k in range(m):
-        send[k] = src_u[local[k]]
-        send[m + k] = src_v[local[k]]
-
-
-@njit(cache=True)
-def _unpack(recv, recv_u, recv_v, pos, u_out, v_out):
-    for k in range(pos.size):
-        u_out[pos[k]] = recv[recv_u[k]]
-        v_out[pos[k]] = recv[recv_v[k]]
-
-
-@njit(cache=True)
-def _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active):
-    for k in range(u.size):
-        u[k] = u_pred[k]
-        v[k] = v_pred[k]
-    for i in range(b.size):
-        gap[i] = b[i] + u_pred[up[i]] - u_pred[lo[i]]
-        was_active[i] = active[i]
-
-
-@njit(cache=True)
-def _detect_local(src_u, src_v, local, pos, u_pred, v_pred, u, v, b, lo, up, gap, active,
-                  was_active):
-    """Detection on one rank: take the predicted contact dofs, form the gaps (one call)."""
-    _take(src_u, src_v, local, pos, u_pred, v_pred)
-    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
-
-
-@njit(cache=True)
-def _detect_gathered(recv, recv_u, recv_v, all_pos, u_pred, v_pred, u, v, b, lo, up, gap,
-                     active, was_active):
-    """Detection after the Allgatherv: unpack in slot order, form the gaps (one call)."""
-    _unpack(recv, recv_u, recv_v, all_pos, u_pred, v_pred)
-    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
-
-
-@njit(cache=True)
-def _committed_gap(b, u_now, lo, up, out):
-    for i in range(b.size):
-        out[i] = b[i] + u_now[up[i]] - u_now[lo[i]]
-
-
-@njit(cache=True)
-def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, u_pred, v_pred,
-            u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
-            force, stats):
-    """Write the corrected state back to the owned dofs, then book the contact work
-    increment of step n (see _ContactWork) and roll the state to n+1 (one call).
-    ``m_over_dt``: m / dt of each slot (kg/s). Returns the increment (J), whether this
-    step jumped and whether the active set grew; ``stats`` receives (number active,
-    total force (N), smallest committed gap (m))."""
-    for k in range(local.size):
-        dst_u[local[k]] = u[pos[k]]
-        dst_v[local[k]] = v[pos[k]]
-    inc = 0.0  # the work of the slots' forces,
-    inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
-    n_active = 0
-    total = 0.0
-    jumped_now = False
-    grew = False
-    min_gap = np.inf
-    for i in range(active.size):
-        total += force[i]
-        if active[i]:
-            n_active += 1
-            if not was_active[i]:
-                grew = True
-        min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
-    for k in range(m_over_dt.size):
-        f = m_over_dt[k] * (v[k] - v_pred[k])
-        if not first:
-            inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
-        f_prev[k] = f
-    rolled = 0  # slots already rolled to n+1 (in the jump loop, after their last read)
-    if jumps:
-        for k in range(n_deformable):
-            ku = -m_over_dt[k] * (v_pred[k] - v_now[k])  # K u^n on this dof
-            if jumped:
-                inc_jump += 0.5 * jump[k] * (ku_prev[k] + ku)
-            ku_prev[k] = ku
-            jump[k] = u[k] - u_now[k] - dt * v[k]
-            if jump[k] != 0.0:
-                jumped_now = True
-            u_now[k] = u[k]
-            v_now[k] = v[k]
-        rolled = n_deformable
-    for k in range(rolled, m_over_dt.size):
-        u_now[k] = u[k]
-        v_now[k] = v[k]
-    stats[0] = n_active
-    stats[1] = total
-    stats[2] = min_gap
-    return inc + inc_jump, jumped_now, grew
-
-
 # ----------------------------------------------------------------------------- the set
-
-def owned_slots(model, dofs: np.ndarray, comm: MPI.Comm) -> tuple:
-    """The contact slots (global z dofs ``dofs``) this rank owns, for the gather of
-    (u, v) pairs: (local owned indices, their slot positions, every rank's positions
-    in rank order, Allgatherv counts and displacements in doubles). Refuses dofs not
-    owned exactly once over the ranks."""
-    lo_dof, hi_dof = model.offset, model.offset + model.n_owned
-    mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
-    counts = np.array(comm.allgather(mine.size))
-    positions = np.concatenate(comm.allgather(mine)).astype(np.int64)
-    if not np.array_equal(np.sort(positions), np.arange(dofs.size)):
-        raise InputError("contact dofs are not all owned exactly once: "
-                         "each contact node must belong to one body")
-    displs = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
-    return ((dofs[mine] - lo_dof).astype(np.int64), mine.astype(np.int64), positions,
-            2 * counts, displs)
-
 
 class ContactSet:
     """Constraints, their gathered state and the rigid body, on every rank.
@@ -324,7 +162,7 @@ class ContactSet:
     state of a step is ``u_now``, ``v_now`` (the fused step of a rigid face does
     not write its nodes' scratch rows u, v, gap and was_active). All are rows of
     a few packed arrays (``_floats``, ``_ints``, ``_flags``, ``_misc``; layout
-    below and in :mod:`.fused`).
+    in :mod:`.state`).
     """
 
     def __init__(self, constraints: Constraints, integrator, method: ContactMethod,
@@ -345,7 +183,7 @@ class ContactSet:
         self.n_deformable = nd = dofs.size
         self.n_slots = ns = nd + (1 if rigid else 0)
         # the state, packed in a few arrays for the one compiled call of a step (fused.py);
-        # the attributes below are views of their rows (layout: fused.py)
+        # the attributes below are views of their rows (layout: state.py)
         self._floats = np.zeros((18, ns))  # 12 slot rows, then 6 constraint rows (n <= ns)
         self._ints = np.zeros((11, nd), dtype=np.int32)  # 3 constraint rows, 8 slot maps
         self._slots, self._cons = self._floats[:12], self._floats[12:, :n]
@@ -440,11 +278,6 @@ class ContactSet:
         method that the one compiled call runs (fused.contact_step), or None: a method of
         another type (FILM dense, a user's) runs its own correct() between detection and
         commit."""
-        from . import fused
-        from .dme import DME
-        from .film import FILM
-        from .penalty import Penalty
-
         self._contact_step = fused.contact_step
         m = self.method
         if type(m) is Penalty:
@@ -462,7 +295,6 @@ class ContactSet:
         (or detection and commit), and a method outside it by one call on open gaps (no
         force: it changes nothing that the next detection does not overwrite)."""
         from ..jit_watch import direct, load
-        from .fused import contact_step
 
         integ = self.integrator
         load(_pack, integ.u_owned, integ.v_owned, self._local, self._send)
@@ -470,7 +302,7 @@ class ContactSet:
         if self._fused is not None:
             # the step calls the compiled entry point itself (the arguments' types are
             # fixed for the run)
-            self._contact_step = direct(contact_step, *self._fused_call, True, 0.0, 0.0)
+            self._contact_step = direct(fused.contact_step, *self._fused_call, True, 0.0, 0.0)
             return
         slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
                  self.active, self.was_active)

@@ -28,27 +28,13 @@ from mpi4py import MPI
 from numba import njit
 
 from ..errors import InputError
-from .banded import band_of_s, bandwidth, gap_of
-from .interface import PhaseTimes, _take, owned_slots
+from .banded import apply_multipliers, band_of_s, bandwidth, gap_of
+from .nts_methods import as_node_to_segment
 from .segments import SegmentConstraints
+from .state import PhaseTimes, _take, owned_slots
 
 
 # ----------------------------------------------------------------------------- kernels
-
-@njit(cache=True)
-def apply_multipliers(lam, cs, cc, mass, free, dt, u, v):
-    """Forces G' lam (N) over one step: v += dt M^-1 G' lam, u += dt (that change)."""
-    for i in range(lam.size):
-        f = lam[i]
-        if f == 0.0:
-            continue
-        for k in range(cs.shape[1]):
-            s = cs[i, k]
-            if free[s] and cc[i, k] != 0.0:
-                dv = dt * (cc[i, k] * f) / mass[s]
-                v[s] += dv
-                u[s] += dt * dv
-
 
 @njit(cache=True)
 def _pack_pairs(src_u, src_v, local, send):
@@ -130,8 +116,6 @@ class NodeToSegmentSet:
     rigid = None
 
     def __init__(self, constraints: SegmentConstraints, integrator, method):
-        from .nts_methods import as_node_to_segment
-
         model = integrator.model
         self.comm: MPI.Comm = model.comm
         self.constraints = constraints

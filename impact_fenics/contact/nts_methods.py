@@ -37,10 +37,9 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .banded import dense_s, gershgorin_beta, lcp_bpp, lcp_dense
-from .nts_interface import apply_multipliers
+from . import dme, film, penalty
+from .banded import apply_multipliers, dense_s, gershgorin_beta, lcp_bpp, lcp_dense
 from .penalty import STABILITY_BOUND
-from .penalty import Penalty as NodePenalty
 
 
 class _Workspace:
@@ -206,7 +205,7 @@ class Penalty:
     jumps = False
 
     def __init__(self, p: float | str = "scaled", beta_target: float = 1.0, force: bool = False):
-        node = NodePenalty(p, beta_target=beta_target)  # the same checks of p and beta_target
+        node = penalty.Penalty(p, beta_target=beta_target)  # the same checks of p and beta_target
         self.choice, self.beta_target, self.forced = node.choice, node.beta_target, force
         self.info: dict = {}
 
@@ -250,8 +249,6 @@ def as_node_to_segment(method):
     with their settings: penalty p and beta_target, FILM's solver, DME's restitution)."""
     if isinstance(method, (Penalty, FILM, DME)):
         return method
-    from . import dme, film, penalty
-
     if isinstance(method, penalty.Penalty):
         return Penalty(method.choice, beta_target=method.beta_target)
     if isinstance(method, film.FILM):

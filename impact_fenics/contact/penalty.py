@@ -53,7 +53,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .interface import apply_forces
+from .state import apply_forces
 
 STABILITY_BOUND = 4.0 / 3.0
 

@@ -1,0 +1,201 @@
+"""The slot state of a contact set: its packed layout, the gather, the write-back and the booking.
+
+A node-pair or rigid-face set (:class:`~impact_fenics.contact.interface.ContactSet`)
+keeps its state in *slots*: one per contact dof (the lower nodes first, then the
+upper nodes of node pairs) and one more for a rigid upper body; constraint i ties
+slot ``lo[i]`` to slot ``up[i]``. The slot and constraint rows live in a few packed
+arrays whose layout is given here by row and entry names, so that the set, the
+fused step (:mod:`.fused`) and the compiled blocks read the same rows.
+
+The kernels here are what every method and both step paths share: the forces of
+a method applied to the slots (:func:`apply_forces`), the detection (take or
+unpack the predicted contact dofs, form the predicted gaps
+g~_i = b_i + u~[up_i] - u~[lo_i]) and the commit (write back the owned dofs, book
+the contact work, roll the state to n+1). :func:`owned_slots` gives which slots a
+rank owns for the gather. Nothing here imports a method or the set: the methods
+and the set import it.
+
+Signs: the contact force ``force`` (N) is compressive-positive; it pushes the
+upper side up (+z) and the lower side down.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from numba import njit
+
+from ..errors import InputError
+
+# the set's scalars in one float array (ContactSet._misc), read and written by the fused
+# call: the contact-work ledger (work, activation loss, jumped, grew), the stats of a
+# history row, the rigid body's external work and last force, its rod's wave energies,
+# then the run's constants
+LEDGER, STATS, RIGID_WORK, RIGID_F_PREV, WAVES = 0, 4, 7, 8, 9
+CODE, DT, KAPPA, RESTITUTION, MASS_WEIGHTED, JUMPS, N_DEFORMABLE = 12, 13, 14, 15, 16, 17, 18
+RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL = 19, 20, 21, 22, 23, 24
+MISC_SIZE = 25
+# the rows of ContactSet._floats: per slot, then per constraint (their first n entries)
+U, V, U_PRED, V_PRED, U_NOW, V_NOW, MASS, F_PREV, DT_OVER_M, M_OVER_DT, KU_PREV, JUMP = range(12)
+B, GAP, FORCE, D, D_INV, P = range(12, 18)
+# the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
+# slot where its u and v are in the Allgatherv buffer and its slot (recv_u, recv_v,
+# all_pos: in gathered order), where its predicted u and v are read and the owned dof it
+# is written back to (from_u, from_v, to: in slot order); the owned contact dofs and
+# their slots (local, pos)
+LO, UP, WORK, RECV_U, RECV_V, ALL_POS, FROM_U, FROM_V, TO, LOCAL, POS = range(11)
+
+
+@dataclass
+class PhaseTimes:
+    """CPU time (s) of the last step's contact phases."""
+
+    detection: float = 0.0
+    solve: float = 0.0
+    update: float = 0.0
+
+
+# ----------------------------------------------------------------------------- kernels
+
+@njit(cache=True)
+def apply_forces(force, lo, up, dt_over_m, dt, u, v):
+    """Compressive forces (N) move each lower slot down and each upper slot up:
+    velocities by dt F/m, positions by dt^2 F/m (a rigid slot sums its forces).
+    ``dt_over_m``: dt / m of each slot (s/kg), a set-up constant."""
+    for i in range(force.size):
+        f = force[i]
+        if f != 0.0:
+            a, b = lo[i], up[i]
+            dv_a = f * dt_over_m[a]
+            dv_b = f * dt_over_m[b]
+            v[a] -= dv_a
+            u[a] -= dt * dv_a
+            v[b] += dv_b
+            u[b] += dt * dv_b
+
+
+@njit(cache=True)
+def _take(src_u, src_v, local, pos, u_out, v_out):
+    for k in range(local.size):
+        u_out[pos[k]] = src_u[local[k]]
+        v_out[pos[k]] = src_v[local[k]]
+
+
+@njit(cache=True)
+def _pack(src_u, src_v, local, send):
+    m = local.size
+    for k in range(m):
+        send[k] = src_u[local[k]]
+        send[m + k] = src_v[local[k]]
+
+
+@njit(cache=True)
+def _unpack(recv, recv_u, recv_v, pos, u_out, v_out):
+    for k in range(pos.size):
+        u_out[pos[k]] = recv[recv_u[k]]
+        v_out[pos[k]] = recv[recv_v[k]]
+
+
+@njit(cache=True)
+def _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active):
+    for k in range(u.size):
+        u[k] = u_pred[k]
+        v[k] = v_pred[k]
+    for i in range(b.size):
+        gap[i] = b[i] + u_pred[up[i]] - u_pred[lo[i]]
+        was_active[i] = active[i]
+
+
+@njit(cache=True)
+def _detect_local(src_u, src_v, local, pos, u_pred, v_pred, u, v, b, lo, up, gap, active,
+                  was_active):
+    """Detection on one rank: take the predicted contact dofs, form the gaps (one call)."""
+    _take(src_u, src_v, local, pos, u_pred, v_pred)
+    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
+
+
+@njit(cache=True)
+def _detect_gathered(recv, recv_u, recv_v, all_pos, u_pred, v_pred, u, v, b, lo, up, gap,
+                     active, was_active):
+    """Detection after the Allgatherv: unpack in slot order, form the gaps (one call)."""
+    _unpack(recv, recv_u, recv_v, all_pos, u_pred, v_pred)
+    _predicted_gaps(u_pred, v_pred, u, v, b, lo, up, gap, active, was_active)
+
+
+@njit(cache=True)
+def _committed_gap(b, u_now, lo, up, out):
+    for i in range(b.size):
+        out[i] = b[i] + u_now[up[i]] - u_now[lo[i]]
+
+
+@njit(cache=True)
+def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, u_pred, v_pred,
+            u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
+            force, stats):
+    """Write the corrected state back to the owned dofs, then book the contact work
+    increment of step n (see interface._ContactWork) and roll the state to n+1 (one call).
+    ``m_over_dt``: m / dt of each slot (kg/s). Returns the increment (J), whether this
+    step jumped and whether the active set grew; ``stats`` receives (number active,
+    total force (N), smallest committed gap (m))."""
+    for k in range(local.size):
+        dst_u[local[k]] = u[pos[k]]
+        dst_v[local[k]] = v[pos[k]]
+    inc = 0.0  # the work of the slots' forces,
+    inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
+    n_active = 0
+    total = 0.0
+    jumped_now = False
+    grew = False
+    min_gap = np.inf
+    for i in range(active.size):
+        total += force[i]
+        if active[i]:
+            n_active += 1
+            if not was_active[i]:
+                grew = True
+        min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
+    for k in range(m_over_dt.size):
+        f = m_over_dt[k] * (v[k] - v_pred[k])
+        if not first:
+            inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
+        f_prev[k] = f
+    rolled = 0  # slots already rolled to n+1 (in the jump loop, after their last read)
+    if jumps:
+        for k in range(n_deformable):
+            ku = -m_over_dt[k] * (v_pred[k] - v_now[k])  # K u^n on this dof
+            if jumped:
+                inc_jump += 0.5 * jump[k] * (ku_prev[k] + ku)
+            ku_prev[k] = ku
+            jump[k] = u[k] - u_now[k] - dt * v[k]
+            if jump[k] != 0.0:
+                jumped_now = True
+            u_now[k] = u[k]
+            v_now[k] = v[k]
+        rolled = n_deformable
+    for k in range(rolled, m_over_dt.size):
+        u_now[k] = u[k]
+        v_now[k] = v[k]
+    stats[0] = n_active
+    stats[1] = total
+    stats[2] = min_gap
+    return inc + inc_jump, jumped_now, grew
+
+
+# ----------------------------------------------------------------------------- the gather
+
+def owned_slots(model, dofs: np.ndarray, comm: MPI.Comm) -> tuple:
+    """The contact slots (global z dofs ``dofs``) this rank owns, for the gather of
+    (u, v) pairs: (local owned indices, their slot positions, every rank's positions
+    in rank order, Allgatherv counts and displacements in doubles). Refuses dofs not
+    owned exactly once over the ranks."""
+    lo_dof, hi_dof = model.offset, model.offset + model.n_owned
+    mine = np.flatnonzero((dofs >= lo_dof) & (dofs < hi_dof))
+    counts = np.array(comm.allgather(mine.size))
+    positions = np.concatenate(comm.allgather(mine)).astype(np.int64)
+    if not np.array_equal(np.sort(positions), np.arange(dofs.size)):
+        raise InputError("contact dofs are not all owned exactly once: "
+                         "each contact node must belong to one body")
+    displs = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
+    return ((dofs[mine] - lo_dof).astype(np.int64), mine.astype(np.int64), positions,
+            2 * counts, displs)

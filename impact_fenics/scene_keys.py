@@ -4,7 +4,9 @@ The scene reader (:mod:`impact_fenics.scene_file`) takes from here the keys a
 table may hold, how each value is checked and its default; the documentation
 generator (:mod:`impact_fenics.docs_pages`) writes ``docs/scenes.md`` from the
 same table. A key added here is both accepted and documented; a key missing
-here is refused. Pure data: no dolfinx, no mesh.
+here is refused. The keys of each material model are those its classes state
+(``parameters``, :mod:`impact_fenics.materials.parameters`), taken from the
+registry ``impact_fenics.materials.MODELS``. Pure data: no dolfinx, no mesh.
 
 Kinds of value (how the reader checks them):
 

@@ -1,19 +1,30 @@
-# # A new path-dependent material: J2 with Voce (saturating) hardening
+# # A new path-dependent material: J2 with Voce (saturating) hardening, at both kinematics
 #
 # A path-dependent material writes one thing: its point update, compiled with
-# numba, in the four-component notation (rr, tt, zz, rz; tensor shear) of
-# ``impact_fenics.materials.axisym``:
+# numba, and a small class around it that states its kinematics (``strain``).
+# At small strain (``strain = "small"``) the update is in the four-component
+# notation (rr, tt, zz, rz; tensor shear) of ``impact_fenics.materials.axisym``:
 #
 #     update(eps, eps_p, state, params, dt, sigma) -> None
 #
-# and a small class around it (``linear = False``, ``density``, ``E``, ``nu``,
-# ``lmbda``, ``mu``, ``n_state``, ``params()``, ``update``, ``wave_speed()``).
-# The solver holds the state at the three quadrature points of every cell and
-# assembles f_int(u, state) each step; nothing else changes. Run it with
+# and the class has ``linear = False``, ``density``, ``E``, ``nu``, ``lmbda``,
+# ``mu``, ``n_state``, ``params()``, ``update``, ``wave_speed()``. At finite strain
+# (``strain = "finite"``) the update gives the Kirchhoff stress of the
+# deformation gradient (``impact_fenics.materials.hencky``):
+#
+#     update(F, state, params, dt, tau, work) -> plastic work increment (J/m^3)
+#     energy(F, state, params, work) -> stored elastic energy (J/m^3)
+#
+# with ``density``, ``n_state``, ``params()``, ``initial_state()``,
+# ``wave_speed()`` (docs/materials.md states both interfaces). The solver holds
+# the state at the quadrature points of every cell; nothing else changes. A
+# scene file names such a class by its import path, ``model =
+# "custom_plastic_material:FiniteVoceJ2"`` (demos/custom_plastic_material.toml,
+# beside this file). Run it with
 #
 #     scripts/mpirun.sh -n 2 .venv/bin/python demos/custom_plastic_material.py
 #
-# Two checks, printed, the same on any number of ranks:
+# Four checks, printed, the same on any number of ranks:
 #
 # 1. with sigma_inf = sigma_0 (no hardening) the new material is the
 #    package's J2 with H = 0: the same run gives the same histories to
@@ -22,11 +33,18 @@
 #    its elastic limit, the elastic precursor carries
 #    sigma_HEL = sigma_0 (1 - nu)/(1 - 2 nu) (whatever the hardening), measured
 #    within the dispersion bound (h / c_L t)^(2/3) of the explicit scheme, and
-#    the energy ledger with plastic dissipation closes to round-off.
+#    the energy ledger with plastic dissipation closes to round-off;
+# 3. at finite strain, without hardening, the Voce material is the package's
+#    finite J2 with H = 0 on a short Taylor bar, to round-off;
+# 4. the scene file demos/custom_plastic_material.toml runs the finite Voce
+#    material by its import path and gives the summary of the same run built in
+#    Python, exactly (the same code and arithmetic).
 
 import argparse
 import math
+import os
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from mpi4py import MPI
@@ -35,7 +53,8 @@ from numba import njit
 from impact_fenics import loads, meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.errors import require, user_errors
-from impact_fenics.materials import J2, IsotropicConstants
+from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+from impact_fenics.materials import J2, FiniteJ2, IsotropicConstants, hencky
 from impact_fenics.simulation import Settings, Simulation
 
 
@@ -86,7 +105,7 @@ def voce_update(eps, eps_p, state, params, dt, sigma):
 
 # ## The material around it
 # (IsotropicConstants gives mu, lmbda, bulk, wave_speed() and the checks of E, nu
-# and density.)
+# and density; ``strain`` is the kinematics a scene file reads.)
 @dataclass(frozen=True)
 class VoceJ2(IsotropicConstants):
     """J2 with Voce hardening. E, sigma_0, sigma_inf in Pa; delta (-); density kg/m^3."""
@@ -99,6 +118,7 @@ class VoceJ2(IsotropicConstants):
     delta: float
     linear: bool = False
     n_state: int = 1
+    strain: ClassVar[str] = "small"
 
     def __post_init__(self) -> None:
         self.check_elastic()
@@ -111,6 +131,75 @@ class VoceJ2(IsotropicConstants):
     @property
     def update(self):
         return voce_update
+
+
+# ## At finite strain: the same hardening, the Kirchhoff stress of F
+#
+# The multiplicative split F = F_e F_p with Hencky elasticity and the
+# exponential map makes the return a radial return on the principal log
+# strains (impact_fenics.materials.hencky does the kinematics: the trial log
+# strains of b_e = F C_p^-1 F', the principal Kirchhoff stresses, the return,
+# the new C_p^-1). The consistency condition is the one above, in the
+# Kirchhoff stress; the plastic work of the step is the exact integral of
+# sigma_y over the increment, int sigma_y de = sigma_inf x - (sigma_inf - sigma_0)
+# (exp(-delta e_n) - exp(-delta (e_n + x))) / delta (sigma_0 x for delta = 0).
+# State: [eps_bar_p, C_p^-1 (rr, zz, rz, tt)].
+@njit
+def voce_finite_update(F, state, params, dt, tau, work):
+    lmbda, mu, s0, s_inf, delta = params[0], params[1], params[2], params[3], params[4]
+    principal = work[8:11]
+    hencky.trial_log_strains(F, state, work)
+    q = hencky.principal_kirchhoff(lmbda, mu, work, principal)
+    e_n = state[0]
+    if q - (s0 + (s_inf - s0) * (1.0 - math.exp(-delta * e_n))) <= 0.0:
+        hencky.kirchhoff(principal, work, tau)
+        return 0.0
+    x = 0.0
+    for _ in range(50):
+        decay = math.exp(-delta * (e_n + x))
+        g = q - 3 * mu * x - (s0 + (s_inf - s0) * (1.0 - decay))
+        dx = g / (3 * mu + (s_inf - s0) * delta * decay)
+        x += dx
+        if abs(dx) <= 1e-15 * (e_n + x):
+            break
+    hencky.radial_return(mu, x, q, principal, work)
+    if delta > 0.0:
+        wp = s_inf * x - (s_inf - s0) * (math.exp(-delta * e_n)
+                                        - math.exp(-delta * (e_n + x))) / delta
+    else:
+        wp = s0 * x
+    state[0] = e_n + x
+    hencky.finish(F, principal, work, state, tau)
+    return wp
+
+
+@dataclass(frozen=True)
+class FiniteVoceJ2(IsotropicConstants):
+    """Finite-strain J2 with Voce hardening (Hencky elasticity, exponential map). E,
+    sigma_0, sigma_inf in Pa; delta (-); density kg/m^3 (reference)."""
+
+    E: float
+    nu: float
+    density: float
+    sigma_0: float
+    sigma_inf: float
+    delta: float
+    n_state: int = 5
+    strain: ClassVar[str] = "finite"
+
+    def __post_init__(self) -> None:
+        self.check_elastic()
+        require(0 < self.sigma_0 <= self.sigma_inf and self.delta >= 0,
+                "need 0 < sigma_0 <= sigma_inf (Pa) and delta >= 0")
+
+    def params(self) -> np.ndarray:
+        return np.array([self.lmbda, self.mu, self.sigma_0, self.sigma_inf, self.delta])
+
+    def initial_state(self) -> np.ndarray:
+        return np.array([0.0, 1.0, 1.0, 0.0, 1.0])  # eps_bar_p = 0, C_p^-1 = I
+
+    update = staticmethod(voce_finite_update)
+    energy = staticmethod(hencky.stored_energy)
 
 
 # ## The scene: a bar in uniaxial strain under a pressure step
@@ -174,6 +263,55 @@ def precursor_check(sim: Simulation, h: float) -> dict:
             "external_work": sim.summary["energy"]["external_work"]}
 
 
+# ## Check 3: at finite strain, no hardening is the package's finite J2 with H = 0
+#
+# A short Taylor bar (copper, R = 3.2 mm, L = 32.4 mm, 227 m/s onto a rigid
+# wall, FILM; 2 x 20 quadrilaterals, 10 us: the face yields, eps_bar_p > 1).
+R_BAR, L_BAR, V_BAR = 3.2e-3, 32.4e-3, 227.0  # m, m, m/s
+COPPER = dict(E=117e9, nu=0.35, density=8930.0)
+FINITE_VOCE = dict(sigma_0=400e6, sigma_inf=600e6, delta=10.0)  # Pa, Pa, -
+FINITE_KEYS = ("final_length", "final_face_radius", "eps_p_max", "plastic_work",
+               "stored_elastic", "kinetic")
+
+
+def taylor(material, n_r: int = 2, t_end: float = 10e-6, v0: float = V_BAR,
+           comm=MPI.COMM_WORLD) -> dict:
+    """The summary of a Taylor bar of ``material`` (FiniteRun, the wall by FILM)."""
+    n_z = max(1, round(n_r * L_BAR / R_BAR))
+    run = FiniteRun(quad_bar(comm, R_BAR, L_BAR, n_r, n_z), material,
+                    FiniteSettings(t_end=t_end, safety=0.5, dt_interval=10, history_every=5,
+                                   output_every=100),
+                    velocity=(0.0, -v0), wall="film", name="bar")
+    return run.run()
+
+
+def finite_reduction_check(comm=MPI.COMM_WORLD) -> float:
+    """The largest relative difference of the summaries (FINITE_KEYS) of the Voce material
+    without hardening and FiniteJ2 with H = 0."""
+    voce = taylor(FiniteVoceJ2(sigma_0=400e6, sigma_inf=400e6, delta=0.0, **COPPER), comm=comm)
+    j2 = taylor(FiniteJ2(yield_stress=400e6, hardening=0.0, **COPPER), comm=comm)
+    return max(abs(voce[k] - j2[k]) / abs(j2[k]) for k in FINITE_KEYS)
+
+
+# ## Check 4: the scene file names the class by its import path
+#
+# demos/custom_plastic_material.toml holds the same Taylor bar with
+# ``model = "custom_plastic_material:FiniteVoceJ2"``: the module is found beside
+# the scene file, the keys sigma_0, sigma_inf and delta (and E, nu, density) go
+# to the constructor. Built from the file, it is the same run as from Python.
+SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "custom_plastic_material.toml")
+
+
+def scene_check(out: str | None = None, comm=MPI.COMM_WORLD) -> tuple[dict, dict]:
+    """(the scene file's summary, the Python route's summary)."""
+    from impact_fenics import finite_scene, scene_file
+
+    sc = scene_file.read_scene(SCENE)
+    from_file = finite_scene.build(sc, {"out": out, "quiet": True}, comm).run()
+    from_python = taylor(FiniteVoceJ2(**FINITE_VOCE, **COPPER), comm=comm)
+    return from_file, from_python
+
+
 @user_errors
 def main(argv=None):
     parser = argparse.ArgumentParser(description="J2 with Voce hardening: a new plastic material.")
@@ -184,6 +322,9 @@ def main(argv=None):
     material = VoceJ2(sigma_0=200e6, sigma_inf=400e6, delta=50.0, **STEEL)
     sim = run(material, h=args.h, out=args.out)
     c = precursor_check(sim, args.h)
+    rel_finite = finite_reduction_check()
+    from_file, from_python = scene_check()
+    same = all(from_file[k] == from_python[k] for k in FINITE_KEYS + ("n_steps",))
     if MPI.COMM_WORLD.rank == 0:
         print(f"Voce with sigma_inf = sigma_0 vs J2 (H = 0): largest relative history difference "
               f"{rel:.1e} (round-off)")
@@ -193,6 +334,12 @@ def main(argv=None):
         print(f"plastic dissipation {c['plastic_dissipation']:.4g} J of {c['external_work']:.4g} J "
               f"put in; energy balance error {c['energy_balance_error_rel']:.1e}; results in "
               f"{args.out}/")
+        print(f"finite strain: Voce with sigma_inf = sigma_0 vs finite J2 (H = 0) on a Taylor "
+              f"bar: largest relative summary difference {rel_finite:.1e} (round-off)")
+        print(f"scene file {os.path.basename(SCENE)} (model = \"custom_plastic_material:"
+              f"FiniteVoceJ2\"): {from_file['n_steps']} steps, final length "
+              f"{from_file['final_length'] * 1e3:.4f} mm, max eps_bar_p "
+              f"{from_file['eps_p_max']:.4f}; the same summary as from Python: {same}")
 
 
 if __name__ == "__main__":

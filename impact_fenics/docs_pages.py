@@ -163,12 +163,14 @@ or smaller than 1 mm across (a mesh drawn in millimetres), more than 10⁷ steps
 A body with `strain = "finite"` runs on its own driver (total Lagrangian, Q1
 quadrilaterals with mean dilatation, the step re-estimated every `dt_interval` steps,
 {dt_interval} by default). Such a scene holds, for now, one body on `generator =
-"quad_bar"` with a `"j2"` (rate-independent) or `"neo_hookean"` material, optionally a
-`[wall]`, and `t_end`; `[[contact]]`, `[rigid]`, `[[loads]]`, `[[fixed]]`,
+"quad_bar"` with a material that has a finite-strain form (`"j2"`, rate-independent;
+`"johnson_cook"`; `"neo_hookean"`; or a class of your own with `strain = "finite"`),
+optionally a `[wall]`, and `t_end`; `[[contact]]`, `[rigid]`, `[[loads]]`, `[[fixed]]`,
 `[[probes]]`, `n_steps`, `force_dt` and `converged_dt` are refused there, as are
-`[wall]`, `quad_bar`, `neo_hookean` and `dt_interval` in a small-strain scene.
-`scenes/taylor_bar.toml` is the example; [materials.md](materials.md) describes the
-element and the materials.
+`[wall]`, `quad_bar` and `dt_interval` in a small-strain scene. A material at a
+kinematics it lacks is refused in one line naming the one it has.
+`scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the examples;
+[materials.md](materials.md) describes the element and the materials.
 """
 
 

@@ -188,7 +188,8 @@ class FiniteRun:
                  penalty: float | str = "scaled", penalty_beta: float = 1.0, name: str = "body"):
         require(mesh.topology.cell_type == dmesh.CellType.quadrilateral,
                 "finite strain runs on quadrilateral meshes (Q1 mean dilatation)")
-        require(getattr(material, "finite", False), "the material must be a finite-strain one")
+        require(getattr(material, "finite", False) or getattr(material, "strain", "") == "finite",
+                "the material must be a finite-strain one")
         self.mesh, self.material, self.settings = mesh, material, settings
         self.comm = mesh.comm
         self.V = compat.vector_space(mesh, "Lagrange", 1)

@@ -8,8 +8,10 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
 
 * one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
   across the radius, square cells; the bar spans 0 <= z <= length);
-* its material ``model = "j2"`` (multiplicative J2, Hencky elasticity, linear
-  hardening; rate-independent) or ``"neo_hookean"``;
+* its material: a model with a finite-strain form (``"j2"``: multiplicative J2,
+  Hencky elasticity, linear hardening, rate-independent; ``"johnson_cook"``;
+  ``"neo_hookean"``) or a class of one's own with ``strain = "finite"``
+  (the kinematics is checked with the materials, :mod:`.scene_materials`);
 * optionally a ``[wall]``: the rigid frictionless plane z (m, default 0, at or
   below the bar) with ``method`` = "film", "dme" or "penalty" and, for
   penalty, ``penalty`` = a stiffness in N/m or "scaled" (the default: beta = 1
@@ -24,7 +26,7 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   10);
 * no [[contact]], [rigid], [[loads]], [[fixed]] or [[probes]] (refused, one line).
 
-A small-strain scene may not use [wall], quad_bar, neo_hookean or dt_interval.
+A small-strain scene may not use [wall], quad_bar or dt_interval.
 Every refusal is an InputError naming the table and the key (exit 2).
 """
 from __future__ import annotations
@@ -39,8 +41,6 @@ from mpi4py import MPI
 from .errors import InputError
 from .scene_keys import DT_INTERVAL  # steps between re-estimates, unless [time] dt_interval
 from .scene_table import Table, within
-
-FINITE_MODELS = ("j2", "neo_hookean")
 
 
 @dataclass
@@ -74,10 +74,6 @@ def check_kind(scene) -> None:
         if scene.mesh.generator == "quad_bar":
             raise InputError('[mesh] generator = "quad_bar": quadrilaterals carry finite-strain '
                              'bodies only: set strain = "finite" in [bodies.NAME]')
-        for m in scene.materials.values():
-            if m.model == "neo_hookean":
-                raise InputError(f'[materials.{m.name}] model = "neo_hookean" is a finite-strain '
-                                 'material: its body needs strain = "finite"')
         if scene.time["dt_interval"] is not None:
             raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
         return
@@ -96,13 +92,6 @@ def check_kind(scene) -> None:
         if getattr(scene, key):
             raise InputError(f"{what}: not available with finite strain yet ({where} runs "
                              "against a [wall] only)")
-    m = scene.materials[body.material]
-    if m.model not in FINITE_MODELS:
-        raise InputError(f'[materials.{m.name}] model = "{m.model}": a finite-strain body takes '
-                         'model = "j2" (multiplicative, Hencky) or "neo_hookean"')
-    if m.viscosity != 0.0:
-        raise InputError(f"[materials.{m.name}] viscosity = {m.viscosity!r}: finite-strain J2 is "
-                         "rate-independent (give no viscosity)")
     if scene.output["energy_every"] is not None:
         raise InputError("[output] energy_every: a finite-strain run books its energies in "
                          "every history row (history_every)")
@@ -129,18 +118,11 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     ``overrides`` sets fields of its FiniteSettings (out, quiet, ...)."""
     from . import plausibility
     from .finite_run import FiniteRun, FiniteSettings, quad_bar
-    from .materials.finite_j2 import FiniteJ2
-    from .materials.neo_hookean import NeoHookean
 
     plausibility.warn_implausible(scene, comm)
     body = scene.bodies[0]
     spec = scene.materials[body.material]
-    with within(f"[materials.{spec.name}]"):
-        if spec.model == "j2":
-            material = FiniteJ2(E=spec.E, nu=spec.nu, density=spec.density,
-                                yield_stress=spec.yield_stress, hardening=spec.hardening)
-        else:
-            material = NeoHookean(E=spec.E, nu=spec.nu, density=spec.density)
+    material = spec.material(body.strain)  # built and checked by read_scene
     p = scene.mesh.params
     n_z = max(1, round(p["n_r"] * p["length"] / p["radius"]))
     with within("[mesh]"):

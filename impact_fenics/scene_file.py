@@ -27,6 +27,7 @@ from mpi4py import MPI
 from . import plausibility, resources, rundir
 from .errors import InputError
 from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED_PARAMS
+from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
 
 COMPONENTS = {"r": 0, "z": 1}
@@ -37,18 +38,6 @@ class MeshSpec:
     generator: str | None
     params: dict[str, Any]
     file: str | None
-
-
-@dataclass
-class MaterialSpec:
-    name: str
-    E: float        # Pa
-    nu: float
-    density: float  # kg/m^3
-    model: str = "elastic"     # "elastic", "j2" or (finite strain) "neo_hookean"
-    yield_stress: float = 0.0  # Pa (j2)
-    hardening: float = 0.0     # Pa, d sigma_y / d eps_bar_p (j2)
-    viscosity: float = 0.0     # Pa s, overstress viscosity (j2; 0: rate-independent)
 
 
 @dataclass
@@ -175,14 +164,16 @@ def read_scene(path: str) -> Scene:
     for key in ("mesh", "time"):
         if key not in top:
             raise InputError(f"[{key}] is missing: the scene needs a [{key}] table")
-    mesh = _read_mesh(top.data["mesh"], os.path.dirname(os.path.abspath(path)))
-    materials = {name: _read_material(name, d) for name, d in
+    base = os.path.dirname(os.path.abspath(path))
+    mesh = _read_mesh(top.data["mesh"], base)
+    materials = {name: read_material(name, d, base) for name, d in
                  tables_of(top, "materials", "E (Pa), nu, density (kg/m^3)")}
     bodies = [_read_body(name, d, materials) for name, d in
               tables_of(top, "bodies", "a cell group of the mesh and its material")]
     if not bodies:
         raise InputError("[bodies] the scene has no deformable body: add a table [bodies.NAME] "
                          "for each cell group NAME of the mesh")
+    check_kinematics(materials, bodies)
     rigid = {name: _read_rigid(name, d) for name, d in
              tables_of(top, "rigid", "a rigid body: mass (kg)")}
     for name in rigid:
@@ -206,9 +197,9 @@ def read_scene(path: str) -> Scene:
             raise InputError(f"{p.where} name = {toml_text(p.name)}: probe names must be unique "
                              "and not 'step' or 'time'")
         if p.quantity in ("eps_p_eq", "yielded") and not any(
-                materials[b.material].model != "elastic" for b in bodies):
+                materials[b.material].plastic for b in bodies):
             raise InputError(f"{p.where} quantity = {toml_text(p.quantity)}: needs a body of a "
-                             'plastic material ([materials.NAME] model = "j2")')
+                             'plastic material ([materials.NAME] model = "j2", ...)')
     force = top.value("force")
     scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
                   fixed, time, output, probes, force)
@@ -276,30 +267,6 @@ def _breaks(t: Table, key: str, what: str) -> tuple[tuple[float, int], ...]:
     if not ok or any(v[k + 1][0] <= v[k][0] for k in range(len(v) - 1)):
         raise t.error(key, f"must be increasing radii with interval counts ({what})")
     return tuple((float(r), int(n)) for r, n in v)
-
-
-def _read_material(name: str, data: dict) -> MaterialSpec:
-    t = Table(data, f"[materials.{name}]", "materials", ("j2",))
-    model = t.value("model")
-    E = t.value("E")
-    nu = t.value("nu")
-    if not -1.0 < nu < 0.5:
-        raise t.error("nu", "Poisson's ratio must lie in (-1, 0.5); nu >= 0.5 is "
-                            "incompressible and has no explicit stable time step")
-    density = t.value("density")
-    if model in ("elastic", "neo_hookean"):
-        for key in t.section.allowed(("j2",)):
-            if key in t and key not in t.section.allowed():
-                raise t.error(key, 'only for model = "j2"')
-        return MaterialSpec(name, E, nu, density, model)
-    yield_stress = t.value("yield_stress")
-    hardening = t.value("hardening")
-    if hardening < 0:
-        raise t.error("hardening", "must be >= 0 (softening makes the solution mesh-dependent)")
-    viscosity = t.value("viscosity")
-    if viscosity < 0:
-        raise t.error("viscosity", "must be >= 0 (0: rate-independent)")
-    return MaterialSpec(name, E, nu, density, model, yield_stress, hardening, viscosity)
 
 
 def _read_body(name: str, data: dict, materials: dict[str, MaterialSpec]) -> BodySpec:
@@ -477,7 +444,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
                                 for r in regions)
             flattening = scene.finite and scene.wall is not None
         n_steps = math.ceil(t["t_end"] / dt - 1e-9) * (resources.FLATTENING if flattening else 1)
-    plastic = any(scene.materials[b.material].model != "elastic" for b in scene.bodies)
+    plastic = any(scene.materials[b.material].plastic for b in scene.bodies)
     h_min = min(r.h for r in regions)
     pairs = []
     for c in scene.contacts:  # the nodes of the (slave, lower) face
@@ -562,8 +529,6 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
     from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
-    from .materials import LinearElastic
-    from .materials.j2 import J2
     from .probes import locate_cell
     from .scenes import make_method
     from .simulation import Settings, Simulation
@@ -577,17 +542,9 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             tmesh = generate(comm=comm, **scene.mesh.params)
     _check_groups(scene, tmesh)
     size = plausibility.model_size(tmesh.mesh, comm)
-    materials = {}
-    for m in scene.materials.values():
-        with within(f"[materials.{m.name}]"):
-            if m.model == "j2":
-                materials[m.name] = J2(E=m.E, nu=m.nu, density=m.density,
-                                       yield_stress=m.yield_stress, hardening=m.hardening,
-                                       viscosity=m.viscosity)
-            else:
-                materials[m.name] = LinearElastic(E=m.E, nu=m.nu, density=m.density)
     with within("[bodies]"):
-        model = DeformableModel(tmesh, [Body(b.name, materials[b.material]) for b in scene.bodies])
+        model = DeformableModel(tmesh, [Body(b.name, scene.materials[b.material].material(b.strain))
+                                        for b in scene.bodies])
     fixed = []
     for f in scene.fixed:
         with within(f.where):

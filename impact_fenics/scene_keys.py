@@ -4,7 +4,9 @@ The scene reader (:mod:`impact_fenics.scene_file`) takes from here the keys a
 table may hold, how each value is checked and its default; the documentation
 generator (:mod:`impact_fenics.docs_pages`) writes ``docs/scenes.md`` from the
 same table. A key added here is both accepted and documented; a key missing
-here is refused. Pure data: no dolfinx, no mesh.
+here is refused. The keys of each material model are those its classes state
+(``parameters``, :mod:`impact_fenics.materials.parameters`), taken from the
+registry ``impact_fenics.materials.MODELS``. Pure data: no dolfinx, no mesh.
 
 Kinds of value (how the reader checks them):
 
@@ -22,7 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-REQUIRED = "required"  # a Key's default when the key must be given
+from .materials import MODELS as MATERIAL_MODELS
+from .materials.parameters import CLASS_DEFAULT, REQUIRED  # REQUIRED: a key that must be given
 
 
 @dataclass(frozen=True)
@@ -56,21 +59,24 @@ class Section:
     keys: tuple[Key, ...]
     variants: str = ""  # how the variant (the groups) of an entry is chosen, for the reference
 
-    def key(self, name: str) -> Key:
+    def key(self, name: str, groups: tuple[str, ...] = ()) -> Key:
+        """The key ``name`` (of the variant ``groups``, when two variants name a key alike)."""
         for k in self.keys:
-            if k.name == name:
+            if k.name == name and (not groups or not k.groups or set(k.groups) & set(groups)):
                 return k
         raise KeyError(f"{self.toml} has no key '{name}'")
 
     def allowed(self, groups: tuple[str, ...] = ()) -> tuple[str, ...]:
         """The keys an entry of the variant ``groups`` may hold, in table order."""
-        return tuple(k.name for k in self.keys if not k.groups or set(k.groups) & set(groups))
+        return tuple(dict.fromkeys(k.name for k in self.keys
+                                   if not k.groups or set(k.groups) & set(groups)))
 
 
 METHODS = ("penalty", "film", "dme")
 QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
               "eps_p_eq", "yielded")
-MODELS = ("elastic", "j2", "neo_hookean")
+MODELS = tuple(MATERIAL_MODELS)  # the materials by name (impact_fenics.materials.MODELS)
+STRAIN_WORDS = {"small": "small strain", "finite": "finite strain"}
 PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
 WALL_METHODS = ("film", "dme", "penalty")
 WALL_FACES = ("contact", "held")
@@ -129,25 +135,59 @@ _MESH = Section("mesh", "[mesh]", (
         groups=("nosed_striker_on_block",)),
 ), variants="`generator` chooses the parameters the table may hold; `file` takes none.")
 
+def _kinematics_text(model: str) -> str:
+    """'small strain', 'finite strain' or 'small and finite strain'."""
+    return " and ".join(w.split()[0] for w in (STRAIN_WORDS[k] for k in MATERIAL_MODELS[model])) \
+        + " strain"
+
+
+def _material_keys() -> tuple[Key, ...]:
+    """The keys of each model: its classes' parameters (names, units, ranges, meanings and
+    scene defaults stated once, by the class), a key of one kinematics only marked so."""
+    keys = []
+    for model, classes in MATERIAL_MODELS.items():
+        seen: set[str] = set()
+        for cls in classes.values():
+            for p in cls.parameters:
+                if p.name in seen:
+                    continue
+                seen.add(p.name)
+                only = [k for k, c in classes.items() if p.name in (q.name for q in c.parameters)]
+                note = (f" ({STRAIN_WORDS[only[0]]} only)" if len(only) < len(classes) else "")
+                default = REQUIRED if p.scene_default == REQUIRED else (
+                    None if p.scene_default == CLASS_DEFAULT else p.scene_default)
+                text = (f"required ({model})" if default == REQUIRED
+                        else p.default_text if p.scene_default == CLASS_DEFAULT else "")
+                rng = f", {p.range_text}" if p.range_text else ""
+                keys.append(Key(p.name, "number", p.unit, default,
+                                f"{model}: {p.what}{rng}{note}", groups=(model,),
+                                default_text=text))
+    return tuple(keys)
+
+
 _MATERIALS = Section("materials", "[materials.NAME]", (
-    "A material, named for the bodies that use it. From Python any object with the "
-    "material interface can be used ([materials.md](materials.md)); a scene file builds "
-    "these."), (
-    Key("model", "text", "", "elastic", "the constitutive model", choices=MODELS,
-        note="Linear elastic; J2 (von Mises, linear isotropic hardening, radial return; at "
-        "finite strain the multiplicative Hencky J2, rate-independent); neo-Hookean (finite "
-        "strain only)."),
+    "A material, named for the bodies that use it: a model of the package by name, with "
+    "its parameters as keys, or a class of your own by its import path "
+    "([materials.md](materials.md)). A model serves the kinematics it has (`strain` of "
+    "[bodies.NAME]): " + "; ".join(f"`{m}` {_kinematics_text(m)}" for m in MATERIAL_MODELS)
+    + ". A body of a kinematics its model lacks is refused in one line."), (
+    Key("model", "text", "", "elastic", "the constitutive model: a name, or "
+        "\"package.module:Class\"", choices=MODELS,
+        note="Linear elastic (at finite strain use neo_hookean); J2 (von Mises, linear "
+        "isotropic hardening, radial return; at finite strain the multiplicative Hencky J2, "
+        "rate-independent); Johnson-Cook (finite strain: hardening, rate and thermal "
+        "softening, adiabatic heating); Drucker-Prager (small strain: rock, tension "
+        "cut-off, non-associated flow); neo-Hookean (finite strain). A class of your own: "
+        "its module is imported (also from the scene file's directory), every key of the "
+        "table but `model` goes to its constructor as a keyword, and its `strain` "
+        "attribute (\"small\" or \"finite\") is its kinematics."),
     Key("E", "positive", "Pa", REQUIRED, "Young's modulus"),
     Key("nu", "number", "-", REQUIRED, "Poisson's ratio, in (-1, 0.5)"),
     Key("density", "positive", "kg/m^3", REQUIRED, "mass density"),
-    Key("yield_stress", "positive", "Pa", REQUIRED, "initial yield stress sigma_y",
-        groups=("j2",), default_text="required (j2)"),
-    Key("hardening", "number", "Pa", 0.0, "hardening modulus H = d sigma_y / d eps_bar_p, >= 0",
-        groups=("j2",)),
-    Key("viscosity", "number", "Pa s", 0.0, "overstress viscosity eta >= 0", groups=("j2",),
-        note="The rate of eps_bar_p is <sigma_eq - sigma_y> / eta; 0: rate-independent. Small "
-        "strain only."),
-), variants='`yield_stress`, `hardening` and `viscosity` only with `model = "j2"`.')
+) + _material_keys(), variants="`model` chooses the keys: `E`, `nu` and `density` for every "
+    "material, then those of its model (marked `model:` below); a key of another model is "
+    "refused. The parameters of each model are those of its class in "
+    "`impact_fenics/materials/` (same names, units and ranges).")
 
 _BODIES = Section("bodies", "[bodies.NAME]", (
     "A deformable body: one per cell group NAME of the mesh, and every cell group "

@@ -376,11 +376,13 @@ CASES = [
                                               'method = "film"\n\n[time]'),
      "[[contact]]: not available with finite strain yet"),
     ("viscous finite J2", ("hardening = 100e6", "hardening = 100e6\nviscosity = 1.0"),
-     "[materials.copper] viscosity = 1.0: finite-strain J2 is rate-independent"),
+     '[materials.copper] viscosity = 1.0: the finite-strain form of model = "j2" (FiniteJ2) '
+     "has no such parameter"),
     ("elastic at finite strain", ('model = "j2"\nE = 117e9\nnu = 0.35\ndensity = 8930.0\n'
                                   'yield_stress = 400e6\nhardening = 100e6',
                                   'model = "elastic"\nE = 117e9\nnu = 0.35\ndensity = 8930.0'),
-     '[materials.copper] model = "elastic": a finite-strain body takes model = "j2"'),
+     '[materials.copper] model = "elastic" has a small-strain form only: its body needs '
+     'strain = "small" (at finite strain an elastic solid is model = "neo_hookean")'),
     ("bad n_r", ("n_r = 2", "n_r = 0"), "[mesh] n_r = 0: must be an integer >= 1"),
     ("bad face", ('method = "film"', 'method = "film"\nface = "glued"'),
      '[wall] face = "glued": use one of contact, held'),

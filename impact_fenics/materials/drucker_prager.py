@@ -97,6 +97,7 @@ from numba import njit
 from ..errors import require
 from .axisym import SQRT_2_3, elastic_stress
 from .elastic import IsotropicConstants
+from .parameters import CLASS_DEFAULT, Parameter, check, non_negative, positive
 
 # params layout (float64 array)
 LMBDA, MU, BULK, ALPHA_F, ALPHA_G, K0, H, K_RES, P_T, ETA = range(10)
@@ -248,20 +249,30 @@ class DruckerPrager(IsotropicConstants):
     viscosity: float = 0.0
     linear: ClassVar[bool] = False
     n_state: ClassVar[int] = N_STATE
+    strain: ClassVar[str] = "small"
+    parameters: ClassVar[tuple[Parameter, ...]] = (
+        positive("ucs", "Pa", "uniaxial compressive strength"),
+        Parameter("friction_angle", "deg", "friction angle phi", low=0.0, high=90.0,
+                  high_open=True),
+        non_negative("dilatancy_angle", "deg", "dilatancy angle psi (at most friction_angle)"),
+        positive("tensile_strength", "Pa", "tensile strength p_t: the largest hydrostatic "
+                 "tension (mean-stress cut-off; at most k / alpha_f)"),
+        Parameter("hardening", "Pa", "cohesion hardening h = dk/dkappa (< 0 softens; above -3 mu)",
+                  scene_default=0.0),
+        Parameter("residual", "Pa", "smallest cone intercept k_res under softening, in "
+                  "[alpha_f p_t, k]", scene_default=CLASS_DEFAULT, default_text="alpha_f p_t"),
+        non_negative("viscosity", "Pa s", "Perzyna viscosity eta (0: rate-independent)",
+                     scene_default=0.0),
+    )
     update = staticmethod(update)  # the compiled point update (numba), signature of axisym
 
     def __post_init__(self) -> None:
         self.check_elastic()
-        require(0.0 <= self.friction_angle < 90.0,
-                f"material.friction_angle = {self.friction_angle} deg: must lie in [0, 90)")
-        require(0.0 <= self.dilatancy_angle <= self.friction_angle,
+        check(self)
+        require(self.dilatancy_angle <= self.friction_angle,
                 f"material.dilatancy_angle = {self.dilatancy_angle} deg: must lie in "
                 f"[0, friction_angle = {self.friction_angle}] (psi > phi or psi < 0 "
                 "allows negative plastic work)")
-        require(self.ucs > 0, f"material.ucs = {self.ucs} Pa: the compressive strength must be > 0")
-        require(self.tensile_strength > 0,
-                f"material.tensile_strength = {self.tensile_strength} Pa: must be > 0")
-        require(self.viscosity >= 0, f"material.viscosity = {self.viscosity} Pa s: must be >= 0")
         require(self.alpha_f * self.tensile_strength <= self.k,
                 f"material.tensile_strength = {self.tensile_strength} Pa: must be <= "
                 f"k/alpha_f = {self.k / max(self.alpha_f, 1e-300):.4g} Pa (the cone's apex)")

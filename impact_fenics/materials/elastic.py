@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import ufl
 
@@ -62,6 +63,8 @@ class LinearElastic(IsotropicConstants):
     nu: float = 0.3
     density: float = 7850.0
     linear: bool = True
+    strain: ClassVar[str] = "small"
+    parameters: ClassVar[tuple] = ()  # E, nu and density only
 
     def __post_init__(self) -> None:
         self.check_elastic()

@@ -22,12 +22,14 @@ a = C_p^-1 (see :mod:`.hencky`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
-from ..errors import require
 from .elastic import IsotropicConstants
+from .j2 import LINEAR_HARDENING, YIELD
+from .parameters import Parameter, check
 from . import hencky
 
 LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
@@ -55,7 +57,8 @@ def update(F, state, params, dt, tau, work) -> float:
 
 @dataclass(frozen=True)
 class FiniteJ2(IsotropicConstants):
-    """E, yield_stress (sigma_y0), hardening (H) in Pa; nu (-); density (kg/m^3, reference)."""
+    """E, yield_stress (sigma_y0), hardening (H >= 0) in Pa; nu (-); density (kg/m^3,
+    reference). Rate-independent."""
 
     E: float = 117e9
     nu: float = 0.35
@@ -65,11 +68,12 @@ class FiniteJ2(IsotropicConstants):
     linear: bool = False
     finite: bool = True
     n_state: int = 5
+    strain: ClassVar[str] = "finite"
+    parameters: ClassVar[tuple[Parameter, ...]] = (YIELD, LINEAR_HARDENING)  # those of J2
 
     def __post_init__(self) -> None:
         self.check_elastic()
-        require(self.yield_stress > 0, f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
-        require(self.hardening > -3.0 * self.mu, f"material.hardening = {self.hardening} Pa: must be > -3 mu")
+        check(self)
 
     def params(self) -> np.ndarray:
         return np.array([self.lmbda, self.mu, self.yield_stress, self.hardening])

@@ -28,12 +28,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
-from ..errors import require
 from .elastic import IsotropicConstants
+from .parameters import Parameter, check, non_negative, positive
+
+YIELD = positive("yield_stress", "Pa", "initial yield stress sigma_y0")
+LINEAR_HARDENING = non_negative("hardening", "Pa", "hardening modulus H = d sigma_y / d eps_bar_p "
+                                "(no softening: it would make the solution mesh-dependent)",
+                                scene_default=0.0)
 
 # layout of the parameter array given to :func:`update`
 LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
@@ -88,15 +94,15 @@ class J2(IsotropicConstants):
     viscosity: float = 0.0
     linear: bool = False
     n_state: int = 1
+    strain: ClassVar[str] = "small"
+    parameters: ClassVar[tuple[Parameter, ...]] = (
+        YIELD, LINEAR_HARDENING,
+        non_negative("viscosity", "Pa s", "overstress viscosity eta, d eps_bar_p / dt = "
+                     "<sigma_eq - sigma_y> / eta (0: rate-independent)", scene_default=0.0))
 
     def __post_init__(self) -> None:
         self.check_elastic()
-        require(self.yield_stress > 0,
-                f"material.yield_stress = {self.yield_stress} Pa: must be > 0")
-        require(self.hardening >= 0,
-                f"material.hardening = {self.hardening} Pa: must be >= 0 (softening makes the "
-                "solution mesh-dependent and is not offered)")
-        require(self.viscosity >= 0, f"material.viscosity = {self.viscosity} Pa s: must be >= 0")
+        check(self)
 
     def params(self) -> np.ndarray:
         """The float64 parameter array of :func:`update`."""

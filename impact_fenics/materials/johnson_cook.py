@@ -28,12 +28,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
 from ..errors import require
 from .elastic import IsotropicConstants
+from .parameters import Parameter, check, non_negative, positive
 from . import hencky
 
 (LAMBDA, MU, A_, B_, N_, C_, RATE0, M_, T_ROOM, T_MELT, CHI, RHO, CP) = range(13)
@@ -127,15 +129,26 @@ class JohnsonCook(IsotropicConstants):
     finite: bool = True
     n_state: int = 6
     temperature_index: int = TEMPERATURE
+    strain: ClassVar[str] = "finite"
+    parameters: ClassVar[tuple[Parameter, ...]] = (
+        positive("A", "Pa", "yield stress at zero plastic strain"),
+        non_negative("B", "Pa", "strain-hardening coefficient"),
+        positive("n", "-", "strain-hardening exponent"),
+        non_negative("C", "-", "strain-rate coefficient (0: rate-independent)"),
+        positive("rate0", "1/s", "reference plastic strain rate eps_dot_0"),
+        positive("m", "-", "thermal-softening exponent"),
+        positive("t_room", "K", "room temperature: the initial temperature and T* = 0"),
+        positive("t_melt", "K", "melting temperature (T* = 1; above t_room)"),
+        Parameter("chi", "-", "Taylor-Quinney factor: the share of the plastic work that "
+                  "heats", low=0.0, high=1.0),
+        positive("c_p", "J/(kg K)", "specific heat"),
+    )
 
     def __post_init__(self) -> None:
         self.check_elastic()
-        require(self.A > 0, f"material.A = {self.A} Pa: must be > 0")
-        require(self.B >= 0 and self.n > 0 and self.C >= 0 and self.m > 0,
-                "material: Johnson-Cook needs B >= 0, n > 0, C >= 0, m > 0")
-        require(self.rate0 > 0, f"material.rate0 = {self.rate0} 1/s: must be > 0")
-        require(self.t_melt > self.t_room, "material: t_melt must exceed t_room (K)")
-        require(0 <= self.chi <= 1 and self.c_p > 0, "material: chi in [0, 1], c_p > 0 J/(kg K)")
+        check(self)
+        require(self.t_melt > self.t_room,
+                f"material.t_melt = {self.t_melt} K: must exceed t_room = {self.t_room} K")
 
     def params(self) -> np.ndarray:
         return np.array([self.lmbda, self.mu, self.A, self.B, self.n, self.C, self.rate0, self.m,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
@@ -63,6 +64,8 @@ class NeoHookean(IsotropicConstants):
     linear: bool = False
     finite: bool = True
     n_state: int = 0
+    strain: ClassVar[str] = "finite"
+    parameters: ClassVar[tuple] = ()  # E, nu and density only
 
     def __post_init__(self) -> None:
         self.check_elastic()

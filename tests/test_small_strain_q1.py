@@ -28,7 +28,7 @@ import os
 import numpy as np
 import pytest
 import ufl
-from dolfinx import fem
+from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -224,6 +224,49 @@ def test_assembled_bbar_stiffness_is_the_kernels_force():
             assert K.isSymmetric(rounding(64, K.norm(PETSc.NormType.INFINITY)))
         K.destroy()
         Ku.destroy()
+
+
+def test_linear_and_path_dependent_bodies_share_a_q1_mesh():
+    """Two bodies on one distorted Q1 patch (cells below z = 1/2 linear elastic, above it
+    J2 that never yields, the same E and nu): the linear bodies' K (assembled over their
+    cells only) times u plus the path-dependent body's force equals K of both bodies
+    times u, to round-off (the bound of the test above)."""
+    from impact_fenics.meshing import TaggedMesh
+
+    base = distorted_patch(0.0)
+    mesh = base.mesh
+    cmap = mesh.topology.index_map(2)
+    cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
+    x = mesh.geometry.x
+    centre_z = x[compat.geometry_dofs(mesh)[cells], 1].mean(axis=1)
+    tags = np.where(centre_z < 0.5, 1, 2).astype(np.int32)
+    cell_tags = dmesh.meshtags(mesh, 2, cells, tags)
+    tm = TaggedMesh(mesh, cell_tags, base.facet_tags, {"lower": 1, "upper": 2},
+                    base.facet_names)
+    bodies = [Body("lower", LinearElastic(E=E, nu=NU, density=RHO)),
+              Body("upper", J2(E=E, nu=NU, density=RHO, yield_stress=1e300))]
+    model = DeformableModel(tm, bodies)
+    u = fem.Function(model.V)
+    xy = model.node_xy
+    u.x.array[0::2] = 1e-4 * np.sin(3.0 * xy[:, 0] + xy[:, 1]) * xy[:, 0]
+    u.x.array[1::2] = 1e-4 * np.cos(2.0 * xy[:, 1] - xy[:, 0])
+    f = QuadratureForce(model, "upper", u, 1e-7, np.zeros(model.n_owned)).compute().copy()
+    results = []
+    for parts in ([model.parts[0]], None):  # the linear body's K, then both bodies'
+        K = assemble_stiffness(model, "aij", parts)
+        Ku = K.createVecLeft()
+        K.mult(compat.petsc_vec(u), Ku)
+        results.append(Ku.array.copy())
+        if parts is None:
+            ia, ja, va = K.getValuesCSR()
+            u_glob = np.concatenate(COMM.allgather(u.x.array[: model.n_owned]))
+            row_scale = np.array([np.abs(va[ia[i]:ia[i + 1]] * u_glob[ja[ia[i]:ia[i + 1]]]).sum()
+                                  for i in range(ia.size - 1)])
+        K.destroy()
+        Ku.destroy()
+    assert COMM.allreduce(int(np.sum(tags == 1))) > 0 and COMM.allreduce(int(np.sum(tags == 2))) > 0
+    both = results[0] + f
+    assert COMM.allreduce(int(np.sum(np.abs(both - results[1]) > rounding(256, row_scale)))) == 0
 
 
 # ------------------------------------------------------------------ stable step

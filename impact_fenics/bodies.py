@@ -1,8 +1,10 @@
 """Deformable bodies on one mesh: the function space, the parts and the dof maps.
 
-All deformable bodies share one P1 vector space (u_r, u_z). Dof indices here are
-local, unrolled (2 * node + component) and, unless said otherwise, owned by
-this rank: they index the local arrays of the PETSc vectors directly.
+All deformable bodies share one vector space (u_r, u_z) of degree 1: P1 on a mesh of
+triangles, Q1 on a mesh of quadrilaterals (the small-strain bodies of a Q1 mesh take
+mean dilatation, B-bar: :mod:`.q1`). Dof indices here are local, unrolled
+(2 * node + component) and, unless said otherwise, owned by this rank: they index the
+local arrays of the PETSc vectors directly.
 """
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
-from dolfinx import fem
+from dolfinx import fem, mesh as dmesh
 
 from .compat import cell_dofs, vector_space
 from .errors import InputError, require
@@ -51,13 +53,33 @@ def check_material(body: Body) -> None:
                          f"{', '.join(needs)})")
 
 
+def check_quadrilateral_material(body: Body) -> None:
+    """Refuse, in one line, a linear material whose stress is not a constant map D of the
+    strain: the B-bar stiffness of a quadrilateral is built from D, not from a UFL form."""
+    from .cell_fields import stiffness_matrix
+
+    m = body.material
+    if m.linear and stiffness_matrix(m) is None:
+        raise InputError(f"body '{body.name}': the stress of {type(m).__name__} is not a "
+                         "constant map of the strain, which a linear body on quadrilaterals "
+                         "needs (its B-bar stiffness is built from that map)")
+
+
 class DeformableModel:
-    """The space, the parts and the dof maps of the deformable bodies of a scene."""
+    """The space, the parts and the dof maps of the deformable bodies of a scene, on a
+    mesh of triangles or of quadrilaterals (:attr:`quadrilateral`)."""
 
     def __init__(self, tmesh: TaggedMesh, bodies: list[Body], degree: int = STIFFNESS_DEGREE):
         require(len(bodies) > 0, "a scene needs at least one deformable body")
+        cell_type = tmesh.mesh.topology.cell_type
+        if cell_type not in (dmesh.CellType.triangle, dmesh.CellType.quadrilateral):
+            raise InputError(f"the mesh's cells are {cell_type.name}s: small strain runs on "
+                             "triangles (P1) and quadrilaterals (Q1)")
+        self.quadrilateral = cell_type == dmesh.CellType.quadrilateral
         for b in bodies:
             check_material(b)
+            if self.quadrilateral:
+                check_quadrilateral_material(b)
         self.tmesh = tmesh
         self.mesh = tmesh.mesh
         self.comm = self.mesh.comm
@@ -70,6 +92,7 @@ class DeformableModel:
         self.offset = imap.local_range[0] * self.bs
         covered = 0
         self.parts: list[Part] = []
+        self.part_names: list[str] = [b.name for b in bodies]  # the body of each part
         for b in bodies:
             tag = tmesh.cell_tag(b.name)
             covered += tmesh.cells(b.name).size
@@ -113,6 +136,19 @@ class DeformableModel:
         """Radial dofs of the nodes on the axis r = 0 (u_r = 0 there)."""
         tol = 1e-10 * max(self.length_scale, 1e-300)
         return self._unrolled(np.flatnonzero(np.abs(self.node_xy[:, R]) <= tol), R, owned)
+
+    def owned_cells(self, body: str) -> np.ndarray:
+        """Local indices of the cells of ``body`` owned by this rank (sorted)."""
+        n_owned = self.mesh.topology.index_map(2).size_local
+        cells = self.tmesh.cells(body)
+        return np.sort(cells[cells < n_owned]).astype(np.int32)
+
+    def part_body(self, part: Part) -> str:
+        """The name of the body of ``part`` (one of :attr:`parts`)."""
+        for name, p in zip(self.part_names, self.parts):
+            if p is part:
+                return name
+        raise ValueError("not a part of this model")
 
     def dof_coordinates(self, dofs: np.ndarray) -> np.ndarray:
         """(r, z) in m of the nodes of owned unrolled ``dofs``."""

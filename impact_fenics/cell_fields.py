@@ -341,7 +341,11 @@ class CellStress:
     body, no UFL Expression) is one compiled call, :func:`isotropic_stress_range`;
     called again with the very arrays ``u`` and ``out`` of the first call (an output
     loop's), it goes through the kernel's compiled entry, without numba's search by
-    argument types."""
+    argument types.
+
+    On a quadrilateral mesh a linear body's cell stress is D times the cell's
+    ring-weighted mean strain (:func:`.q1.mean_strain`), the weighted mean of the B-bar
+    point stresses."""
 
     def __init__(self, model, plastic_forces=()):
         V = model.V
@@ -364,8 +368,17 @@ class CellStress:
         self._points = [(f.cells.astype(np.int64), f, _range(f.cells)) for f in plastic_forces]
         plastic = {f.body for f in plastic_forces}
         by_d = []  # (D, [cells of the bodies of that D])
+        self._quads = []  # Q1 linear bodies: (owned cells, their geometry, D, the mean strains)
         for body in model.bodies.values():
             if body.name in plastic:
+                continue
+            if getattr(model, "quadrilateral", False):
+                from .q1 import QuadGeometry
+
+                cells = np.sort(model.tmesh.cells(body.name))
+                cells = cells[cells < self.n_cells].astype(np.int64)
+                self._quads.append((cells, QuadGeometry(V, self.xy, cells),
+                                    stiffness_matrix(body.material), np.zeros((cells.size, 4))))
                 continue
             cells = model.tmesh.cells(body.name)
             cells = np.sort(cells[cells < self.n_cells]).astype(np.int64)
@@ -443,6 +456,14 @@ class CellStress:
         for cells, force, run in self._points:
             point_mean_stress(force.point_stresses(u).sigma, force.geometry.w, cells, values)
             _von_mises(values, cells, run)
+        for cells, g, D, eps in self._quads:
+            from .q1 import mean_strain
+
+            mean_strain(g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, u, eps)
+            sigma = eps @ D.T  # (rr, tt, zz, rz)
+            values[0, cells], values[1, cells] = sigma[:, 0], sigma[:, 2]
+            values[2, cells], values[3, cells] = sigma[:, 1], sigma[:, 3]
+            von_mises_cells(values, cells)
         if self._ufl:
             self._u_fn.x.array[:] = u
             for cells, exprs in self._ufl:

@@ -214,6 +214,8 @@ class Probes:
         self.points = [pt for _, pt, _ in probes]
         self.comm: MPI.Comm = model.comm
         mesh = model.mesh
+        if probes and getattr(model, "quadrilateral", False):
+            raise InputError("probes read triangles' cells: a mesh of quadrilaterals has none yet")
         n = len(probes)
         self.n_raw = RAW * n
         self.xy = np.zeros((n, 3, 2))

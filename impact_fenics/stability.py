@@ -5,7 +5,10 @@ Two estimates that err in opposite directions:
 * :func:`element_omega_bound` is an upper bound on omega_max (rad/s): the
   assembled K and lumped M are sums of element matrices, so every Rayleigh
   quotient x'Kx / x'Mx is at most the largest element eigenvalue. Its dt is
-  conservative; it is the one that refuses input.
+  conservative; it is the one that refuses input. One rule for both cell types:
+  on triangles the element matrices are the UFL forms' on a broken space, on
+  quadrilaterals the B-bar element matrices and Gauss-point masses K and M are
+  built from (:mod:`.operators`, :mod:`.q1`).
 * :func:`converged_omega_max` solves for the largest eigenvalue of M^-1 K (with
   the fixed dofs removed) to a tight tolerance with SLEPc. Its dt is the true
   limit; tests of stability measure against it.
@@ -20,6 +23,7 @@ from dolfinx import fem
 from .bodies import DeformableModel
 from .forms import lumped_mass_form, stiffness_form
 from .compat import cell_dofs, compile_form, vector_space
+from .operators import bbar_element_matrices
 
 _CHUNK = 65536  # cells per batched eigenvalue call
 
@@ -33,6 +37,8 @@ def element_omega_bound(model: DeformableModel, fixed_local: np.ndarray) -> floa
     each element problem: the bound then holds on the constrained space, and
     the tiny radial masses of axis nodes no longer dominate it.
     """
+    if model.quadrilateral:
+        return quadrilateral_omega_bound(model, fixed_local)
     V_dg = vector_space(model.mesh, "DG", 1)
     K = fem.petsc.assemble_matrix(compile_form(stiffness_form(V_dg, model.parts)))
     K.assemble()
@@ -66,6 +72,26 @@ def element_omega_bound(model: DeformableModel, fixed_local: np.ndarray) -> floa
         Ke = Ke * s[:, :, None] * s[:, None, :]
         if Ke.shape[0]:
             w2 = max(w2, float(np.linalg.eigvalsh(Ke)[:, -1].max()))
+    return float(np.sqrt(model.comm.allreduce(w2, op=MPI.MAX)))
+
+
+def quadrilateral_omega_bound(model: DeformableModel, fixed_local: np.ndarray) -> float:
+    """:func:`element_omega_bound` on a quadrilateral mesh: the largest eigenvalue of
+    K_e v = w^2 M_e v over the owned cells, K_e the B-bar element matrix (the elastic
+    one of a path-dependent body), M_e the cell's lumped masses, fixed dofs removed."""
+    is_fixed = np.zeros(model.n_local, dtype=bool)
+    is_fixed[fixed_local] = True
+    w2 = 0.0
+    for part in model.parts:
+        g, Ke = bbar_element_matrices(model, part)
+        m = np.repeat(g.node_masses(part[0].density), 2, axis=1)  # (n, 8), dof order 2 a + c
+        dofs = (2 * g.dofs[:, :, None] + np.arange(2)).reshape(-1, 8)
+        for lo in range(0, Ke.shape[0], _CHUNK):
+            d = dofs[lo:lo + _CHUNK]
+            s = np.where(is_fixed[d], 0.0, 1.0 / np.sqrt(m[lo:lo + _CHUNK]))
+            S = Ke[lo:lo + _CHUNK] * s[:, :, None] * s[:, None, :]
+            if S.shape[0]:
+                w2 = max(w2, float(np.linalg.eigvalsh(S)[:, -1].max()))
     return float(np.sqrt(model.comm.allreduce(w2, op=MPI.MAX)))
 
 

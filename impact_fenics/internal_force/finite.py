@@ -39,7 +39,8 @@ hyperelastic material), which gives per point the effective Kirchhoff stress
     f_int,a = sum_q w_q (tau_eff,q F_q^-T) : Grad N_a(X_q),
 
 tau_q = tau(F_bar_q) from the material's point update (:mod:`..materials.hencky`
-signature), w_q the Gauss weight times |det dX/dxi| 2 pi R_q (m^3).
+signature), w_q the Gauss weight times |det dX/dxi| 2 pi R_q (m^3): the Q1 geometry
+of :mod:`..q1`, shared with the small-strain (B-bar) forces.
 
 One fused compiled pass over the owned cells computes F at the four points,
 J_bar, the point updates, tau_eff and the element force (scatter-add into the
@@ -58,64 +59,9 @@ from numba import njit
 
 from .. import compat
 from ..errors import UnstableRunError
+from ..q1 import N_POINTS, QuadGeometry
 
-N_POINTS = 4
-_G = 0.5 / math.sqrt(3.0)
-# 2x2 Gauss points on the reference square [0, 1]^2, and dolfinx's vertex order of a
-# quadrilateral: (0, 0), (1, 0), (0, 1), (1, 1)
-GAUSS = np.array([[0.5 - _G, 0.5 - _G], [0.5 + _G, 0.5 - _G],
-                  [0.5 - _G, 0.5 + _G], [0.5 + _G, 0.5 + _G]])
-GAUSS_WEIGHT = 0.25
-VERTICES = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
 WORK = 16  # scratch entries a point update may use
-
-
-def shape_functions(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Q1 values (p, 4) and reference gradients (p, 4, 2) at reference points (p, 2)."""
-    x, y = points[:, 0:1], points[:, 1:2]
-    vx, vy = VERTICES[:, 0], VERTICES[:, 1]
-    fx = np.where(vx == 1.0, x, 1.0 - x)
-    fy = np.where(vy == 1.0, y, 1.0 - y)
-    sx = np.where(vx == 1.0, 1.0, -1.0)
-    sy = np.where(vy == 1.0, 1.0, -1.0)
-    return fx * fy, np.stack([sx * fy, fx * sy], axis=-1)
-
-
-class QuadGeometry:
-    """Reference geometry of Q1 cells at the 2x2 Gauss points.
-
-    ``dofs`` (n, 4) node indices; ``dNdR``, ``dNdZ`` (n, 4 points, 4 nodes) (1/m);
-    ``N`` (4 points, 4 nodes); ``R`` (n, 4) point radii (m); ``w`` (n, 4)
-    weights w_q |det J| 2 pi R_q (m^3); ``volume`` (n,) V_0 of each cell (m^3)."""
-
-    def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray):
-        self.cells = cells
-        self.dofs = np.ascontiguousarray(compat.cell_dofs(V)[cells].astype(np.int32))
-        X = node_xy[self.dofs]  # (n, 4, 2)
-        N, dN = shape_functions(GAUSS)  # (4, 4), (4, 4, 2)
-        self.N = np.ascontiguousarray(N)
-        jac = np.einsum("nia,qib->nqab", X, dN)  # dX_a / dxi_b
-        det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
-        # a cell may be numbered clockwise (dolfinx's rectangles are): the sign of det is
-        # the orientation, one per cell; a sign change inside a cell is a twisted cell
-        if np.any(det[:, :1] * det <= 0.0):
-            raise ValueError("a quadrilateral of the reference mesh is twisted (det changes sign)")
-        inv = np.empty_like(jac)
-        inv[..., 0, 0], inv[..., 0, 1] = jac[..., 1, 1] / det, -jac[..., 0, 1] / det
-        inv[..., 1, 0], inv[..., 1, 1] = -jac[..., 1, 0] / det, jac[..., 0, 0] / det
-        grad = np.einsum("qib,nqba->nqia", dN, inv)  # dN_i / dX_a
-        self.dNdR = np.ascontiguousarray(grad[..., 0])
-        self.dNdZ = np.ascontiguousarray(grad[..., 1])
-        self.R = np.ascontiguousarray(np.einsum("qi,ni->nq", N, X[:, :, 0]))
-        self.w = np.ascontiguousarray(GAUSS_WEIGHT * np.abs(det) * 2.0 * math.pi * self.R)
-        self.volume = self.w.sum(axis=1)
-
-    def lumped_mass(self, density: float, n_local_nodes: int) -> np.ndarray:
-        """Row sums of the consistent mass, rho int N_a 2 pi R dX (kg), per local node
-        (owned cells only: sum ghosts with a reverse scatter)."""
-        m = np.zeros(n_local_nodes)
-        np.add.at(m, self.dofs.ravel(), (density * self.w @ self.N).ravel())
-        return m
 
 
 @njit(cache=True)

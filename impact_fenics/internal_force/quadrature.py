@@ -1,7 +1,10 @@
 """Internal force of a path-dependent body: state at the quadrature points, f_int(u, state).
 
-The state lives at the points of the stiffness rule (forms.STIFFNESS_DEGREE = 2:
-three points per triangle), one array per variable over (owned cells x points):
+On triangles (P1) the state lives at the points of the stiffness rule
+(forms.STIFFNESS_DEGREE = 2: three points per triangle); on quadrilaterals (Q1) at
+the 2x2 Gauss points, with mean dilatation (:mod:`.bbar`; only the fused path below
+runs there). One array per variable over (owned cells x points), shown here for
+triangles:
 the plastic strain ``eps_p`` (n, 3, 4) in the (rr, tt, zz, rz) notation of
 :mod:`..materials.axisym`, the material's other variables ``state`` (n, 3,
 n_state; ``state[..., 0]`` the equivalent plastic strain) and the stress
@@ -44,8 +47,11 @@ from petsc4py import PETSc
 
 from .. import forms
 from .. import compat
+from .. import q1
 from ..bodies import DeformableModel
+from ..errors import InputError
 from ..operators import compile_form
+from . import bbar
 
 N_POINTS = 3  # points of the degree-2 triangle rule
 N_COMP = 4    # (rr, tt, zz, rz)
@@ -96,13 +102,28 @@ class CellGeometry:
                                       * 2.0 * math.pi * self.r)
 
 
+class QuadPointGeometry:
+    """Fixed geometry of Q1 cells at the 2x2 Gauss points (:class:`..q1.QuadGeometry`,
+    the one the finite-strain force reads) under the names of :class:`CellGeometry`:
+    at small strain the reference and the current coordinates are one.
+
+    ``dofs`` (n, 4); ``dNdr``, ``dNdz`` (n, 4 points, 4 nodes) (1/m); ``N`` (4, 4);
+    ``r``, ``inv_r`` (n, 4) (m, 1/m); ``w`` (n, 4) (m^3); ``quad`` the Q1 geometry."""
+
+    def __init__(self, model: DeformableModel, cells: np.ndarray):
+        g = q1.QuadGeometry(model.V, model.node_xy, cells)
+        self.quad = g
+        self.cells, self.dofs, self.N, self.w = cells, g.dofs, g.N, g.w
+        self.dNdr, self.dNdz, self.r, self.inv_r = g.dNdR, g.dNdZ, g.R, g.inv_R
+
+
 class QuadratureState:
     """Internal variables at the points of owned cells: eps_p, state, sigma (see module)."""
 
-    def __init__(self, n_cells: int, n_state: int):
-        self.eps_p = np.zeros((n_cells, N_POINTS, N_COMP))
-        self.state = np.zeros((n_cells, N_POINTS, max(n_state, 1)))
-        self.sigma = np.zeros((n_cells, N_POINTS, N_COMP))
+    def __init__(self, n_cells: int, n_state: int, n_points: int = N_POINTS):
+        self.eps_p = np.zeros((n_cells, n_points, N_COMP))
+        self.state = np.zeros((n_cells, n_points, max(n_state, 1)))
+        self.sigma = np.zeros((n_cells, n_points, N_COMP))
 
 
 # ---------------------------------------------------------------- compiled kernels
@@ -246,12 +267,20 @@ def elastic_energy(lmbda, mu, sigma, w) -> float:
 def cell_means(which, eps_p, state, out_eps_p, out_eps_bar, out_yielded) -> None:
     """Per cell in ``which`` (positions): the mean plastic strain and equivalent plastic
     strain of its points, and 1 if any point has yielded (eps_bar_p > 0), else 0."""
+    n_points = eps_p.shape[1]
     for c in which:
         for i in range(4):
-            out_eps_p[c, i] = (eps_p[c, 0, i] + eps_p[c, 1, i] + eps_p[c, 2, i]) / 3.0
-        out_eps_bar[c] = (state[c, 0, 0] + state[c, 1, 0] + state[c, 2, 0]) / 3.0
-        out_yielded[c] = 1.0 if (state[c, 0, 0] > 0.0 or state[c, 1, 0] > 0.0
-                                 or state[c, 2, 0] > 0.0) else 0.0
+            total = eps_p[c, 0, i]
+            for q in range(1, n_points):
+                total += eps_p[c, q, i]
+            out_eps_p[c, i] = total / n_points
+        total = state[c, 0, 0]
+        yielded = state[c, 0, 0] > 0.0
+        for q in range(1, n_points):
+            total += state[c, q, 0]
+            yielded = yielded or state[c, q, 0] > 0.0
+        out_eps_bar[c] = total / n_points
+        out_yielded[c] = 1.0 if yielded else 0.0
 
 
 # ---------------------------------------------------------------- the force
@@ -260,7 +289,8 @@ class QuadratureForce:
 
     ``u`` is the displacement Function (m) whose array the integrator steps (ghosts
     forward-scattered before :meth:`add_velocity_increment`); ``coef`` the owned
-    -dt / m (s/kg), 0 on fixed dofs; ``path`` 'fast' or 'generic'."""
+    -dt / m (s/kg), 0 on fixed dofs; ``path`` 'fast' or 'generic' ('fast' only on a
+    quadrilateral mesh: B-bar, :mod:`.bbar`)."""
 
     def __init__(self, model: DeformableModel, body: str, u: fem.Function, dt: float,
                  coef: np.ndarray, path: str = "fast"):
@@ -270,25 +300,31 @@ class QuadratureForce:
         self.material = model.bodies[body].material
         self.params = self.material.params()
         self.cells = owned_cells(model, body)
-        self.geometry = CellGeometry(model, self.cells)
-        self.qs = QuadratureState(self.cells.size, self.material.n_state)
+        quad = getattr(model, "quadrilateral", False)
+        if quad and path != "fast":
+            raise InputError(f"f_int path '{path}' runs on triangles only: a body on "
+                             "quadrilaterals takes the fused B-bar kernel (path 'fast')")
+        self.geometry = (QuadPointGeometry if quad else CellGeometry)(model, self.cells)
+        n_points = self.geometry.w.shape[1]
+        self.qs = QuadratureState(self.cells.size, self.material.n_state, n_points)
         self.coef = coef
         self.f = fem.Function(model.V)  # f_int (N), owned + ghost entries
         n = model.n_owned
         self.f_owned = self.f.x.array[:n]
         self._f_prev = np.zeros(n)
         self._u_prev = np.zeros(n)
-        self._work = np.zeros((4, max(N_COMP, self.material.n_state)))
+        self._work = np.zeros((bbar.WORK_ROWS if quad else 4, max(N_COMP, self.material.n_state)))
         self.deformation_work_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
-        self._fused, self._points = kernels(self.material.update)
+        self._fused, self._points = ((bbar.kernel(self.material.update), None) if quad
+                                     else kernels(self.material.update))
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()
         # the points at an output's displacement (point_stresses): their own state and a
         # force array that is written, never read
-        self.frame = QuadratureState(self.cells.size, self.material.n_state)
+        self.frame = QuadratureState(self.cells.size, self.material.n_state, n_points)
         self._frame_f = np.zeros_like(self.f.x.array)
         self._load_kernels()
 

@@ -55,6 +55,7 @@ import numpy as np
 from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 from numba import njit
+from petsc4py import PETSc
 
 from . import compat, console, interrupts, output, rundir
 from .contact.wall import RigidWall
@@ -114,13 +115,6 @@ def velocity_update(coef, f, v, dt_avg) -> float:
         v[i] = vn
         work += 0.5 * dt_avg * (vo + vn) * f[i]
     return work
-
-
-@njit(cache=True)
-def advance_positions(u, v, dt) -> None:
-    """u += dt v (m), in place (no temporary)."""
-    for i in range(u.size):
-        u[i] += dt * v[i]
 
 
 @njit(cache=True)
@@ -226,6 +220,10 @@ class FiniteRun:
         self.v = np.zeros(self.n_owned)
         self.v[0::2], self.v[1::2] = velocity
         self.v[~free] = 0.0
+        # u and v as PETSc Vecs over the same memory, made once (u: the Function's ghosted
+        # Vec, v: a Vec on the owned array): the position pass is one VecAXPY, u += dt v
+        self.u_vec = compat.petsc_vec(self.u_fn)
+        self.v_vec = PETSc.Vec().createWithArray(self.v, comm=self.comm)
         self.wave_speed = material.wave_speed()
         # the wall: every owned boundary node is a candidate
         self.wall = None
@@ -336,7 +334,6 @@ class FiniteRun:
         f = self.force.f_owned
         load(trapezoid_work, f, self.u_owned, self._f_prev, self._u_prev)
         load(velocity_update, self.coef, f, self.v, dt)
-        load(advance_positions, self.u_owned, self.v, dt)
         w = self.wall
         if w is not None:
             load(correct, w.nodes, w.Z, w.mass, w.z_wall, dt, dt, _CODE[w.method], w.p, f,
@@ -398,6 +395,7 @@ class FiniteRun:
         serial = comm.size == 1
         failure = None
         clock = time.perf_counter
+        advance_positions, v_vec = self.u_vec.axpy, self.v_vec  # u += dt v (VecAXPY)
         self.status = "running"
         jit_before = signature_counts()
         t_run = clock()
@@ -444,7 +442,7 @@ class FiniteRun:
                             n_rows += 1
                 t3 = clock()
                 w_int += velocity_update(self.coef, f, self.v, dt_avg)
-                advance_positions(self.u_owned, self.v, dt)
+                advance_positions(dt, v_vec)
                 t4 = clock()
                 if self.wall is not None:
                     w_int += self.wall.step(self.u_owned, self.v, dt, dt_avg, f)

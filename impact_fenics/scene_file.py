@@ -475,8 +475,7 @@ def kernels_cold(scene: Scene) -> float:
     if scene.finite:
         from . import finite_run
 
-        kernels = (finite_run.velocity_update, finite_run.advance_positions,
-                   finite_run.trapezoid_work)
+        kernels = (finite_run.velocity_update, finite_run.trapezoid_work)
     else:
         from . import energy, simulation, step_block  # noqa: F401  (the run's modules)
 

@@ -53,14 +53,14 @@ def finite_bar(comm, h: float, yield_stress: float):
 
 def finite_step(run, dt: float):
     """One step of finite_run's loop (no wall, no history): see the module docstring."""
-    from ..finite_run import advance_positions, trapezoid_work, velocity_update
+    from ..finite_run import trapezoid_work, velocity_update
 
     def step():
         run.u_fn.x.scatter_forward()
         f = run.force.compute(dt)
         trapezoid_work(f, run.u_owned, run._f_prev, run._u_prev)
         velocity_update(run.coef, f, run.v, dt)
-        advance_positions(run.u_owned, run.v, dt)
+        run.u_vec.axpy(dt, run.v_vec)
     return step
 
 
@@ -82,7 +82,7 @@ def _finite_split(ctx, run, dt: float) -> dict:
     F_bar, tau_eff, P and the scatter)."""
     from mpi4py import MPI
 
-    from ..finite_run import advance_positions, trapezoid_work, velocity_update
+    from ..finite_run import trapezoid_work, velocity_update
     from ..internal_force.finite import kernels
 
     force, g = run.force, run.force.geometry
@@ -105,7 +105,7 @@ def _finite_split(ctx, run, dt: float) -> dict:
         "trapezoid_work": ctx.median(lambda: trapezoid_work(fo, run.u_owned, run._f_prev,
                                                             run._u_prev)),
         "velocity_update": ctx.median(lambda: velocity_update(run.coef, fo, run.v, dt)),
-        "position_update": ctx.median(lambda: advance_positions(run.u_owned, run.v, dt)),
+        "position_update": ctx.median(lambda: run.u_vec.axpy(dt, run.v_vec)),
     }
 
 

@@ -266,10 +266,28 @@ def _slave_nodes(model: DeformableModel, name: str) -> tuple[np.ndarray, np.ndar
     return xy, dofs
 
 
+def owned_coordinates(model: DeformableModel, nodes: np.ndarray) -> np.ndarray:
+    """(r, z) in m (len(nodes), 2) of the global nodes ``nodes`` (block indices, sorted,
+    unique, the same on every rank), each from the copy of the rank that owns it.
+
+    A rank holding a node as a ghost maps it through another cell than its owner
+    does, so the two copies may differ in the last bit: the owner's alone makes
+    the result the same on every rank."""
+    lo, hi = model.V.dofmap.index_map.local_range
+    mine = nodes[(nodes >= lo) & (nodes < hi)]
+    parts = model.comm.allgather((mine, model.node_xy[mine - lo]))
+    got = np.concatenate([p[0] for p in parts])
+    xy = np.concatenate([p[1].reshape(-1, 2) for p in parts])
+    out = np.empty((nodes.size, 2))
+    out[np.searchsorted(nodes, got)] = xy
+    return out
+
+
 def _master_segments(model: DeformableModel, name: str):
     """Every facet of group ``name`` as (xy of its two nodes, their global (r, z) dofs,
-    the centroid of its cell), deduplicated, on every rank. Refuses facets that are
-    not on the boundary of the mesh."""
+    the centroid of its cell), deduplicated, on every rank, every coordinate from its
+    owner's copy (:func:`owned_coordinates`). Refuses facets that are not on the
+    boundary of the mesh."""
     mesh = model.mesh
     top = mesh.topology
     top.create_connectivity(1, 2)
@@ -280,7 +298,7 @@ def _master_segments(model: DeformableModel, name: str):
     if model.comm.allreduce(facets.size) == 0:
         raise InputError(f"facet group '{name}' is empty")
     imap = model.V.dofmap.index_map
-    xy, dofs, inside, interior = [], [], [], 0
+    ends, cell_nodes, interior = [], [], 0
     for f in facets:
         cells = f2c.links(f)
         if cells.size != 1:
@@ -290,25 +308,25 @@ def _master_segments(model: DeformableModel, name: str):
         cv = c2v.links(cell)
         cdofs = model.V.dofmap.cell_dofs(cell)
         blocks = np.array([cdofs[np.flatnonzero(cv == v)[0]] for v in f2v.links(f)])
-        glob = imap.local_to_global(blocks.astype(np.int32))
-        xy.append(model.node_xy[blocks])
-        dofs.append(np.stack([2 * glob + R, 2 * glob + Z], axis=1))
-        inside.append(model.node_xy[cdofs].mean(axis=0))
+        ends.append(imap.local_to_global(blocks.astype(np.int32)))
+        cell_nodes.append(imap.local_to_global(np.asarray(cdofs, dtype=np.int32)))
     interior = model.comm.allreduce(interior)
     if interior:
         raise InputError(f"facet group '{name}': {interior} facet(s) lie inside the mesh, "
                          "not on a boundary (contact needs boundary facets)")
-    xy = np.concatenate(model.comm.allgather(np.array(xy).reshape(-1, 2, 2)))
-    dofs = np.concatenate(model.comm.allgather(np.array(dofs, dtype=np.int64).reshape(-1, 2, 2)))
-    inside = np.concatenate(model.comm.allgather(np.array(inside).reshape(-1, 2)))
+    n_cell = model.V.dofmap.dof_layout.num_dofs  # nodes of a cell
+    ends = np.concatenate(model.comm.allgather(np.array(ends, dtype=np.int64).reshape(-1, 2)))
+    cell_nodes = np.concatenate(model.comm.allgather(
+        np.array(cell_nodes, dtype=np.int64).reshape(-1, n_cell)))
     # a facet shared with a ghost cell appears on two ranks: keep one copy
-    key = np.sort(dofs[:, :, 1], axis=1)
-    _, first = np.unique(key, axis=0, return_index=True)
-    xy, dofs, inside = xy[first], dofs[first], inside[first]
-    node_dofs, inverse = np.unique(dofs[:, :, 1].ravel(), return_inverse=True)
-    node_xy = np.empty((node_dofs.size, 2))
-    node_xy[inverse] = xy.reshape(-1, 2)
-    master_dofs = np.stack([node_dofs - 1, node_dofs], axis=1)
+    _, first = np.unique(np.sort(ends, axis=1), axis=0, return_index=True)
+    ends, cell_nodes = ends[first], cell_nodes[first]
+    nodes = np.unique(np.concatenate([ends.ravel(), cell_nodes.ravel()]))
+    xy = owned_coordinates(model, nodes)
+    inside = xy[np.searchsorted(nodes, cell_nodes)].mean(axis=1)
+    master_nodes, inverse = np.unique(ends.ravel(), return_inverse=True)
+    node_xy = xy[np.searchsorted(nodes, master_nodes)]
+    master_dofs = np.stack([2 * master_nodes + R, 2 * master_nodes + Z], axis=1)
     return node_xy, master_dofs, inverse.reshape(-1, 2), inside
 
 

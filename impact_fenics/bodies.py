@@ -15,7 +15,7 @@ from mpi4py import MPI
 from dolfinx import fem, mesh as dmesh
 
 from .compat import cell_dofs, vector_space
-from .errors import InputError, require
+from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, require
 from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
 from .meshing import TaggedMesh
 
@@ -78,6 +78,9 @@ class DeformableModel:
         self.quadrilateral = cell_type == dmesh.CellType.quadrilateral
         for b in bodies:
             check_material(b)
+            if not self.quadrilateral and getattr(b.material, "strain", "small") == "finite":
+                raise InputError(f"body '{b.name}': the mesh's cells are triangles: "
+                                 f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
             if self.quadrilateral:
                 check_quadrilateral_material(b)
         self.tmesh = tmesh

@@ -20,6 +20,11 @@ EXIT_INPUT = 2
 EXIT_UNSTABLE = 3
 EXIT_OUTPUT = 4
 
+# why a finite-strain body is refused on triangles (FiniteRun, the scene reader,
+# DeformableModel): one reason, one wording
+FINITE_STRAIN_NEEDS_QUADRILATERALS = ("finite strain needs quadrilaterals: constant-strain "
+                                      "triangles lock under isochoric plastic flow")
+
 
 class InputError(ValueError):
     """Bad input: the message names the field and the problem in one line."""

@@ -59,7 +59,7 @@ from petsc4py import PETSc
 
 from . import compat, console, interrupts, output, rundir
 from .contact.wall import RigidWall
-from .errors import InputError, UnstableRunError, require
+from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
 from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
@@ -181,7 +181,8 @@ class FiniteRun:
                  z_wall: float = 0.0, fixed_z: np.ndarray | None = None,
                  penalty: float | str = "scaled", penalty_beta: float = 1.0, name: str = "body"):
         require(mesh.topology.cell_type == dmesh.CellType.quadrilateral,
-                "finite strain runs on quadrilateral meshes (Q1 mean dilatation)")
+                f"the mesh's cells are {mesh.topology.cell_type.name}s: "
+                f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
         require(getattr(material, "finite", False) or getattr(material, "strain", "") == "finite",
                 "the material must be a finite-strain one")
         self.mesh, self.material, self.settings = mesh, material, settings

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from .errors import InputError
+from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError
 from .scene_keys import DT_INTERVAL  # steps between re-estimates, unless [time] dt_interval
 from .scene_table import Table, within
 
@@ -84,9 +84,10 @@ def check_kind(scene) -> None:
                          "quadrilateral and no body-to-body contact runs on it)")
     if scene.mesh.generator != "quad_bar":
         given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
-                 else "file = ...")
-        raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar" '
-                         "(bilinear quadrilaterals, Q1 mean dilatation)")
+                 else f'file = "{scene.mesh.file}"')
+        file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
+        raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
+                         f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
     for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
                       ("loads", "[[loads]]"), ("fixed", "[[fixed]]"), ("probes", "[[probes]]")):
         if getattr(scene, key):

@@ -70,6 +70,7 @@ H = B_OUT - A_IN  # m, the slice's height
 K_SHEAR = SY / math.sqrt(3.0)  # k, the yield stress in shear (Pa)
 P_LIMIT = 2.0 / math.sqrt(3.0) * SY * math.log(B_OUT / A_IN)
 P_YIELD = SY * (B_OUT ** 2 - A_IN ** 2) / (math.sqrt(3.0) * B_OUT ** 2)
+NU = 0.4999  # the main case: Hill's incompressible curve to O(1 - 2 nu) = 2e-4
 GAUSS_X1 = 0.5 - 0.5 / math.sqrt(3.0)  # the lower 2-point Gauss abscissa on [0, 1]
 # p_onset / p_Y = 1 + C1 h/a + C2 (h/a)^2: the innermost point's |d(a)| / |d_1| (a series
 # of the B-bar strain of the interpolant of 1/r: 1 + (1 - sqrt3/6) h/a - (sqrt3/12 +
@@ -191,7 +192,7 @@ def ramp(n: int, nu: float, u_end: float, n_increments: int) -> dict:
 def ramps():
     # 40 increments to 2 U_L: 4 in the elastic range (U_Y / U_L = a^2 / b^2 = 1/4), then
     # the plastic front crosses the wall in 15, the rest on the plateau
-    return {n: ramp(n, 0.4999, 2.0, 40) for n in (4, 8)}
+    return {n: ramp(n, NU, 2.0, 40) for n in (4, 8)}
 
 
 def static_bound(run: dict, n: int) -> float:
@@ -219,8 +220,8 @@ def test_limit_pressure(ramps, n):
     assert np.all(p <= static_bound(run, n))
     plateau = p[U >= run["U_L"]]
     assert plateau.size >= 10
-    assert np.all(plateau >= p_h * (1.0 - (1.0 - 2 * 0.4999)))
-    assert np.all(np.abs(plateau / P_LIMIT - 1.0) <= m["eps_1"] * (1 + m["h_a"]) + (1 - 2 * 0.4999))
+    assert np.all(plateau >= p_h * (1.0 - (1.0 - 2 * NU)))
+    assert np.all(np.abs(plateau / P_LIMIT - 1.0) <= m["eps_1"] * (1 + m["h_a"]) + (1 - 2 * NU))
 
 
 @pytest.mark.parametrize("n", [4, 8])
@@ -235,7 +236,7 @@ def test_pressure_follows_hill_and_yields_at_p_y(ramps, n):
     hill = np.array([hill_pressure(U, run["G"]) for U in run["U"]])
     err = np.abs(run["p"] / hill - 1.0)
     tol = ((max(m["eps_1"], m["eps_2"]) + m["kink"] + m["front"]) * (1 + m["h_a"])
-           + (1 - 2 * 0.4999))
+           + (1 - 2 * NU))
     expected_onset = P_YIELD * (1 + C1 * m["h_a"] + C2 * m["h_a"] ** 2)
     if COMM.rank == 0:
         print(f"n = {n}: p / Hill - 1 at most {err.max():.4g} (tolerance {tol:.4g}); onset "
@@ -243,7 +244,7 @@ def test_pressure_follows_hill_and_yields_at_p_y(ramps, n):
               f"{expected_onset / P_YIELD - 1:.4g}")
     assert np.all(err <= tol)
     assert run["onset"] is not None and run["onset"] > P_YIELD
-    assert abs(run["onset"] / expected_onset - 1.0) <= m["h_a"] ** 3 + (1 - 2 * 0.4999)
+    assert abs(run["onset"] / expected_onset - 1.0) <= m["h_a"] ** 3 + (1 - 2 * NU)
 
 
 def test_compressible_cylinder_stays_below_the_discrete_limit():

@@ -21,7 +21,8 @@ from test_finite_scene import TAYLOR
 
 COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="launches processes: serial only")
-REASON = "finite strain needs quadrilaterals: constant-strain triangles lock under isochoric plastic flow"
+REASON = ("finite strain needs quadrilaterals: constant-strain triangles lock under isochoric "
+          "plastic flow")
 MATERIAL = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
 
 
@@ -74,7 +75,8 @@ def scene(tmp, edits) -> list[str]:
 
 def expected(tmp, edits) -> str:
     if edits is GENERATOR:
-        return f'error: [mesh] generator = "bar": a finite-strain body needs generator = "quad_bar": {REASON}'
+        return ('error: [mesh] generator = "bar": a finite-strain body needs generator = '
+                f'"quad_bar": {REASON}')
     return (f'error: [mesh] file = "{tmp / "bar.msh"}": a finite-strain body needs generator = '
             f'"quad_bar" (a mesh file is not read for one yet): {REASON}')
 

@@ -78,9 +78,14 @@ class DeformableModel:
         self.quadrilateral = cell_type == dmesh.CellType.quadrilateral
         for b in bodies:
             check_material(b)
-            if not self.quadrilateral and getattr(b.material, "strain", "small") == "finite":
-                raise InputError(f"body '{b.name}': the mesh's cells are triangles: "
-                                 f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+            if getattr(b.material, "strain", "small") == "finite":
+                if not self.quadrilateral:
+                    raise InputError(f"body '{b.name}': the mesh's cells are triangles: "
+                                     f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+                raise InputError(f"body '{b.name}': {type(b.material).__name__} is a "
+                                 "finite-strain material: it runs in the finite-strain driver "
+                                 "(finite_run.FiniteRun, strain = \"finite\" in a scene), and "
+                                 "this model holds small-strain bodies")
             if self.quadrilateral:
                 check_quadrilateral_material(b)
         self.tmesh = tmesh

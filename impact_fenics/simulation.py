@@ -35,7 +35,7 @@ from .operators import assemble_stiffness
 from .probes import Probes
 from .xdmf import FieldWriter
 from .step_block import StepBlock, count_beyond as _count_beyond
-from .stability import converged_omega_max, critical_dt, element_omega_bound
+from .stability import converged_omega_max, critical_dt, element_omega_bounds
 from .timers import PhaseTimers
 
 # Per-step divergence check: every DIVERGENCE_EVERY steps one VecNorm of v (a pass
@@ -135,15 +135,19 @@ class Simulation:
         # stability: refuse dt above the conservative element bound unless forced
         fixed_local = np.unique(np.concatenate([model.axis_dofs(owned=False)] +
                                                [self._local_fixed(f) for f in fixed[1:]]))
-        self.dt_critical = critical_dt(element_omega_bound(model, fixed_local))
+        omega = element_omega_bounds(model, fixed_local)
+        # each body's own stable step (s) and the run's: the smallest, the same number
+        self.stable_dt = {name: critical_dt(w) for name, w in omega.items()}
+        self.stable_dt_limiting = min(self.stable_dt, key=self.stable_dt.__getitem__)
+        self.dt_critical = critical_dt(max(omega.values()))
         if settings.cfl is not None:
             require(settings.cfl > 0, f"cfl = {settings.cfl}: must be > 0")
             settings.dt = settings.cfl * self.dt_critical
         self.n_steps = settings.steps()
         if settings.dt > self.dt_critical and not settings.force_dt:
             raise InputError(f"dt = {settings.dt:.4g} s is above the stable limit "
-                             f"{self.dt_critical:.4g} s (element bound on 2/omega_max); "
-                             "lower dt or force it")
+                             f"{self.dt_critical:.4g} s (element bound on 2/omega_max, body "
+                             f"'{self.stable_dt_limiting}'); lower dt or force it")
         t1 = clock()
         self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
@@ -267,6 +271,11 @@ class Simulation:
             raise
         self.history = tables["history"]
         self.energy = tables["energy"]
+        if comm.rank == 0 and not s.quiet:
+            from .report import stable_step_line
+
+            print(stable_step_line(self.stable_dt, self.stable_dt_limiting,
+                                   f"every body steps dt = {s.dt:.3g} s"), flush=True)
         self._v_start = self._mean_velocities()
         # the set-up made many Python objects (forms, compiled kernels): collect them now
         # and keep them out of later collections, so no collection of them lands in a step
@@ -1025,6 +1034,8 @@ class Simulation:
             "n_cells": int(n_cells),
             "dt": s.dt,
             "dt_critical": self.dt_critical,
+            "stable_dt": dict(self.stable_dt),
+            "stable_dt_limiting": self.stable_dt_limiting,
             "t_end": self.n_steps * s.dt,
             "wall_time": wall,
         }

@@ -445,7 +445,9 @@ class FiniteRun:
                     writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
                 t2 = clock()
                 if n % stride == 0 or (table is not None and n % s.history_every == 0):
-                    row = self._history_row(n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass)
+                    led = 0.0 if dt_prev is None else dt_prev  # the step to this state
+                    row = self._history_row(n, t, led, dt_lim, K0, w_int, taken, w_trap,
+                                            total_mass)
                     if table is not None and n % s.history_every == 0:
                         table.row()[:] = row
                     if n % stride == 0:
@@ -555,7 +557,8 @@ class FiniteRun:
         return summary
 
     def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass) -> list:
-        """One history row (every rank the same): see HISTORY_COLUMNS (SI units)."""
+        """One history row (every rank the same): see HISTORY_COLUMNS (SI units); ``dt`` the
+        step that led to this state (0 at the start), ``dt_lim`` the current limit."""
         comm, wall = self.comm, self.wall
         stored = comm.allreduce(self.force.stored_energy_local()) if self.settings.ledger else 0.0
         wp = comm.allreduce(self.force.plastic_work_local)

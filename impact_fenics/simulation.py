@@ -833,11 +833,11 @@ class Simulation:
         blocks; in memory without one).
 
         A history row is raw: the probes' dofs this rank owns (summed over the ranks once
-        per block), then step, time and the contact columns; the block's finish turns
+        per block), then step, time, dt and the contact columns; the block's finish turns
         the dofs into the probe values."""
         comm = self.comm
         path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
-        cols = ["step", "time"] + (probes.names if probes else [])
+        cols = ["step", "time", "dt"] + (probes.names if probes else [])
         for k, c in enumerate(self.contacts):
             tag = f"c{k}_" if len(self.contacts) > 1 else ""
             # the total contact force (N); on a rigid body it is the force on that body
@@ -854,10 +854,10 @@ class Simulation:
 
         def finish(raw: np.ndarray) -> np.ndarray:
             o = out[: raw.shape[0]]
-            o[:, :2] = raw[:, n_raw: n_raw + 2]
+            o[:, :3] = raw[:, n_raw: n_raw + 3]  # step, time, dt
             if probes is not None:
-                probes.values(raw[:, :n_raw], o[:, 2: 2 + n_probes])
-            o[:, 2 + n_probes:] = raw[:, n_raw + 2:]
+                probes.values(raw[:, :n_raw], o[:, 3: 3 + n_probes])
+            o[:, 3 + n_probes:] = raw[:, n_raw + 3:]
             return o
 
         tables = {"history": output.Table(path("history.csv"), cols, comm, block,
@@ -892,7 +892,7 @@ class Simulation:
         record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
         # per contact: its stats (number active, total force, smallest gap; updated in place
         # by its step), its phase times, its rigid body and its first raw column
-        layout, k = [], offset + 2
+        layout, k = [], offset + 3
         for c in self.contacts:
             layout.append((memoryview(c.stats), c.times, c.rigid, k))
             k += 6 + (2 if c.rigid is not None else 0)
@@ -905,6 +905,7 @@ class Simulation:
             k = j + offset
             cells[k] = float(n)
             cells[k + 1] = n * dt
+            cells[k + 2] = dt  # the step that led to this state (constant)
             for stats, times, rigid, k in layout:
                 k += j
                 cells[k] = stats[0]

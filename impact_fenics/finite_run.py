@@ -24,7 +24,9 @@ of side h) and c the material's elastic dilatational speed, and the step is
 ``safety`` x dt_lim (default 0.5; tests compare it with the converged
 2 / omega_max of the linearised operator). With a fixed ``dt`` instead, the run
 stops (UnstableRunError, exit 3 in a demo) once the current limit falls below it.
-Δt is recorded in the history and its range in the summary.
+Each row of the history holds the Δt that led to its state (0 at the start) and the
+current limit; the summary holds Δt's range and the body's own limit at the start
+(``stable_dt``) and the smallest it reached (``stable_dt_smallest``).
 
 **What a run writes** (``settings.out``, as every run of the package: staged in
 ``DIR.partial`` and published by rundir.py, SIGINT/SIGTERM stop it at a step
@@ -359,6 +361,17 @@ class FiniteRun:
         dt_lim = self.dt_limit()
         dt0 = min(s.dt if s.dt is not None else s.safety * dt_lim, s.t_end)
         self._check_penalty(dt0, dt0, 0, 0.0)
+        # the body's own stable step (s): at the start, and the smallest the run reaches
+        self.stable_dt = {self.name: dt_lim}
+        self.stable_dt_smallest = {self.name: dt_lim}
+        if comm.rank == 0 and not s.quiet:
+            from .report import stable_step_line
+
+            shared = (f"every body steps the fixed dt = {dt0:.3g} s" if s.dt is not None else
+                      f"every body steps {s.safety:g} x the smallest, re-estimated every "
+                      f"{s.dt_interval} steps (first dt = {dt0:.3g} s)")
+            print(stable_step_line(self.stable_dt, self.name, shared,
+                                   "current cells, min L / c"), flush=True)
         t_setup = time.perf_counter()
         stop = _StopFlag()
         staging = writer = table = None
@@ -408,6 +421,8 @@ class FiniteRun:
                 new_limit = n % s.dt_interval == 0
                 if new_limit and n > 0:
                     dt_lim = self.dt_limit()
+                    if dt_lim < self.stable_dt_smallest[self.name]:
+                        self.stable_dt_smallest[self.name] = dt_lim
                 if s.dt is None:
                     dt = s.safety * dt_lim
                 else:
@@ -431,7 +446,9 @@ class FiniteRun:
                     writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
                 t2 = clock()
                 if n % stride == 0 or (table is not None and n % s.history_every == 0):
-                    row = self._history_row(n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass)
+                    led = 0.0 if dt_prev is None else dt_prev  # the step to this state
+                    row = self._history_row(n, t, led, dt_lim, K0, w_int, taken, w_trap,
+                                            total_mass)
                     if table is not None and n % s.history_every == 0:
                         table.row()[:] = row
                     if n % stride == 0:
@@ -541,7 +558,8 @@ class FiniteRun:
         return summary
 
     def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass) -> list:
-        """One history row (every rank the same): see HISTORY_COLUMNS (SI units)."""
+        """One history row (every rank the same): see HISTORY_COLUMNS (SI units); ``dt`` the
+        step that led to this state (0 at the start), ``dt_lim`` the current limit."""
         comm, wall = self.comm, self.wall
         stored = comm.allreduce(self.force.stored_energy_local()) if self.settings.ledger else 0.0
         wp = comm.allreduce(self.force.plastic_work_local)
@@ -574,6 +592,8 @@ class FiniteRun:
             "t_end": t, "t_end_requested": s.t_end, "n_ranks": comm.size,
             "n_cells": n_cells, "n_dofs": int(self.V.dofmap.index_map.size_global * 2),
             "dt_min": comm.allreduce(dts[0], op=MPI.MIN), "dt_max": comm.allreduce(dts[1], op=MPI.MAX),
+            "stable_dt": dict(self.stable_dt), "stable_dt_limiting": self.name,
+            "stable_dt_smallest": dict(self.stable_dt_smallest),
             "dt_rule": "fixed" if s.dt is not None else
             f"{s.safety} x min(A / max diagonal) / c, every {s.dt_interval} steps",
             "initial_kinetic": K0, "kinetic": K, "stored_elastic": stored, "plastic_work": wp,

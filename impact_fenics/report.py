@@ -7,7 +7,8 @@ time in contact and the number of separations, and for two bodies that
 separate their rebound velocities and the coefficient of restitution
 e = (v_upper' - v_lower') / (v_lower - v_upper) (body-mean z velocities before
 the first and after the last output). :func:`console_lines` formats the
-summary for the console, :func:`energy_line` its energy ledger.
+summary for the console, :func:`energy_line` its energy ledger,
+:func:`stable_step_line` each body's stable step at set-up.
 """
 from __future__ import annotations
 
@@ -78,6 +79,16 @@ def energy_line(s: dict) -> str:
         if shown("activation_loss"):
             line += f" (activation losses {e['activation_loss']:.4g} J)"
     return line + f"; balance error {s['energy_balance_error_rel']:.1e} (relative)"
+
+
+def stable_step_line(stable: dict[str, float], limiting: str, shared: str,
+                     basis: str = "element bound") -> str:
+    """The set-up's console line of each body's own stable step (s) (``basis``: how it is
+    estimated), the body that limits the run marked, then ``shared``: the step every body
+    takes (one step for all: no body steps on its own)."""
+    each = ", ".join(f"{name} {value:.3g} s" + (" (limits)" if name == limiting else "")
+                     for name, value in stable.items())
+    return f"stable step per body ({basis}): {each}; {shared}"
 
 
 def console_lines(s: dict) -> list[str]:

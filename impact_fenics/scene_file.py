@@ -193,9 +193,9 @@ def read_scene(path: str) -> Scene:
     probes = [_read_probe(where, d, k) for k, (where, d) in enumerate(array_of(top, "probes"))]
     names = [p.name for p in probes]
     for p in probes:
-        if names.count(p.name) > 1 or p.name in ("step", "time"):
+        if names.count(p.name) > 1 or p.name in ("step", "time", "dt"):
             raise InputError(f"{p.where} name = {toml_text(p.name)}: probe names must be unique "
-                             "and not 'step' or 'time'")
+                             "and not 'step', 'time' or 'dt'")
         if p.quantity in ("eps_p_eq", "yielded") and not any(
                 materials[b.material].plastic for b in bodies):
             raise InputError(f"{p.where} quantity = {toml_text(p.quantity)}: needs a body of a "
@@ -454,7 +454,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         columns, cell_fields = 19, 6  # finite_run.HISTORY_COLUMNS, CELL_FIELDS
         energy_columns = 0
     else:
-        columns = 2 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
+        columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
                                               for c in scene.contacts)
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
         energy_columns = 13 + len(scene.bodies) + len(scene.rigid)

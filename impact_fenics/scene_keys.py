@@ -325,7 +325,7 @@ _OUTPUT = Section("output", "[output]", (
 _PROBES = Section("probes", "[[probes]]", (
     "A history column: a quantity in the cell that holds a point (not on the interface "
     "of two bodies)."), (
-    Key("name", "text", "", None, "the column's name (unique; not step or time)",
+    Key("name", "text", "", None, "the column's name (unique; not step, time or dt)",
         default_text="<quantity>_<k>"),
     Key("point", "pair", "m", REQUIRED, "the point [r, z], r >= 0"),
     Key("quantity", "text", "", REQUIRED, "stresses in Pa, displacements in m; eps_p_eq and "

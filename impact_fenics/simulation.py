@@ -35,7 +35,7 @@ from .operators import assemble_stiffness
 from .probes import Probes
 from .xdmf import FieldWriter
 from .step_block import StepBlock, count_beyond as _count_beyond
-from .stability import converged_omega_max, critical_dt, element_omega_bound
+from .stability import converged_omega_max, critical_dt, element_omega_bounds
 from .timers import PhaseTimers
 
 # Per-step divergence check: every DIVERGENCE_EVERY steps one VecNorm of v (a pass
@@ -135,15 +135,19 @@ class Simulation:
         # stability: refuse dt above the conservative element bound unless forced
         fixed_local = np.unique(np.concatenate([model.axis_dofs(owned=False)] +
                                                [self._local_fixed(f) for f in fixed[1:]]))
-        self.dt_critical = critical_dt(element_omega_bound(model, fixed_local))
+        omega = element_omega_bounds(model, fixed_local)
+        # each body's own stable step (s) and the run's: the smallest, the same number
+        self.stable_dt = {name: critical_dt(w) for name, w in omega.items()}
+        self.stable_dt_limiting = min(self.stable_dt, key=self.stable_dt.__getitem__)
+        self.dt_critical = critical_dt(max(omega.values()))
         if settings.cfl is not None:
             require(settings.cfl > 0, f"cfl = {settings.cfl}: must be > 0")
             settings.dt = settings.cfl * self.dt_critical
         self.n_steps = settings.steps()
         if settings.dt > self.dt_critical and not settings.force_dt:
             raise InputError(f"dt = {settings.dt:.4g} s is above the stable limit "
-                             f"{self.dt_critical:.4g} s (element bound on 2/omega_max); "
-                             "lower dt or force it")
+                             f"{self.dt_critical:.4g} s (element bound on 2/omega_max, body "
+                             f"'{self.stable_dt_limiting}'); lower dt or force it")
         t1 = clock()
         self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
@@ -267,6 +271,11 @@ class Simulation:
             raise
         self.history = tables["history"]
         self.energy = tables["energy"]
+        if comm.rank == 0 and not s.quiet:
+            from .report import stable_step_line
+
+            print(stable_step_line(self.stable_dt, self.stable_dt_limiting,
+                                   f"every body steps dt = {s.dt:.3g} s"), flush=True)
         self._v_start = self._mean_velocities()
         # the set-up made many Python objects (forms, compiled kernels): collect them now
         # and keep them out of later collections, so no collection of them lands in a step
@@ -824,11 +833,11 @@ class Simulation:
         blocks; in memory without one).
 
         A history row is raw: the probes' dofs this rank owns (summed over the ranks once
-        per block), then step, time and the contact columns; the block's finish turns
+        per block), then step, time, dt and the contact columns; the block's finish turns
         the dofs into the probe values."""
         comm = self.comm
         path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
-        cols = ["step", "time"] + (probes.names if probes else [])
+        cols = ["step", "time", "dt"] + (probes.names if probes else [])
         for k, c in enumerate(self.contacts):
             tag = f"c{k}_" if len(self.contacts) > 1 else ""
             # the total contact force (N); on a rigid body it is the force on that body
@@ -845,10 +854,10 @@ class Simulation:
 
         def finish(raw: np.ndarray) -> np.ndarray:
             o = out[: raw.shape[0]]
-            o[:, :2] = raw[:, n_raw: n_raw + 2]
+            o[:, :3] = raw[:, n_raw: n_raw + 3]  # step, time, dt
             if probes is not None:
-                probes.values(raw[:, :n_raw], o[:, 2: 2 + n_probes])
-            o[:, 2 + n_probes:] = raw[:, n_raw + 2:]
+                probes.values(raw[:, :n_raw], o[:, 3: 3 + n_probes])
+            o[:, 3 + n_probes:] = raw[:, n_raw + 3:]
             return o
 
         tables = {"history": output.Table(path("history.csv"), cols, comm, block,
@@ -883,7 +892,7 @@ class Simulation:
         record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
         # per contact: its stats (number active, total force, smallest gap; updated in place
         # by its step), its phase times, its rigid body and its first raw column
-        layout, k = [], offset + 2
+        layout, k = [], offset + 3
         for c in self.contacts:
             layout.append((memoryview(c.stats), c.times, c.rigid, k))
             k += 6 + (2 if c.rigid is not None else 0)
@@ -896,6 +905,7 @@ class Simulation:
             k = j + offset
             cells[k] = float(n)
             cells[k + 1] = n * dt
+            cells[k + 2] = dt  # the step that led to this state (constant)
             for stats, times, rigid, k in layout:
                 k += j
                 cells[k] = stats[0]
@@ -1025,6 +1035,8 @@ class Simulation:
             "n_cells": int(n_cells),
             "dt": s.dt,
             "dt_critical": self.dt_critical,
+            "stable_dt": dict(self.stable_dt),
+            "stable_dt_limiting": self.stable_dt_limiting,
             "t_end": self.n_steps * s.dt,
             "wall_time": wall,
         }

@@ -245,17 +245,18 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             c = j + offset
             history[c] = float(step + 1)
             history[c + 1] = (step + 1) * dt
+            history[c + 2] = dt
             if contact:
-                history[c + 2] = misc[STATS]
-                history[c + 3] = misc[STATS + 1]
-                history[c + 4] = misc[STATS + 2]
+                history[c + 3] = misc[STATS]
+                history[c + 4] = misc[STATS + 1]
+                history[c + 5] = misc[STATS + 2]
                 if rigid:
-                    history[c + 5] = u_r
-                    history[c + 6] = v_r
+                    history[c + 6] = u_r
+                    history[c + 7] = v_r
                     c += 2
-                history[c + 5] = 0.0
-                history[c + 6] = t2 - t1
-                history[c + 7] = 0.0
+                history[c + 6] = 0.0
+                history[c + 7] = t2 - t1
+                history[c + 8] = 0.0
         if pairs and k - 1 == next_pairs:  # simulation._pair_rows of the state after the step
             next_pairs = _next(k - 1, pairs_every, last)
             _committed_gap(b, u_now, lo, up, gap)

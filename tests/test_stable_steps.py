@@ -1,0 +1,175 @@
+"""Each body's own stable step in the summary, and the step of every history row.
+
+Every body takes the run's one Δt; the summary gives each body's own stable step
+(``stable_dt``) and the body that limits the run (``stable_dt_limiting``).
+
+Oracles:
+
+* Two bodies that differ only in E: small strain, on triangles and on Q1 quadrilaterals.
+  The soft body fills z < 1/2 of a rectangle of 8 x 16 cells. The stiff body, 4 E, fills
+  z > 1/2 with the same cells moved up by 1/2. The mesh is dyadic, so every coordinate
+  and every difference of coordinates is exact. The element matrices of the stiff body
+  are then 4 x the soft body's, and M is the same. So ω scales by √4, and the ratio of
+  the stable steps is 2, up to the round-off of an element eigenvalue (bound below).
+  On quadrilaterals, the Gauss points' Jacobians take products of coordinates with
+  irrational weights, so a translated cell is not bit-for-bit the same; the bound grows
+  by z_max / h.
+* The run's limit (``dt_critical``) is the smallest body's limit, exactly: it is a
+  maximum over a partition of the cells, so it is the same number.
+* Finite strain: at the start, the body's stable step is h / (√2 c) for square cells of
+  side h (L = A / diagonal). Here c = √((λ + 2μ)/ρ), computed by hand from E, ν and ρ.
+* history.csv's ``dt``. At small strain it equals the summary's dt in every row, with
+  the compiled blocks and with the Python steps (17 digits read back exactly). At
+  finite strain (a row every step), row 0 is the start with ``dt`` = 0. From then on,
+  each row's time minus the previous row's equals its ``dt`` to within half an ulp of
+  its time: t_n = fl(t_{n-1} + Δt) rounds once, and the subtraction t_n - t_{n-1} is
+  exact (Sterbenz: t_n <= 2 t_{n-1} from row 2 on; row 1 is t_1 = Δt exactly).
+  ``stable_dt_smallest`` is the smallest ``dt_limit`` in the rows. This is exact,
+  because with a row every step the rows hold every re-estimate.
+"""
+import math
+import os
+
+import numpy as np
+import pytest
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from impact_fenics import compat
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+from impact_fenics.materials import LinearElastic
+from impact_fenics.materials.finite_j2 import FiniteJ2
+from impact_fenics.meshing import TaggedMesh
+from impact_fenics.simulation import Settings, Simulation
+from roundoff import rounding
+
+COMM = MPI.COMM_WORLD
+E, NU, RHO = 200e9, 0.3, 7850.0
+WIDTH, HEIGHT, N_R, N_Z = 0.5, 1.0, 8, 16  # m, cells: h = 1/16 m, dyadic
+# A largest element eigenvalue w^2 of S = M^-1/2 K M^-1/2 (6 x 6 or 8 x 8). LAPACK's
+# symmetric eigensolver is backward stable: |dw^2| <= c n EPS ||S||, and ||S|| = w^2 for
+# a positive semi-definite S. Take c n = 8 x 8. The element matrices' entries are
+# quadrature sums of products, each within 32 roundings. They enter w^2 by at most
+# sqrt(8) x their relative error (|dS| <= d |S| entrywise, so ||dS|| <= d sqrt(n) ||S||).
+# On quadrilaterals, a Jacobian entry sums 4 products of a coordinate with a weight.
+# Each product rounds on |z| <= z_max, and the sum is about h / 2: a relative error of
+# 8 EPS z_max / h, which enters K_e (1/J^2) and M_e (J) about 3 times.
+EIG = 64 + 3 * 32
+
+
+def _two_bodies(quadrilateral: bool, e_upper: float) -> DeformableModel:
+    """The rectangle of 8 x 16 cells: 'soft' (E) below z = 1/2, 'stiff' (e_upper) above."""
+    cell = dmesh.CellType.quadrilateral if quadrilateral else dmesh.CellType.triangle
+    mesh = dmesh.create_rectangle(COMM, [np.array([0.0, 0.0]), np.array([WIDTH, HEIGHT])],
+                                  [N_R, N_Z], cell_type=cell)
+    cmap = mesh.topology.index_map(2)
+    cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
+    centre_z = mesh.geometry.x[compat.geometry_dofs(mesh)[cells], 1].mean(axis=1)
+    cell_tags = dmesh.meshtags(mesh, 2, cells, np.where(centre_z < 0.5, 1, 2).astype(np.int32))
+    facet_tags = dmesh.meshtags(mesh, 1, np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
+    tm = TaggedMesh(mesh, cell_tags, facet_tags, {"soft": 1, "stiff": 2}, {})
+    model = DeformableModel(tm, [Body("soft", LinearElastic(E=E, nu=NU, density=RHO)),
+                                 Body("stiff", LinearElastic(E=e_upper, nu=NU, density=RHO))])
+    return model
+
+
+def _simulation(model, **kw) -> Simulation:
+    base = dict(cfl=0.9, n_steps=40, output_every=10, quiet=True, plots=False)
+    base.update(kw)
+    return Simulation(model, Settings(**base), initial_velocity={"soft": (0.0, 1.0)})
+
+
+@pytest.mark.parametrize("quadrilateral", [False, True], ids=["triangles", "quadrilaterals"])
+@pytest.mark.parametrize("factor", [4.0, 2.25], ids=["E_x4", "E_x2.25"])
+def test_stable_step_of_each_body_scales_as_one_over_sqrt_E(quadrilateral, factor):
+    """dt_soft / dt_stiff = sqrt(factor), to an element eigenvalue's round-off. dt_critical
+    is the stiff body's step, bit for bit, and so is the min over the bodies."""
+    sim = _simulation(_two_bodies(quadrilateral, factor * E))
+    s = sim.run()
+    stable = s["stable_dt"]
+    assert set(stable) == {"soft", "stiff"} and s["stable_dt_limiting"] == "stiff"
+    assert s["dt_critical"] == min(stable.values()) == stable["stiff"]
+    assert s["dt"] == 0.9 * s["dt_critical"]
+    # each w^2 within (EIG + the quadrilateral's Jacobians) EPS, two of them, sqrt halves
+    jacobian = 3 * 8 * N_Z if quadrilateral else 0  # z_max / h = N_Z
+    bound = rounding(EIG + jacobian + 4)  # + the sqrt, 2 / w, the ratio and sqrt(factor)
+    ratio = stable["soft"] / stable["stiff"]
+    assert abs(ratio / math.sqrt(factor) - 1.0) <= bound, (ratio, bound)
+
+
+def test_history_dt_is_the_summary_dt_with_blocks_and_python_steps(tmp_path):
+    """The dt column holds the run's dt in every row, with the compiled blocks and with the
+    Python steps. The time column is n dt."""
+    root = COMM.bcast(str(tmp_path), root=0)
+    for compiled in (True, False):
+        out = os.path.join(root, f"run_{compiled}")
+        sim = _simulation(_two_bodies(False, 4.0 * E), out=out, compiled_steps=compiled,
+                          history_every=3)
+        s = sim.run()
+        assert compiled or not sim.compiled_steps  # (blocks where the stack allows them)
+        with open(os.path.join(out, "history.csv")) as f:
+            head = f.readline().strip().split(",")
+        h = np.loadtxt(os.path.join(out, "history.csv"), delimiter=",", skiprows=1, ndmin=2)
+        assert head[:3] == ["step", "time", "dt"]
+        step = h[:, head.index("step")]
+        # every third step and the energy rows' steps (every output_every), the last one
+        expected = sorted({*range(1, s["n_steps"] + 1, 3), *range(1, s["n_steps"] + 1, 10),
+                           s["n_steps"]})
+        assert step.tolist() == expected
+        assert np.all(h[:, head.index("dt")] == s["dt"])
+        assert np.array_equal(h[:, head.index("time")], step * s["dt"])
+
+
+def test_console_names_each_body_and_the_limiting_one(capsys):
+    sim = _simulation(_two_bodies(False, 4.0 * E), quiet=False)
+    sim.run()
+    out = capsys.readouterr().out
+    if COMM.rank == 0:
+        line = [x for x in out.splitlines() if x.startswith("stable step per body")]
+        assert len(line) == 1, out
+        d = sim.stable_dt
+        assert (f"soft {d['soft']:.3g} s, stiff {d['stiff']:.3g} s (limits); every body steps "
+                f"dt = {sim.settings.dt:.3g} s") in line[0]
+    else:
+        assert "stable step" not in out
+
+
+# the Taylor bar of copper on a dyadic mesh: R = 2^-8 m, 2 x 20 square cells of 2^-9 m
+R_BAR, N_BAR = 2.0 ** -8, 2
+COPPER = dict(E=117e9, nu=0.35, density=8930.0)
+
+
+def test_finite_strain_stable_step_and_history_dt(tmp_path):
+    out = COMM.bcast(str(tmp_path / "taylor"), root=0)
+    mesh = quad_bar(COMM, R_BAR, 10 * R_BAR, N_BAR, 10 * N_BAR)
+    run = FiniteRun(mesh, FiniteJ2(yield_stress=400e6, hardening=100e6, **COPPER),
+                    FiniteSettings(t_end=3e-6, history_every=1, dt_interval=3, out=out,
+                                   fields=False, plots=False),
+                    velocity=(0.0, -227.0), wall="film", name="bar")
+    s = run.run()
+    # at the start: h / (sqrt 2 c), c from E, nu, rho by hand
+    E_, nu, rho = COPPER["E"], COPPER["nu"], COPPER["density"]
+    c = math.sqrt(E_ * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu) * rho))
+    h = R_BAR / N_BAR
+    # A and the diagonals are exact on the dyadic mesh; L = A / sqrt(2 h^2) rounds twice,
+    # c about 8 times on each side and its sqrt once, L / c once: 2 x 12
+    assert s["stable_dt"]["bar"] == pytest.approx(h / (math.sqrt(2.0) * c), rel=rounding(24))
+    assert s["stable_dt_limiting"] == "bar"
+    with open(os.path.join(out, "history.csv")) as f:
+        head = f.readline().strip().split(",")
+    rows = np.loadtxt(os.path.join(out, "history.csv"), delimiter=",", skiprows=1, ndmin=2)
+    col = {name: rows[:, k] for k, name in enumerate(head)}
+    assert col["step"].tolist() == list(range(s["n_steps"] + 1))
+    assert col["dt"][0] == 0.0 and col["time"][0] == 0.0
+    assert col["dt_limit"][0] == s["stable_dt"]["bar"]
+    # the steps vary as the cells flatten; the last one is clipped to t_end
+    assert s["stable_dt_smallest"]["bar"] == col["dt_limit"].min() < s["stable_dt"]["bar"]
+    assert col["dt"][1:].min() < col["dt"][1:].max()
+    assert col["time"][-1] == s["t_end"] == pytest.approx(3e-6, rel=rounding(s["n_steps"]))
+    step = np.diff(col["time"])
+    half_ulp = 0.5 * np.spacing(col["time"][1:])
+    assert np.all(np.abs(step - col["dt"][1:]) <= half_ulp)
+    assert step[0] == col["dt"][1]  # t_1 = 0 + dt exactly
+    # the run's own rows in memory are the file's
+    assert np.array_equal(run.history["dt"], col["dt"])

@@ -1,6 +1,6 @@
 """Point probes: a field's value in the cell that contains a point (DG0, as CST gives it).
 
-A probe reads the six displacement dofs of its cell's three nodes: each rank
+A probe reads the six displacement dofs of its triangle's three nodes: each rank
 copies the ones it owns into the history row (one compiled call for all probes,
 no communication), the rows are summed over the ranks once per block of rows,
 and the values follow from the dofs. In the cell of a linear body the stress is
@@ -267,7 +267,7 @@ class CellPoints:
 
 class Probes:
     """Cell values at points: ``quantity`` in QUANTITIES (stresses in Pa, u_r, u_z in m)
-    of the cell holding each point (r, z) in m."""
+    of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point)."""
 
     def __init__(self, model, probes: list[tuple[str, tuple[float, float], str]],
                  plastic_forces=()):

@@ -178,8 +178,9 @@ A small-strain body (the default) on `generator = "quad_bar"` runs in the usual 
 on Q1 quadrilaterals with mean dilatation (B̄): one body, every cell in its group, the
 facet groups `axis` (r = 0), `outer`, `bottom` (z = 0) and `top`; `[[loads]]`,
 `[[fixed]]` and `[[probes]]` as on triangles (a probe's `u_r`, `u_z` are the bilinear
-interpolation at its point, its stresses the cell's); `[[contact]]` and
-`[rigid.NAME]` are refused there for now. `scenes/elastic_wave_q1.toml` is the example.
+interpolation at its point, its stresses the cell's) and a rigid body's `[[contact]]`
+(a contact between deformable faces needs two bodies). `scenes/elastic_wave_q1.toml` is
+the example.
 """
 
 

@@ -28,7 +28,7 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
 
 A small-strain scene may not use [wall] or dt_interval. On ``quad_bar`` it has one
 body, Q1 with mean dilatation (the Simulation of scene_file.py, :func:`quad_bar_mesh`),
-and no [[contact]] or [rigid.NAME] yet.
+in contact with rigid bodies only.
 Every refusal is an InputError naming the table and the key (exit 2).
 """
 from __future__ import annotations
@@ -77,10 +77,11 @@ def check_kind(scene) -> None:
             if len(scene.bodies) > 1:
                 raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
                                  f"{len(scene.bodies)} ([bodies])")
-            for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]")):
-                if getattr(scene, key):
-                    raise InputError(f'{what}: not available on quadrilaterals yet ([mesh] '
-                                     'generator = "quad_bar"; use a mesh of triangles)')
+            for c in scene.contacts:
+                if c.rigid is None:
+                    raise InputError(f'{c.where} a contact between deformable faces needs two '
+                                     'bodies: [mesh] generator = "quad_bar" makes one (a rigid '
+                                     "body's [[contact]] runs on it)")
         if scene.time["dt_interval"] is not None:
             raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
         return

@@ -12,7 +12,9 @@ Oracles:
 * scenes/elastic_wave_q1.toml run through the CLI against d'Alembert with the
   tolerances of the Python Q1 wave test; ParaView's default reader opens its fields
   (quadrilaterals, every cell once);
-* what a quad_bar scene does not run yet is refused: exit 2, one line, nothing written.
+* a rigid punch striking the scene's bar (DME, FILM, penalty): the momentum of punch and
+  bar is the punch's initial one to round-off (the contact force acts on both);
+* what a quad_bar scene does not run is refused: exit 2, one line, nothing written.
 """
 import math
 import os
@@ -257,17 +259,65 @@ def test_scene_fields_are_quadrilaterals_paraview_opens(scene_run):
     assert result["warped_points"] > 0
 
 
+# ------------------------------------------------------------------ a rigid punch
+PUNCH_MASS, PUNCH_V = 5.0, -5.0  # kg, m/s
+
+
+def punch_scene(method: str) -> str:
+    """The scene's bar without its load, struck on its top face by a rigid punch."""
+    with open(SCENE) as f:
+        text = f.read()
+    load = text[text.index("[[loads]]"): text.index("[time]")]
+    return replace(text, load, f"""[rigid.punch]
+mass = {PUNCH_MASS}              # kg
+velocity = {PUNCH_V}          # m/s
+
+[[contact]]
+surface = "top"
+rigid = "punch"
+radius = 0.05
+method = "{method}"
+
+""")
+
+
+@pytest.mark.parametrize("method", ["dme", "film", "penalty"])
+def test_rigid_punch_on_a_q1_scene_conserves_momentum(tmp_path, method):
+    """No support: the punch's impulse on the bar is the bar's momentum gain. Round-off:
+    each step's contact force is one number applied to both, its spread over the face's
+    11 nodes and the momentum sums over 2211 nodes round: n_steps x 64 roundings of
+    m v0 (the measured error is about 1e-13 of it)."""
+    base = COMM.bcast(str(tmp_path), root=0)
+    scene, out = os.path.join(base, "punch.toml"), os.path.join(base, "run")
+    if COMM.rank == 0:
+        with open(scene, "w") as f:
+            f.write(punch_scene(method))
+    COMM.barrier()
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    import json
+
+    with open(os.path.join(out, "summary.json")) as f:
+        s = json.load(f)
+    (impact,) = s["impact"]
+    bar = s["bodies"]["bar"]
+    p0 = PUNCH_MASS * PUNCH_V
+    p = PUNCH_MASS * impact["velocity_upper_after"] + bar["mass"] * bar["velocity_z_final"]
+    if COMM.rank == 0:
+        print(f"Q1 punch {method}: momentum error {abs(p - p0) / abs(p0):.3g} of m v0, punch "
+              f"{impact['velocity_upper_after']:.4g} m/s, bar {bar['velocity_z_final']:.4g} m/s")
+    assert impact["velocity_upper_after"] > PUNCH_V  # it was slowed
+    assert abs(p - p0) <= rounding(64 * s["n_steps"], abs(p0))
+
+
 # ------------------------------------------------------------------ refusals
 REFUSALS = [
     ("two bodies", ('[bodies.bar]\nmaterial = "steel"',
                     '[bodies.bar]\nmaterial = "steel"\n\n[bodies.rod]\nmaterial = "steel"'),
      '[mesh] generator = "quad_bar" makes one body; the scene has 2 ([bodies])'),
-    ("contact", ("[time]", '[[contact]]\nlower = "bottom"\nupper = "top"\nmethod = "film"\n\n'
-                           "[time]"),
-     '[[contact]]: not available on quadrilaterals yet ([mesh] generator = "quad_bar"'),
-    ("rigid body", ("[time]", '[rigid.punch]\nmass = 1.0\n\n[[contact]]\nsurface = "top"\n'
-                              'rigid = "punch"\nradius = 0.05\nmethod = "dme"\n\n[time]'),
-     '[[contact]]: not available on quadrilaterals yet'),
+    ("contact of deformable faces",
+     ("[time]", '[[contact]]\nlower = "bottom"\nupper = "top"\nmethod = "film"\n\n[time]'),
+     '[contact #1] a contact between deformable faces needs two bodies: [mesh] generator = '
+     '"quad_bar" makes one'),
 ]
 
 

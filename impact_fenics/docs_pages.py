@@ -167,10 +167,20 @@ quadrilaterals with mean dilatation, the step re-estimated every `dt_interval` s
 `"johnson_cook"`; `"neo_hookean"`; or a class of your own with `strain = "finite"`),
 optionally a `[wall]`, and `t_end`; `[[contact]]`, `[rigid]`, `[[loads]]`, `[[fixed]]`,
 `[[probes]]`, `n_steps`, `force_dt` and `converged_dt` are refused there, as are
-`[wall]`, `quad_bar` and `dt_interval` in a small-strain scene. A material at a
+`[wall]` and `dt_interval` in a small-strain scene. A material at a
 kinematics it lacks is refused in one line naming the one it has.
 `scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the examples;
 [materials.md](materials.md) describes the element and the materials.
+
+## Small strain on quadrilaterals
+
+A small-strain body (the default) on `generator = "quad_bar"` runs in the usual loop
+on Q1 quadrilaterals with mean dilatation (B̄): one body, every cell in its group, the
+facet groups `axis` (r = 0), `outer`, `bottom` (z = 0) and `top`; `[[loads]]`,
+`[[fixed]]` and `[[probes]]` as on triangles (a probe's `u_r`, `u_z` are the bilinear
+interpolation at its point, its stresses the cell's) and a rigid body's `[[contact]]`
+(a contact between deformable faces needs two bodies). `scenes/elastic_wave_q1.toml` is
+the example.
 """
 
 

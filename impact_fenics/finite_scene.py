@@ -26,7 +26,9 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   10);
 * no [[contact]], [rigid], [[loads]], [[fixed]] or [[probes]] (refused, one line).
 
-A small-strain scene may not use [wall], quad_bar or dt_interval.
+A small-strain scene may not use [wall] or dt_interval. On ``quad_bar`` it has one
+body, Q1 with mean dilatation (the Simulation of scene_file.py, :func:`quad_bar_mesh`),
+in contact with rigid bodies only.
 Every refusal is an InputError naming the table and the key (exit 2).
 """
 from __future__ import annotations
@@ -72,8 +74,14 @@ def check_kind(scene) -> None:
                              'strain = "finite"); small-strain bodies meet rigid bodies through '
                              "[rigid.NAME] and [[contact]]")
         if scene.mesh.generator == "quad_bar":
-            raise InputError('[mesh] generator = "quad_bar": quadrilaterals carry finite-strain '
-                             'bodies only: set strain = "finite" in [bodies.NAME]')
+            if len(scene.bodies) > 1:
+                raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
+                                 f"{len(scene.bodies)} ([bodies])")
+            for c in scene.contacts:
+                if c.rigid is None:
+                    raise InputError(f'{c.where} a contact between deformable faces needs two '
+                                     'bodies: [mesh] generator = "quad_bar" makes one (a rigid '
+                                     "body's [[contact]] runs on it)")
         if scene.time["dt_interval"] is not None:
             raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
         return
@@ -114,6 +122,23 @@ def check_kind(scene) -> None:
              f'"{scene.wall.method}" (only penalty reads it)')
 
 
+def quad_bar_cells_along(p: dict) -> int:
+    """n_z of the quad_bar mesh of [mesh] parameters ``p``: square cells, round(n_r length /
+    radius) along the bar."""
+    return max(1, round(p["n_r"] * p["length"] / p["radius"]))
+
+
+def quad_bar_mesh(scene, comm: MPI.Comm):
+    """The TaggedMesh of a small-strain scene on ``quad_bar``: every cell in its one body's
+    group, the facet groups axis (r = 0), outer, bottom (z = 0) and top."""
+    from .finite_run import quad_bar
+    from .quad_meshes import tag_rectangle
+
+    p = scene.mesh.params
+    mesh = quad_bar(comm, p["radius"], p["length"], p["n_r"], quad_bar_cells_along(p))
+    return tag_rectangle(mesh, scene.bodies[0].name)
+
+
 def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.COMM_WORLD):
     """The :class:`~impact_fenics.finite_run.FiniteRun` of a checked finite-strain scene;
     ``overrides`` sets fields of its FiniteSettings (out, quiet, ...)."""
@@ -125,7 +150,7 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
     spec = scene.materials[body.material]
     material = spec.material(body.strain)  # built and checked by read_scene
     p = scene.mesh.params
-    n_z = max(1, round(p["n_r"] * p["length"] / p["radius"]))
+    n_z = quad_bar_cells_along(p)
     with within("[mesh]"):
         mesh = quad_bar(comm, p["radius"], p["length"], p["n_r"], n_z)
     t, o = scene.time, scene.output

@@ -1,12 +1,19 @@
 """Point probes: a field's value in the cell that contains a point (DG0, as CST gives it).
 
-A probe reads the six displacement dofs of its cell's three nodes: each rank
+A probe reads the six displacement dofs of its triangle's three nodes: each rank
 copies the ones it owns into the history row (one compiled call for all probes,
 no communication), the rows are summed over the ranks once per block of rows,
 and the values follow from the dofs. In the cell of a linear body the stress is
 :func:`~impact_fenics.cell_fields.triangle_strain` and the material's constant
 stiffness D, the value a UFL Expression of the stress gives at the cell's
 midpoint, to round-off. u_r and u_z probes are the cell means of the nodal values.
+
+In a quadrilateral (Q1) cell the row holds the eight dofs of its four nodes; u_r
+and u_z are the Q1 interpolation at the point, sum_a N_a(xi) u_a with xi the
+point's reference coordinates (the inverse bilinear map, :func:`.q1.reference_point`,
+solved once at set-up: the weights N_a(xi) are fixed), and a linear body's stress is
+D times the cell's ring-weighted mean strain (:func:`.q1.mean_strain`), the cell
+value of the fields.
 
 In the cell of a path-dependent body the row also holds the state of the cell's
 three points (plastic strain, the material's variables, stress) as the owning
@@ -26,6 +33,7 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
+from . import q1
 from .cell_fields import (STRESS_NAMES, point_mean_stress, stiffness_matrix, stress_outputs,
                           triangle_strain, von_mises)
 from .compat import cell_dofs, colliding_cells
@@ -34,9 +42,11 @@ from .jit_watch import direct, load
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
 QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES
-# raw history entries per probe: u_r, u_z of the cell's three nodes; a probe in a cell of
-# a path-dependent body has its points' state after all of them (CellPoints.size)
+# raw history entries per probe: u_r, u_z of the cell's three nodes (four on a mesh of
+# quadrilaterals: RAW_Q1); a probe in a cell of a path-dependent body has its points' state
+# after all of them (CellPoints.size)
 RAW = 6
+RAW_Q1 = 8
 _U_R, _U_Z = QUANTITIES.index("u_r"), QUANTITIES.index("u_z")
 
 
@@ -97,9 +107,9 @@ def _record_points(eps_p, state, sigma, pos, row, start) -> None:
 
 @njit(cache=True)
 def _unpack_points(row, u_start, start, u, eps_p, state, sigma) -> None:
-    """The six nodal displacements row[u_start:u_start + 6] into u and the points' state
+    """The nodal displacements row[u_start:u_start + u.size] into u and the points' state
     recorded by :func:`_record_points` at row[start:] into the one-cell arrays."""
-    for i in range(6):
+    for i in range(u.size):
         u[i] = row[u_start + i]
     k = start
     for q in range(eps_p.shape[1]):
@@ -160,6 +170,56 @@ def _values(raw, xy, D, code, pointwise, out) -> None:
                 out[i, p] = stress_outputs(D[p], e[0], e[1], e[2], e[3])[c]
 
 
+@njit(cache=True)
+def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, D, code, pointwise, out) -> None:
+    """:func:`_values` in Q1 cells (RAW_Q1 per probe first): u_r and u_z the Q1
+    interpolation sum_a weights[p, a] u_a at the point (m); a linear body's stress D times
+    the cell's mean strain (Pa; the one-cell geometry of probe p: dNdR[p], ... of
+    :class:`.q1.QuadGeometry`)."""
+    dofs = np.arange(4).reshape(1, 4)
+    eps = np.zeros((1, 4))
+    for i in range(raw.shape[0]):
+        for p in range(code.size):
+            q = raw[i, RAW_Q1 * p: RAW_Q1 * p + RAW_Q1]
+            c = code[p]
+            if c == _U_R or c == _U_Z:
+                k = c - _U_R
+                out[i, p] = (weights[p, 0] * q[k] + weights[p, 1] * q[k + 2]
+                             + weights[p, 2] * q[k + 4] + weights[p, 3] * q[k + 6])
+            elif pointwise[p]:
+                continue
+            elif c > _U_Z:  # eps_p_eq, yielded
+                out[i, p] = 0.0
+            else:
+                q1.mean_strain(dofs, dNdR[p: p + 1], dNdZ[p: p + 1], N, inv_R[p: p + 1],
+                               w[p: p + 1], q, eps)
+                out[i, p] = stress_outputs(D[p], eps[0, 0], eps[0, 1], eps[0, 2], eps[0, 3])[c]
+
+
+class _QuadCells:
+    """The Q1 data of the probes' cells, on every rank: the interpolation weights N_a(xi)
+    (n, 4) at each point and the one-cell geometry of :class:`.q1.QuadGeometry`."""
+
+    def __init__(self, n: int):
+        self.weights = np.zeros((n, 4))
+        self.dNdR = np.zeros((n, 4, 4))
+        self.dNdZ = np.zeros((n, 4, 4))
+        self.inv_R = np.zeros((n, 4))
+        self.w = np.zeros((n, 4))
+        self.N = np.ascontiguousarray(q1.shape_functions(q1.GAUSS)[0])
+
+    def fill(self, k: int, V, node_xy: np.ndarray, cell: int, point) -> None:
+        """Probe k's entries from its cell (local index) on the owning rank."""
+        g = q1.QuadGeometry(V, node_xy, np.array([cell], dtype=np.int32))
+        xi = q1.reference_point(node_xy[g.dofs[0]], np.asarray(point, dtype=float))
+        self.weights[k] = q1.shape_functions(xi[None, :])[0][0]
+        self.dNdR[k], self.dNdZ[k] = g.dNdR[0], g.dNdZ[0]
+        self.inv_R[k], self.w[k] = g.inv_R[0], g.w[0]
+
+    def arrays(self) -> tuple:
+        return (self.weights, self.dNdR, self.dNdZ, self.inv_R, self.w)
+
+
 class CellPoints:
     """The points of one cell of a path-dependent body, known on every rank: their
     geometry (copied from the owning rank) and the update of their state at a given
@@ -171,18 +231,19 @@ class CellPoints:
         """``pos``: the cell's position in ``force.cells`` on the rank that owns it, -1 on
         the others."""
         g = force.geometry
-        geo = np.zeros((4, 3))
-        if pos >= 0:
-            geo[:] = g.dNdr[pos], g.dNdz[pos], g.inv_r[pos], g.w[pos]
-        comm.Allreduce(MPI.IN_PLACE, geo, op=MPI.SUM)
-        self.dNdr, self.dNdz, self.inv_r, self.w = (np.ascontiguousarray(geo[i: i + 1])
-                                                    for i in range(4))
+        geo = [np.zeros((1,) + a.shape[1:]) for a in (g.dNdr, g.dNdz, g.inv_r, g.w)]
+        for a, src in zip(geo, (g.dNdr, g.dNdz, g.inv_r, g.w)):
+            if pos >= 0:
+                a[0] = src[pos]
+            comm.Allreduce(MPI.IN_PLACE, a, op=MPI.SUM)
+        self.dNdr, self.dNdz, self.inv_r, self.w = geo
         self.N = g.N
-        self.dofs = np.array([[0, 1, 2]], dtype=g.dofs.dtype)
+        n_nodes = g.dofs.shape[1]  # 3 on triangles, 4 on quadrilaterals
+        self.dofs = np.arange(n_nodes, dtype=g.dofs.dtype).reshape(1, n_nodes)
         self.params, self.dt = force.params, force.dt
         n_points, n_comp = force.qs.eps_p.shape[1:]
         ns = force.qs.state.shape[2]
-        self.u, self.f = np.zeros(6), np.zeros(6)
+        self.u, self.f = np.zeros(2 * n_nodes), np.zeros(2 * n_nodes)
         self.eps_p = np.zeros((1, n_points, n_comp))
         self.state = np.zeros((1, n_points, ns))
         self.sigma = np.zeros((1, n_points, n_comp))
@@ -206,7 +267,7 @@ class CellPoints:
 
 class Probes:
     """Cell values at points: ``quantity`` in QUANTITIES (stresses in Pa, u_r, u_z in m)
-    of the cell holding each point (r, z) in m."""
+    of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point)."""
 
     def __init__(self, model, probes: list[tuple[str, tuple[float, float], str]],
                  plastic_forces=()):
@@ -214,15 +275,16 @@ class Probes:
         self.points = [pt for _, pt, _ in probes]
         self.comm: MPI.Comm = model.comm
         mesh = model.mesh
-        if probes and getattr(model, "quadrilateral", False):
-            raise InputError("probes read triangles' cells: a mesh of quadrilaterals has none yet")
         n = len(probes)
-        self.n_raw = RAW * n
-        self.xy = np.zeros((n, 3, 2))
+        quad = getattr(model, "quadrilateral", False)
+        self.width = width = RAW_Q1 if quad else RAW  # raw entries of a probe's cell dofs
+        self._quad = _QuadCells(n) if quad else None
+        self.n_raw = width * n
+        self.xy = np.zeros((n, width // 2, 2))
         self.D = np.zeros((n, 4, 4))
         self.code = np.zeros(n, dtype=np.int64)
         self.midpoints = np.zeros((n, 2))  # (r, z) in m of each probe's cell
-        dofs = np.zeros(6 * n, dtype=np.int64)  # global unrolled dofs
+        dofs = np.zeros(width * n, dtype=np.int64)  # global unrolled dofs
         imap = model.V.dofmap.index_map
         cell_nodes = cell_dofs(model.V)
         forces = {f.body: f for f in plastic_forces}
@@ -238,15 +300,18 @@ class Probes:
             if mine:
                 nodes = cell_nodes[cell].astype(np.int32)
                 glob = imap.local_to_global(nodes)
-                dofs[6 * k: 6 * k + 6] = np.column_stack([2 * glob, 2 * glob + 1]).ravel()
+                dofs[width * k: width * (k + 1)] = np.column_stack([2 * glob,
+                                                                    2 * glob + 1]).ravel()
                 self.xy[k] = model.node_xy[nodes]
+                if quad:
+                    self._quad.fill(k, model.V, model.node_xy, cell, point)
                 self.midpoints[k] = self.xy[k].mean(axis=0)
                 which[k] = next(b for b, body in enumerate(bodies)
                                 if cell in model.tmesh.cells(body.name))
                 force = forces.get(bodies[which[k]].name)
                 if force is not None:
                     owned_pos[k] = int(np.searchsorted(force.cells, cell))
-        for arr in (dofs, self.xy, self.midpoints):
+        for arr in (dofs, self.xy, self.midpoints) + (self._quad.arrays() if quad else ()):
             self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
         self.comm.Allreduce(MPI.IN_PLACE, which, op=MPI.MAX)
         # probes of a stress or a plastic quantity in the cell of a path-dependent body:
@@ -279,14 +344,22 @@ class Probes:
                 self.D[k] = D
         owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned)
         index = np.full(self.n_raw, -1, dtype=np.int64)
-        index[: RAW * n] = np.where(owned, dofs - model.offset, -1)
+        index[: width * n] = np.where(owned, dofs - model.offset, -1)
         self._index = index
         # load the compiled calls now, not in the first timed step: the recorder, and the
         # values with ``out`` of its own and a column slice of a wider block, as a history
         # table passes it (a view numpy does not call contiguous)
         self.recorder(np.zeros(model.n_owned), np.zeros(self.n_raw))(0)
         for out in (np.zeros((1, n)), np.zeros((2, n + 2))[:, 1: n + 1]):
-            load(_values, np.zeros((1, self.n_raw)), self.xy, self.D, self.code, self.pointwise, out)
+            self._load_values(np.zeros((1, self.n_raw)), out)
+
+    def _load_values(self, raw: np.ndarray, out: np.ndarray) -> None:
+        if self._quad is None:
+            load(_values, raw, self.xy, self.D, self.code, self.pointwise, out)
+        else:
+            qc = self._quad
+            load(_quad_values, raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, self.D,
+                 self.code, self.pointwise, out)
 
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
         """``record(offset)``: the probe dofs this rank owns (m), and the points' state of
@@ -310,11 +383,16 @@ class Probes:
         if out is None:
             out = np.empty((raw.shape[0], self.code.size))
         raw = np.ascontiguousarray(raw)
-        _values(raw, self.xy, self.D, self.code, self.pointwise, out)
+        if self._quad is None:
+            _values(raw, self.xy, self.D, self.code, self.pointwise, out)
+        else:
+            qc = self._quad
+            _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, self.D,
+                         self.code, self.pointwise, out)
         for k, cell_points, start in self._points:
             code = int(self.code[k])
             for i in range(raw.shape[0]):
-                out[i, k] = cell_points.value(raw[i], RAW * k, start, code)
+                out[i, k] = cell_points.value(raw[i], self.width * k, start, code)
         return out
 
 

@@ -67,6 +67,29 @@ def shape_functions(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return fx * fy, np.stack([sx * fy, fx * sy], axis=-1)
 
 
+def reference_point(X: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """The reference coordinates xi (2,) of the physical point ``point`` (r, z) (m) in the
+    cell of vertices X (4, 2) (m, dolfinx's order): the root of sum_a N_a(xi) X_a = x by
+    Newton's method from the cell's centre (the bilinear map is invertible on a cell that
+    is not twisted; a point inside converges quadratically, in a few iterations). A
+    coordinate within a few round-offs of 0 or 1 is put there: a point on a node or an
+    edge reads those nodes alone."""
+    xi = np.array([0.5, 0.5])
+    scale = float(np.max(np.abs(X - X.mean(axis=0)))) or 1.0
+    for _ in range(50):
+        N, dN = shape_functions(xi[None, :])
+        residual = N[0] @ X - point
+        if np.max(np.abs(residual)) <= 4.0 * np.finfo(float).eps * max(scale, np.max(np.abs(X))):
+            break
+        xi = xi - np.linalg.solve(X.T @ dN[0], residual)
+    tol = 16.0 * np.finfo(float).eps
+    for k in range(2):
+        for edge in (0.0, 1.0):
+            if abs(xi[k] - edge) <= tol:
+                xi[k] = edge
+    return xi
+
+
 class QuadGeometry:
     """Geometry of Q1 cells at the 2x2 Gauss points (see the module).
 

@@ -536,6 +536,10 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     with within("[mesh]"):
         if scene.mesh.file is not None:
             tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
+        elif scene.mesh.generator == "quad_bar":  # Q1 small strain (finite_scene.py)
+            from .finite_scene import quad_bar_mesh
+
+            tmesh = quad_bar_mesh(scene, comm)
         else:
             generate = getattr(meshing, scene.mesh.generator)
             tmesh = generate(comm=comm, **scene.mesh.params)

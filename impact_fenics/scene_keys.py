@@ -84,7 +84,7 @@ DT_INTERVAL = 10  # finite strain: steps between re-estimates of the stable step
 ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 
 # the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
-# (impact_fenics.finite_run) for a finite-strain body
+# (impact_fenics.finite_run: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
               "nosed_striker_on_block")
 # parameters a generator has no default for (quad_bar: impact_fenics.finite_run.quad_bar)
@@ -195,7 +195,8 @@ _BODIES = Section("bodies", "[bodies.NAME]", (
     Key("material", "text", "", REQUIRED, "the name of a [materials.NAME] table"),
     Key("velocity", "pair", "m/s", [0.0, 0.0], "initial velocity [v_r, v_z]"),
     Key("strain", "text", "", "small", "the kinematics", choices=("small", "finite"),
-        note="Small strain: the linear and small-strain plastic paths on triangles. Finite "
+        note="Small strain: the linear and small-strain plastic paths on triangles, or Q1 "
+        "quadrilaterals with mean dilatation on `quad_bar` (one body, below). Finite "
         "strain: total Lagrangian, Q1 quadrilaterals with mean dilatation, a variable step "
         "(below)."),
 ))

@@ -57,7 +57,7 @@ from .energy import (STABLE, _output_sums, copy_state, energy_verdict,
 from .jit_watch import drop_stale_cache
 from .contact.interface import ContactSet
 from .contact.state import (B, FORCE, LEDGER, LO, MISC_SIZE, N_CONS, RIGID_MASS, RIGID_WORK,
-                            STATS, U, U_NOW, UP, V, WAVES, _committed_gap, _pack)
+                            STATS, U, U_NOW, UP, V, V_NOW, WAVES, _committed_gap, _pack)
 from .output import _pair_row
 from .probes import _record_at
 from .timers import _book
@@ -194,7 +194,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         if output:  # u^n, v^n (simulation._pre_output)
             copy_state(src_u, src_v, u_n, v_n)
             if rigid:
-                v_rigid = F[V, body]
+                v_rigid = F[V_NOW, body]  # committed v^n (F[V] is set by a first step)
         err = native.mat_mult_add(mult_add, A, u, v, v)
         if err == 0:
             err = native.vec_axpy(axpy, u, dt, v)

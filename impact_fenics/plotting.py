@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import sys
+import textwrap
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -538,10 +539,13 @@ def _render(pic: Picture, width: int) -> None:
     if lo[0] < r0 or hi[0] > r1 or lo[1] < z0 or hi[1] > z1:  # crop: cut the cells at the frame
         grid = grid.clip_box((r0, r1, z0, z1, -1.0, 1.0), invert=False)
     along, across = max(r1 - r0, 1e-300), max(z1 - z0, 1e-300)  # horizontal, vertical
-    margin_top, margin_bottom = 70, 150  # pixels for the title and the colour bar
     plot_h = float(np.clip(0.92 * width * across / along, 200, 1600))
     width = int(min(width, max(MIN_WIDTH, plot_h * along / across / 0.92)))
     plot_w = 0.92 * width
+    # the title wrapped to the picture's width (font size 11: about 12 pixels a character)
+    lines = [line for part in pic.title.split("\n")
+             for line in textwrap.wrap(part, max(20, width // 14))]
+    margin_top, margin_bottom = 30 + 20 * len(lines), 150  # pixels: title, colour bar
     height = int(plot_h / 0.92) + margin_top + margin_bottom
     plotter = pv.Plotter(off_screen=True, window_size=(width, height))
     plotter.set_background("white")
@@ -549,7 +553,7 @@ def _render(pic: Picture, width: int) -> None:
                      scalar_bar_args={"title": pic.label, "color": "black", "vertical": False,
                                       "position_x": 0.25, "position_y": 0.04,
                                       "width": 0.5, "height": 0.08, "fmt": "%.3g"})
-    plotter.add_text(pic.title, position="upper_edge", font_size=11, color="black")
+    plotter.add_text("\n".join(lines), position="upper_edge", font_size=11, color="black")
     plotter.add_text(pic.caption, position="lower_left", font_size=8, color="gray")
     plotter.view_xy()
     plotter.enable_parallel_projection()

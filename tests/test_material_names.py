@@ -31,6 +31,7 @@ from impact_fenics import cli, scene_file
 from impact_fenics.errors import InputError
 from impact_fenics.materials import MODELS, DruckerPrager, JohnsonCook
 from scene_texts import PAIR, ROOT, launch, replace
+from test_bit_rock import SCENE as BIT_ROCK_SCENE
 
 COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="launches processes: serial only")
@@ -282,48 +283,8 @@ def test_drucker_prager_by_name_is_the_python_route(tmp_path):
 
 
 N_BIT = 150
-# the tiny bit-rock scene of tests/test_bit_rock.py, with a flat bit
-BIT_ROCK = f"""\
-title = "tiny bit"
-[mesh]
-generator = "punch_block"
-width = 0.06
-depth = 0.06
-h_surface = 0.002
-grading = 0.2
-h_max = 0.01
-breaks = [[0.01, 5]]
-[materials.granite]
-E = 60e9
-nu = 0.25
-density = 2600.0
-[bodies.block]
-material = "granite"
-[rigid.bit]
-mass = 0.5
-impedance = 31866.9
-[[fixed]]
-facet = "bottom"
-components = ["z"]
-[[contact]]
-surface = "surface"
-rigid = "bit"
-radius = 0.01
-method = "film"
-[[loads]]
-rigid = "bit"
-incident = true
-peak = 150e3
-t_rise = 1e-5
-t_fall = 7e-5
-t_end = 8e-5
-[time]
-cfl = 0.9
-n_steps = {N_BIT}
-[output]
-fields = false
-plots = false
-"""
+# the tiny bit-rock scene of tests/test_bit_rock.py (150 steps), with a flat bit
+BIT_ROCK = BIT_ROCK_SCENE.replace("button = 0.02\n", "")
 
 
 # ----------------------------------------------------------------------------- one's own class

@@ -111,6 +111,8 @@ def _checked(path: str, method: str | None, out: str | None, force: bool, quiet:
 
     with interrupts.whole():  # the compiled modules a run needs (dolfinx, PETSc, numba)
         from . import meshing, plausibility, scene_file, simulation  # noqa: F401
+    if running:
+        meshing.start_gmsh()
 
     comm = MPI.COMM_WORLD
     if out is not None and not out.strip():

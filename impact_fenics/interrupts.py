@@ -152,6 +152,22 @@ def kept() -> Iterator[None]:
 
 
 @contextmanager
+def masked() -> Iterator[None]:
+    """SIGINT and SIGTERM blocked in the calling thread for the block, pending until it
+    ends: around a library call that resets their action in C (newer gmsh's initialize()
+    sets SIGTERM to the default, which would end the process silently). Put it outside
+    :func:`kept`, so that the handlers are back before a pending signal is let through.
+    A signal sent to the process goes to a thread that does not block it: the threads
+    started during :func:`held_at_start` (MPI's) block these signals for good, so it
+    waits for this one; a thread started otherwise could take it meanwhile."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextmanager
 def held_at_start() -> Iterator[None]:
     """Around the package's first imports (MPI start-up, before any main could call
     :func:`install`): a SIGINT/SIGTERM arriving there ends the program with one line
@@ -164,9 +180,15 @@ def held_at_start() -> Iterator[None]:
             old[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
         except ValueError:  # not the main thread: leave the handlers alone
             old.pop(sig, None)
+    # blocked meanwhile: the threads the imports start (MPI's) inherit the block, so a
+    # signal to the process always reaches this thread, never a thread where a library
+    # may have reset its action (masked); unblocked below, a pending one is caught
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS) if old else None
     try:
         yield
     finally:
+        if mask is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # runs the handler of a pending one
         for sig, handler in old.items():
             signal.signal(sig, handler)
         if caught:

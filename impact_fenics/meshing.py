@@ -66,12 +66,19 @@ def _gmsh():
         import gmsh
 
     if not _GMSH_READY:
-        with interrupts.kept():  # newer gmsh sets SIGINT to SIG_DFL in initialize()
+        # newer gmsh sets SIGINT to SIG_DFL in initialize(), and SIGTERM in C
+        with interrupts.masked(), interrupts.kept():
             gmsh.initialize()
         _GMSH_READY = True
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.Verbosity", 1)
     return gmsh
+
+
+def start_gmsh() -> None:
+    """Initialise gmsh now (once per process): its initialize() resets signal actions in C,
+    so a run does it at start-up, before it reports its estimate (interrupts.masked)."""
+    _gmsh()
 
 
 def _restart_gmsh() -> None:

@@ -73,6 +73,23 @@ from impact_fenics.simulation import Settings, Simulation
 # script is imported, so a demo does not rely on it; a material in the package
 # uses ``cache=True``.)
 @njit
+def voce_return(q, mu, e_n, s0, s_inf, delta) -> float:
+    """The increment x of the equivalent plastic strain that brings the trial stress q
+    (Pa) back to sigma_y(e_n + x); 0 if q is inside the yield surface."""
+    if q - (s0 + (s_inf - s0) * (1.0 - math.exp(-delta * e_n))) <= 0.0:
+        return 0.0
+    x = 0.0
+    for _ in range(50):
+        decay = math.exp(-delta * (e_n + x))
+        g = q - 3 * mu * x - (s0 + (s_inf - s0) * (1.0 - decay))
+        dx = g / (3 * mu + (s_inf - s0) * delta * decay)
+        x += dx
+        if abs(dx) <= 1e-15 * (e_n + x):
+            break
+    return x
+
+
+@njit
 def voce_update(eps, eps_p, state, params, dt, sigma):
     lmbda, mu, s0, s_inf, delta = params[0], params[1], params[2], params[3], params[4]
     e0, e1, e2, e3 = eps[0] - eps_p[0], eps[1] - eps_p[1], eps[2] - eps_p[2], eps[3] - eps_p[3]
@@ -82,17 +99,10 @@ def voce_update(eps, eps_p, state, params, dt, sigma):
     d0, d1, d2 = t0 - m, t1 - m, t2 - m
     q = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2 * t3 * t3))
     e_n = state[0]
-    if q - (s0 + (s_inf - s0) * (1.0 - math.exp(-delta * e_n))) <= 0.0:
+    x = voce_return(q, mu, e_n, s0, s_inf, delta)
+    if x == 0.0:
         sigma[0], sigma[1], sigma[2], sigma[3] = t0, t1, t2, t3
         return
-    x = 0.0
-    for _ in range(50):
-        decay = math.exp(-delta * (e_n + x))
-        g = q - 3 * mu * x - (s0 + (s_inf - s0) * (1.0 - decay))
-        dx = g / (3 * mu + (s_inf - s0) * delta * decay)
-        x += dx
-        if abs(dx) <= 1e-15 * (e_n + x):
-            break
     k = 1.5 * x / q  # d eps_p = k dev sigma_tr
     eps_p[0] += k * d0
     eps_p[1] += k * d1
@@ -151,17 +161,10 @@ def voce_finite_update(F, state, params, dt, tau, work):
     hencky.trial_log_strains(F, state, work)
     q = hencky.principal_kirchhoff(lmbda, mu, work, principal)
     e_n = state[0]
-    if q - (s0 + (s_inf - s0) * (1.0 - math.exp(-delta * e_n))) <= 0.0:
+    x = voce_return(q, mu, e_n, s0, s_inf, delta)
+    if x == 0.0:
         hencky.kirchhoff(principal, work, tau)
         return 0.0
-    x = 0.0
-    for _ in range(50):
-        decay = math.exp(-delta * (e_n + x))
-        g = q - 3 * mu * x - (s0 + (s_inf - s0) * (1.0 - decay))
-        dx = g / (3 * mu + (s_inf - s0) * delta * decay)
-        x += dx
-        if abs(dx) <= 1e-15 * (e_n + x):
-            break
     hencky.radial_return(mu, x, q, principal, work)
     if delta > 0.0:
         wp = s_inf * x - (s_inf - s0) * (math.exp(-delta * e_n)
@@ -174,26 +177,12 @@ def voce_finite_update(F, state, params, dt, tau, work):
 
 
 @dataclass(frozen=True)
-class FiniteVoceJ2(IsotropicConstants):
-    """Finite-strain J2 with Voce hardening (Hencky elasticity, exponential map). E,
-    sigma_0, sigma_inf in Pa; delta (-); density kg/m^3 (reference)."""
+class FiniteVoceJ2(VoceJ2):
+    """Finite-strain J2 with Voce hardening (Hencky elasticity, exponential map): the
+    parameters, their checks and params() of :class:`VoceJ2`; density (reference)."""
 
-    E: float
-    nu: float
-    density: float
-    sigma_0: float
-    sigma_inf: float
-    delta: float
     n_state: int = 5
     strain: ClassVar[str] = "finite"
-
-    def __post_init__(self) -> None:
-        self.check_elastic()
-        require(0 < self.sigma_0 <= self.sigma_inf and self.delta >= 0,
-                "need 0 < sigma_0 <= sigma_inf (Pa) and delta >= 0")
-
-    def params(self) -> np.ndarray:
-        return np.array([self.lmbda, self.mu, self.sigma_0, self.sigma_inf, self.delta])
 
     def initial_state(self) -> np.ndarray:
         return np.array([0.0, 1.0, 1.0, 0.0, 1.0])  # eps_bar_p = 0, C_p^-1 = I

@@ -171,13 +171,12 @@ def _values(raw, xy, D, code, pointwise, out) -> None:
 
 
 @njit(cache=True)
-def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, D, code, pointwise, out) -> None:
+def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, dofs, eps, D, code, pointwise,
+                 out) -> None:
     """:func:`_values` in Q1 cells (RAW_Q1 per probe first): u_r and u_z the Q1
     interpolation sum_a weights[p, a] u_a at the point (m); a linear body's stress D times
     the cell's mean strain (Pa; the one-cell geometry of probe p: dNdR[p], ... of
     :class:`.q1.QuadGeometry`)."""
-    dofs = np.arange(4).reshape(1, 4)
-    eps = np.zeros((1, 4))
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW_Q1 * p: RAW_Q1 * p + RAW_Q1]
@@ -207,6 +206,8 @@ class _QuadCells:
         self.inv_R = np.zeros((n, 4))
         self.w = np.zeros((n, 4))
         self.N = np.ascontiguousarray(q1.shape_functions(q1.GAUSS)[0])
+        self.dofs = np.arange(4).reshape(1, 4)  # one cell's nodes, numbered 0..3
+        self.eps = np.zeros((1, 4))  # its mean strain (scratch)
 
     def fill(self, k: int, V, node_xy: np.ndarray, cell: int, point) -> None:
         """Probe k's entries from its cell (local index) on the owning rank."""
@@ -358,8 +359,8 @@ class Probes:
             load(_values, raw, self.xy, self.D, self.code, self.pointwise, out)
         else:
             qc = self._quad
-            load(_quad_values, raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, self.D,
-                 self.code, self.pointwise, out)
+            load(_quad_values, raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w,
+                 qc.dofs, qc.eps, self.D, self.code, self.pointwise, out)
 
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
         """``record(offset)``: the probe dofs this rank owns (m), and the points' state of
@@ -387,8 +388,8 @@ class Probes:
             _values(raw, self.xy, self.D, self.code, self.pointwise, out)
         else:
             qc = self._quad
-            _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, self.D,
-                         self.code, self.pointwise, out)
+            _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, qc.dofs,
+                         qc.eps, self.D, self.code, self.pointwise, out)
         for k, cell_points, start in self._points:
             code = int(self.code[k])
             for i in range(raw.shape[0]):

@@ -304,8 +304,8 @@ def _candidates_per_slave(c, search, master_x):
     4 s / l_min of its segments lie wholly inside Q, and at most 8 more cross Q's
     boundary (a convex polyline crosses each of the 4 sides' lines at most twice)."""
     lengths = np.linalg.norm(master_x[c.segments[:, 1]] - master_x[c.segments[:, 0]], axis=1)
-    inflate = c.reach * (1.0 + 1e-6) + 64.0 * np.finfo(float).eps * np.abs(master_x).max()
-    s = search.grid[2] + 2.0 * inflate + 2.0 * lengths.max()
+    assert c.reach <= search.inflate <= c.reach * (1.0 + 2e-6)  # the reach and round-off
+    s = search.grid[2] + 2.0 * search.inflate + 2.0 * lengths.max()
     return int(4.0 * s / lengths.min()) + 8
 
 
@@ -344,3 +344,19 @@ def test_a_re_pairing_reuses_its_arrays():
     assert q is p and all(a is b for a, b in zip(arrays, (pairing.search.start,
                                                           pairing.search.entries, q.seg,
                                                           q.normal, q.gap)))
+
+
+def test_cells_enlarged_past_the_memory_cap_give_the_same_pairs():
+    """The nose of 256 segments at a reach of two segments wants about 7,000 cells; with
+    the cap lowered to its floor (1,024 cells) the cells are doubled until the grid
+    fits: the pairs stay the brute force's, the projections grow."""
+    ell = 2.0 * 0.02 * np.sin(0.25 * np.pi / 256)
+    c = _nose_over_arc(256, 358, reach=2.0 * ell)
+    pairing = Repairing(c)
+    _assert_repairing_is_brute_force(c, pairing, c.slave_xy, c.master_xy)
+    fine = pairing.search.candidates
+    pairing.search.cells_per_item = 0
+    _assert_repairing_is_brute_force(c, pairing, c.slave_xy, c.master_xy)
+    nx, ny = pairing.search.shape
+    assert pairing.search.grid[2] > c.reach and nx * ny <= 1024
+    assert pairing.search.candidates > fine

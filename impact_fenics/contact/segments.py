@@ -40,6 +40,23 @@ depth of the master, plus a segment for the discretisation: a flat face on a
 flat face keeps one segment, and the nodes of a flat block under a nose of
 radius R (up to R (sqrt 2 - 1) from it) are within the nose's depth R; faces
 apart by more than their depth (a group at the other end of a body) are refused.
+
+The search (:class:`BucketSearch`) bins each master segment into every cell of a
+uniform grid (cells of side the reach) that its bounding box, inflated by the reach,
+touches, the grid spanning the masters' current boxes; a slave is projected onto the
+segments of its own cell only, in the global order, with the rules above restricted
+to segments within reach. Every segment within reach of a slave is in its cell, so
+the pairs are exactly those of projecting every slave onto every segment within
+reach (same arithmetic, same candidates, same order), at a cost that grows with the
+number of contact nodes, not their product.
+
+Re-pairing (:class:`Repairing`, for finite strain; not yet called by the time loop):
+the same search in a current configuration x = X + u, the segments' normals turned
+with them, the reach, xi_tol and tie_tol of the set-up. A slave whose closest point
+is an end vertex of the master face (a node of one segment, off the axis) and which
+lies beyond it, or which has no segment within reach, has no row (released); it
+stays in the list and is paired again when it comes back. Current gaps are returned
+as they are (negative when penetrating): the gaps of a step come from its prediction.
 """
 from __future__ import annotations
 
@@ -266,11 +283,12 @@ class BucketSearch:
 
     Memory: the grid's offsets (one int64 a cell, plus one) and its entries (one a
     (segment, cell) pair) are kept between calls and grown only when a grid needs
-    more; nothing else is allocated per call. The grid has (extent / reach + 3)^2
-    cells at most; beyond ``cells_per_item`` x (segments + slaves) cells (a face curved
-    over an extent much larger than the reach) the cells are enlarged to keep memory
-    linear, at the price of more segments per cell. Results do not depend on the cell
-    size (the pairs are exact for any grid)."""
+    more; nothing else is allocated per call. The grid has about
+    (extent_r / reach + 4)(extent_z / reach + 4) cells (the masters' extents, m); beyond
+    ``cells_per_item`` x (segments + slaves) + 1024 cells (a face curved over an extent
+    much larger than the reach) the cells are doubled until it fits, keeping memory
+    linear at the price of more segments per cell. The pairs do not depend on the
+    cell size (exact for any grid)."""
 
     cells_per_item = 64
 
@@ -280,12 +298,13 @@ class BucketSearch:
         self.reach = float(reach)
         self.start = np.empty(0, np.int64)
         self.entries = np.empty(0, np.int64)
-        self.grid = np.empty(3)  # (r0, z0, h) of the last grid
+        self.grid = np.empty(3)  # (r0, z0, h) of the last grid, m
+        self.inflate = 0.0  # m, the inflation of the segments' boxes in the last grid
         self.shape = (0, 0)
         self.candidates = 0
 
-    def _build_grid(self, node_xy: np.ndarray, seg_nodes: np.ndarray, n_slaves: int) -> float:
-        """Bin the segments; returns the inflation (m) of their boxes."""
+    def _build_grid(self, node_xy: np.ndarray, seg_nodes: np.ndarray, n_slaves: int) -> None:
+        """Bin the segments into a grid over their current boxes."""
         rmin, zmin, rmax, zmax = _extent(node_xy, seg_nodes)
         scale = max(abs(rmin), abs(zmin), abs(rmax), abs(zmax))
         # the reach plus a margin above the round-off of a distance and of a box edge,
@@ -294,7 +313,7 @@ class BucketSearch:
         h = self.reach
         width, height = rmax - rmin + 2.0 * inflate, zmax - zmin + 2.0 * inflate
         cap = self.cells_per_item * (seg_nodes.shape[0] + n_slaves) + 1024
-        while (width / h + 1.0) * (height / h + 1.0) > cap:
+        while (width / h + 2.0) * (height / h + 2.0) > cap:
             h *= 2.0
         # one cell more than the width needs: a point on the far edge of the box
         # whose cell index rounds up stays in the grid
@@ -307,7 +326,7 @@ class BucketSearch:
         if self.entries.size < total:
             self.entries = np.empty(2 * total, np.int64)
         _bin_fill(seg_nodes, node_xy, self.grid, inflate, nx, ny, self.start, self.entries)
-        return inflate
+        self.inflate = inflate
 
     def pair(self, x: np.ndarray, seg_nodes: np.ndarray, node_xy: np.ndarray,
              seg_normal: np.ndarray, xi_tol: float, tie_tol: float, out_seg: np.ndarray,

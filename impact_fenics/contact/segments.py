@@ -166,23 +166,30 @@ def _cell_range(lo, hi, origin, h, inflate, n):
 
 
 @njit(cache=True)
+def _segment_cells(j, seg_nodes, node_xy, grid, inflate, nx, ny):
+    """(ix0, ix1, iz0, iz1): the cells touched by segment j's box inflated by ``inflate``
+    (m) in the grid ``grid`` = (r0, z0, h) of nx x ny cells."""
+    a, b = seg_nodes[j, 0], seg_nodes[j, 1]
+    i0, i1 = _cell_range(min(node_xy[a, 0], node_xy[b, 0]), max(node_xy[a, 0], node_xy[b, 0]),
+                         grid[0], grid[2], inflate, nx)
+    k0, k1 = _cell_range(min(node_xy[a, 1], node_xy[b, 1]), max(node_xy[a, 1], node_xy[b, 1]),
+                         grid[1], grid[2], inflate, ny)
+    return i0, i1, k0, k1
+
+
+@njit(cache=True)
 def _bin_count(seg_nodes, node_xy, grid, inflate, nx, ny, start):
-    """Count into ``start[c]`` the segments listed in cell c (c = ix ny + iz; ``grid`` =
-    (r0, z0, h)); ``start[nx ny]`` = 0. Returns the number of entries."""
-    r0, z0, h = grid[0], grid[1], grid[2]
+    """Count into ``start[c]`` the segments listed in cell c (c = ix ny + iz);
+    ``start[nx ny]`` = 0. Returns the number of entries."""
     for c in range(nx * ny + 1):
         start[c] = 0
     total = 0
     for j in range(seg_nodes.shape[0]):
-        a, b = seg_nodes[j, 0], seg_nodes[j, 1]
-        i0, i1 = _cell_range(min(node_xy[a, 0], node_xy[b, 0]), max(node_xy[a, 0], node_xy[b, 0]),
-                             r0, h, inflate, nx)
-        k0, k1 = _cell_range(min(node_xy[a, 1], node_xy[b, 1]), max(node_xy[a, 1], node_xy[b, 1]),
-                             z0, h, inflate, ny)
+        i0, i1, k0, k1 = _segment_cells(j, seg_nodes, node_xy, grid, inflate, nx, ny)
         for ix in range(i0, i1 + 1):
             for iz in range(k0, k1 + 1):
                 start[ix * ny + iz] += 1
-                total += 1
+        total += (i1 - i0 + 1) * (k1 - k0 + 1)
     return total
 
 
@@ -190,7 +197,6 @@ def _bin_count(seg_nodes, node_xy, grid, inflate, nx, ny, start):
 def _bin_fill(seg_nodes, node_xy, grid, inflate, nx, ny, start, entries):
     """Turn the counts of :func:`_bin_count` into CSR offsets and list the segments,
     ascending within each cell (filled backwards from each cell's end)."""
-    r0, z0, h = grid[0], grid[1], grid[2]
     ncell = nx * ny
     acc = 0
     for c in range(ncell):
@@ -198,16 +204,11 @@ def _bin_fill(seg_nodes, node_xy, grid, inflate, nx, ny, start, entries):
         start[c] = acc  # the end of cell c
     start[ncell] = acc
     for j in range(seg_nodes.shape[0] - 1, -1, -1):
-        a, b = seg_nodes[j, 0], seg_nodes[j, 1]
-        i0, i1 = _cell_range(min(node_xy[a, 0], node_xy[b, 0]), max(node_xy[a, 0], node_xy[b, 0]),
-                             r0, h, inflate, nx)
-        k0, k1 = _cell_range(min(node_xy[a, 1], node_xy[b, 1]), max(node_xy[a, 1], node_xy[b, 1]),
-                             z0, h, inflate, ny)
+        i0, i1, k0, k1 = _segment_cells(j, seg_nodes, node_xy, grid, inflate, nx, ny)
         for ix in range(i0, i1 + 1):
             for iz in range(k0, k1 + 1):
-                c = ix * ny + iz
-                start[c] -= 1
-                entries[start[c]] = j  # at the end start[c] is the beginning of cell c
+                start[ix * ny + iz] -= 1
+                entries[start[ix * ny + iz]] = j  # start[c] ends at cell c's beginning
 
 
 @njit(cache=True)

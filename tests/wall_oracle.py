@@ -1,4 +1,10 @@
-"""Contact with a fixed rigid frictionless wall, the plane z = z_wall (normal +z): FILM, DME, penalty.
+"""The oracle of the fixed plane (impact_fenics/contact/plane.py): the former rigid wall.
+
+Until the finite-strain runs move into the one loop, the tests of the fixed plane
+compare it with this wall's own kernel, kept here unchanged (its arithmetic is
+RigidWall's: one node at a time, each method a closed form on the node's z):
+
+Contact with a fixed rigid frictionless wall, the plane z = z_wall (normal +z): FILM, DME, penalty.
 
 The body lies above the wall. Every node of the body's boundary is a
 candidate, with its current position z = Z + u_z: a side node that folds onto
@@ -36,11 +42,24 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..errors import InputError
+from impact_fenics.errors import InputError
 
 METHODS = ("film", "dme", "penalty")
 _CODE = {"film": 0, "dme": 1, "penalty": 2}
 STABILITY_BOUND = 4.0 / 3.0  # beta_i = p_i dt dt_avg / m_i (contact/penalty.py)
+
+
+def plug_into(run, method: str | None = None, penalty=None, beta_target=None) -> "RigidWall":
+    """Replace ``run``'s fixed plane (a FiniteRun made with a wall) by this oracle on the
+    same candidates (the owned boundary nodes), method and stiffness; returns it."""
+    plane = run.wall
+    nodes = plane.nodes
+    wall = RigidWall(nodes, run.node_xy[nodes, 1], run.mass[2 * nodes + 1],
+                     method or plane.method, plane.z_wall,
+                     penalty=plane.penalty if penalty is None else penalty,
+                     beta_target=plane.beta_target if beta_target is None else beta_target)
+    run.wall = wall
+    return wall
 
 
 @njit(cache=True)

@@ -163,3 +163,18 @@ class RigidWall:
         self.n_active_local = n
         self.force_local = float(self.impulse.sum())
         return w_fix
+
+
+def standalone_plane(Z, mass, u, v, method, z_wall=0.0, penalty="scaled", beta_target=1.0):
+    """The fixed plane (contact/plane.py) on len(Z) nodes of this rank alone: heights ``Z``
+    (m), masses ``mass`` (kg), the owned (r, z) arrays ``u``, ``v`` it corrects in place; the
+    nodes' radii increase with their index, so the set's order is theirs."""
+    from mpi4py import MPI
+
+    from impact_fenics.contact.plane import FixedPlane
+
+    n = len(Z)
+    xy = np.stack([np.arange(n) * 1e-3, np.asarray(Z, dtype=float)], axis=1)
+    per_dof = np.repeat(np.asarray(mass, dtype=float), 2)
+    return FixedPlane(MPI.COMM_SELF, np.arange(n), xy, 0, per_dof, u, v, method, z_wall,
+                      penalty=penalty, beta_target=beta_target)

@@ -149,6 +149,23 @@ class RigidBody:
         return force
 
 
+def refuse_shared_rigid(rigid: RigidBody, names: tuple[str, str], sets) -> None:
+    """A moving rigid part belongs to one contact set: the sets correct one after another
+    (a Gauss-Seidel sweep), not as the coupled solve its kappa 1 1' would need across
+    them. Refuse ``rigid`` for a new set of surfaces ``names`` if one of ``sets`` holds
+    it, in one line naming both; a fixed part (kappa = 0) couples nothing and may be in
+    any number of sets."""
+    if rigid.fixed:
+        return
+    for c in sets:
+        if getattr(c, "rigid", None) is rigid:
+            old = "/".join(f"'{x}'" for x in c.constraints.names)
+            new = "/".join(f"'{x}'" for x in names)
+            raise InputError(f"rigid body '{rigid.name}' is in two contact sets, {old} and "
+                             f"{new}: a moving rigid part belongs to one set (sets correct "
+                             "one after another, not as one coupled solve)")
+
+
 class ContactMethod(Protocol):
     """A way to enforce g >= 0 on the predicted state of a :class:`ContactSet`."""
 

@@ -18,7 +18,8 @@ body's prediction and commit included: only its force functions (Python
 callables) are evaluated around it. Another method (FILM dense, a user's) runs
 its correct() between a compiled detection and a compiled commit, with the
 rigid body in Python (RigidBody.predict and advance, the same arithmetic).
-Every kernel takes the set-up constants dt/m, m/dt and 1/d: no division per
+Every kernel takes the constants dt/m, m/dt and 1/d, made at set-up and rewritten
+only when the step changes (:meth:`ContactSet.set_step`): no division per
 constraint in a step.
 
 State lives in *slots*: one per contact dof (the lower nodes first, then the

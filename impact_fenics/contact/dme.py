@@ -126,7 +126,8 @@ def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force,
         k = 0
         for j in range(order.size):
             node = nodes[order[j]]
-            if side * v[node] < side * (momentum / total):  # holding it would pull: it and all slower stay free
+            # holding it would pull: it and all slower stay free
+            if side * v[node] < side * (momentum / total):
                 break
             momentum += mass[node] * v[node]
             total += mass[node]

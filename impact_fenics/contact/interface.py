@@ -305,7 +305,8 @@ class ContactSet:
         if rigid is not None and rigid.fixed:
             self.m_over_dt[nd] = 0.0  # it does not move: its reaction does no work
         self.kappa = 0.0 if rigid is None else hh / self.mass[nd]
-        self.d[:] = hh * (1.0 / self.mass[self.nodes] + (0.0 if rigid else 1.0 / self.mass[self.up]))
+        up = 0.0 if rigid else 1.0 / self.mass[self.up]
+        self.d[:] = hh * (1.0 / self.mass[self.nodes] + up)
         self.d_inv[:] = 1.0 / self.d
 
     def set_step(self, h: float, h_avg: float) -> None:

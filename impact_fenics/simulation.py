@@ -209,8 +209,8 @@ class Simulation:
             require(rigid is None, "node-to-segment contact takes no rigid body")
             contact_dofs = constraints.dofs
         else:
-            contact_dofs = constraints.lower if constraints.upper is None else \
-                np.concatenate([constraints.lower, constraints.upper])
+            contact_dofs = np.concatenate([d for d in (constraints.lower, constraints.upper)
+                                           if d is not None])
         loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
         if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), contact_dofs).sum())):
             raise InputError(f"a surface load acts on nodes of the contact surfaces "

@@ -153,6 +153,7 @@ def _open_msh(gmsh, path: str) -> None:
 
     dolfinx's gmsh reader (0.5) ends the process (a segmentation fault, an abort or a
     failed assertion) on cells outside every 2D physical group, on cells of two types,
+    on node tags with gaps (numbered anew here), on a group of an unmeshed entity,
     on a cell in two groups, on a line that is no cell's side and on a point group
     whose point is no cell's node, and keeps a side that is in two groups in one of
     them only; on 0.11 it builds a mesh the solver cannot use (several cell types,
@@ -174,6 +175,10 @@ def _open_msh(gmsh, path: str) -> None:
                          "the mesh is not in a plane z = constant; draw the section in the "
                          "x-y plane (r = x, z = y)")
     _refuse_loose_surfaces(gmsh, where)
+    # dolfinx's reader asserts node tags 1..n without gaps; a file edited (a surface's mesh
+    # cleared) or written by another tool may have gaps: number the nodes anew
+    gmsh.model.mesh.renumberNodes()
+    _refuse_unmeshed_entities(gmsh, where)
     _refuse_entities_in_two_groups(gmsh, where)
     _refuse_cell_types(gmsh, where)
     _refuse_lines_off_the_cells(gmsh, where)
@@ -196,6 +201,18 @@ def _refuse_loose_surfaces(gmsh, where: str) -> None:
         raise InputError(f"{where}: surface(s) {', '.join(map(str, loose))} "
                          "have cells but no 2D physical group; put every surface in a "
                          "named physical group (a body)")
+
+
+def _refuse_unmeshed_entities(gmsh, where: str) -> None:
+    """A physical group naming a surface, curve or point that holds no mesh (dolfinx 0.5's
+    reader fails an assertion; 0.11 makes a body of no cells)."""
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            if not len(gmsh.model.mesh.getElements(dim, entity)[0]):
+                what = ("point", "curve", "surface")[dim]
+                raise InputError(f"{where}: the group '{_group_name(gmsh, dim, tag)}' holds "
+                                 f"{what} {entity}, which has no mesh; mesh it, or take it "
+                                 "out of the group")
 
 
 def _refuse_entities_in_two_groups(gmsh, where: str) -> None:

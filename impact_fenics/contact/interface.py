@@ -343,7 +343,8 @@ class ContactSet:
         if np.any(self.band[:, 0] <= 0.0):
             k = int(np.flatnonzero(self.band[:, 0] <= 0.0)[0])
             raise InputError(f"contact: the constraint of '{c.names[0]}' node at "
-                             f"(r={c.slave_xy[k, 0]:.6g}, z={c.slave_xy[k, 1]:.6g}) moves no free dof")
+                             f"(r={c.slave_xy[k, 0]:.6g}, z={c.slave_xy[k, 1]:.6g}) moves no "
+                             "free dof")
         self.gap, self.force, self._gap_out = np.empty(n), np.zeros(n), np.empty(n)
         self.active, self.was_active = np.zeros((2, n), dtype=np.bool_)
         self.times = PhaseTimes()

@@ -70,6 +70,7 @@ def _gmsh():
         with interrupts.masked(), interrupts.kept():
             gmsh.initialize()
         _GMSH_READY = True
+        _INITIAL.update({option: gmsh.option.getNumber(option) for option in _SHAPING})
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.Verbosity", 1)
     return gmsh
@@ -104,6 +105,14 @@ def _physical_names(gmsh) -> tuple[dict[str, int], dict[str, int]]:
 # gmsh options that a generator may change, reset before every mesh
 _DEFAULTS = {"Mesh.MeshSizeExtendFromBoundary": 1, "Mesh.MeshSizeFromPoints": 1,
              "Mesh.MeshSizeFromCurvature": 0, "Mesh.Algorithm": 6}
+# options that a caller's own gmsh work in the same process may have changed (gmsh
+# keeps them across models): put back to their values at initialisation before
+# every mesh, so a generated mesh never depends on what ran before it
+_SHAPING = ("Mesh.MeshSizeMax", "Mesh.MeshSizeMin", "Mesh.MeshSizeFactor",
+            "Mesh.RecombineAll", "Mesh.RecombinationAlgorithm", "Mesh.ElementOrder",
+            "Mesh.SecondOrderLinear", "Mesh.Smoothing", "Mesh.Optimize",
+            "Mesh.SubdivisionAlgorithm")
+_INITIAL: dict[str, float] = {}
 
 
 def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
@@ -113,7 +122,7 @@ def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
     error = None
     if comm.rank == 0:
         gmsh.clear()  # no model, field or option left over from an earlier mesh
-        for option, value in _DEFAULTS.items():
+        for option, value in (_INITIAL | _DEFAULTS).items():
             gmsh.option.setNumber(option, value)
         gmsh.model.add("impact_fenics")
         try:

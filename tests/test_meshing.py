@@ -64,3 +64,36 @@ def test_contact_faces_pair_when_radius_over_h_is_not_whole(structured):
     assert pairs.n == round(radius / h) + 1
     assert np.allclose(np.sort(pairs.r), np.linspace(0.0, radius, round(radius / h) + 1),
                        rtol=0, atol=GMSH_TOLERANCE * (0.12 + 0.09))
+
+
+def _gathered_x(tmesh) -> np.ndarray:
+    """Every node's (r, z) on every rank, in one order (sorted rows)."""
+    n_owned = tmesh.mesh.geometry.index_map().size_local
+    x = np.concatenate(MPI.COMM_WORLD.allgather(tmesh.mesh.geometry.x[:n_owned, :2]))
+    return x[np.lexsort((x[:, 1], x[:, 0]))]
+
+
+@pytest.mark.parametrize("structured", [False, True])
+def test_a_mesh_does_not_depend_on_gmsh_options_set_before_it(structured):
+    """gmsh keeps options across models: a caller's own gmsh work (a size cap, quadrilaterals,
+    second order) must not change the next generated mesh. Oracle: the same generator
+    call from gmsh's initial options gives the same cells and the same nodes (exactly:
+    the same arithmetic on the same input)."""
+    def make():
+        return meshing.coaxial_bars(radius=0.1, striker_length=0.12, target_length=0.09,
+                                    h=0.03, structured=structured)
+
+    clean = make()
+    meshing.start_gmsh()
+    import gmsh
+
+    changed = {"Mesh.MeshSizeMax": 0.007, "Mesh.RecombineAll": 1, "Mesh.ElementOrder": 2,
+               "Mesh.MeshSizeFactor": 0.5}
+    for option, value in changed.items():
+        gmsh.option.setNumber(option, value)
+    after = make()
+    for option in changed:  # the generator (rank 0 meshes) left gmsh at its initial options
+        assert MPI.COMM_WORLD.rank != 0 or gmsh.option.getNumber(option) == meshing._INITIAL[option], option
+    for name in ("striker", "target"):
+        assert owned_cells(after, name) == owned_cells(clean, name), name
+    assert np.array_equal(_gathered_x(after), _gathered_x(clean))

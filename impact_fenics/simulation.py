@@ -35,7 +35,8 @@ from .operators import assemble_stiffness
 from .probes import Probes
 from .xdmf import FieldWriter
 from .step_block import StepBlock, count_beyond as _count_beyond
-from .stability import converged_omega_max, critical_dt, element_omega_bounds
+from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
+                        ghosted_dofs)
 from .timers import PhaseTimers
 
 # Per-step divergence check: every DIVERGENCE_EVERY steps one VecNorm of v (a pass
@@ -191,13 +192,7 @@ class Simulation:
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
         """Local (ghosted) indices of fixed dofs given as owned ones: share them via a scatter."""
-        from dolfinx import fem
-
-        f = fem.Function(self.model.V)
-        f.x.array[:] = 0.0
-        f.x.array[owned] = 1.0
-        f.x.scatter_forward()
-        return np.flatnonzero(f.x.array > 0.5).astype(np.int32)
+        return ghosted_dofs(self.model, owned)
 
     # ------------------------------------------------------------ scene set-up
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:

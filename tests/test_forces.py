@@ -7,7 +7,8 @@ Oracles:
   multiplied here, the quadrature force's own increment with coef = -dt / m computed
   here), on a linear and a J2 body sharing one mesh, triangles and Q1; the finite-strain
   step as FiniteRun made it before (the force's compute at the step just taken, then the
-  trapezoid and the velocity passes, copied here), with a step that changes. u, v and
+  trapezoid and the velocity passes: its kernels, moved unchanged, called here in its
+  order), with a step that changes. u, v and
   every booked work are compared with array_equal / ==.
 * A step change through set_step gives the force a fresh run at that step would have,
   bit for bit (A, coef).
@@ -25,9 +26,8 @@ import math
 
 import numpy as np
 import pytest
-from dolfinx import fem, mesh as dmesh
+from dolfinx import fem
 from mpi4py import MPI
-from numba import njit
 from petsc4py import PETSc
 
 from impact_fenics import compat
@@ -35,12 +35,13 @@ from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.integrator import Integrator
 from impact_fenics.internal_force import QuadratureForce
+from impact_fenics.internal_force.finite import trapezoid_work, velocity_update
 from impact_fenics.materials import LinearElastic
 from impact_fenics.materials.finite_j2 import FiniteJ2
 from impact_fenics.materials.j2 import J2
-from impact_fenics.meshing import TaggedMesh
 from impact_fenics.operators import assemble_stiffness
 from roundoff import rounding
+from two_halves import EIG, two_halves
 
 COMM = MPI.COMM_WORLD
 E, NU, RHO = 200e9, 0.3, 7850.0
@@ -53,15 +54,7 @@ H = (R1 - R0) / N_R  # 1/8 m: square cells
 def _two_bodies(quadrilateral: bool) -> DeformableModel:
     """The rectangle R0..R1 x 0..Z1: 'elastic' (E) below z = 1/2, 'plastic' (J2, E_UPPER,
     a low yield stress) above."""
-    cell = dmesh.CellType.quadrilateral if quadrilateral else dmesh.CellType.triangle
-    mesh = dmesh.create_rectangle(COMM, [np.array([R0, 0.0]), np.array([R1, Z1])], [N_R, N_Z],
-                                  cell_type=cell)
-    cmap = mesh.topology.index_map(2)
-    cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
-    centre_z = mesh.geometry.x[compat.geometry_dofs(mesh)[cells], 1].mean(axis=1)
-    cell_tags = dmesh.meshtags(mesh, 2, cells, np.where(centre_z < 0.5, 1, 2).astype(np.int32))
-    facet_tags = dmesh.meshtags(mesh, 1, np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
-    tm = TaggedMesh(mesh, cell_tags, facet_tags, {"elastic": 1, "plastic": 2}, {})
+    tm = two_halves(COMM, (R0, 0.0), (R1, Z1), N_R, N_Z, quadrilateral, ("elastic", "plastic"))
     return DeformableModel(tm, [
         Body("elastic", LinearElastic(E=E, nu=NU, density=RHO)),
         Body("plastic", J2(E=E_UPPER, nu=NU, density=RHO, yield_stress=20e6, hardening=1e9))])
@@ -139,27 +132,6 @@ def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
 
 
 # ---------------------------------------------------------------- bit for bit, finite strain
-@njit(cache=True)
-def _previous_velocity_update(coef, f, v, dt_avg):
-    work = 0.0
-    for i in range(coef.size):
-        vo = v[i]
-        vn = vo + dt_avg * coef[i] * f[i]
-        v[i] = vn
-        work += 0.5 * dt_avg * (vo + vn) * f[i]
-    return work
-
-
-@njit(cache=True)
-def _previous_trapezoid_work(f, u, f_prev, u_prev):
-    work = 0.0
-    for i in range(f.size):
-        work += 0.5 * (f_prev[i] + f[i]) * (u[i] - u_prev[i])
-        f_prev[i] = f[i]
-        u_prev[i] = u[i]
-    return work
-
-
 def test_finite_strain_step_is_the_previous_path_bit_for_bit():
     """FiniteRun's step before the protocol (kept here) and the force's set_step, evaluate
     and add_increment, over steps that change (the points' step is the one just taken)."""
@@ -180,8 +152,8 @@ def test_finite_strain_step_is_the_previous_path_bit_for_bit():
         dt_avg = dt if dt_prev is None else 0.5 * (dt_prev + dt)
         old.u_fn.x.scatter_forward()
         f = old.force.compute(dt_prev if dt_prev is not None else dt)
-        trap_old += _previous_trapezoid_work(f, old.u_owned, f_prev, u_prev)
-        w_old += _previous_velocity_update(old.coef, f, old.v, dt_avg)
+        trap_old += trapezoid_work(f, old.u_owned, f_prev, u_prev)
+        w_old += velocity_update(old.coef, f, old.v, dt_avg)
         old.u_vec.axpy(dt, old.v_vec)
         new.force.set_step(dt, dt_avg)
         new.u_fn.x.scatter_forward()
@@ -268,11 +240,9 @@ def _quad_w2(xy: np.ndarray, D: np.ndarray) -> float:
 
 
 # Both sides compute the largest eigenvalue of the same 6 x 6 (8 x 8) element problem by
-# different sums: each within the bound of tests/test_stable_steps.py (EIG: LAPACK's
-# backward error and the entries' roundings), two of them; on Q1 the Jacobians' products
-# of coordinates up to R1 with the irrational Gauss points add 3 x 8 EPS R1 / H; then the
-# square root, 2 / w.
-EIG = 64 + 3 * 32
+# different sums: each within EIG (two_halves.py: LAPACK's backward error and the entries'
+# roundings), two of them; on Q1 the Jacobians' products of coordinates up to R1 with the
+# irrational Gauss points add 3 x 8 EPS R1 / H; then the square root, 2 / w.
 
 
 @pytest.mark.parametrize("quadrilateral", [False, True], ids=["triangles", "quadrilaterals"])

@@ -143,13 +143,10 @@ class Integrator:
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
         u, v, dt = self.u_owned, self.v_owned, self.dt
-        if self.linear is not None:
-            self.linear.velocity_increment(u, v, dt)
-        if self.nonlinear:
-            if self._scatter:
-                self._u_fn.x.scatter_forward()
-            for force in self.nonlinear:
-                force.velocity_increment(u, v, dt)
+        if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none)
+            self._u_fn.x.scatter_forward()
+        for force in self.forces:
+            force.velocity_increment(u, v, dt)
         if self.loads:
             t = self.t
             v, add_load = self.v_owned, self._add_load

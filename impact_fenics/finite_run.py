@@ -62,6 +62,7 @@ from . import compat, console, interrupts, output, rundir
 from .contact.wall import RigidWall
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
+from .stepping import FollowingStep
 from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
 
@@ -331,12 +332,13 @@ class FiniteRun:
         require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
         require(s.history_every >= 1 and s.output_every >= 1,
                 "history_every and output_every must be >= 1")
-        dt_lim = self.dt_limit()
-        dt0 = min(s.dt if s.dt is not None else s.safety * dt_lim, s.t_end)
+        policy = self.step_policy = FollowingStep(self.dt_limit, s.t_end, s.dt, s.safety,
+                                                  s.dt_interval)
+        dt_lim = policy.limit
+        dt0 = policy.first()
         self._check_penalty(dt0, dt0, 0, 0.0)
         # the body's own stable step (s): at the start, and the smallest the run reaches
         self.stable_dt = {self.name: dt_lim}
-        self.stable_dt_smallest = {self.name: dt_lim}
         if comm.rank == 0 and not s.quiet:
             from .report import stable_step_line
 
@@ -377,7 +379,6 @@ class FiniteRun:
         total_mass = comm.allreduce(float(self.mass[1::2].sum()))
         w_int = taken = 0.0
         t, dt_prev = 0.0, None
-        dts = [np.inf, 0.0]
         n = 0
         serial = comm.size == 1
         failure = None
@@ -391,24 +392,8 @@ class FiniteRun:
                 t0 = clock()
                 if n >= s.max_steps:
                     raise UnstableRunError(f"more than {s.max_steps} steps before t_end = {s.t_end} s")
-                new_limit = n % s.dt_interval == 0
-                if new_limit and n > 0:
-                    dt_lim = self.dt_limit()
-                    if dt_lim < self.stable_dt_smallest[self.name]:
-                        self.stable_dt_smallest[self.name] = dt_lim
-                if s.dt is None:
-                    dt = s.safety * dt_lim
-                else:
-                    dt = s.dt
-                    if dt > dt_lim:
-                        raise UnstableRunError(
-                            f"run stopped at step {n} (t = {t:.6g} s): the fixed dt = {dt:.4g} s is "
-                            f"above the current stable limit {dt_lim:.4g} s (elements flattened); "
-                            "use the adaptive step (dt = None) or a smaller dt")
-                if dt < s.t_end - t:  # the range of dt leaves out the last, clipped step
-                    dts[0], dts[1] = min(dts[0], dt), max(dts[1], dt)
-                dt = min(dt, s.t_end - t)
-                dt_avg = dt if dt_prev is None else 0.5 * (dt_prev + dt)
+                dt = policy.next(n, t)
+                dt_lim, dt_avg, new_limit = policy.limit, policy.h_avg, policy.renewed
                 if new_limit and n > 0 and self.wall is not None and self.wall.method == "penalty":
                     self._check_penalty(dt, dt_avg, n, t)
                 self.force.set_step(dt, dt_avg)
@@ -499,7 +484,7 @@ class FiniteRun:
                 writer.close()
             self.n_steps, self.t = n, t
             self.history = {c: hist[:n_rows, i].copy() for i, c in enumerate(HISTORY_COLUMNS)}
-            summary = self._summary(K0, n, t, dts, w_int, taken, wall_time, timers)
+            summary = self._summary(K0, n, t, policy.h_range, w_int, taken, wall_time, timers)
             summary.update(s.summary_extra)
             if failure is not None:
                 summary["failure"] = failure
@@ -527,6 +512,11 @@ class FiniteRun:
         if failure is not None:
             raise UnstableRunError(failure)
         return summary
+
+    @property
+    def stable_dt_smallest(self) -> dict[str, float]:
+        """The body's smallest stable step of the run so far (s)."""
+        return {self.name: self.step_policy.smallest}
 
     def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, total_mass) -> list:
         """One history row (every rank the same): see HISTORY_COLUMNS (SI units); ``dt`` the

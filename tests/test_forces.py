@@ -12,15 +12,16 @@ Oracles:
   every booked work are compared with array_equal / ==.
 * A step change through set_step gives the force a fresh run at that step would have,
   bit for bit (A, coef).
-* Each force's stable_dt() against its element bound computed by hand here, from the
-  formulas of the docs: on triangles the axisymmetric constant-strain element with the
-  degree-2 (three interior points) rule and the row-sum lumped mass
-  rho 2 pi A (2 r_a + r_b + r_c) / 12 (docs/architecture.md: stability, the element
-  bound); on Q1 the B-bar element of docs/materials.md (eps_bar_q = eps_q + (theta_bar
-  - tr eps_q) / 3 (1, 1, 1, 0), K = sum_q w_q B_bar_q' D B_bar_q, lumped mass
-  rho sum_q w_q N_a, 2 x 2 Gauss); the finite-strain force's min L / c with
-  L = A / (largest diagonal), c = sqrt((lambda + 2 mu) / rho) (docs/taylor_bar.md), at
-  the start and on cells flattened by a homogeneous compression.
+* Each force's stable_dt() against its element bound, 2 / omega with omega^2 the
+  largest eigenvalue of K_e v = omega^2 M_e v over its cells, K_e and M_e built by hand
+  here: on triangles the textbook axisymmetric constant-strain element (eps_tt = u_r / r,
+  the three interior points (1/6, 1/6), (2/3, 1/6), (1/6, 2/3) of the degree-2 rule, the
+  row-sum lumped mass rho 2 pi A (2 r_a + r_b + r_c) / 12); on Q1 the B-bar element of
+  docs/materials.md (eps_bar_q = eps_q + (theta_bar - tr eps_q) / 3 (1, 1, 1, 0),
+  K = sum_q w_q B_bar_q' D B_bar_q, lumped mass rho sum_q w_q N_a, 2 x 2 Gauss); the
+  finite-strain force's min L / c with L = A / (largest diagonal), c = sqrt((lambda +
+  2 mu) / rho) (docs/materials.md), at the start and on cells flattened by a
+  homogeneous compression.
 """
 import math
 

@@ -62,6 +62,14 @@ def _two_bodies(quadrilateral: bool) -> DeformableModel:
 
 
 # ---------------------------------------------------------------- bit for bit, small strain
+# PETSc adds the entries other ranks send to a row of K in the order they arrive. On 1 or
+# 2 ranks a row receives from one rank at most, in one message: every assembly gives the
+# same bits. From 3 ranks on, a row can receive from two, and its last bit may change
+# from one assembly to the next (seen on 3 ranks here): two paths that assemble K each on
+# their own then agree to round-off only, and the test runs both on one assembly.
+REPRODUCIBLE_ASSEMBLY = COMM.size <= 2
+
+
 @pytest.mark.parametrize("quadrilateral", [False, True], ids=["triangles", "quadrilaterals"])
 def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
     model = _two_bodies(quadrilateral)
@@ -80,11 +88,14 @@ def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
     free = np.ones(n, dtype=bool)
     free[fixed] = False
     linear_parts = [p for p in model.parts if p[0].linear]
-    A = assemble_stiffness(model, "aij", linear_parts)
-    scale = A.createVecRight()
-    scale.array[:] = -dt / mass
-    A.diagonalScale(L=scale)
-    A.zeroRows(model.to_global(fixed).astype(PETSc.IntType), diag=0.0)
+    if REPRODUCIBLE_ASSEMBLY:
+        A = assemble_stiffness(model, "aij", linear_parts)
+        scale = A.createVecRight()
+        scale.array[:] = -dt / mass
+        A.diagonalScale(L=scale)
+        A.zeroRows(model.to_global(fixed).astype(PETSc.IntType), diag=0.0)
+    else:  # one assembly for both paths (see REPRODUCIBLE_ASSEMBLY)
+        A = integ.A.copy()
     u_fn = fem.Function(model.V)
     u = compat.petsc_vec(u_fn)
     v = u.duplicate()
@@ -127,7 +138,8 @@ def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
     y1, y2 = w.duplicate(), w.duplicate()
     integ.A.mult(w, y1)
     fresh.A.mult(w, y2)
-    assert np.array_equal(y1.array, y2.array)
+    if REPRODUCIBLE_ASSEMBLY:  # (two assemblies)
+        assert np.array_equal(y1.array, y2.array)
     assert np.array_equal(integ.nonlinear[0].coef, fresh.nonlinear[0].coef)
     assert integ.nonlinear[0].dt == dt  # the points' step: the one just taken
 

@@ -12,7 +12,7 @@
 # The model: axisymmetric, Q1 quadrilaterals with mean dilatation (the
 # locking-free element, impact_fenics/internal_force/finite.py), the
 # Hencky/exponential-map J2 (materials/finite_j2.py), the rigid wall by FILM
-# or DME (contact/wall.py), the step re-estimated every 10 steps from the
+# or DME (contact/plane.py), the step re-estimated every 10 steps from the
 # current cells (finite_run.py).
 #
 # The impact face, two ways (`--face`): `contact` (default) makes every boundary

@@ -143,12 +143,16 @@ Tables: {contents}.
 _SCENES_CHECKS = """\
 ## What is checked before a run
 
-Besides each key above, these are refused before any output exists (exit 2, one
-line): a name that does not exist (a material, a rigid body, a cell or facet group of
-the mesh), a mesh cell group that is not a body, contact surfaces that do not pair,
-a facet group in two `[[contact]]` tables, a rigid body in no or several contacts, a
-probe outside the mesh or on the interface of two bodies, a `.msh` file with cells
-outside every 2D physical group, `t_end` shorter than one step, `dt` above the stable
+Besides each key above, these are refused before any output exists (exit 2, one line):
+a name that does not exist (a material, a rigid body, a cell or facet group of the
+mesh), a mesh cell group that is not a body, contact surfaces that do not pair, a
+facet group in two `[[contact]]` tables, a rigid body in no or several contacts, a
+probe outside the mesh or on the interface of two bodies, a `.msh` file the reader
+cannot take (not 2D, not in one plane of gmsh's z, no 2D physical group, cells outside
+every 2D physical group, a group of an unmeshed entity, a surface in two 2D groups or
+a curve in two 1D groups, cells of two types (triangles and quadrilaterals: one cell
+type per mesh for now), second-order cells, a line that is no cell's side, a point
+group off the cells' nodes), `t_end` shorter than one step, `dt` above the stable
 limit (unless `force_dt`), a penalty whose β_max exceeds 4/3 (unless `force`), a run
 estimated beyond the available memory (unless `force`), and an output directory that
 may not be used ([outputs.md](outputs.md)).

@@ -59,7 +59,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import compat, console, interrupts, output, rundir
-from .contact.wall import RigidWall
+from .contact.plane import FixedPlane
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
 from .stepping import FollowingStep
@@ -151,7 +151,7 @@ class _TimeProgress:
 class FiniteRun:
     """One finite-strain body on a quadrilateral mesh, u_r = 0 on the axis, optionally a wall.
 
-    ``velocity`` (v_r, v_z) in m/s; ``wall`` 'film', 'dme' or 'penalty' (contact/wall.py) at
+    ``velocity`` (v_r, v_z) in m/s; ``wall`` 'film', 'dme' or 'penalty' (contact/plane.py) at
     z = ``z_wall`` (m), the penalty a stiffness in N/m or 'scaled' (beta = ``penalty_beta``
     at every step); ``name`` the body's name in the fields."""
 
@@ -213,8 +213,9 @@ class FiniteRun:
             facets = dmesh.exterior_facet_indices(mesh.topology)
             nodes = fem.locate_dofs_topological(self.V, tdim - 1, facets)
             nodes = np.sort(nodes[nodes < self.n_owned_nodes])
-            self.wall = RigidWall(nodes, self.node_xy[nodes, 1], self.mass[2 * nodes + 1], wall,
-                                  z_wall, penalty=penalty, beta_target=penalty_beta)
+            self.wall = FixedPlane(self.comm, nodes, self.node_xy, 2 * imap.local_range[0],
+                                   self.mass, self.u_owned, self.v, wall, z_wall,
+                                   penalty=penalty, beta_target=penalty_beta)
             gap = self.comm.allreduce(float((self.node_xy[nodes, 1] - z_wall).min(initial=np.inf)),
                                       op=MPI.MIN)
             if gap < -1e-12 * length:
@@ -274,7 +275,7 @@ class FiniteRun:
     def _check_penalty(self, dt: float, dt_avg: float, n: int, t: float) -> None:
         """A penalty wall above the stable bound 4/3 (contact/penalty.py) is refused unless
         forced: before the run as bad input, during it (the step grew) as a stopped run."""
-        from .contact.wall import STABILITY_BOUND
+        from .contact.penalty import STABILITY_BOUND
 
         beta = self.penalty_beta(dt, dt_avg)
         self.beta_max = max(getattr(self, "beta_max", 0.0), beta)
@@ -303,18 +304,6 @@ class FiniteRun:
     @property
     def has_temperature(self) -> bool:
         return getattr(self.material, "temperature_index", -1) >= 0
-
-    def _load_kernels(self, dt: float) -> None:
-        """Compile (or load from the cache) the wall's kernel for its argument types now,
-        without running them (the force's kernels load with the force)."""
-        from .contact.wall import _CODE, correct
-        from .jit_watch import load
-
-        f = self.force.f_owned
-        w = self.wall
-        if w is not None:
-            load(correct, w.nodes, w.Z, w.mass, w.z_wall, dt, dt, _CODE[w.method], w.p, f,
-                 self.u_owned, self.v, w.impulse)
 
     # ------------------------------------------------------------ the run
     def run(self, extra=None) -> dict:
@@ -366,10 +355,8 @@ class FiniteRun:
                 rundir.abandon_directory(staging, comm)
             stop.restore()
             raise
+        # (the force's kernels and the wall's load with them, at their set-up)
         self.setup_time = {"outputs": time.perf_counter() - t_setup}
-        t_load = time.perf_counter()
-        self._load_kernels(dt0)
-        self.setup_time["kernels"] = time.perf_counter() - t_load
         timers = PhaseTimers(PHASES) if s.timers else None
         progress = _TimeProgress(s.t_end, not s.quiet and comm.rank == 0)
         cap = 4096

@@ -16,7 +16,7 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   below the bar) with ``method`` = "film", "dme" or "penalty" and, for
   penalty, ``penalty`` = a stiffness in N/m or "scaled" (the default: beta = 1
   at every step); a stiffness whose beta = p dt^2 / m exceeds 4/3 is refused
-  unless forced (contact/wall.py); ``face`` = "contact" (default: every boundary
+  unless forced (contact/plane.py); ``face`` = "contact" (default: every boundary
   node a unilateral candidate, so the rim of the impact face may lift off) or
   "held" (u_z = 0 on the face Z = 0 from t = 0, free to slide radially: the
   condition of the converged Taylor-bar references; needs z = 0; the face's

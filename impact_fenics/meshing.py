@@ -149,21 +149,164 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
 
 
 def _open_msh(gmsh, path: str) -> None:
-    """Open a .msh file in gmsh and refuse what the reader cannot take (one line)."""
+    """Open a .msh file in gmsh and refuse, in one line, what the reader cannot take.
+
+    dolfinx's gmsh reader (0.5) ends the process (a segmentation fault, an abort or a
+    failed assertion) on cells outside every 2D physical group, on cells of two types,
+    on node tags with gaps (numbered anew here), on a group of an unmeshed entity,
+    on a cell in two groups, on a line that is no cell's side and on a point group
+    whose point is no cell's node, and keeps a side that is in two groups in one of
+    them only; on 0.11 it builds a mesh the solver cannot use (several cell types,
+    second-order cells) or stops MPI. A mesh holds one cell type until a scene can hold
+    several meshes."""
     gmsh.open(path)
+    where = f"mesh file '{path}'"
     if gmsh.model.getDimension() != 2:
-        raise InputError(f"mesh file '{path}' is not a 2D (r, z) mesh")
-    if not gmsh.model.mesh.getNodes()[0].size:
-        raise InputError(f"mesh file '{path}' holds no mesh nodes")
-    # dolfinx 0.5's gmshio crashes (segmentation fault) on cells outside every
-    # 2D physical group: refuse them here, before it sees the model
+        raise InputError(f"{where} is not a 2D (r, z) mesh")
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    if not tags.size:
+        raise InputError(f"{where} holds no mesh nodes")
+    # (a mesh in the x-z plane reads as a flat section: cells of zero area)
+    xyz = xyz.reshape(-1, 3)
+    extent = float(np.ptp(xyz[:, :2], axis=0).max())
+    # gmsh places a node within Geometry.Tolerance (1e-8 of the model's size) of its plane
+    if np.ptp(xyz[:, 2]) > 1e-8 * extent:
+        raise InputError(f"{where}: its nodes span {np.ptp(xyz[:, 2]):.4g} m in gmsh's z, so "
+                         "the mesh is not in a plane z = constant; draw the section in the "
+                         "x-y plane (r = x, z = y)")
+    _refuse_loose_surfaces(gmsh, where)
+    # dolfinx's reader asserts node tags 1..n without gaps; a file edited (a surface's mesh
+    # cleared) or written by another tool may have gaps: number the nodes anew
+    gmsh.model.mesh.renumberNodes()
+    _refuse_unmeshed_entities(gmsh, where)
+    _refuse_entities_in_two_groups(gmsh, where)
+    _refuse_cell_types(gmsh, where)
+    _refuse_lines_off_the_cells(gmsh, where)
+    _refuse_points_off_the_cells(gmsh, where)
+
+
+def _group_name(gmsh, dim: int, tag: int) -> str:
+    return gmsh.model.getPhysicalName(dim, tag) or str(tag)
+
+
+def _refuse_loose_surfaces(gmsh, where: str) -> None:
+    """Cells outside every 2D physical group (dolfinx 0.5 crashes on them)."""
+    if not gmsh.model.getPhysicalGroups(2):
+        raise InputError(f"{where} has no physical group of cells (dimension 2): put every "
+                         "surface in a named physical group (a body)")
     loose = [tag for _, tag in gmsh.model.getEntities(2)
              if not len(gmsh.model.getPhysicalGroupsForEntity(2, tag))
              and len(gmsh.model.mesh.getElements(2, tag)[0])]
     if loose:
-        raise InputError(f"mesh file '{path}': surface(s) {', '.join(map(str, loose))} "
+        raise InputError(f"{where}: surface(s) {', '.join(map(str, loose))} "
                          "have cells but no 2D physical group; put every surface in a "
                          "named physical group (a body)")
+
+
+def _refuse_unmeshed_entities(gmsh, where: str) -> None:
+    """A physical group naming a surface, curve or point that holds no mesh (dolfinx 0.5's
+    reader fails an assertion; 0.11 makes a body of no cells)."""
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            if not len(gmsh.model.mesh.getElements(dim, entity)[0]):
+                what = ("point", "curve", "surface")[dim]
+                raise InputError(f"{where}: the group '{_group_name(gmsh, dim, tag)}' holds "
+                                 f"{what} {entity}, which has no mesh; mesh it, or take it "
+                                 "out of the group")
+
+
+def _refuse_entities_in_two_groups(gmsh, where: str) -> None:
+    """A surface in two cell groups (its cells read twice: a crash), or a curve in two
+    facet groups (its sides kept in one of them: a group silently short)."""
+    for dim, what, kind, advice in ((2, "cells", "cell", "a cell belongs to one body: put "
+                                     "each surface in one 2D physical group"),
+                                    (1, "sides", "facet", "a side is read into one group "
+                                     "only: put each curve in one 1D physical group")):
+        for _, tag in gmsh.model.getEntities(dim):
+            groups = gmsh.model.getPhysicalGroupsForEntity(dim, tag)
+            if len(groups) > 1 and len(gmsh.model.mesh.getElements(dim, tag)[0]):
+                names = " and ".join(f"'{_group_name(gmsh, dim, g)}'" for g in groups)
+                entity = ("curve", "surface")[dim - 1]
+                raise InputError(f"{where}: the {what} of {entity} {tag} are in the {kind} "
+                                 f"groups {names}; {advice}")
+
+
+def _cell_kind(gmsh, kind: int) -> str:
+    """'3-node triangles', '4-node quadrilaterals', '6-node triangles', ... of gmsh's type."""
+    name, _, _, nodes, _, corners = gmsh.model.mesh.getElementProperties(kind)[:6]
+    shape = {3: "triangles", 4: "quadrilaterals"}.get(corners, name.split()[0].lower() + "s")
+    return f"{nodes}-node {shape}"
+
+
+def _refuse_cell_types(gmsh, where: str) -> None:
+    """Second-order cells, and cells of more than one type (one cell type per mesh)."""
+    kinds: dict[int, list[str]] = {}  # gmsh element type -> the groups that hold it
+    for dim, tag in gmsh.model.getPhysicalGroups(2):
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            for kind in gmsh.model.mesh.getElementTypes(2, entity):
+                names = kinds.setdefault(int(kind), [])
+                if _group_name(gmsh, dim, tag) not in names:
+                    names.append(_group_name(gmsh, dim, tag))
+    said = [f"{_cell_kind(gmsh, k)} in {', '.join(repr(n) for n in names)}"
+            for k, names in sorted(kinds.items())]
+    higher = [s for k, s in zip(sorted(kinds), said)
+              if gmsh.model.mesh.getElementProperties(k)[2] > 1]
+    if higher:
+        raise InputError(f"{where} has second-order cells ({'; '.join(higher)}); the solver's "
+                         "cells are first order: mesh with element order 1 (gmsh -order 1, "
+                         "Mesh.ElementOrder = 1)")
+    if len(kinds) > 1:
+        raise InputError(f"{where} mixes cell types ({'; '.join(said)}); a mesh holds one cell "
+                         "type for now (several meshes in one scene are to come): mesh every "
+                         "body with one cell type (all triangles, or every surface recombined "
+                         "into quadrilaterals)")
+
+
+def _refuse_lines_off_the_cells(gmsh, where: str) -> None:
+    """Line groups hold sides of cells (facets); a line that is no cell's side crashes
+    dolfinx 0.5's reader. Second-order lines are refused with the cells."""
+    sides = []
+    for _, tag in gmsh.model.getEntities(2):
+        for kind, nodes in zip(*gmsh.model.mesh.getElements(2, tag)[::2]):
+            props = gmsh.model.mesh.getElementProperties(kind)
+            conn = nodes.astype(np.int64).reshape(-1, props[3])[:, :props[5]]  # the corners
+            sides.append(np.sort(np.stack([conn, np.roll(conn, -1, axis=1)], axis=2)
+                                 .reshape(-1, 2), axis=1))
+    sides = np.concatenate(sides) if sides else np.zeros((0, 2), np.int64)
+    base = int(sides.max()) + 1 if sides.size else 1  # a side (a, b), a < b, is a * base + b
+    known = np.unique(sides[:, 0] * base + sides[:, 1])
+    for dim, tag in gmsh.model.getPhysicalGroups(1):
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            for kind, nodes in zip(*gmsh.model.mesh.getElements(1, entity)[::2]):
+                props = gmsh.model.mesh.getElementProperties(kind)
+                if props[2] > 1:
+                    raise InputError(f"{where} has second-order lines in the facet group "
+                                     f"'{_group_name(gmsh, dim, tag)}'; the solver's cells "
+                                     "are first order: mesh with element order 1 (gmsh "
+                                     "-order 1, Mesh.ElementOrder = 1)")
+                ends = np.sort(nodes.astype(np.int64).reshape(-1, props[3])[:, :2], axis=1)
+                off = (ends[:, 1] >= base) | ~np.isin(ends[:, 0] * base + ends[:, 1], known)
+                if off.any():
+                    raise InputError(f"{where}: {int(off.sum())} line(s) of the facet group "
+                                     f"'{_group_name(gmsh, dim, tag)}' (curve {entity}) are "
+                                     "not sides of any cell; a facet group holds sides of the "
+                                     "cells: put only curves that bound a meshed surface in it")
+
+
+def _refuse_points_off_the_cells(gmsh, where: str) -> None:
+    """A point group whose point is no node of a cell crashes dolfinx 0.5's reader (a
+    point group on a cell's node is read, and unused)."""
+    used = [nodes for _, tag in gmsh.model.getEntities(2)
+            for nodes in gmsh.model.mesh.getElements(2, tag)[2]]
+    used = np.concatenate(used) if used else np.zeros(0, np.uint64)
+    for dim, tag in gmsh.model.getPhysicalGroups(0):
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            nodes = gmsh.model.mesh.getNodes(0, entity)[0]
+            if not np.isin(nodes, used).all():
+                raise InputError(f"{where}: the point group '{_group_name(gmsh, dim, tag)}' "
+                                 f"holds point {entity}, which is no node of a cell; the "
+                                 "solver reads cell and facet groups only: remove the point "
+                                 "group (or put its point on a meshed surface)")
 
 
 def msh_size(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:

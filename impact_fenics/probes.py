@@ -24,6 +24,11 @@ there), so the probe's stress is the weighted mean of the point stresses
 (:func:`~impact_fenics.cell_fields.point_mean_stress`), as in the fields, and
 ``eps_p_eq`` and ``yielded`` are of the same state: the mean equivalent plastic
 strain of the points and 1 if one has yielded.
+
+``r`` and ``z`` are node probes: the current position X + u (m) of the node nearest
+the point among the nodes of the body whose cell holds it (a tie goes to the smaller
+(r, z), the same on every partition). The rank that owns the node records its two
+dofs; X is known on every rank from set-up.
 """
 from __future__ import annotations
 
@@ -36,18 +41,43 @@ from numba import njit
 from . import q1
 from .cell_fields import (STRESS_NAMES, point_mean_stress, stiffness_matrix, stress_outputs,
                           triangle_strain, von_mises)
-from .compat import cell_dofs, colliding_cells
+from .compat import cell_dofs, colliding_cells, geometry_dofs
 from .errors import InputError
 from .jit_watch import direct, load
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
-QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES
+POSITION_QUANTITIES = ("r", "z")  # a node's current position X + u (m)
+QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES + POSITION_QUANTITIES
 # raw history entries per probe: u_r, u_z of the cell's three nodes (four on a mesh of
-# quadrilaterals: RAW_Q1); a probe in a cell of a path-dependent body has its points' state
-# after all of them (CellPoints.size)
+# quadrilaterals: RAW_Q1), of its one node first for r and z; a probe in a cell of a
+# path-dependent body has its points' state after all of them (CellPoints.size)
 RAW = 6
 RAW_Q1 = 8
 _U_R, _U_Z = QUANTITIES.index("u_r"), QUANTITIES.index("u_z")
+_R = QUANTITIES.index("r")  # r, z: codes _R, _R + 1
+
+
+def nearest_node(model, body: str, point: tuple[float, float]) -> tuple[int, np.ndarray | None]:
+    """Local index of the node of ``body`` nearest ``point`` (r, z) in m and its (r, z), on
+    the rank that owns it (-1 and None on the others); ties go to the smaller (r, z)
+    (collective). The coordinates are the mesh's own (its geometry), not the dof
+    coordinates, which the geometry map recomputes with round-off."""
+    n_owned = model.n_owned // model.bs
+    cells = model.tmesh.cells(body)
+    # P1 and Q1: a cell's dofs are its vertices, in the order of its geometry's nodes
+    nodes = cell_dofs(model.V)[cells].ravel()
+    xy = model.mesh.geometry.x[geometry_dofs(model.mesh)[cells].ravel(), :2]
+    keep = nodes < n_owned
+    nodes, xy = nodes[keep], xy[keep]
+    best = (np.inf, np.inf, np.inf)
+    if nodes.size:
+        d2 = (xy[:, 0] - point[0]) ** 2 + (xy[:, 1] - point[1]) ** 2
+        k = int(np.lexsort((xy[:, 1], xy[:, 0], d2))[0])
+        best = (float(d2[k]), float(xy[k, 0]), float(xy[k, 1]))
+    winner = min(model.comm.allgather(best))
+    if nodes.size and best == winner:
+        return int(nodes[k]), xy[k].copy()
+    return -1, None
 
 
 def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
@@ -148,16 +178,19 @@ def _point_value(sigma, state, w, code, cells, mean) -> float:
 
 
 @njit(cache=True)
-def _values(raw, xy, D, code, pointwise, out) -> None:
+def _values(raw, xy, D, code, pointwise, X, out) -> None:
     """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
     the cell means of the nodal values (m); in the cell of a linear body a stress D eps
-    (Pa), eps_p_eq and yielded 0; the other values of a probe in a path-dependent body's
-    cell (``pointwise`` true) are left to :class:`CellPoints`."""
+    (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); the other values of a
+    probe in a path-dependent body's cell (``pointwise`` true) are left to
+    :class:`CellPoints`."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW * p: RAW * p + RAW]
             c = code[p]
-            if c == _U_R or c == _U_Z:
+            if c >= _R:
+                out[i, p] = X[p, c - _R] + q[c - _R]
+            elif c == _U_R or c == _U_Z:
                 k = c - _U_R
                 out[i, p] = (q[k] + q[k + 2] + q[k + 4]) / 3.0
             elif pointwise[p]:
@@ -171,17 +204,19 @@ def _values(raw, xy, D, code, pointwise, out) -> None:
 
 
 @njit(cache=True)
-def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, dofs, eps, D, code, pointwise,
+def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, dofs, eps, D, code, pointwise, X,
                  out) -> None:
     """:func:`_values` in Q1 cells (RAW_Q1 per probe first): u_r and u_z the Q1
     interpolation sum_a weights[p, a] u_a at the point (m); a linear body's stress D times
     the cell's mean strain (Pa; the one-cell geometry of probe p: dNdR[p], ... of
-    :class:`.q1.QuadGeometry`)."""
+    :class:`.q1.QuadGeometry`); r and z the node's X[p] + u (m)."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW_Q1 * p: RAW_Q1 * p + RAW_Q1]
             c = code[p]
-            if c == _U_R or c == _U_Z:
+            if c >= _R:
+                out[i, p] = X[p, c - _R] + q[c - _R]
+            elif c == _U_R or c == _U_Z:
                 k = c - _U_R
                 out[i, p] = (weights[p, 0] * q[k] + weights[p, 1] * q[k + 2]
                              + weights[p, 2] * q[k + 4] + weights[p, 3] * q[k + 6])
@@ -268,7 +303,8 @@ class CellPoints:
 
 class Probes:
     """Cell values at points: ``quantity`` in QUANTITIES (stresses in Pa, u_r, u_z in m)
-    of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point)."""
+    of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point);
+    r and z (m) the current position of the node nearest the point."""
 
     def __init__(self, model, probes: list[tuple[str, tuple[float, float], str]],
                  plastic_forces=()):
@@ -285,6 +321,7 @@ class Probes:
         self.D = np.zeros((n, 4, 4))
         self.code = np.zeros(n, dtype=np.int64)
         self.midpoints = np.zeros((n, 2))  # (r, z) in m of each probe's cell
+        self.X = np.zeros((n, 2))  # (r, z) in m of the node of an r or z probe
         dofs = np.zeros(width * n, dtype=np.int64)  # global unrolled dofs
         imap = model.V.dofmap.index_map
         cell_nodes = cell_dofs(model.V)
@@ -300,21 +337,33 @@ class Probes:
             cell, mine = locate_cell(mesh, point)
             if mine:
                 nodes = cell_nodes[cell].astype(np.int32)
+                self.midpoints[k] = model.node_xy[nodes].mean(axis=0)
+            if mine and quantity not in POSITION_QUANTITIES:
                 glob = imap.local_to_global(nodes)
                 dofs[width * k: width * (k + 1)] = np.column_stack([2 * glob,
                                                                     2 * glob + 1]).ravel()
                 self.xy[k] = model.node_xy[nodes]
                 if quad:
                     self._quad.fill(k, model.V, model.node_xy, cell, point)
-                self.midpoints[k] = self.xy[k].mean(axis=0)
+            if mine:
                 which[k] = next(b for b, body in enumerate(bodies)
                                 if cell in model.tmesh.cells(body.name))
                 force = forces.get(bodies[which[k]].name)
                 if force is not None:
                     owned_pos[k] = int(np.searchsorted(force.cells, cell))
-        for arr in (dofs, self.xy, self.midpoints) + (self._quad.arrays() if quad else ()):
-            self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
         self.comm.Allreduce(MPI.IN_PLACE, which, op=MPI.MAX)
+        unused = np.zeros(width * n, dtype=np.bool_)  # raw entries no rank records
+        for k, (_, point, quantity) in enumerate(probes):
+            if quantity in POSITION_QUANTITIES:  # the node's u_r, u_z, its X
+                unused[width * k + 2: width * (k + 1)] = True
+                node, X = nearest_node(model, bodies[which[k]].name, point)
+                if X is not None:
+                    glob = int(imap.local_to_global(np.array([node], dtype=np.int32))[0])
+                    dofs[width * k: width * k + 2] = (2 * glob, 2 * glob + 1)
+                    self.X[k] = X
+        for arr in ((dofs, self.xy, self.midpoints, self.X)
+                    + (self._quad.arrays() if quad else ())):
+            self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
         # probes of a stress or a plastic quantity in the cell of a path-dependent body:
         # (probe, its CellPoints, where its points' state starts in a raw row) on every
         # rank; (the force's state, the cell's position, that start) of those this rank owns
@@ -327,7 +376,7 @@ class Probes:
             if quantity in PLASTIC_QUANTITIES and not plastic_forces:
                 raise InputError(f"probe '{name}': {quantity} needs a path-dependent body in "
                                  "the run (it reads 0 in the cells of linear bodies)")
-            if self.code[k] in (_U_R, _U_Z):
+            if self.code[k] in (_U_R, _U_Z) or quantity in POSITION_QUANTITIES:
                 continue
             if force is not None:
                 pos = owned_pos.get(k, -1)
@@ -343,7 +392,7 @@ class Probes:
                     raise InputError(f"probe '{name}': {quantity} of body '{bodies[which[k]].name}' "
                                      "needs a material with a constant (elastic) stiffness")
                 self.D[k] = D
-        owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned)
+        owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned) & ~unused
         index = np.full(self.n_raw, -1, dtype=np.int64)
         index[: width * n] = np.where(owned, dofs - model.offset, -1)
         self._index = index
@@ -356,11 +405,11 @@ class Probes:
 
     def _load_values(self, raw: np.ndarray, out: np.ndarray) -> None:
         if self._quad is None:
-            load(_values, raw, self.xy, self.D, self.code, self.pointwise, out)
+            load(_values, raw, self.xy, self.D, self.code, self.pointwise, self.X, out)
         else:
             qc = self._quad
             load(_quad_values, raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w,
-                 qc.dofs, qc.eps, self.D, self.code, self.pointwise, out)
+                 qc.dofs, qc.eps, self.D, self.code, self.pointwise, self.X, out)
 
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
         """``record(offset)``: the probe dofs this rank owns (m), and the points' state of
@@ -385,11 +434,11 @@ class Probes:
             out = np.empty((raw.shape[0], self.code.size))
         raw = np.ascontiguousarray(raw)
         if self._quad is None:
-            _values(raw, self.xy, self.D, self.code, self.pointwise, out)
+            _values(raw, self.xy, self.D, self.code, self.pointwise, self.X, out)
         else:
             qc = self._quad
             _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, qc.dofs,
-                         qc.eps, self.D, self.code, self.pointwise, out)
+                         qc.eps, self.D, self.code, self.pointwise, self.X, out)
         for k, cell_points, start in self._points:
             code = int(self.code[k])
             for i in range(raw.shape[0]):

@@ -74,7 +74,7 @@ class Section:
 
 METHODS = ("penalty", "film", "dme")
 QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
-              "eps_p_eq", "yielded")
+              "eps_p_eq", "yielded", "r", "z")
 MODELS = tuple(MATERIAL_MODELS)  # the materials by name (impact_fenics.materials.MODELS)
 STRAIN_WORDS = {"small": "small strain", "finite": "finite strain"}
 PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
@@ -325,12 +325,14 @@ _OUTPUT = Section("output", "[output]", (
 
 _PROBES = Section("probes", "[[probes]]", (
     "A history column: a quantity in the cell that holds a point (not on the interface "
-    "of two bodies)."), (
+    "of two bodies), or the current position of a node near it."), (
     Key("name", "text", "", None, "the column's name (unique; not step, time or dt)",
         default_text="<quantity>_<k>"),
     Key("point", "pair", "m", REQUIRED, "the point [r, z], r >= 0"),
     Key("quantity", "text", "", REQUIRED, "stresses in Pa, displacements in m; eps_p_eq and "
-        "yielded with a j2 body", choices=QUANTITIES),
+        "yielded with a j2 body; r and z (m): the current position X + u of the node "
+        "nearest the point, among the nodes of the body whose cell holds it",
+        choices=QUANTITIES),
 ))
 
 _WALL = Section("wall", "[wall]", (

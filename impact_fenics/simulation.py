@@ -19,6 +19,7 @@ from . import console, interrupts, output, plotting, rundir
 from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
+from .contact.interface import refuse_shared_rigid
 from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
@@ -190,13 +191,15 @@ class Simulation:
             require(rigid is None, "node-to-segment contact takes no rigid body")
             contact_dofs = constraints.dofs
         else:
-            contact_dofs = constraints.lower if constraints.upper is None else \
-                np.concatenate([constraints.lower, constraints.upper])
+            contact_dofs = np.concatenate([d for d in (constraints.lower, constraints.upper)
+                                           if d is not None])
         loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
         if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), contact_dofs).sum())):
             raise InputError(f"a surface load acts on nodes of the contact surfaces "
                              f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
                              "facet group (the contact bookkeeping assumes no load there)")
+        if rigid is not None:
+            refuse_shared_rigid(rigid, constraints.names, self.contacts)
         t0 = time.perf_counter()
         c = (NodeToSegmentSet(constraints, self.integrator, method) if segments
              else ContactSet(constraints, self.integrator, method, rigid))

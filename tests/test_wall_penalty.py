@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from impact_fenics.contact.wall import RigidWall
+from wall_oracle import RigidWall, plug_into, standalone_plane
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.neo_hookean import NeoHookean
 from roundoff import assert_within_spread, ledger, one_ulp, rounding
@@ -37,11 +37,15 @@ C0 = math.sqrt(E / RHO)
 BAR = NeoHookean(E=E, nu=0.0, density=RHO)
 
 
-def impact(comm, n_r: int, method: str, penalty="scaled", beta: float = 1.0, v0: float = V0):
-    """The bar (n_r x 10 n_r square cells) at ``v0`` (m/s) from contact at t = 0 to 2.6 L / c0."""
+def impact(comm, n_r: int, method: str, penalty="scaled", beta: float = 1.0, v0: float = V0,
+           oracle: bool = False):
+    """The bar (n_r x 10 n_r square cells) at ``v0`` (m/s) from contact at t = 0 to 2.6 L / c0;
+    ``oracle``: against the former wall's kernel (tests/wall_oracle.py), not the plane."""
     mesh = quad_bar(comm, A, L, n_r, 10 * n_r)
     run = FiniteRun(mesh, BAR, FiniteSettings(t_end=2.6 * L / C0, history_every=1),
                     velocity=(0.0, -v0), wall=method, penalty=penalty, penalty_beta=beta)
+    if oracle:
+        plug_into(run)
     s = run.run()
     h = run.history
     on = np.flatnonzero(h["n_active"] > 0)
@@ -84,39 +88,104 @@ def test_first_activation_loss_is_the_face_layers_kinetic_energy(comm):
                                                     rel=rounding(40 + 6 + n_r + 1))
 
 
+# one predicted state of five nodes (dt != dt_avg): arriving, pressing on the wall, pulled
+# off it, in the air, and one higher up (Z = 0.01 m) arriving
+Z5 = np.array([0.0, 0.0, 0.0, 0.0, 0.01])  # m
+MASS5 = np.array([2.0, 0.7, 1.3, 3.1, 0.9])  # kg
+DT, DT_AVG = 1.1e-7, 1.05e-7  # s
+Z_N = np.array([2e-7, 0.0, 0.0, 5e-7, -0.01 + 3e-7])  # u_z before the step (m)
+VZ = np.array([-3.0, -1.0, 0.5, -1.0, -4.0])  # predicted v_z (m/s)
+F_INT = np.linspace(-1.0, 1.0, 10)  # N
+
+
+def _state():
+    u, v = np.zeros(10), np.zeros(10)
+    v[0::2], v[1::2] = 0.3, VZ
+    u[0::2], u[1::2] = 1e-3, Z_N + DT * VZ
+    return u, v
+
+
+def _plane_step(method, **kw):
+    """One correction of the fixed plane from the state above: (u, v, reactions (N),
+    number active, loss (J), internal-work correction (J))."""
+    u, v = _state()
+    plane = standalone_plane(Z5, MASS5, u, v, method, **kw)
+    w_fix = plane.step(u, v, DT, DT_AVG, F_INT)
+    return u, v, plane.set.force.copy(), plane.n_active_local, plane.contact_loss_local, w_fix
+
+
+def _wall_step(method, **kw):
+    """The same correction by the oracle (the former rigid wall's kernel)."""
+    u, v = _state()
+    wall = RigidWall(np.arange(5), Z5, MASS5, method, **kw)
+    w_fix = wall.step(u, v, DT, DT_AVG, F_INT)
+    return u, v, wall.impulse.copy(), wall.n_active_local, wall.contact_loss_local, w_fix
+
+
+def _scales():
+    """Per node: the position's magnitudes (|Z|, |u~|, |g~|: g~ = Z + u~ cancels) and the
+    velocity's (|v~| and the position's over dt: a correction is g~ / dt)."""
+    u, _ = _state()
+    gap = Z5 + u[1::2]
+    scale_u = np.maximum.reduce([np.abs(Z5), np.abs(u[1::2]), np.abs(gap)])
+    return scale_u, np.maximum(np.abs(VZ), scale_u / DT)
+
+
 def test_scaled_penalty_step_at_beta_one_is_the_film_step():
-    """One correction from one predicted state (dt != dt_avg, a node arriving, one pressing,
-    one pulled off, one in the air): the spring p = m / (dt dt_avg) on the predicted gap
-    g~ puts the node where FILM does. FILM: v = v~ - g~ / dt, u = z_wall - Z. Penalty:
-    p (3 roundings), f = -p g~ (1), v = v~ + dt_avg f / m (3), u = u~ + dt (v - v~) (3),
-    g~ = Z + u~ - z_wall (2) in both: at most 12 roundings on the largest magnitude of the
-    node's terms (|v~|, |g~| / dt for the velocity; |Z|, |u~|, |g~| for the position), and
-    for the reaction m (v - v~) / dt_avg the velocity's bound times m / dt_avg."""
-    Z = np.array([0.0, 0.0, 0.0, 0.0, 0.01])
-    mass = np.array([2.0, 0.7, 1.3, 3.1, 0.9])  # kg
-    dt, dt_avg = 1.1e-7, 1.05e-7  # s
-    z_n = np.array([2e-7, 0.0, 0.0, 5e-7, 0.0])  # positions before the step (m)
-    vz = np.array([-3.0, -1.0, 0.5, -1.0, -2.0])  # predicted v_z (m/s)
-    u = np.zeros(10)
-    v = np.zeros(10)
-    v[0::2], v[1::2] = 0.3, vz
-    u[1::2] = z_n + dt * vz
-    f_int = np.linspace(-1.0, 1.0, 10)
-    out = {}
-    for method in ("film", "penalty"):
-        wall = RigidWall(np.arange(5), Z, mass, method, penalty="scaled", beta_target=1.0)
-        uu, vv = u.copy(), v.copy()
-        wall.step(uu, vv, dt, dt_avg, f_int)
-        out[method] = (uu, vv, wall.impulse.copy(), wall.n_active_local)
-    (u_f, v_f, f_f, n_f), (u_p, v_p, f_p, n_p) = out["film"], out["penalty"]
-    assert n_f == n_p == 2  # the arriving and the pressing node
-    gap = Z + u[1::2]
-    scale_v = np.maximum(np.abs(vz), np.abs(gap) / dt)
-    scale_u = np.maximum.reduce([np.abs(Z), np.abs(u[1::2]), np.abs(gap)])
+    """One correction from one predicted state: the spring p = m / (dt dt_avg) on the
+    predicted gap g~ puts the node where FILM does, both by the fixed plane. FILM:
+    d = dt dt_avg (1/m) (3 roundings), 1/d (1), f = -g~ / d (1); penalty: p = beta / d
+    (4), f = -p g~ (1); then both v = v~ + f (dt_avg / m) (3), u = u~ + dt dv (2) and
+    g~ = (Z - z_wall) + u~ (2): at most 12 roundings on the largest magnitude of the
+    node's terms (_scales), and for the reaction f = m (v - v~) / dt_avg the velocity's
+    bound times m / dt_avg."""
+    u_f, v_f, f_f, n_f, _, _ = _plane_step("film")
+    u_p, v_p, f_p, n_p, _, _ = _plane_step("penalty", penalty="scaled", beta_target=1.0)
+    assert n_f == n_p == 3  # the arriving, the pressing and the high arriving node
+    scale_u, scale_v = _scales()
     assert np.all(np.abs(v_p[1::2] - v_f[1::2]) <= rounding(12) * scale_v)
     assert np.all(np.abs(u_p[1::2] - u_f[1::2]) <= rounding(12) * scale_u)
-    assert np.all(np.abs(f_p - f_f) <= rounding(12) * scale_v * mass / dt_avg)
+    assert np.all(np.abs(f_p - f_f) <= rounding(12) * scale_v * MASS5 / DT_AVG)
     assert np.array_equal(u_p[0::2], u_f[0::2]) and np.array_equal(v_p[0::2], v_f[0::2])
+
+
+@pytest.mark.parametrize("method, kw", [("film", {}), ("dme", {}),
+                                        ("penalty", {"penalty": "scaled", "beta_target": 0.7}),
+                                        ("penalty", {"penalty": 3e13})],
+                         ids=["film", "dme", "penalty_scaled", "penalty_stiffness"])
+def test_plane_step_is_the_wall_step(method, kw):
+    """The fixed plane (a contact set with a fixed rigid part) against the former wall's
+    kernel (the oracle, tests/wall_oracle.py), one correction from one state, class (b)
+    of tests/roundoff.py: the two evaluate the same closed forms in other orders. The
+    plane's longer path is counted above (12 roundings: the velocity and the position
+    through S's diagonal and h/m); the wall's is shorter (FILM: g~ (2), g~ / dt (1),
+    v~ - (1), u = z_wall - Z (1); penalty: 12). DME moves a node onto the plane, u =
+    -(Z - z_wall) = z_wall - Z and v = 0 exactly in both: equal. The loss
+    -1/2 (v^- + v) m (v - v~) and the internal-work correction 1/2 dt_avg (v - v~) f_int
+    are the same expressions on velocities within the bound dv: each node's term moves
+    by at most m (|v^-| + 2 |v| + |v~|) dv / 2 (loss) or dt_avg |f_int| dv / 2, and its
+    own roundings (6, summed over the 5 nodes: 6 + 5) on the terms' magnitudes."""
+    u_p, v_p, f_p, n_p, loss_p, fix_p = _plane_step(method, **kw)
+    u_w, v_w, f_w, n_w, loss_w, fix_w = _wall_step(method, **kw)
+    assert n_p == n_w == 3
+    assert np.array_equal(u_p[0::2], u_w[0::2]) and np.array_equal(v_p[0::2], v_w[0::2])
+    scale_u, scale_v = _scales()
+    if method == "dme":
+        assert np.array_equal(u_p, u_w) and np.array_equal(v_p, v_w)
+    du = rounding(12) * scale_u
+    dv = rounding(12) * scale_v
+    assert np.all(np.abs(u_p[1::2] - u_w[1::2]) <= du)
+    assert np.all(np.abs(v_p[1::2] - v_w[1::2]) <= dv)
+    # the reaction m (v - v~) / dt_avg (3 more roundings of it)
+    assert np.all(np.abs(f_p - f_w) <= dv * MASS5 / DT_AVG + rounding(3, np.abs(f_w)))
+    v_new = v_w[1::2]
+    v_old = VZ + DT_AVG * F_INT[1::2] / MASS5
+    terms = 0.5 * np.abs(v_old + v_new) * MASS5 * np.abs(v_new - VZ)
+    move = MASS5 * (np.abs(v_old) + 2 * np.abs(v_new) + np.abs(VZ)) * dv / 2
+    assert abs(loss_p - loss_w) <= float(np.sum(move)) + rounding(11, float(np.sum(terms)))
+    fix_terms = 0.5 * DT_AVG * np.abs(v_new - VZ) * np.abs(F_INT[1::2])
+    fix_move = DT_AVG * np.abs(F_INT[1::2]) * dv / 2
+    assert abs(fix_p - fix_w) <= float(np.sum(fix_move)) + rounding(11, float(np.sum(fix_terms)))
 
 
 def test_scaled_penalty_at_beta_one_is_film(comm):
@@ -165,3 +234,27 @@ def test_penalty_above_the_bound_is_refused(comm):
                     velocity=(0.0, -V0), wall="penalty", penalty=1e15)
     with pytest.raises(InputError, match=r"beta_max = p dt\^2 / m = .* above the stable bound 4/3"):
         run.run()
+
+
+@pytest.mark.parametrize("method, beta", [("film", 1.0), ("dme", 1.0), ("penalty", 0.5)],
+                         ids=["film", "dme", "penalty_beta_0.5"])
+def test_plane_runs_as_the_wall(comm, method, beta):
+    """The whole impact (the bar in contact from the first step, then free) with the fixed
+    plane and with the former wall's kernel (the oracle): class (c) of tests/roundoff.py,
+    every column within the steps x the spread of the oracle under a one-ulp change of
+    v0, the active set the same at every step. DME evaluates the same numbers (a node on
+    the plane at z_wall - Z with v = 0; the gaps Z + u~ with z_wall = 0): its motion is
+    equal, on any partition (each node's arithmetic is its own)."""
+    a, ha, _ = impact(comm, 2, method, beta=beta)
+    b, hb, _ = impact(comm, 2, method, beta=beta, oracle=True)
+    c, hc, _ = impact(comm, 2, method, beta=beta, v0=one_ulp(V0), oracle=True)
+    n = b["n_steps"]
+    assert a["n_steps"] == n == c["n_steps"]
+    assert np.array_equal(ha["n_active"], hb["n_active"])
+    if method == "dme":
+        for key in ("length", "face_radius", "kinetic", "velocity_z"):
+            assert np.array_equal(ha[key], hb[key]), key
+    for key in ha:
+        # the ledger's residuals are round-off themselves: on the scale of the energy
+        scale = b["initial_kinetic"] if key in ("balance_error", "work_gap") else None
+        assert_within_spread(ha[key], hb[key], hc[key], n, key, scale)

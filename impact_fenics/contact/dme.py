@@ -60,8 +60,8 @@ class DME:
             _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.dt, self.e, self.positions == "mass_weighted",
                    c.u, c.v, c.force, c.active)
         else:
-            _cluster(c.gap, c.b, c.lo, c.up[0], c.mass, c.m_over_dt, c.dt, c.u_now, c.u, c.v,
-                     c.force, c.active, c.work)
+            _cluster(c.gap, c.b, c.nodes, c.body, c.side, c.mass, c.m_over_dt, c.dt, c.u_now,
+                     c.u, c.v, c.force, c.active, c.work)
 
 
 @njit(cache=True)
@@ -86,38 +86,53 @@ def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
 
 
 @njit(cache=True)
-def _cluster(gap, b, lo, body, mass, m_over_dt, dt, u_now, u, v, force, active, work):
+def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force, active, work):
     """Case 1: the largest consistent set of penetrating nodes moves with the body.
-    ``m_over_dt``: m / dt per slot (kg/s); ``work``: an int buffer of length n."""
-    momentum = mass[body] * v[body]
+    ``nodes``: each constraint's node slot; ``side`` +1 for a body above its nodes, -1
+    below (the gap is b + side (u_body - u_node)); ``m_over_dt``: m / h_n per slot
+    (kg/s); ``dt`` the position step h_{n+1/2} (s); ``work``: an int buffer of length n.
+    A fixed body (infinite mass) keeps its velocity: the cluster's is the body's."""
+    fixed = mass[body] == np.inf
+    momentum = 0.0 if fixed else mass[body] * v[body]
     total = mass[body]
-    v_min = np.inf
+    v_min = np.inf  # of side x v: the node most ready to leave the body
     n_cand = 0
     for i in range(gap.size):
         if gap[i] < 0.0:
             work[n_cand] = i
             n_cand += 1
-            node = lo[i]
-            momentum += mass[node] * v[node]
-            total += mass[node]
-            v_min = min(v_min, v[node])
+            node = nodes[i]
+            if not fixed:
+                momentum += mass[node] * v[node]
+                total += mass[node]
+            v_min = min(v_min, side * v[node])
     cand = work[:n_cand]
-    if v_min >= momentum / total:  # no candidate would pull: all join (the usual case)
+    v_c = v[body] if fixed else momentum / total
+    if v_min >= side * v_c:  # no candidate would pull: all join (the usual case)
         order = cand
         k = cand.size
+    elif fixed:  # the body's velocity is given: each candidate joins unless it pulls
+        k = 0
+        for j in range(n_cand):
+            if side * v[nodes[cand[j]]] >= side * v_c:
+                cand[k] = cand[j]
+                k += 1
+        order = cand
     else:
-        order = cand[np.argsort(-v[lo[cand]], kind="mergesort")]  # fastest up first (allocates: rare)
+        # fastest towards the body first (allocates: rare)
+        order = cand[np.argsort(-side * v[nodes[cand]], kind="mergesort")]
         momentum = mass[body] * v[body]
         total = mass[body]
         k = 0
         for j in range(order.size):
-            node = lo[order[j]]
-            if v[node] < momentum / total:  # holding it would pull: it and all slower stay free
+            node = nodes[order[j]]
+            # holding it would pull: it and all slower stay free
+            if side * v[node] < side * (momentum / total):
                 break
             momentum += mass[node] * v[node]
             total += mass[node]
             k += 1
-    v_c = momentum / total
+        v_c = momentum / total
     u_body = u_now[body] + dt * v_c
     v[body] = v_c
     u[body] = u_body
@@ -127,8 +142,8 @@ def _cluster(gap, b, lo, body, mass, m_over_dt, dt, u_now, u, v, force, active, 
             force[i] = 0.0
     for j in range(k):
         i = order[j]
-        node = lo[i]
+        node = nodes[i]
         active[i] = True
-        force[i] = m_over_dt[node] * (v[node] - v_c)
+        force[i] = m_over_dt[node] * (side * (v[node] - v_c))
         v[node] = v_c
-        u[node] = u_body + b[i]
+        u[node] = u_body + side * b[i]

@@ -43,11 +43,11 @@ from .dme import _cluster, _pairs
 from .film import _film_fast
 from .penalty import _penalty
 from .state import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
-                    FROM_V, GAP, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV, LEDGER, LO,
-                    LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, P,
-                    POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS,
-                    RIGID_WORK, STATS, TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED, WAVES,
-                    WORK, _commit, _predicted_gaps, _take, _unpack)
+                    FROM_V, GAP, H_AVG, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV,
+                    LEDGER, LO, LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE,
+                    N_LOCAL, P, POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV,
+                    RIGID_MASS, RIGID_WORK, STATS, TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED,
+                    WAVES, WORK, _commit, _predicted_gaps, _take, _unpack)
 
 # the methods the fused call runs (misc[CODE]); another method runs its own correct()
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
@@ -76,6 +76,11 @@ def _make_face_step(code: int):
         dt = misc[DT]
         kappa = misc[KAPPA]
         body = n
+        # +1: the body above its nodes (g = b + u_body - u_node), -1: below (g = b + u_node -
+        # u_body); a node's correction moves it by -side dv, the body's by +side dv. A fixed
+        # body (infinite mass) has h/m = 0 and m/h = 0 at its slot.
+        side = -1.0 if ints[LO, 0] == body else 1.0
+        fixed = F[MASS, body] == np.inf
         gathered = recv.size > 0
         ut_b, vt_b = F[U_PRED, body], F[V_PRED, body]
         u_b, v_b = ut_b, vt_b  # the body's corrected state (penalty: summed in A; FILM: in B)
@@ -88,9 +93,9 @@ def _make_face_step(code: int):
         g_sum = 0.0
         g_0 = 0.0
         s_0 = 0.0
-        momentum = F[MASS, body] * vt_b
+        momentum = 0.0 if fixed else F[MASS, body] * vt_b
         total_mass = F[MASS, body]
-        v_min = np.inf
+        v_min = np.inf  # of side x v
         for i in range(n):
             if gathered:
                 ut = recv[ints[FROM_U, i]]
@@ -101,12 +106,12 @@ def _make_face_step(code: int):
                 vt = src_v[k]
             F[U_PRED, i] = ut
             F[V_PRED, i] = vt
-            g = F[B, i] + ut_b - ut
+            g = F[B, i] + ut_b - ut if side > 0.0 else F[B, i] + ut - ut_b
             if code == PENALTY:
                 f = -F[P, i] * g if g < 0.0 else 0.0
                 F[FORCE, i] = f
                 if f != 0.0:
-                    dv = f * dvb
+                    dv = side * (f * dvb)
                     v_b += dv
                     u_b += dt * dv
             elif g < 0.0:
@@ -120,9 +125,10 @@ def _make_face_step(code: int):
                     g_sum += g
                     s_0 += (g - g_0) * F[D_INV, i]
                 else:
-                    momentum += F[MASS, i] * vt
-                    total_mass += F[MASS, i]
-                    v_min = min(v_min, vt)
+                    if not fixed:
+                        momentum += F[MASS, i] * vt
+                        total_mass += F[MASS, i]
+                    v_min = min(v_min, side * vt)
         g_ref = 0.0
         base = 0.0
         v_c = 0.0
@@ -133,9 +139,9 @@ def _make_face_step(code: int):
             s = s_0 + (g_0 - g_ref) * w
             base = (g_ref - kappa * s) / (1.0 + kappa * w)
         elif code == DME_CLUSTER:
-            if not v_min >= momentum / total_mass:
+            v_c = vt_b if fixed else momentum / total_mass
+            if not v_min >= side * v_c:
                 return 0.0, False, False, False
-            v_c = momentum / total_mass
             u_b = F[U_NOW, body] + dt * v_c
             v_b = v_c
         # pass B: correct, write back, book and roll each node
@@ -151,32 +157,35 @@ def _make_face_step(code: int):
         for i in range(n):
             ut, vt = F[U_PRED, i], F[V_PRED, i]
             bi = F[B, i]
-            g = bi + ut_b - ut
+            g = bi + ut_b - ut if side > 0.0 else bi + ut - ut_b
             ui, vi = ut, vt
             if code == PENALTY:
                 f = F[FORCE, i]
                 act = g < 0.0
                 if f != 0.0:
-                    dv = f * F[DT_OVER_M, i]
+                    dv = side * (f * F[DT_OVER_M, i])
                     vi = vt - dv
                     ui = ut - dt * dv
             elif code == FILM_FAST:
-                f = max(-(g - g_ref + base) * F[D_INV, i], 0.0) if g < 0.0 else 0.0
+                if kappa == 0.0:  # film._solve_fast's diagonal answer
+                    f = -g * F[D_INV, i] if g < 0.0 else 0.0
+                else:
+                    f = max(-(g - g_ref + base) * F[D_INV, i], 0.0) if g < 0.0 else 0.0
                 act = f > 0.0
                 if f != 0.0:
-                    dv = f * F[DT_OVER_M, i]
+                    dv = side * (f * F[DT_OVER_M, i])
                     vi = vt - dv
                     ui = ut - dt * dv
-                    dv = f * dvb
+                    dv = side * (f * dvb)
                     v_b += dv
                     u_b += dt * dv
             else:
                 act = g < 0.0
                 f = 0.0
                 if act:
-                    f = F[M_OVER_DT, i] * (vt - v_c)
+                    f = F[M_OVER_DT, i] * (side * (vt - v_c))
                     vi = v_c
-                    ui = u_b + bi
+                    ui = u_b + side * bi
             F[FORCE, i] = f
             was = flags[0, i]
             flags[0, i] = act
@@ -204,8 +213,12 @@ def _make_face_step(code: int):
                     jumped_now = True
             F[U_NOW, i] = ui
             F[V_NOW, i] = vi
-            min_gap = min(min_gap, bi - ui)  # + u_b after the loop: rounding is monotonic
-        min_gap += u_b
+            if side > 0.0:
+                min_gap = min(min_gap, bi - ui)  # + u_b after the loop: rounding is monotonic
+            else:
+                min_gap = min(min_gap, (bi - u_b) + ui)  # _commit's (b - u[lo]) + u[up]
+        if side > 0.0:
+            min_gap += u_b
         # the body's slot, last, as in _commit
         F[U, body] = u_b
         F[V, body] = v_b
@@ -255,8 +268,10 @@ def _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc):
     elif code == DME_PAIRS:
         _pairs(gap, b, lo, up, mass, dt, misc[RESTITUTION], misc[MASS_WEIGHTED] != 0.0, u, v,
                force, active)
+    elif lo[0] == F.shape[1] - 1:  # a body below its nodes
+        _cluster(gap, b, up, lo[0], -1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
     else:
-        _cluster(gap, b, lo, up[0], mass, m_over_dt, dt, u_now, u, v, force, active, work)
+        _cluster(gap, b, lo, up[0], 1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
     return _commit(local, pos, src_u, src_v, dt, first, int(misc[N_DEFORMABLE]), m_over_dt, u,
                    v, u_pred, v_pred, u_now, v_now, F[F_PREV], F[KU_PREV], F[JUMP],
                    misc[JUMPS] != 0.0, misc[LEDGER + 2] != 0.0, active, was_active, b, lo, up,
@@ -273,7 +288,10 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
     prediction comes from the Allgatherv buffer ``recv``. ``first``: the step n = 0.
     ``f_ext``: the rigid body's external force f(t^n) (N, z), ``f_in`` its rod's
     incident wave F_i(t^n) (N, compressive > 0; 0 without). Returns the rigid body's
-    (u^{n+1}, v^{n+1}) (m, m/s; zeros without one)."""
+    (u^{n+1}, v^{n+1}) (m, m/s; zeros without one). Positions move by the step
+    h_{n+1/2} (misc[DT]), velocities by h_n (misc[H_AVG] and the slots' h_n / m), equal
+    under a constant step; the contact and rigid-body work here are booked with
+    misc[DT], the constant-step ledger's form."""
     code = int(misc[CODE])
     dt = misc[DT]
     rigid = misc[RIGID] != 0.0
@@ -283,12 +301,13 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
     if rigid:  # RigidBody.predict: its state without contact at t^n+1
         drive = f_ext - (2.0 * f_in if misc[INCIDENT] != 0.0 else 0.0)
         m_r, z = misc[RIGID_MASS], misc[IMPEDANCE]
+        h_avg = misc[H_AVG]  # the velocity's step (dt under a constant step)
         v_n = F[V_NOW, body]
         if z == 0.0:
-            v_tilde = v_n + dt * drive / m_r
+            v_tilde = v_n + h_avg * drive / m_r  # a fixed part (m_r = inf): v_n
         else:
-            half = 0.5 * z * dt
-            v_tilde = ((m_r - half) * v_n + dt * drive) / (m_r + half)
+            half = 0.5 * z * h_avg
+            v_tilde = ((m_r - half) * v_n + h_avg * drive) / (m_r + half)
         F[U_PRED, body] = F[U_NOW, body] + dt * v_tilde
         F[V_PRED, body] = v_tilde
     done = False

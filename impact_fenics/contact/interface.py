@@ -18,7 +18,8 @@ body's prediction and commit included: only its force functions (Python
 callables) are evaluated around it. Another method (FILM dense, a user's) runs
 its correct() between a compiled detection and a compiled commit, with the
 rigid body in Python (RigidBody.predict and advance, the same arithmetic).
-Every kernel takes the set-up constants dt/m, m/dt and 1/d: no division per
+Every kernel takes the constants dt/m, m/dt and 1/d, made at set-up and rewritten
+only when the step changes (:meth:`ContactSet.set_step`): no division per
 constraint in a step.
 
 State lives in *slots*: one per contact dof (the lower nodes first, then the
@@ -46,12 +47,13 @@ from . import fused
 from .dme import DME
 from .film import FILM
 from .pairing import Constraints
-from .penalty import Penalty
-from .state import (ALL_POS, CODE, DT, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER, LOCAL,
-                    MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, POS, RECV_U,
-                    RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK, STATS, TO, WAVES,
-                    PhaseTimes, _commit, _committed_gap, _detect_gathered, _detect_local, _pack,
-                    _take, _unpack, apply_forces, owned_slots)
+from .penalty import Penalty, lambda_max_diag_plus_rank_one
+from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER,
+                    LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, POS,
+                    RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK, STATS,
+                    TO, WAVES, PhaseTimes, _commit, _committed_gap, _detect_gathered,
+                    _detect_local, _pack, _take, _unpack, apply_forces, kinetic_share,
+                    owned_slots)
 
 
 @dataclass
@@ -78,6 +80,10 @@ class RigidBody:
         delivered sum dt F w   (the rod's work on the body)
 
     balance to round-off: incident = reflected + delivered.
+
+    A *fixed* part (``fixed=True``: a wall, an anvil's seat) has infinite mass (zero
+    inverse mass, so kappa = 0 in its sets), no force and no rod; it never moves, and it
+    may be in any number of contact sets. A moving part belongs to one set.
     """
 
     name: str
@@ -90,8 +96,14 @@ class RigidBody:
     wave_incident: float = 0.0
     wave_reflected: float = 0.0
     wave_delivered: float = 0.0
+    fixed: bool = False
 
     def __post_init__(self) -> None:
+        if self.fixed:
+            if self.v != 0.0 or self.impedance != 0.0 or self.incident is not None:
+                raise InputError(f"rigid body '{self.name}': a fixed part has no velocity, "
+                                 "rod or incident wave")
+            self.mass = np.inf
         if not self.mass > 0:
             raise InputError(f"rigid body '{self.name}': mass = {self.mass} kg must be > 0")
         if not self.impedance >= 0:
@@ -102,20 +114,23 @@ class RigidBody:
                              "impedance > 0 (kg/s)")
 
     def effective_mass(self, dt: float) -> float:
-        """m + Z dt/2 (kg): the mass a contact force accelerates within a step."""
+        """m + Z dt/2 (kg): the mass a contact force accelerates within a step (``dt`` the
+        velocity's step h_n; inf for a fixed part)."""
         return self.mass + 0.5 * self.impedance * dt
 
     def _drive(self, t: float) -> float:
         """External z force of step n without the rod's damping: f(t) - 2 F_i(t) (N)."""
         return self.force(t) - (2.0 * self.incident(t) if self.incident is not None else 0.0)
 
-    def predict(self, t: float, dt: float) -> tuple[float, float]:
-        """(u~, v~) at t + dt without contact (m, m/s)."""
+    def predict(self, t: float, dt: float, h_avg: float | None = None) -> tuple[float, float]:
+        """(u~, v~) at t + dt without contact (m, m/s): the velocity over the step ``h_avg``
+        (h_n, s; ``dt`` if not given), the position over ``dt`` (h_{n+1/2})."""
+        h = dt if h_avg is None else h_avg
         if self.impedance == 0.0:
-            v_tilde = self.v + dt * self._drive(t) / self.mass
+            v_tilde = self.v + h * self._drive(t) / self.mass
         else:
-            half = 0.5 * self.impedance * dt
-            v_tilde = ((self.mass - half) * self.v + dt * self._drive(t)) / (self.mass + half)
+            half = 0.5 * self.impedance * h
+            v_tilde = ((self.mass - half) * self.v + h * self._drive(t)) / (self.mass + half)
         return self.u + dt * v_tilde, v_tilde
 
     def advance(self, t: float, dt: float, u_next: float, v_next: float) -> float:
@@ -133,6 +148,23 @@ class RigidBody:
             force = self.force(t) - rod
         self.u, self.v = float(u_next), float(v_next)
         return force
+
+
+def refuse_shared_rigid(rigid: RigidBody, names: tuple[str, str], sets) -> None:
+    """A moving rigid part belongs to one contact set: the sets correct one after another
+    (a Gauss-Seidel sweep), not as the coupled solve its kappa 1 1' would need across
+    them. Refuse ``rigid`` for a new set of surfaces ``names`` if one of ``sets`` holds
+    it, in one line naming both; a fixed part (kappa = 0) couples nothing and may be in
+    any number of sets."""
+    if rigid.fixed:
+        return
+    for c in sets:
+        if getattr(c, "rigid", None) is rigid:
+            old = "/".join(f"'{x}'" for x in c.constraints.names)
+            new = "/".join(f"'{x}'" for x in names)
+            raise InputError(f"rigid body '{rigid.name}' is in two contact sets, {old} and "
+                             f"{new}: a moving rigid part belongs to one set (sets correct "
+                             "one after another, not as one coupled solve)")
 
 
 class ContactMethod(Protocol):
@@ -157,8 +189,13 @@ class ContactSet:
     (m, m/s; on entry the prediction), ``u_pred``, ``v_pred`` the prediction,
     ``mass`` (kg). Constraint arrays (length n): ``lo``, ``up`` their slots,
     ``b`` the initial gaps (m), ``gap`` the predicted gaps, ``force`` (N) and
-    ``active``. ``d`` and ``kappa`` describe S = dt^2 G M^-1 G' = diag(d) +
-    kappa 1 1' (m/N): kappa = dt^2 / m_rigid, 0 for node pairs. The committed
+    ``active``. ``d`` and ``kappa`` describe S = h_{n+1/2} h_n G M^-1 G' = diag(d) +
+    kappa 1 1' (m/N): kappa = h_{n+1/2} h_n / m_rigid, 0 for node pairs and a fixed
+    part. The rigid part is above its face's nodes (``constraints.upper`` None: the
+    punch, the bit) or below them (``constraints.lower`` None: a wall); ``side`` is +1
+    or -1 and ``nodes`` the constraints' node slots. Every constant that holds the step
+    (h_n / m, m / h_n, d, 1/d, kappa, a scaled penalty) is rewritten by :meth:`set_step`;
+    the set starts with h_{n+1/2} = h_n = ``integrator.dt``. The committed
     state of a step is ``u_now``, ``v_now`` (the fused step of a rigid face does
     not write its nodes' scratch rows u, v, gap and was_active). All are rows of
     a few packed arrays (``_floats``, ``_ints``, ``_flags``, ``_misc``; layout
@@ -172,14 +209,16 @@ class ContactSet:
         self.constraints = constraints
         self.integrator = integrator
         self.method = method
-        self.dt = integrator.dt
+        self.dt = self.h_avg = integrator.dt  # h_{n+1/2} and h_n (s)
         self.n = n = constraints.n
-        if (constraints.upper is None) != (rigid is not None):
+        below = constraints.lower is None
+        if (constraints.upper is None or below) != (rigid is not None):
             raise InputError("a rigid contact face needs exactly one rigid body, "
                              "and node pairs need none")
         self.rigid = rigid
         self.r = constraints.r
-        dofs = constraints.lower if rigid else np.concatenate([constraints.lower, constraints.upper])
+        dofs = (constraints.upper if below else constraints.lower if rigid else
+                np.concatenate([constraints.lower, constraints.upper]))
         self.n_deformable = nd = dofs.size
         self.n_slots = ns = nd + (1 if rigid else 0)
         # the state, packed in a few arrays for the one compiled call of a step (fused.py);
@@ -195,8 +234,11 @@ class ContactSet:
         self.lo, self.up, self.work = self._ints[:3, :n]  # work: scratch for the methods' kernels
         self.active, self.was_active = self._flags
         self.b[:] = constraints.b
-        self.lo[:] = np.arange(n)
-        self.up[:] = nd if rigid else np.arange(n, 2 * n)
+        self.lo[:] = nd if below else np.arange(n)
+        self.up[:] = np.arange(n) if below else nd if rigid else np.arange(n, 2 * n)
+        self.side = -1.0 if below else 1.0
+        self.nodes = self.up if below else self.lo  # each constraint's node slot (rigid)
+        self.body = nd if rigid else -1
         # which slots this rank owns, and where the gathered values go
         local, pos, all_pos, self._counts, self._displs = owned_slots(model, dofs, self.comm)
         ints = self._ints
@@ -218,13 +260,7 @@ class ContactSet:
         self._send = np.empty(2 * self._local.size)
         self._recv = np.empty(2 * nd)
         self._gather(integrator.mass, integrator.mass, self.mass, np.empty(ns))
-        if rigid:
-            self.mass[nd] = self._rigid_slot_mass()
-        self.dt_over_m[:] = self.dt / self.mass
-        self.m_over_dt[:] = self.mass / self.dt
-        self.kappa = 0.0 if rigid is None else self.dt ** 2 / self.mass[nd]
-        self.d[:] = self.dt ** 2 * (1.0 / self.mass[self.lo] + (0.0 if rigid else 1.0 / self.mass[self.up]))
-        self.d_inv[:] = 1.0 / self.d
+        self._step_constants()
         self.times = PhaseTimes()
         # after each step: number of active constraints, total contact force (N) and the
         # smallest committed gap (m); a history row copies them from here
@@ -245,12 +281,67 @@ class ContactSet:
             if rigid is not None:
                 misc[RIGID], misc[RIGID_MASS], misc[IMPEDANCE] = 1.0, rigid.mass, rigid.impedance
                 misc[INCIDENT] = rigid.incident is not None
+            misc[H_AVG] = self.h_avg
         # its arguments but the step's own (first, the rigid body's forces), fixed for the run
         self._fused_call = (None if self._fused is None else
                             (integrator.u_owned, integrator.v_owned,
                              self._recv if self.comm.size > 1 else np.empty(0), self._floats,
                              self._ints, self._flags, self._misc))
         self._gathered = self.comm.size > 1
+
+    # ------------------------------------------------------------ the step's constants
+    def _step_constants(self) -> None:
+        """h_n / m, m / h_n (0 at a fixed part's slot), kappa = h_{n+1/2} h_n / m_rigid and
+        the diagonal d_i = h_{n+1/2} h_n (1/m_lo + 1/m_up) of S (the rigid slot's share
+        is kappa), with h_{n+1/2} = ``self.dt``, h_n = ``self.h_avg``; under a constant
+        step the expressions of a constant step (dt^2)."""
+        h, h_avg = self.dt, self.h_avg
+        hh = h ** 2 if h == h_avg else h * h_avg
+        rigid, nd = self.rigid, self.n_deformable
+        if rigid is not None:
+            self.mass[nd] = self._rigid_slot_mass()
+        self.dt_over_m[:] = h_avg / self.mass
+        self.m_over_dt[:] = self.mass / h_avg
+        if rigid is not None and rigid.fixed:
+            self.m_over_dt[nd] = 0.0  # it does not move: its reaction does no work
+        self.kappa = 0.0 if rigid is None else hh / self.mass[nd]
+        up = 0.0 if rigid else 1.0 / self.mass[self.up]
+        self.d[:] = hh * (1.0 / self.mass[self.nodes] + up)
+        self.d_inv[:] = 1.0 / self.d
+
+    def set_step(self, h: float, h_avg: float) -> None:
+        """Steps h_{n+1/2} (positions) and h_n (velocities) of the next step (s): rewrite
+        every constant that holds them (h_n / m, m / h_n, S's diagonal and kappa, a
+        penalty chosen from S), in place. Nothing changes when they are the set's."""
+        if h == self.dt and h_avg == self.h_avg:
+            return
+        self.dt, self.h_avg = float(h), float(h_avg)
+        self._step_constants()
+        self.method.setup(self)
+        if self._fused is not None:
+            if type(self.method) is Penalty:
+                self.p[:] = self.method.p
+            misc = self._misc
+            misc[DT], misc[H_AVG], misc[KAPPA] = self.dt, self.h_avg, self.kappa
+            if self.rigid is not None:
+                misc[RIGID_MASS] = self.rigid.mass
+
+    def penalty_beta(self) -> float:
+        """beta_max = lambda_max(P^1/2 S P^1/2) (-) of a penalty set at the current steps
+        (0 for another method)."""
+        if self.method.name != "penalty" or self.n == 0:
+            return 0.0
+        p = np.asarray(self.method.p, dtype=float)
+        return lambda_max_diag_plus_rank_one(p * self.d, self.kappa, np.sqrt(p))
+
+    def kinetic_share(self, f_int: np.ndarray) -> tuple:
+        """The contact's share of the half-step scheme's kinetic identity on this rank's
+        owned slots after a step, with the internal force ``f_int`` (N, owned dofs) of
+        the step: (energy taken (J), internal-work correction (J), number active, force
+        (N), springs' energy (J)); see state.kinetic_share. A rigid face's set."""
+        return kinetic_share(self._local, self._pos, f_int, self.h_avg, self.mass, self.u_pred,
+                             self.v_pred, self.v_now, self.b, self.lo, self.up, self.p,
+                             self.active)
 
     # ------------------------------------------------------------ gather
     def _gather(self, src_u: np.ndarray, src_v: np.ndarray, u_out: np.ndarray,
@@ -330,7 +421,7 @@ class ContactSet:
 
     # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:
-        """Diagonal part d of S = dt^2 G M^-1 G' = diag(d) + kappa 1 1' (m/N)."""
+        """Diagonal part d of S = h_{n+1/2} h_n G M^-1 G' = diag(d) + kappa 1 1' (m/N)."""
         return self.d
 
     def apply_forces(self, force: np.ndarray) -> None:
@@ -409,14 +500,14 @@ class ContactSet:
     # The two places that know how a rigid body moves on its own: its slot mass and
     # its prediction without contact. Everything else treats it as one more slot.
     def _rigid_slot_mass(self) -> float:
-        """Mass (kg) of the rigid body's slot, fixed at set-up: its mass plus the added
-        mass Z dt/2 of a driving rod (RigidBody.effective_mass)."""
-        return self.rigid.effective_mass(self.dt)
+        """Mass (kg) of the rigid body's slot: its mass plus the added mass Z h_n/2 of a
+        driving rod (RigidBody.effective_mass); inf for a fixed part."""
+        return self.rigid.effective_mass(self.h_avg)
 
     def _predict_rigid(self, t: float) -> None:
         """The rigid body's slot: its predicted state (u~, v~) at t + dt without contact,
         from its external force (and its rod's incident wave) at t (RigidBody.predict)."""
-        self.u_pred[-1], self.v_pred[-1] = self.rigid.predict(t, self.dt)
+        self.u_pred[-1], self.v_pred[-1] = self.rigid.predict(t, self.dt, self.h_avg)
 
     # ------------------------------------------------------------ outputs
     @property

@@ -24,7 +24,7 @@ class Constraints:
 
     r: np.ndarray          # radius of each constraint (m)
     b: np.ndarray          # initial gap (m), >= 0
-    lower: np.ndarray      # global z dof of the lower node
+    lower: np.ndarray | None  # global z dof of the lower node, None for a rigid lower side
     upper: np.ndarray | None  # global z dof of the upper node, None for a rigid upper side
     names: tuple[str, str]  # (lower group, upper group or rigid body name)
 

@@ -40,6 +40,23 @@ depth of the master, plus a segment for the discretisation: a flat face on a
 flat face keeps one segment, and the nodes of a flat block under a nose of
 radius R (up to R (sqrt 2 - 1) from it) are within the nose's depth R; faces
 apart by more than their depth (a group at the other end of a body) are refused.
+
+The search (:class:`BucketSearch`) bins each master segment into every cell of a
+uniform grid (cells of side the reach) that its bounding box, inflated by the reach,
+touches, the grid spanning the masters' current boxes; a slave is projected onto the
+segments of its own cell only, in the global order, with the rules above restricted
+to segments within reach. Every segment within reach of a slave is in its cell, so
+the pairs are exactly those of projecting every slave onto every segment within
+reach (same arithmetic, same candidates, same order), at a cost that grows with the
+number of contact nodes, not their product.
+
+Re-pairing (:class:`Repairing`, for finite strain; not yet called by the time loop):
+the same search in a current configuration x = X + u, the segments' normals turned
+with them, the reach, xi_tol and tie_tol of the set-up. A slave whose closest point
+is an end vertex of the master face (a node of one segment, off the axis) and which
+lies beyond it, or which has no segment within reach, has no row (released); it
+stays in the list and is paired again when it comes back. Current gaps are returned
+as they are (negative when penetrating): the gaps of a step come from its prediction.
 """
 from __future__ import annotations
 
@@ -62,7 +79,7 @@ class SegmentConstraints:
     ``master_xy`` (m, 2), ``master_dofs`` (m, 2). Per constraint i (slave i):
     ``seg`` its segment, ``a``, ``b`` master node indices, ``xi``, ``normal``
     (n, 2), ``g0`` (m), ``kind`` FACE or VERTEX. ``segments`` (k, 2): master node
-    indices of every segment.
+    indices of every segment, ``seg_normal`` (k, 2) their unit outward normals.
     """
 
     slave_xy: np.ndarray
@@ -78,6 +95,12 @@ class SegmentConstraints:
     g0: np.ndarray
     kind: np.ndarray
     names: tuple[str, str]  # (slave group, master group)
+    # the search's settings, for a re-pairing (:class:`Repairing`): the unit outward
+    # normal of each segment (k, 2), the reach (m), xi_tol (relative), tie_tol (m)
+    seg_normal: np.ndarray | None = None
+    reach: float = np.inf
+    xi_tol: float = 1e-6
+    tie_tol: float = 0.0
 
     @property
     def n(self) -> int:
@@ -96,54 +119,251 @@ class SegmentConstraints:
 
 # ----------------------------------------------------------------------------- the projection
 
-@njit(cache=True)
-def project(x, seg_nodes, node_xy, seg_normal, xi_tol, tie_tol, out_seg, out_xi, out_n, out_g,
-            out_kind, out_dist):
-    """Closest master segment of every slave point ``x`` (n, 2) (brute force, O(n m)).
+@njit(cache=True, inline="always")
+def _project_one(xs, zs, j, seg_nodes, node_xy, xi_tol):
+    """Slave point (xs, zs) on segment j: (xi, kind, p_r, p_z, d), with (p_r, p_z) the
+    vector (m) from the contact point to the slave and d (m) its length; xi is snapped
+    to 0 or 1 within ``xi_tol``, kind is VERTEX beyond either end."""
+    pa = seg_nodes[j, 0]
+    pb = seg_nodes[j, 1]
+    tr = node_xy[pb, 0] - node_xy[pa, 0]
+    tz = node_xy[pb, 1] - node_xy[pa, 1]
+    length2 = tr * tr + tz * tz
+    dr = xs - node_xy[pa, 0]
+    dz = zs - node_xy[pa, 1]
+    xi = (dr * tr + dz * tz) / length2
+    kind = FACE
+    if xi < -xi_tol or xi > 1.0 + xi_tol:
+        kind = VERTEX
+    if xi < xi_tol:
+        xi = 0.0
+    elif xi > 1.0 - xi_tol:
+        xi = 1.0
+    pr = dr - xi * tr
+    pz = dz - xi * tz
+    return xi, kind, pr, pz, np.sqrt(pr * pr + pz * pz)
 
-    ``seg_nodes`` (k, 2) node indices into ``node_xy``; ``seg_normal`` (k, 2) unit
-    outward normals. Writes the chosen segment, xi, normal, signed gap g0 (m),
-    kind (FACE/VERTEX) and the distance (m) of each slave."""
+
+# ----------------------------------------------------------------------------- the bucket search
+#
+# A uniform grid of square cells of side h (the reach, m) over the masters' boxes
+# inflated by the reach. Each segment is listed in every cell its inflated box
+# touches, so every segment within reach of a point is listed in the point's cell
+# (the segment's contact point lies in its box, the point within reach of it). The
+# lists are one CSR pair: cell c holds entries[start[c]:start[c + 1]], segments in
+# ascending global order. A slave is projected onto its own cell's segments only, in
+# that order, with the rule of the brute-force search restricted to segments within
+# reach: the same arithmetic on the same candidates in the same order, so the same
+# pair, bit for bit, as projecting onto every segment within reach.
+
+
+@njit(cache=True)
+def _cell_range(lo, hi, origin, h, inflate, n):
+    """First and last cell index (clipped to [0, n - 1]) touched by [lo, hi] inflated."""
+    c0 = int(np.floor((lo - inflate - origin) / h))
+    c1 = int(np.floor((hi + inflate - origin) / h))
+    return max(c0, 0), min(c1, n - 1)
+
+
+@njit(cache=True)
+def _segment_cells(j, seg_nodes, node_xy, grid, inflate, nx, ny):
+    """(ix0, ix1, iz0, iz1): the cells touched by segment j's box inflated by ``inflate``
+    (m) in the grid ``grid`` = (r0, z0, h) of nx x ny cells."""
+    a, b = seg_nodes[j, 0], seg_nodes[j, 1]
+    i0, i1 = _cell_range(min(node_xy[a, 0], node_xy[b, 0]), max(node_xy[a, 0], node_xy[b, 0]),
+                         grid[0], grid[2], inflate, nx)
+    k0, k1 = _cell_range(min(node_xy[a, 1], node_xy[b, 1]), max(node_xy[a, 1], node_xy[b, 1]),
+                         grid[1], grid[2], inflate, ny)
+    return i0, i1, k0, k1
+
+
+@njit(cache=True)
+def _bin_count(seg_nodes, node_xy, grid, inflate, nx, ny, start):
+    """Count into ``start[c]`` the segments listed in cell c (c = ix ny + iz);
+    ``start[nx ny]`` = 0. Returns the number of entries."""
+    for c in range(nx * ny + 1):
+        start[c] = 0
+    total = 0
+    for j in range(seg_nodes.shape[0]):
+        i0, i1, k0, k1 = _segment_cells(j, seg_nodes, node_xy, grid, inflate, nx, ny)
+        for ix in range(i0, i1 + 1):
+            for iz in range(k0, k1 + 1):
+                start[ix * ny + iz] += 1
+        total += (i1 - i0 + 1) * (k1 - k0 + 1)
+    return total
+
+
+@njit(cache=True)
+def _bin_fill(seg_nodes, node_xy, grid, inflate, nx, ny, start, entries):
+    """Turn the counts of :func:`_bin_count` into CSR offsets and list the segments,
+    ascending within each cell (filled backwards from each cell's end)."""
+    ncell = nx * ny
+    acc = 0
+    for c in range(ncell):
+        acc += start[c]
+        start[c] = acc  # the end of cell c
+    start[ncell] = acc
+    for j in range(seg_nodes.shape[0] - 1, -1, -1):
+        i0, i1, k0, k1 = _segment_cells(j, seg_nodes, node_xy, grid, inflate, nx, ny)
+        for ix in range(i0, i1 + 1):
+            for iz in range(k0, k1 + 1):
+                start[ix * ny + iz] -= 1
+                entries[start[ix * ny + iz]] = j  # start[c] ends at cell c's beginning
+
+
+@njit(cache=True)
+def _pair_in_cells(x, seg_nodes, node_xy, seg_normal, xi_tol, tie_tol, reach, grid, nx, ny,
+                   start, entries, out_seg, out_xi, out_n, out_g, out_kind, out_dist):
+    """Closest segment within ``reach`` (m) of every slave point ``x`` (n, 2) among the
+    segments of its cell. Writes the segment (-1: none within reach), xi, normal, signed
+    gap (m), kind (FACE/VERTEX) and distance (m; inf: none). Returns the number of
+    projections made (the search's cost)."""
+    r0, z0, h = grid[0], grid[1], grid[2]
+    made = 0
     for i in range(x.shape[0]):
         best = -1
         best_d = np.inf
         best_kind = 2
-        for j in range(seg_nodes.shape[0]):
-            pa = seg_nodes[j, 0]
-            pb = seg_nodes[j, 1]
-            tr = node_xy[pb, 0] - node_xy[pa, 0]
-            tz = node_xy[pb, 1] - node_xy[pa, 1]
-            length2 = tr * tr + tz * tz
-            dr = x[i, 0] - node_xy[pa, 0]
-            dz = x[i, 1] - node_xy[pa, 1]
-            xi = (dr * tr + dz * tz) / length2
-            kind = FACE
-            if xi < -xi_tol or xi > 1.0 + xi_tol:
-                kind = VERTEX
-            if xi < xi_tol:
-                xi = 0.0
-            elif xi > 1.0 - xi_tol:
-                xi = 1.0
-            pr = dr - xi * tr
-            pz = dz - xi * tz
-            d = np.sqrt(pr * pr + pz * pz)
-            # strictly closer, or tied and a face before a vertex (lower index wins
-            # the remaining ties: segments come in the global order)
-            if d < best_d - tie_tol or (d <= best_d + tie_tol and kind < best_kind):
-                best, best_d, best_kind = j, d, kind
-                out_xi[i] = xi
-                if kind == FACE:
-                    out_n[i, 0] = seg_normal[j, 0]
-                    out_n[i, 1] = seg_normal[j, 1]
-                    out_g[i] = pr * seg_normal[j, 0] + pz * seg_normal[j, 1]
-                else:
-                    out_n[i, 0] = pr / d
-                    out_n[i, 1] = pz / d
-                    out_g[i] = d
+        out_xi[i] = 0.0
+        out_n[i, 0] = 0.0
+        out_n[i, 1] = 0.0
+        out_g[i] = np.inf
+        ix = int(np.floor((x[i, 0] - r0) / h))
+        iz = int(np.floor((x[i, 1] - z0) / h))
+        if 0 <= ix < nx and 0 <= iz < ny:
+            c = ix * ny + iz
+            for e in range(start[c], start[c + 1]):
+                j = entries[e]
+                xi, kind, pr, pz, d = _project_one(x[i, 0], x[i, 1], j, seg_nodes, node_xy, xi_tol)
+                made += 1
+                if d > reach:
+                    continue
+                # strictly closer, or tied and a face before a vertex (lower index wins
+                # the remaining ties: segments come in the global order)
+                if d < best_d - tie_tol or (d <= best_d + tie_tol and kind < best_kind):
+                    best, best_d, best_kind = j, d, kind
+                    out_xi[i] = xi
+                    if kind == FACE:
+                        out_n[i, 0] = seg_normal[j, 0]
+                        out_n[i, 1] = seg_normal[j, 1]
+                        out_g[i] = pr * seg_normal[j, 0] + pz * seg_normal[j, 1]
+                    else:
+                        out_n[i, 0] = pr / d
+                        out_n[i, 1] = pz / d
+                        out_g[i] = d
         out_seg[i] = best
         out_kind[i] = best_kind
         out_dist[i] = best_d
+    return made
 
+
+@njit(cache=True)
+def _extent(node_xy, seg_nodes):
+    """(r_min, z_min, r_max, z_max) in m of the segments' nodes."""
+    rmin = zmin = np.inf
+    rmax = zmax = -np.inf
+    for j in range(seg_nodes.shape[0]):
+        for k in range(2):
+            p = seg_nodes[j, k]
+            rmin = min(rmin, node_xy[p, 0])
+            rmax = max(rmax, node_xy[p, 0])
+            zmin = min(zmin, node_xy[p, 1])
+            zmax = max(zmax, node_xy[p, 1])
+    return rmin, zmin, rmax, zmax
+
+
+class BucketSearch:
+    """The closest master segment within ``reach`` (m) of each slave point, through a
+    uniform grid of cells of side ``reach`` rebuilt at each call from the current
+    masters' boxes (so a segment grown longer than a cell is still listed in every
+    cell it reaches). Cost: the binning is linear in the segments, and each slave is
+    projected onto its cell's segments only, those whose box inflated by the reach
+    touches the cell: a bounded number for a face whose segments are not much shorter
+    than the reach, so the search is linear in the number of contact nodes, not their
+    product (``candidates`` counts the projections of the last call). A reach of many
+    segments (the default reach on a curved face: its depth) puts the face in a few
+    cells, and the cost is the brute force's again.
+
+    Memory: the grid's offsets (one int64 a cell, plus one) and its entries (one a
+    (segment, cell) pair) are kept between calls and grown only when a grid needs
+    more; nothing else is allocated per call. The grid has about
+    (extent_r / reach + 4)(extent_z / reach + 4) cells (the masters' extents, m); beyond
+    ``cells_per_item`` x (segments + slaves) + 1024 cells (a face curved over an extent
+    much larger than the reach) the cells are doubled until it fits, keeping memory
+    linear at the price of more segments per cell. The pairs do not depend on the
+    cell size (exact for any grid)."""
+
+    cells_per_item = 64
+
+    def __init__(self, reach: float):
+        if not (np.isfinite(reach) and reach > 0.0):
+            raise InputError(f"contact: reach must be a positive length (m), got {reach!r}")
+        self.reach = float(reach)
+        self.start = np.empty(0, np.int64)
+        self.entries = np.empty(0, np.int64)
+        self.grid = np.empty(3)  # (r0, z0, h) of the last grid, m
+        self.inflate = 0.0  # m, the inflation of the segments' boxes in the last grid
+        self.shape = (0, 0)
+        self.candidates = 0
+
+    def _build_grid(self, node_xy: np.ndarray, seg_nodes: np.ndarray, n_slaves: int) -> None:
+        """Bin the segments into a grid over their current boxes."""
+        rmin, zmin, rmax, zmax = _extent(node_xy, seg_nodes)
+        scale = max(abs(rmin), abs(zmin), abs(rmax), abs(zmax))
+        # the reach plus a margin above the round-off of a distance and of a box edge,
+        # so that a segment at a computed distance <= reach is always listed
+        inflate = self.reach * (1.0 + 1e-6) + 64.0 * np.finfo(float).eps * scale
+        h = self.reach
+        width, height = rmax - rmin + 2.0 * inflate, zmax - zmin + 2.0 * inflate
+        cap = self.cells_per_item * (seg_nodes.shape[0] + n_slaves) + 1024
+        while (width / h + 2.0) * (height / h + 2.0) > cap:
+            h *= 2.0
+        # one cell more than the width needs: a point on the far edge of the box
+        # whose cell index rounds up stays in the grid
+        nx, ny = int(width / h) + 2, int(height / h) + 2
+        self.grid[0], self.grid[1], self.grid[2] = rmin - inflate, zmin - inflate, h
+        self.shape = (nx, ny)
+        if self.start.size < nx * ny + 1:
+            self.start = np.empty(2 * (nx * ny + 1), np.int64)
+        total = _bin_count(seg_nodes, node_xy, self.grid, inflate, nx, ny, self.start)
+        if self.entries.size < total:
+            self.entries = np.empty(2 * total, np.int64)
+        _bin_fill(seg_nodes, node_xy, self.grid, inflate, nx, ny, self.start, self.entries)
+        self.inflate = inflate
+
+    def pair(self, x: np.ndarray, seg_nodes: np.ndarray, node_xy: np.ndarray,
+             seg_normal: np.ndarray, xi_tol: float, tie_tol: float, out_seg: np.ndarray,
+             out_xi: np.ndarray, out_n: np.ndarray, out_g: np.ndarray, out_kind: np.ndarray,
+             out_dist: np.ndarray) -> None:
+        """Closest segment within reach of every slave ``x`` (n, 2), m, among segments
+        ``seg_nodes`` (k, 2) of nodes ``node_xy`` with unit outward normals
+        ``seg_normal`` (k, 2), written into the ``out_*`` arrays (see
+        :func:`_pair_in_cells`; ``xi_tol`` relative, ``tie_tol`` m: the rules of the
+        module docstring)."""
+        self._build_grid(node_xy, seg_nodes, x.shape[0])
+        nx, ny = self.shape
+        self.candidates = int(_pair_in_cells(
+            x, seg_nodes, node_xy, seg_normal, xi_tol, tie_tol, self.reach, self.grid, nx, ny,
+            self.start, self.entries, out_seg, out_xi, out_n, out_g, out_kind, out_dist))
+
+
+@njit(cache=True)
+def _axis_normals(x, seg_nodes, node_xy, seg, xi, axis_tol, normal, gap):
+    """A slave on r = 0 whose contact point is a master node on r = 0 (a tip) takes the
+    axial normal (0, +-1), the sign of the chosen one's z, and gap = n_z (z_s - z_p)."""
+    for i in range(x.shape[0]):
+        j = seg[i]
+        if j < 0 or abs(x[i, 0]) > axis_tol:
+            continue
+        pa, pb = seg_nodes[j, 0], seg_nodes[j, 1]
+        pr = (1.0 - xi[i]) * node_xy[pa, 0] + xi[i] * node_xy[pb, 0]
+        if abs(pr) > axis_tol:
+            continue
+        pz = (1.0 - xi[i]) * node_xy[pa, 1] + xi[i] * node_xy[pb, 1]
+        sign = 1.0 if normal[i, 1] >= 0.0 else -1.0
+        normal[i, 0] = 0.0
+        normal[i, 1] = sign
+        gap[i] = sign * (x[i, 1] - pz)
 
 def segment_normals(node_xy: np.ndarray, segments: np.ndarray, inside: np.ndarray) -> np.ndarray:
     """Unit normals (k, 2) of segments, pointing away from the points ``inside`` (k, 2)
@@ -223,23 +443,21 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
     xi, g0, dist = np.empty(n), np.empty(n), np.empty(n)
     normal = np.empty((n, 2))
     tie_tol = 1e-9 * float(lengths.min())
-    project(slave_xy, segments, master_xy, normals, xi_tol, tie_tol, seg, xi, normal, g0, kind, dist)
+    BucketSearch(reach).pair(slave_xy, segments, master_xy, normals, xi_tol, tie_tol, seg, xi,
+                             normal, g0, kind, dist)
     # the axis: a slave on r = 0 whose contact point is a master node on r = 0 (a tip)
     # takes the axial normal, whatever the tilt of the segment chosen
-    axis_tol = 1e-9 * float(lengths.min())
-    point = (1.0 - xi)[:, None] * master_xy[segments[seg, 0]] + xi[:, None] * master_xy[segments[seg, 1]]
-    on_axis = (np.abs(slave_xy[:, 0]) <= axis_tol) & (np.abs(point[:, 0]) <= axis_tol)
-    if np.any(on_axis):
-        sign = np.where(normal[on_axis, 1] >= 0.0, 1.0, -1.0)
-        normal[on_axis] = np.stack([np.zeros_like(sign), sign], axis=1)
-        g0[on_axis] = sign * (slave_xy[on_axis, 1] - point[on_axis, 1])
-    far = dist > reach
+    _axis_normals(slave_xy, segments, master_xy, seg, xi, tie_tol, normal, g0)
+    far = seg < 0
     if np.any(far):
         k = np.flatnonzero(far)[0]
         p = slave_xy[k]
+        a, t = master_xy[segments[:, 0]], master_xy[segments[:, 1]] - master_xy[segments[:, 0]]
+        foot = np.clip(np.sum((p - a) * t, axis=1) / np.sum(t * t, axis=1), 0.0, 1.0)
+        away = float(np.min(np.linalg.norm(p - a - foot[:, None] * t, axis=1)))
         raise InputError(f"contact: {int(far.sum())} node(s) of '{names[0]}' have no segment of "
                          f"'{names[1]}' within reach {reach:.4g} m, first at "
-                         f"(r={p[0]:.6g}, z={p[1]:.6g}), {dist[k]:.4g} m away: "
+                         f"(r={p[0]:.6g}, z={p[1]:.6g}), {away:.4g} m away: "
                          "are these the faces that meet? (else give reach, m)")
     deep = g0 < -gap_tol
     if np.any(deep):
@@ -251,7 +469,102 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
     return SegmentConstraints(slave_xy=slave_xy, slave_dofs=slave_dofs, master_xy=master_xy,
                               master_dofs=master_dofs, segments=segments, seg=seg,
                               a=segments[seg, 0].copy(), b=segments[seg, 1].copy(), xi=xi,
-                              normal=normal, g0=g0, kind=kind, names=names)
+                              normal=normal, g0=g0, kind=kind, names=names,
+                              seg_normal=normals, reach=reach, xi_tol=xi_tol, tie_tol=tie_tol)
+
+
+# ----------------------------------------------------------------------------- re-pairing
+
+@njit(cache=True)
+def _oriented_normals(node_xy, seg_nodes, side, out):
+    """Unit normals (k, 2) of the segments at ``node_xy``: the tangent b - a turned by
+    -90 degrees, times ``side`` (+-1, fixed at set-up: a segment keeps its outside)."""
+    for j in range(seg_nodes.shape[0]):
+        a, b = seg_nodes[j, 0], seg_nodes[j, 1]
+        tr = node_xy[b, 0] - node_xy[a, 0]
+        tz = node_xy[b, 1] - node_xy[a, 1]
+        length = np.sqrt(tr * tr + tz * tz)
+        out[j, 0] = side[j] * tz / length
+        out[j, 1] = -side[j] * tr / length
+
+
+@njit(cache=True)
+def _release_beyond_ends(seg, xi, kind, seg_nodes, end, a, b, active):
+    """A slave has a row unless it has no segment within reach or its contact point is
+    the vertex of a face's end (``end``: master nodes of one segment, off the axis) it
+    lies beyond; writes the row's master nodes ``a``, ``b`` (-1 without a row)."""
+    for i in range(seg.shape[0]):
+        j = seg[i]
+        released = j < 0
+        if not released and kind[i] == VERTEX:
+            released = end[seg_nodes[j, 0] if xi[i] == 0.0 else seg_nodes[j, 1]]
+        active[i] = not released
+        a[i] = -1 if released else seg_nodes[j, 0]
+        b[i] = -1 if released else seg_nodes[j, 1]
+
+
+@dataclass
+class Pairs:
+    """The pairs of one re-pairing, per slave (in the constraints' order): ``active``
+    (has a row), ``seg`` (-1: none within reach), master nodes ``a``, ``b`` (-1 without
+    a row), ``xi``, unit ``normal`` (n, 2), ``gap`` (m, the current signed gap
+    n . (x_s - x_p), or the distance to a vertex), ``kind`` (FACE/VERTEX; 2 with no
+    segment), ``dist`` (m, the distance to the contact point; inf with no segment)."""
+
+    active: np.ndarray
+    seg: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    xi: np.ndarray
+    normal: np.ndarray
+    gap: np.ndarray
+    kind: np.ndarray
+    dist: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> Pairs:
+        return cls(active=np.zeros(n, bool), seg=np.empty(n, np.int64), a=np.empty(n, np.int64),
+                   b=np.empty(n, np.int64), xi=np.empty(n), normal=np.empty((n, 2)),
+                   gap=np.empty(n), kind=np.empty(n, np.int64), dist=np.empty(n))
+
+
+class Repairing:
+    """Re-pairs the slaves of ``c`` against its master segments in a current
+    configuration (finite strain): positions x = X + u of the slaves and the masters
+    (in the constraints' orders), the segments' normals turned with them (each keeps
+    the outside it had at set-up), the closest segment within the set-up reach by the
+    bucket search (:class:`BucketSearch`, ties as at set-up), the axis rule as at
+    set-up. A slave whose closest point is the end vertex of the master face and
+    which lies beyond it (xi outside [0, 1] on the outermost segment, no neighbour;
+    an end on the axis r = 0 is not an end: the face continues by symmetry), or with
+    no segment within reach, has no row (``active`` False): released, not lost, it is
+    paired again when it comes back. Gaps are not snapped nor checked (a current gap
+    may be negative). Every array is kept between calls: a call allocates nothing
+    but what a larger grid needs (:class:`BucketSearch`)."""
+
+    def __init__(self, c: SegmentConstraints):
+        if c.seg_normal is None:
+            raise ValueError("re-pairing needs constraints from build()")
+        self.c = c
+        self.search = BucketSearch(c.reach)
+        t = c.master_xy[c.segments[:, 1]] - c.master_xy[c.segments[:, 0]]
+        self.side = np.where(c.seg_normal[:, 0] * t[:, 1] - c.seg_normal[:, 1] * t[:, 0] >= 0.0,
+                             1.0, -1.0)
+        valence = np.bincount(c.segments.ravel(), minlength=c.master_xy.shape[0])
+        self.end = (valence == 1) & (np.abs(c.master_xy[:, 0]) > c.tie_tol)
+        self.seg_normal = np.empty_like(c.seg_normal)
+        self.pairs = Pairs.empty(c.n)
+
+    def __call__(self, slave_x: np.ndarray, master_x: np.ndarray) -> Pairs:
+        """Pairs (rewritten in place) at slave positions ``slave_x`` (n, 2) and master
+        positions ``master_x`` (m, 2), m."""
+        c, p = self.c, self.pairs
+        _oriented_normals(master_x, c.segments, self.side, self.seg_normal)
+        self.search.pair(slave_x, c.segments, master_x, self.seg_normal, c.xi_tol, c.tie_tol,
+                         p.seg, p.xi, p.normal, p.gap, p.kind, p.dist)
+        _axis_normals(slave_x, c.segments, master_x, p.seg, p.xi, c.tie_tol, p.normal, p.gap)
+        _release_beyond_ends(p.seg, p.xi, p.kind, c.segments, self.end, p.a, p.b, p.active)
+        return p
 
 
 # ----------------------------------------------------------------------------- from a model

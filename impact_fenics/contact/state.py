@@ -31,12 +31,16 @@ from ..errors import InputError
 # the set's scalars in one float array (ContactSet._misc), read and written by the fused
 # call: the contact-work ledger (work, activation loss, jumped, grew), the stats of a
 # history row, the rigid body's external work and last force, its rod's wave energies,
-# then the run's constants
+# then the run's constants: DT is the position step h_{n+1/2}, H_AVG the velocity step
+# h_n = (h_{n-1/2} + h_{n+1/2}) / 2 (equal under a constant step); RIGID_MASS is inf for
+# a fixed part (zero inverse mass)
 LEDGER, STATS, RIGID_WORK, RIGID_F_PREV, WAVES = 0, 4, 7, 8, 9
 CODE, DT, KAPPA, RESTITUTION, MASS_WEIGHTED, JUMPS, N_DEFORMABLE = 12, 13, 14, 15, 16, 17, 18
-RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL = 19, 20, 21, 22, 23, 24
-MISC_SIZE = 25
-# the rows of ContactSet._floats: per slot, then per constraint (their first n entries)
+RIGID, RIGID_MASS, IMPEDANCE, INCIDENT, N_CONS, N_LOCAL, H_AVG = 19, 20, 21, 22, 23, 24, 25
+MISC_SIZE = 26
+# the rows of ContactSet._floats: per slot, then per constraint (their first n entries);
+# DT_OVER_M is h_n / m and M_OVER_DT m / h_n (0 at a fixed part's slot), D the diagonal
+# of S = h_{n+1/2} h_n G M^-1 G' (m/N)
 U, V, U_PRED, V_PRED, U_NOW, V_NOW, MASS, F_PREV, DT_OVER_M, M_OVER_DT, KU_PREV, JUMP = range(12)
 B, GAP, FORCE, D, D_INV, P = range(12, 18)
 # the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
@@ -180,6 +184,43 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
     stats[1] = total
     stats[2] = min_gap
     return inc + inc_jump, jumped_now, grew
+
+
+@njit(cache=True)
+def kinetic_share(local, pos, f_int, h_avg, mass, u_pred, v_pred, v_now, b, lo, up, p, active):
+    """The contact's share of the kinetic identity of the half-step scheme on this rank's
+    owned slots (``local``: their owned dofs, ``pos``: their slots), after a step's
+    commit; ``f_int`` the internal force of the step (N, owned dofs) and ``h_avg`` the
+    velocity step h_n (s). With v~ the prediction (``v_pred``), v the committed velocity
+    (``v_now``) and v^- = v~ + h_n f_int / m the velocity before the step, a slot's
+    kinetic energy changes by 1/2 (v^- + v) m (v - v^-): the internal force's
+    h_n 1/2 (v^- + v) (-f_int) and the contact's 1/2 (v^- + v) m (v - v~).
+
+    Returns (the energy the contact took from the body, -sum 1/2 (v^- + v) m (v - v~) (J);
+    the internal work's correction h_n 1/2 (v - v~) f_int (J) for a pass that booked it
+    with v~; the number of active constraints; the contact force sum m (v - v~) / h_n (N);
+    the springs' energy 1/2 p g~^2 of the active constraints (J, penalty; p = 0 else)).
+    Constraint i belongs to slot i (a rigid face's node slots come first)."""
+    taken = 0.0
+    w_fix = 0.0
+    spring = 0.0
+    total = 0.0
+    n_active = 0
+    for k in range(local.size):
+        i = pos[k]
+        f = f_int[local[k]]
+        m = mass[i]
+        vt = v_pred[i]
+        v = v_now[i]
+        v_old = vt + h_avg * f / m
+        taken -= 0.5 * (v_old + v) * m * (v - vt)
+        w_fix += 0.5 * h_avg * (v - vt) * f
+        total += m * (v - vt) / h_avg
+        if i < active.size and active[i]:
+            n_active += 1
+            g = b[i] + u_pred[up[i]] - u_pred[lo[i]]
+            spring += 0.5 * p[i] * g * g
+    return taken, w_fix, n_active, total, spring
 
 
 # ----------------------------------------------------------------------------- the gather

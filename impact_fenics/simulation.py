@@ -20,7 +20,6 @@ from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
 from .contact.interface import refuse_shared_rigid
-from .contact.nts_interface import NodeToSegmentSet
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
 from .energy import (GREW, NOT_FINITE, Ledger, LoadWork, OutputSums, copy_state,
@@ -184,11 +183,9 @@ class Simulation:
 
     # ------------------------------------------------------------ scene set-up
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:
-        """Enforce ``constraints`` with ``method`` (penalty, FILM or DME); node-to-segment
-        constraints (contact.segments) get a NodeToSegmentSet."""
-        segments = isinstance(constraints, SegmentConstraints)
-        if segments:
-            require(rigid is None, "node-to-segment contact takes no rigid body")
+        """Enforce ``constraints`` (node pairs, a rigid face or, from contact.segments, node
+        to segment) with ``method`` (penalty, FILM or DME)."""
+        if isinstance(constraints, SegmentConstraints):
             contact_dofs = constraints.dofs
         else:
             contact_dofs = np.concatenate([d for d in (constraints.lower, constraints.upper)
@@ -201,8 +198,7 @@ class Simulation:
         if rigid is not None:
             refuse_shared_rigid(rigid, constraints.names, self.contacts)
         t0 = time.perf_counter()
-        c = (NodeToSegmentSet(constraints, self.integrator, method) if segments
-             else ContactSet(constraints, self.integrator, method, rigid))
+        c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
         beta = getattr(method, "info", {}).get("beta_max") if method.name == "penalty" else None
         if beta is not None and beta > PENALTY_BOUND and not self.settings.force:

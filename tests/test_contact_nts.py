@@ -19,6 +19,9 @@ FILM against DME, partitions, bad input.
   round-off of the banded solve (its condition number x the roundings of a row).
 * Partitions: COMM_WORLD against COMM_SELF in one process, within the spread of a
   one-ulp change of v0 (equal on one rank).
+* The one front-end: node to segment through the one method family (Penalty, FILM and
+  DME with their banded kernels) equals the previous path (its own methods, kept in
+  tests/nts_previous.py while the move lands) bit for bit, step by step.
 """
 import math
 
@@ -26,12 +29,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+import nts_previous
 from conftest import gather_field
 from impact_fenics import meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact import DME, FILM, Penalty
 from impact_fenics.contact.banded import dense_s
-from impact_fenics.contact.nts_methods import DME as NtsDME
 from impact_fenics.contact.segments import node_to_segment
 from impact_fenics.errors import InputError
 from impact_fenics.materials import STEEL
@@ -163,7 +166,7 @@ def test_film_and_dme_agree_while_the_active_set_holds():
     sim = _sim("film", 6, 9)
     integ, c = sim.integrator, sim.contacts[0]
     film = c.method
-    dme = NtsDME(0.0)
+    dme = DME(restitution=0.0)
     dme.setup(c)
     compared = 0
     for n in range(60):
@@ -194,6 +197,54 @@ def test_film_and_dme_agree_while_the_active_set_holds():
             compared += 1
         integ.advance()
     assert compared >= 10
+
+
+# ----------------------------------------------------------------------------- the move
+
+FAMILY = {"film": lambda: FILM(), "film_dense": lambda: FILM("dense"),
+          "dme": lambda: DME(restitution=0.0), "penalty": lambda: Penalty("scaled")}
+
+
+@pytest.mark.parametrize("scene", ["bars", "nose"])
+@pytest.mark.parametrize("method", ["film", "film_dense", "dme", "penalty"])
+def test_the_one_method_family_equals_the_previous_path(scene, method):
+    """Exact equivalence: one run corrected by the one front-end (its set's segment kind
+    and the one family's method), then, from the same initial state on the same mesh and
+    partition (a second mesh may be partitioned otherwise), by the previous path's set and
+    method (tests/nts_previous.py); every step's displacements, velocities, forces and
+    active sets, then the contact work, the activation loss, the committed gaps and the
+    method's counts are equal (array_equal: the same kernels in the same order, so the
+    same arithmetic)."""
+    if scene == "bars":
+        sim = scenes.bar_impact_sized(_settings(), FAMILY[method](), n_striker=6, n_target=9)
+    else:
+        sim = scenes.nosed_striker(Settings(cfl=0.9, t_end=4e-5, output_every=10, quiet=True),
+                                   FAMILY[method](), v0=20.0, hold_block=False)
+    integ, c = sim.integrator, sim.contacts[0]
+    assert type(c.method) is type(FAMILY[method]())  # the one family's own, unmapped
+    start = integ.u_owned.copy(), integ.v_owned.copy()
+    run = []
+    for n in range(sim.n_steps):
+        integ.predict()
+        c.step()
+        run.append((integ.u_owned.copy(), integ.v_owned.copy(), c.force.copy(),
+                    c.active.copy()))
+        integ.advance()
+    integ.u_owned[:], integ.v_owned[:] = start
+    integ.n = 0
+    prev = nts_previous.NodeToSegmentSet(c.constraints, integ, FAMILY[method]())
+    prev.initialize()
+    assert type(prev.method).__module__ == "nts_previous"  # the previous family's own class
+    for u, v, force, active in run:
+        integ.predict()
+        prev.step()
+        assert np.array_equal(integ.u_owned, u) and np.array_equal(integ.v_owned, v)
+        assert np.array_equal(prev.force, force) and np.array_equal(prev.active, active)
+        integ.advance()
+    assert sum(int(a.any()) for *_, a in run) >= 10  # the contact held over many steps
+    assert c.contact_work == prev.contact_work and c.activation_loss == prev.activation_loss
+    assert np.array_equal(c.committed_gap(), prev.committed_gap())
+    assert c.method.info == prev.method.info
 
 
 # ----------------------------------------------------------------------------- partitions
@@ -238,6 +289,19 @@ def test_same_numbers_on_every_partition(method):
 def _bars_model():
     tmesh = meshing.coaxial_bars_sized(h_striker=A / 6, h_target=A / 9)
     return DeformableModel(tmesh, [Body("striker", STEEL), Body("target", STEEL)])
+
+
+def test_a_rigid_body_on_node_to_segment_is_refused():
+    """The segment kind of the one front-end takes no rigid body: one line, no set added."""
+    from impact_fenics.contact import RigidBody
+    from impact_fenics.simulation import Simulation
+
+    model = _bars_model()
+    sim = Simulation(model, _settings())
+    with pytest.raises(InputError, match="^node-to-segment contact takes no rigid body$"):
+        sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"), FILM(),
+                        rigid=RigidBody("punch", 1.0))
+    assert sim.contacts == []
 
 
 def test_slave_without_master_in_reach_is_refused():

@@ -16,8 +16,9 @@ import pytest
 
 from impact_fenics.contact.banded import (apply_multipliers, band_of_s, bandwidth, dense_s,
                                           gershgorin_beta, lcp_bpp, lcp_dense)
-from impact_fenics.contact.nts_methods import DME, FILM
+from impact_fenics.contact import DME, FILM, Penalty
 from impact_fenics.contact.segments import FACE, VERTEX, build
+from impact_fenics.contact.state import SEGMENTS
 from impact_fenics.errors import InputError
 from roundoff import LIBM, rounding
 
@@ -218,8 +219,8 @@ def _one_slave_set(xi, e_normal, v_slave, v_master):
     v = np.concatenate([v_slave, v_master]).astype(float)
     u = np.zeros(6)
     u_pred = u + dt * v
-    c = SimpleNamespace(n=1, bw=0, band=band, cs=cs, cc=cc, mass=mass, free=np.ones(6, bool),
-                        dt=dt, u=u_pred.copy(), v=v.copy(), u_pred=u_pred, v_pred=v.copy(),
+    c = SimpleNamespace(kind=SEGMENTS, n=1, bw=0, band=band, cs=cs, cc=cc, mass=mass,
+                        free=np.ones(6, bool), dt=dt, u=u_pred.copy(), v=v.copy(), u_pred=u_pred, v_pred=v.copy(),
                         force=np.zeros(1), active=np.zeros(1, bool), g0=np.zeros(1))
     c.gap = np.array([float(cc[0] @ u_pred[cs[0]])])
     c.apply_forces = None
@@ -283,8 +284,6 @@ def test_film_holds_the_gap_and_keeps_momentum():
 def test_penalty_above_the_stability_bound_is_refused_unless_forced():
     """beta = p S_ii for one constraint (Gershgorin is exact there): 2 > 4/3 is refused,
     'scaled' puts beta at 1."""
-    from impact_fenics.contact.nts_methods import Penalty
-
     c, _ = _one_slave_set(0.3, (0.3, 1.0), v_slave=(0.0, -1.0), v_master=(0, 0, 0, 0))
     p = 2.0 / c.band[0, 0]
     with pytest.raises(InputError, match="exceeds the stability limit 4/3"):

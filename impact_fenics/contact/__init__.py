@@ -1,4 +1,5 @@
-"""Node-to-node contact: pairing, the interface, and three methods side by side."""
+"""Contact: pairing (node pairs, rigid faces, node to segment), the one front-end
+(ContactSet) and one family of three methods side by side."""
 from .dme import DME
 from .film import FILM
 from .interface import ContactSet, RigidBody

@@ -276,3 +276,63 @@ def gershgorin_beta(band: np.ndarray, bw: int, p: np.ndarray) -> float:
         rows[i] += off
         rows[i - k] += off
     return float(rows.max(initial=0.0))
+
+
+class Pivoting:
+    """The complementarity problem w = g~ + S lam >= 0, lam >= 0, lam . w = 0 of a banded
+    S (m/N), with its scratch arrays (allocated once) and its iteration counts in
+    ``info``: FILM's multipliers and DME's positions on node-to-segment constraints.
+
+    ``solver`` 'bpp': block principal pivoting on the band (O(n) per iteration), started
+    from the last step's loaded set joined with g~ < 0, the band factor of that set kept;
+    'dense': factors of the dense S (for comparison), started from g~ < 0. ``name``: the
+    method's, for the one-line failure."""
+
+    max_iter = 1000
+
+    def __init__(self, band: np.ndarray, bw: int, solver: str, name: str, info: dict):
+        n = band.shape[0]
+        self.band, self.bw, self.solver, self.name, self.info = band, bw, solver, name, info
+        self.lam = np.zeros(n)
+        self.w = np.zeros(n)
+        self.free = np.zeros(n, dtype=np.bool_)
+        self.start = np.zeros(n, dtype=np.bool_)
+        self.everywhere = np.ones(n, dtype=np.bool_)
+        self.idx = np.zeros(n, dtype=np.int64)
+        self.rhs = np.zeros(n)
+        self.sol = np.zeros(n)
+        self.L = np.zeros((n, bw + 1))
+        self.factored = np.zeros(n + 1, dtype=np.bool_)  # the set L factors, valid flag
+        self.S = dense_s(band, bw) if solver == "dense" else None
+        self.iterations = 0
+        info.update({"bandwidth": int(bw), "iterations_max": 0, "iterations_total": 0})
+
+    def kernel_calls(self, gap: np.ndarray) -> list:
+        """(kernel, arguments) of :meth:`solve`, for loading at set-up."""
+        if self.solver == "dense":
+            return []  # lcp_dense is numpy and LAPACK: nothing to compile
+        return [(lcp_bpp, (self.band, self.bw, gap, self.lam, self.w, self.free, self.idx,
+                           self.rhs, self.sol, self.L, self.max_iter, self.factored,
+                           self.everywhere))]
+
+    def solve(self, gap: np.ndarray) -> np.ndarray:
+        """The multipliers lam (N) for the predicted gaps ``gap`` (m); counts iterations."""
+        if self.solver == "dense":
+            it = lcp_dense(self.S, gap, self.lam, self.max_iter)
+            np.greater(self.lam, 0.0, out=self.free)
+        else:
+            # warm start: last step's loaded set and every predicted penetration
+            np.less(gap, 0.0, out=self.start)
+            np.logical_or(self.free, self.start, out=self.free)
+            it = lcp_bpp(self.band, self.bw, gap, self.lam, self.w, self.free, self.idx,
+                         self.rhs, self.sol, self.L, self.max_iter, self.factored,
+                         self.everywhere)
+            if it < 0:
+                raise RuntimeError(f"{self.name}: complementarity pivoting did not converge in "
+                                   f"{self.max_iter} iterations ({gap.size} constraints)")
+        self.iterations = it
+        info = self.info
+        info["iterations_total"] += it
+        if it > info["iterations_max"]:
+            info["iterations_max"] = it
+        return self.lam

@@ -25,6 +25,21 @@ u^{n+1} = u^n + dt v^{n+1}. ``positions="paper"`` uses the paper's eq. (9) equal
 weights instead. The holding reaction of a closed pair is compressive exactly when its
 predicted gap is negative, so detection and release coincide.
 
+Case 3, node to segment (S = dt^2 G M^-1 G' banded, contact.banded): the normal
+relative displacement is eliminated. Positions: the M-orthogonal projection of u~
+onto the active manifold g = 0 (the mass-weighted position; centre of mass kept),
+u = u~ + dt^2 M^-1 G' nu with nu >= 0 the solution of FILM's complementarity problem
+(with coupled constraints the set that can hold is found by the same pivoting;
+uncoupled it is g~ < 0, the paper's eq. 7). Velocities: the M-orthogonal projection of
+v~ onto G v = -e G v~ on that set (Newton's restitution on the normal relative
+velocity), v = v~ + dt M^-1 G' phi with S phi = -(1 + e) dt G v~ where phi pushes;
+where coupling would make some phi pull, the same pivoting solves
+S phi + (1 + e) dt G v~ >= 0, phi >= 0 on the set instead (it reuses the band factor,
+so the usual case costs one band solve). For one slave over a segment this is
+m_eff = (1/m_s + sum N_i^2 / m_i)^-1. The reported force is phi (N, the momentum
+change over dt). With e = 0 and a constraint closed at step n, nu = phi and DME
+equals FILM exactly. Only the mass-weighted positions have this form.
+
 The set velocity is independent of the set position at an activation (a
 jump); the interface encodes it and books its energy.
 """
@@ -34,6 +49,8 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
+from .banded import Pivoting, lcp_bpp
+from .state import is_banded
 
 
 class DME:
@@ -53,15 +70,54 @@ class DME:
         self.info: dict[str, float | str] = {"restitution": self.e, "positions": positions}
 
     def setup(self, c) -> None:
-        pass
+        if not is_banded(c):
+            return
+        if self.positions != "mass_weighted":
+            raise InputError("dme positions = 'paper' has no node-to-segment form: "
+                             "use 'mass_weighted'")
+        # the velocity problem reuses the position problem's band factor
+        self.info = {"restitution": self.e, "positions": self.positions}
+        self.pivoting = Pivoting(c.band, c.bw, "bpp", self.name, self.info)
+        self.phi = np.zeros(c.n)
+        self.vgap = np.zeros(c.n)
+        self.vfree = np.zeros(c.n, dtype=np.bool_)
+        self.vw = np.zeros(c.n)
+
+    def kernel_calls(self, c) -> list:
+        """(kernel, arguments) of every compiled call of :meth:`correct` on a banded S (the
+        node-pair and rigid sets load theirs by one call)."""
+        if not is_banded(c):
+            return []
+        ws = self.pivoting
+        return ws.kernel_calls(c.gap) + [
+            (_velocity_gaps, (ws.free, c.cs, c.cc, c.v_pred, self.e, c.dt, self.vgap, self.vfree)),
+            (lcp_bpp, (c.band, c.bw, self.vgap, self.phi, self.vw, self.vfree, ws.idx, ws.rhs,
+                       ws.sol, ws.L, ws.max_iter, ws.factored, ws.free)),
+            (_segments, (ws.lam, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.u,
+                         c.v, c.force, c.active))]
 
     def correct(self, c) -> None:
-        if c.rigid is None:
+        if is_banded(c):
+            self._correct_banded(c)
+        elif c.rigid is None:
             _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.dt, self.e, self.positions == "mass_weighted",
                    c.u, c.v, c.force, c.active)
         else:
             _cluster(c.gap, c.b, c.nodes, c.body, c.side, c.mass, c.m_over_dt, c.dt, c.u_now,
                      c.u, c.v, c.force, c.active, c.work)
+
+
+    def _correct_banded(self, c) -> None:
+        """Case 3: positions by nu, velocities by phi (see the module's text)."""
+        ws = self.pivoting
+        nu = ws.solve(c.gap)
+        _velocity_gaps(ws.free, c.cs, c.cc, c.v_pred, self.e, c.dt, self.vgap, self.vfree)
+        it = lcp_bpp(c.band, c.bw, self.vgap, self.phi, self.vw, self.vfree, ws.idx, ws.rhs,
+                     ws.sol, ws.L, ws.max_iter, ws.factored, ws.free)
+        if it < 0:
+            raise RuntimeError(f"dme: velocity pivoting did not converge ({c.n} constraints)")
+        _segments(nu, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v,
+                  c.force, c.active)
 
 
 @njit(cache=True)
@@ -147,3 +203,34 @@ def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force,
         force[i] = m_over_dt[node] * (side * (v[node] - v_c))
         v[node] = v_c
         u[node] = u_body + side * b[i]
+
+
+@njit(cache=True)
+def _velocity_gaps(held, cs, cc, v_pred, e, dt, vgap, vfree):
+    """Case 3's velocity problem on the held set: w = (1 + e) dt G v~ + S phi >= 0,
+    phi >= 0, phi . w = 0 (G v >= -e G v~: Newton's law where the constraint pushes).
+    Zero off the held set; the held set is the start."""
+    for i in range(held.size):
+        vgap[i] = 0.0
+        vfree[i] = held[i]
+        if held[i]:
+            gv = 0.0
+            for k in range(cs.shape[1]):
+                gv += cc[i, k] * v_pred[cs[i, k]]
+            vgap[i] = (1.0 + e) * dt * gv
+
+
+@njit(cache=True)
+def _segments(nu, phi, held, cs, cc, mass, slot_free, dt, u, v, force, active):
+    """Case 3: positions u~ + dt^2 M^-1 G' nu, velocities v~ + dt M^-1 G' phi;
+    force = phi (N)."""
+    for i in range(nu.size):
+        active[i] = held[i]
+        force[i] = phi[i]
+        if not held[i]:
+            continue
+        for k in range(cs.shape[1]):
+            s = cs[i, k]
+            if slot_free[s] and cc[i, k] != 0.0:
+                v[s] += dt * (cc[i, k] * phi[i]) / mass[s]
+                u[s] += dt * dt * (cc[i, k] * nu[i]) / mass[s]

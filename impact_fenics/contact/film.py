@@ -15,6 +15,11 @@ break points -g~_i / kappa finds it exactly in O(n log n) (``solver="fast"``).
 ``solver="dense"`` assembles S on the candidate set and factors it (what the
 paper timed), dropping tensile multipliers and adding violated gaps until the
 complementarity conditions hold.
+
+Node to segment, S is banded (contact.banded): the same complementarity problem is
+solved by block principal pivoting on the band of S (``solver="fast"``, O(n) per
+iteration, reported as 'bpp') or with dense factors (``solver="dense"``); then
+v += dt M^-1 G' force, u += dt^2 M^-1 G' force. Iterations are counted.
 """
 from __future__ import annotations
 
@@ -22,7 +27,8 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .state import apply_forces
+from .banded import Pivoting, apply_multipliers
+from .state import apply_forces, is_banded
 
 
 @njit(cache=True)
@@ -136,9 +142,11 @@ def solve_dense(gap: np.ndarray, d: np.ndarray, kappa: float, out: np.ndarray,
 
 
 class FILM:
-    """Forward-increment Lagrange multipliers; ``solver`` 'fast' (exact, O(n log n)) or 'dense'."""
+    """Forward-increment Lagrange multipliers; ``solver`` 'fast' (exact: O(n log n) on a
+    diagonal or rank-one S, pivoting on a banded one) or 'dense'."""
 
     name = "film"
+    jumps = False
 
     def __init__(self, solver: str = "fast"):
         if solver not in ("fast", "dense"):
@@ -147,10 +155,31 @@ class FILM:
         self.info: dict[str, float | str] = {"solver": solver}
 
     def setup(self, c) -> None:
-        pass
+        if is_banded(c):
+            solver = "bpp" if self.solver == "fast" else "dense"
+            self.info = {"solver": solver}
+            self.pivoting = Pivoting(c.band, c.bw, solver, self.name, self.info)
+
+    @property
+    def iterations(self) -> int:
+        """Iterations of the last step's pivoting (node to segment)."""
+        return self.pivoting.iterations
+
+    def kernel_calls(self, c) -> list:
+        """(kernel, arguments) of every compiled call of :meth:`correct` on a banded S (the
+        node-pair and rigid sets load theirs by one call)."""
+        if not is_banded(c):
+            return []
+        return self.pivoting.kernel_calls(c.gap) + [
+            (apply_multipliers, (c.force, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v))]
 
     def correct(self, c) -> None:
-        if self.solver == "fast":
+        if is_banded(c):
+            lam = self.pivoting.solve(c.gap)
+            c.force[:] = lam
+            np.greater(lam, 0.0, out=c.active)
+            c.apply_forces(c.force)
+        elif self.solver == "fast":
             _film_fast(c.gap, c.d_inv, c.kappa, c.force, c.active, c.lo, c.up, c.dt_over_m,
                        c.dt, c.u, c.v, c.work)
         else:

@@ -1,5 +1,12 @@
 """The contact interface: the predicted state of the contact dofs, one method, the commit.
 
+A set is one *kind* of geometry and one method: node pairs, a rigid face, or node
+to segment (constraints from :mod:`.segments`, S banded); the methods (penalty, FILM,
+DME) have a kernel for each structure of S. What follows is written for node pairs and
+rigid faces; the segment kind (:meth:`ContactSet._init_segments`) gathers both
+components of its slave and master nodes the same way, forms g~ = g0 + G u~ and books
+the same ledger, with its method's kernels called between.
+
 Each step the explicit loop predicts without contact; :meth:`ContactSet.step`
 then
 
@@ -44,16 +51,18 @@ from mpi4py import MPI
 
 from ..errors import InputError
 from . import fused
+from .banded import apply_multipliers, band_of_s, bandwidth, gap_of
 from .dme import DME
 from .film import FILM
 from .pairing import Constraints
 from .penalty import Penalty, lambda_max_diag_plus_rank_one
+from .segments import SegmentConstraints
 from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER,
-                    LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, POS,
-                    RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK, STATS,
-                    TO, WAVES, PhaseTimes, _commit, _committed_gap, _detect_gathered,
-                    _detect_local, _pack, _take, _unpack, apply_forces, kinetic_share,
-                    owned_slots)
+                    LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
+                    RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_FACE, RIGID_MASS, RIGID_WORK,
+                    SEGMENTS, STATS, TO, WAVES, PhaseTimes, _book_segments, _commit,
+                    _committed_gap, _detect_gathered, _detect_local, _detect_segments, _pack,
+                    _take, _unpack, apply_forces, gathered_order, kinetic_share, owned_slots)
 
 
 @dataclass
@@ -202,8 +211,8 @@ class ContactSet:
     in :mod:`.state`).
     """
 
-    def __init__(self, constraints: Constraints, integrator, method: ContactMethod,
-                 rigid: RigidBody | None = None):
+    def __init__(self, constraints: Constraints | SegmentConstraints, integrator,
+                 method: ContactMethod, rigid: RigidBody | None = None):
         model = integrator.model
         self.comm: MPI.Comm = model.comm
         self.constraints = constraints
@@ -211,11 +220,17 @@ class ContactSet:
         self.method = method
         self.dt = self.h_avg = integrator.dt  # h_{n+1/2} and h_n (s)
         self.n = n = constraints.n
+        if isinstance(constraints, SegmentConstraints):
+            if rigid is not None:
+                raise InputError("node-to-segment contact takes no rigid body")
+            self._init_segments(constraints)
+            return
         below = constraints.lower is None
         if (constraints.upper is None or below) != (rigid is not None):
             raise InputError("a rigid contact face needs exactly one rigid body, "
                              "and node pairs need none")
         self.rigid = rigid
+        self.kind = RIGID_FACE if rigid is not None else PAIRS
         self.r = constraints.r
         dofs = (constraints.upper if below else constraints.lower if rigid else
                 np.concatenate([constraints.lower, constraints.upper]))
@@ -244,9 +259,7 @@ class ContactSet:
         ints = self._ints
         ints[LOCAL, :local.size], ints[POS, :local.size] = local, pos
         self._local, self._pos = ints[LOCAL, :local.size], ints[POS, :local.size]
-        counts = self._counts // 2  # slots per rank; each sends (u of them, then v of them)
-        recv_u = np.concatenate([s + np.arange(c) for s, c in zip(self._displs, counts)])
-        recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(self._displs, counts)])
+        recv_u, recv_v = gathered_order(self._counts, self._displs)
         # per slot: where its predicted u and v are read (the Allgatherv buffer under MPI,
         # the owned arrays in serial) and the owned dof it is written back to (-1: another
         # rank's), for the fused rigid-face pass
@@ -289,6 +302,59 @@ class ContactSet:
                              self._ints, self._flags, self._misc))
         self._gathered = self.comm.size > 1
 
+    def _init_segments(self, c: SegmentConstraints) -> None:
+        """The segment kind: slave node k has slots (2k, 2k+1) = (r, z), master node k
+        (2(n_s + k), 2(n_s + k) + 1); constraint i is row i of G, six (slot ``cs[i]``,
+        coefficient ``cc[i]``) entries: the slave's dofs with the normal n, the master
+        nodes' with -N_a n and -N_b n. ``free`` is False on fixed dofs (never moved);
+        ``band``/``bw``: S = dt^2 G M^-1 G' (m/N) as a lower band. The force (N) pushes
+        the slave along n and the master nodes along -n in proportion to N_a, N_b."""
+        integ, n = self.integrator, self.n
+        model = integ.model
+        self.kind, self.rigid, self.r, self._fused = SEGMENTS, None, c.r, None
+        dofs = c.dofs.astype(np.int64)
+        self.n_slots = self.n_deformable = ns = dofs.size
+        n_slave = c.slave_xy.shape[0]
+        (self._local, self._pos, self._all_pos, self._counts,
+         self._displs) = owned_slots(model, dofs, self.comm)
+        self._recv_u, self._recv_v = gathered_order(self._counts, self._displs)
+        self._send = np.empty(2 * self._local.size)
+        self._recv = np.empty(2 * ns)
+        (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.f_prev,
+         self.ku_prev, self.jump) = np.zeros((9, ns))
+        self.mass = np.empty(ns)
+        self._gather(integ.mass, integ.mass, self.mass, np.empty(ns))
+        free_owned = np.ones(model.n_owned)
+        free_owned[integ.fixed] = 0.0
+        free = np.empty(ns)
+        self._gather(free_owned, free_owned, free, np.empty(ns))
+        self.free = free > 0.5
+        self.minv = np.where(self.free, 1.0 / self.mass, 0.0)
+        s = np.arange(n)
+        self.cs = np.stack([2 * s, 2 * s + 1, 2 * (n_slave + c.a), 2 * (n_slave + c.a) + 1,
+                            2 * (n_slave + c.b), 2 * (n_slave + c.b) + 1], axis=1).astype(np.int64)
+        na, nb = 1.0 - c.xi, c.xi
+        nr, nz = c.normal[:, 0], c.normal[:, 1]
+        self.cc = np.stack([nr, nz, -na * nr, -na * nz, -nb * nr, -nb * nz], axis=1)
+        self.g0 = c.g0.copy()
+        self.bw = bandwidth(self.cs, self.cc, self.minv)
+        self.band = np.empty((n, self.bw + 1))
+        band_of_s(self.cs, self.cc, self.minv, self.dt, self.bw, self.band)
+        if np.any(self.band[:, 0] <= 0.0):
+            k = int(np.flatnonzero(self.band[:, 0] <= 0.0)[0])
+            raise InputError(f"contact: the constraint of '{c.names[0]}' node at "
+                             f"(r={c.slave_xy[k, 0]:.6g}, z={c.slave_xy[k, 1]:.6g}) moves no "
+                             "free dof")
+        self.gap, self.force, self._gap_out = np.empty(n), np.zeros(n), np.empty(n)
+        self.active, self.was_active = np.zeros((2, n), dtype=np.bool_)
+        self.times = PhaseTimes()
+        self._misc = np.zeros(MISC_SIZE)
+        self.stats = self._misc[STATS:STATS + 3]
+        self.stats[:] = 0.0, 0.0, np.inf
+        self.jumps = bool(getattr(self.method, "jumps", False))
+        self._ledger = _ContactWork(self)
+        self.method.setup(self)
+
     # ------------------------------------------------------------ the step's constants
     def _step_constants(self) -> None:
         """h_n / m, m / h_n (0 at a fixed part's slot), kappa = h_{n+1/2} h_n / m_rigid and
@@ -315,6 +381,8 @@ class ContactSet:
         penalty chosen from S), in place. Nothing changes when they are the set's."""
         if h == self.dt and h_avg == self.h_avg:
             return
+        if self.kind == SEGMENTS:
+            raise InputError("node-to-segment contact: the step must stay constant")
         self.dt, self.h_avg = float(h), float(h_avg)
         self._step_constants()
         self.method.setup(self)
@@ -331,6 +399,8 @@ class ContactSet:
         (0 for another method)."""
         if self.method.name != "penalty" or self.n == 0:
             return 0.0
+        if self.kind == SEGMENTS:
+            return float(self.method.info["beta_max"])  # Gershgorin's bound on the band
         p = np.asarray(self.method.p, dtype=float)
         return lambda_max_diag_plus_rank_one(p * self.d, self.kappa, np.sqrt(p))
 
@@ -358,6 +428,9 @@ class ContactSet:
         """Read u^0 and v^0 of the contact dofs (call after the integrator's set_initial)."""
         integ = self.integrator
         self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
+        if self.kind == SEGMENTS:
+            self._load_segment_kernels()
+            return
         if self.rigid is not None:
             r = self.rigid
             self.u_now[-1], self.v_now[-1] = r.u, r.v
@@ -411,6 +484,30 @@ class ContactSet:
         self.force[:] = 0.0
         self.active[:] = False
 
+    def _load_segment_kernels(self) -> None:
+        """The segment kind's compiled calls of a step (detection, the method's kernels,
+        write-back, booking), loaded by their argument types without running them."""
+        from ..jit_watch import load
+
+        integ = self.integrator
+        calls = [(_detect_segments, (self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs,
+                                     self.cc, self.gap, self.active, self.was_active)),
+                 (_take, (self.u, self.v, self._pos, self._local, integ.u_owned, integ.v_owned)),
+                 (_book_segments, (self.dt, True, self.mass, self.u, self.v, self.u_pred,
+                                   self.v_pred, self.u_now, self.v_now, self.f_prev,
+                                   self.ku_prev, self.jump, self.jumps, False, self.active,
+                                   self.was_active, self.g0, self.cs, self.cc, self._gap_out))]
+        if self.comm.size == 1:
+            calls.append((_take, (integ.u_owned, integ.v_owned, self._local, self._pos,
+                                  self.u_pred, self.v_pred)))
+        else:
+            calls += [(_pack, (integ.u_owned, integ.v_owned, self._local, self._send)),
+                      (_unpack, (self._recv, self._recv_u, self._recv_v, self._all_pos,
+                                 self.u_pred, self.v_pred))]
+        method_calls = getattr(self.method, "kernel_calls", None)  # a user's method: none
+        for fn, args in calls + (method_calls(self) if method_calls else []):
+            load(fn, *args)
+
     def use_separate_calls(self) -> None:
         """Run the step as detection, the method's correct() and the commit (three compiled
         calls) with the rigid body's prediction and commit in Python, as before the fused
@@ -421,11 +518,16 @@ class ContactSet:
 
     # ------------------------------------------------------------ for methods
     def s_diagonal(self) -> np.ndarray:
-        """Diagonal part d of S = h_{n+1/2} h_n G M^-1 G' = diag(d) + kappa 1 1' (m/N)."""
-        return self.d
+        """Diagonal part d of S = h_{n+1/2} h_n G M^-1 G' = diag(d) + kappa 1 1' (m/N); of
+        a banded S (segments) its diagonal."""
+        return self.band[:, 0] if self.kind == SEGMENTS else self.d
 
     def apply_forces(self, force: np.ndarray) -> None:
         """Apply compressive contact forces (N) to the predicted state."""
+        if self.kind == SEGMENTS:
+            apply_multipliers(force, self.cs, self.cc, self.mass, self.free, self.dt, self.u,
+                              self.v)
+            return
         apply_forces(force, self.lo, self.up, self.dt_over_m, self.dt, self.u, self.v)
 
     # ------------------------------------------------------------ the step
@@ -437,8 +539,12 @@ class ContactSet:
         write back, book, commit the rigid body), under MPI after a compiled pack and
         the Allgatherv. Its time is booked as ``solve``; ``detection`` holds the Python
         before it (the rigid body's external force at t^n, the Allgatherv) and ``update``
-        the copy of the rigid body's state after it. Another method: detection, the
-        method's correct() and the commit as three calls, timed as such."""
+        the copy of the rigid body's state after it. Another method, and every method on
+        segments: detection, the method's correct() and the commit as three calls, timed
+        as such."""
+        if self.kind == SEGMENTS:
+            self._step_segments()
+            return
         if self._fused is None:
             self._step_unfused()
             return
@@ -496,6 +602,23 @@ class ContactSet:
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
 
+    def _step_segments(self) -> None:
+        """The segment kind's step: gather, the predicted gaps g0 + G u~, correct(), write
+        back and book."""
+        integ = self.integrator
+        clock = time.perf_counter
+        t0 = clock()
+        self._gather(integ.u_owned, integ.v_owned, self.u_pred, self.v_pred)
+        _detect_segments(self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs, self.cc,
+                         self.gap, self.active, self.was_active)
+        t1 = clock()
+        self.method.correct(self)
+        t2 = clock()
+        self._ledger.book_segments(integ.n)
+        t3 = clock()
+        times = self.times
+        times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
+
     # ------------------------------------------------------------ the rigid body
     # The two places that know how a rigid body moves on its own: its slot mass and
     # its prediction without contact. Everything else treats it as one more slot.
@@ -531,6 +654,8 @@ class ContactSet:
 
     def committed_gap(self) -> np.ndarray:
         """Gap (m) of the committed state, in global constraint order (a reused buffer)."""
+        if self.kind == SEGMENTS:
+            return gap_of(self.g0, self.cs, self.cc, self.u_now, self._gap_out)
         _committed_gap(self.b, self.u_now, self.lo, self.up, self._gap_out)
         return self._gap_out
 
@@ -599,3 +724,21 @@ class _ContactWork:
             state[1] -= inc
         state[2] = 1.0 if jumped else 0.0
         state[3] = 1.0 if grew else 0.0
+
+    def book_segments(self, n_step: int) -> None:
+        """The segment kind's commit: write the owned dofs back, book step n (as
+        :meth:`book`, F^n = m (v^{n+1} - v~^{n+1}) / dt) and the history's stats."""
+        c = self.c
+        integ = c.integrator
+        state = self._state
+        _take(c.u, c.v, c._pos, c._local, integ.u_owned, integ.v_owned)
+        inc, jumped, grew, min_gap = _book_segments(
+            c.dt, n_step == 0, c.mass, c.u, c.v, c.u_pred, c.v_pred, c.u_now, c.v_now, c.f_prev,
+            c.ku_prev, c.jump, c.jumps, self.jumped, c.active, c.was_active, c.g0, c.cs, c.cc,
+            c._gap_out)
+        state[0] += inc
+        if grew or state[3]:
+            state[1] -= inc
+        state[2] = 1.0 if jumped else 0.0
+        state[3] = 1.0 if grew else 0.0
+        c.stats[0], c.stats[1], c.stats[2] = np.count_nonzero(c.active), c.force.sum(), min_gap

@@ -46,6 +46,12 @@ see. The ``scaled`` choice p_i = c / d_i puts every
 pair at the same beta_ii = c and takes c from the coupled operator:
 lambda_max(I + kappa w w') = 1 + kappa sum(1/d) with w_i = d_i^-1/2, so
 beta_max = c (1 + kappa sum 1/d_i) = beta_target exactly.
+
+Node to segment, S is banded (contact.banded) and symmetric positive definite but, with
+positive off-diagonal entries where slaves share a master node, not an M-matrix:
+``scaled`` puts every constraint at p_i = c / S_ii with c from Gershgorin's bound, so
+that beta_max <= beta_target; a given p whose Gershgorin bound exceeds 4/3 is refused
+at set-up unless forced. The forces move each row's six dofs by G' force.
 """
 from __future__ import annotations
 
@@ -53,7 +59,8 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .state import apply_forces
+from .banded import apply_multipliers, gershgorin_beta
+from .state import apply_forces, is_banded
 
 STABILITY_BOUND = 4.0 / 3.0
 
@@ -79,12 +86,14 @@ def lambda_max_diag_plus_rank_one(a: np.ndarray, kappa: float, z: np.ndarray) ->
 
 class Penalty:
     """Penalty contact. ``p``: a stiffness in N/m, ``"auto"`` (the paper's rule, see
-    ``auto_reading``) or ``"scaled"`` (stability-scaled, beta_max = ``beta_target``)."""
+    ``auto_reading``) or ``"scaled"`` (stability-scaled, beta_max = ``beta_target``).
+    ``force``: node to segment, accept a Gershgorin bound above 4/3."""
 
     name = "penalty"
+    jumps = False
 
     def __init__(self, p: float | str = "scaled", auto_reading: str = "mean_of_inverse",
-                 beta_target: float = 1.0):
+                 beta_target: float = 1.0, force: bool = False):
         if isinstance(p, str) and p not in ("auto", "scaled"):
             try:
                 p = float(p)
@@ -100,9 +109,13 @@ class Penalty:
         self.choice = p
         self.auto_reading = auto_reading
         self.beta_target = beta_target
+        self.forced = force
         self.info: dict[str, float | str] = {}
 
     def setup(self, c) -> None:
+        if is_banded(c):
+            self._setup_banded(c)
+            return
         d, kappa = c.d, c.kappa
         # the paper's sentence, both readings: an average of S's diagonal as p
         auto = {"mean_of_inverse": float(np.mean(1.0 / d)),
@@ -121,7 +134,40 @@ class Penalty:
                      "p_auto_inverse_of_mean": auto["inverse_of_mean"],
                      "beta_max": beta_max, "beta_bound": STABILITY_BOUND}
 
+    def _setup_banded(self, c) -> None:
+        """p on a banded S (node to segment): beta_max by Gershgorin's row sums."""
+        d = c.band[:, 0]
+        if self.choice == "scaled":
+            self.p = 1.0 / d
+            self.p *= self.beta_target / gershgorin_beta(c.band, c.bw, self.p)
+        elif self.choice == "auto":
+            mean = {"mean_of_inverse": lambda: np.mean(1.0 / d),
+                    "inverse_of_mean": lambda: 1.0 / np.mean(d)}[self.auto_reading]
+            self.p = np.full(c.n, float(mean()))
+        else:
+            self.p = np.full(c.n, float(self.choice))
+        beta = gershgorin_beta(c.band, c.bw, self.p)
+        if beta > STABILITY_BOUND * (1 + 1e-12) and not self.forced:
+            raise InputError(f"penalty: beta_max <= {beta:.4g} (Gershgorin bound on "
+                             f"dt^2 P^1/2 G M^-1 G' P^1/2) exceeds the stability limit 4/3: "
+                             "lower p, use 'scaled', or force it")
+        self.info = {"p_choice": str(self.choice), "p_min": float(self.p.min()),
+                     "p_max": float(self.p.max()), "beta_max": beta,
+                     "beta_bound": STABILITY_BOUND}
+
+    def kernel_calls(self, c) -> list:
+        """(kernel, arguments) of every compiled call of :meth:`correct` on a banded S (the
+        node-pair and rigid sets load theirs by one call)."""
+        if not is_banded(c):
+            return []
+        return [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
+                                   c.dt, c.u, c.v))]
+
     def correct(self, c) -> None:
+        if is_banded(c):
+            _penalty_banded(c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free, c.dt,
+                            c.u, c.v)
+            return
         _penalty(c.gap, self.p, c.force, c.active, c.lo, c.up, c.dt_over_m, c.dt, c.u, c.v)
 
 
@@ -133,3 +179,12 @@ def _penalty(gap, p, force, active, lo, up, dt_over_m, dt, u, v):
         active[i] = g < 0.0
         force[i] = -p[i] * g if g < 0.0 else 0.0
     apply_forces(force, lo, up, dt_over_m, dt, u, v)
+
+
+@njit(cache=True)
+def _penalty_banded(gap, p, force, active, cs, cc, mass, free, dt, u, v):
+    """force_i = p_i max(0, -g~_i) (N), applied through G' (six dofs a row)."""
+    for i in range(gap.size):
+        active[i] = gap[i] < 0.0
+        force[i] = -p[i] * gap[i] if active[i] else 0.0
+    apply_multipliers(force, cs, cc, mass, free, dt, u, v)

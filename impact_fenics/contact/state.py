@@ -27,6 +27,12 @@ from mpi4py import MPI
 from numba import njit
 
 from ..errors import InputError
+from .banded import gap_of
+
+# a set's kind of geometry (its ``kind``), which fixes the structure of
+# S = h_{n+1/2} h_n G M^-1 G': node pairs diagonal, a rigid face diagonal + kappa 1 1',
+# node to segment banded (contact.banded); each method has a kernel per structure
+PAIRS, RIGID_FACE, SEGMENTS = "pairs", "rigid", "segments"
 
 # the set's scalars in one float array (ContactSet._misc), read and written by the fused
 # call: the contact-work ledger (work, activation loss, jumped, grew), the stats of a
@@ -49,6 +55,12 @@ B, GAP, FORCE, D, D_INV, P = range(12, 18)
 # is written back to (from_u, from_v, to: in slot order); the owned contact dofs and
 # their slots (local, pos)
 LO, UP, WORK, RECV_U, RECV_V, ALL_POS, FROM_U, FROM_V, TO, LOCAL, POS = range(11)
+
+
+def is_banded(c) -> bool:
+    """Is S of the set ``c`` banded (its ``kind`` is node to segment)? A set without a
+    ``kind`` holds node pairs or a rigid face."""
+    return getattr(c, "kind", PAIRS) == SEGMENTS
 
 
 @dataclass
@@ -187,6 +199,55 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
 
 
 @njit(cache=True)
+def _detect_segments(u_pred, v_pred, u, v, g0, cs, cc, gap, active, was_active):
+    """Detection of node to segment after the gather: the predicted gaps
+    g~ = g0 + G u~ (G: six (slot ``cs``, coefficient ``cc``) entries a row)."""
+    for k in range(u.size):
+        u[k] = u_pred[k]
+        v[k] = v_pred[k]
+    gap_of(g0, cs, cc, u_pred, gap)
+    for i in range(gap.size):
+        was_active[i] = active[i]
+
+
+@njit(cache=True)
+def _book_segments(dt, first, mass, u, v, u_pred, v_pred, u_now, v_now, f_prev, ku_prev, jump,
+                   jumps, jumped, active, was_active, g0, cs, cc, gap_buf):
+    """The contact work increment of a node-to-segment step in the ledger's discrete form
+    (as :func:`_commit` books it, with F^n = m (v^{n+1} - v~^{n+1}) / dt per slot), then
+    the state rolled to n+1. Returns (the increment (J), jumped, grew, the smallest
+    committed gap g0 + G u (m))."""
+    inc = 0.0
+    jumped_now = False
+    grew = False
+    for i in range(active.size):
+        if active[i] and not was_active[i]:
+            grew = True
+    gap_of(g0, cs, cc, u, gap_buf)
+    min_gap = np.inf
+    for i in range(gap_buf.size):
+        min_gap = min(min_gap, gap_buf[i])
+    for k in range(mass.size):
+        f = mass[k] * (v[k] - v_pred[k]) / dt
+        if not first:
+            inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
+        f_prev[k] = f
+    if jumps:
+        for k in range(mass.size):
+            ku = -mass[k] * (v_pred[k] - v_now[k]) / dt
+            if jumped:
+                inc += 0.5 * jump[k] * (ku_prev[k] + ku)
+            ku_prev[k] = ku
+            jump[k] = u[k] - u_now[k] - dt * v[k]
+            if jump[k] != 0.0:
+                jumped_now = True
+    for k in range(mass.size):
+        u_now[k] = u[k]
+        v_now[k] = v[k]
+    return inc, jumped_now, grew, min_gap
+
+
+@njit(cache=True)
 def kinetic_share(local, pos, f_int, h_avg, mass, u_pred, v_pred, v_now, b, lo, up, p, active):
     """The contact's share of the kinetic identity of the half-step scheme on this rank's
     owned slots (``local``: their owned dofs, ``pos``: their slots), after a step's
@@ -240,3 +301,13 @@ def owned_slots(model, dofs: np.ndarray, comm: MPI.Comm) -> tuple:
     displs = np.concatenate([[0], np.cumsum(2 * counts)[:-1]])
     return ((dofs[mine] - lo_dof).astype(np.int64), mine.astype(np.int64), positions,
             2 * counts, displs)
+
+
+def gathered_order(counts: np.ndarray, displs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where each gathered slot's u and v are in the Allgatherv buffer (in gathered order):
+    each rank sends the u of its slots, then their v (``counts``, ``displs`` in doubles,
+    from :func:`owned_slots`)."""
+    per_rank = counts // 2
+    recv_u = np.concatenate([s + np.arange(c) for s, c in zip(displs, per_rank)])
+    recv_v = np.concatenate([s + c + np.arange(c) for s, c in zip(displs, per_rank)])
+    return recv_u, recv_v

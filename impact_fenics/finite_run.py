@@ -56,13 +56,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
-from numba import njit
 from petsc4py import PETSc
 
 from . import compat, console, interrupts, output, rundir
 from .contact.plane import FixedPlane
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
+from .stepping import FollowingStep
 from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
 
@@ -105,29 +105,6 @@ class FiniteSettings:
     force: bool = False
     timers: bool = True
     summary_extra: dict = field(default_factory=dict)  # entries copied into the summary
-
-
-@njit(cache=True)
-def velocity_update(coef, f, v, dt_avg) -> float:
-    """v += dt_avg coef f (coef = -1/m, 0 on fixed dofs); returns dt_avg 1/2 (v^- + v~) . f (J)."""
-    work = 0.0
-    for i in range(coef.size):
-        vo = v[i]
-        vn = vo + dt_avg * coef[i] * f[i]
-        v[i] = vn
-        work += 0.5 * dt_avg * (vo + vn) * f[i]
-    return work
-
-
-@njit(cache=True)
-def trapezoid_work(f, u, f_prev, u_prev) -> float:
-    """1/2 (f_prev + f) . (u - u_prev) (J), and stores f, u as the previous ones."""
-    work = 0.0
-    for i in range(f.size):
-        work += 0.5 * (f_prev[i] + f[i]) * (u[i] - u_prev[i])
-        f_prev[i] = f[i]
-        u_prev[i] = u[i]
-    return work
 
 
 class _OneBody:
@@ -220,6 +197,7 @@ class FiniteRun:
             free[2 * np.asarray(fixed_z) + 1] = False
         self.free = free
         self.coef = np.where(free, -1.0 / self.mass, 0.0)
+        self.force.coef = self.coef
         self.v = np.zeros(self.n_owned)
         self.v[0::2], self.v[1::2] = velocity
         self.v[~free] = 0.0
@@ -227,7 +205,6 @@ class FiniteRun:
         # Vec, v: a Vec on the owned array): the position pass is one VecAXPY, u += dt v
         self.u_vec = compat.petsc_vec(self.u_fn)
         self.v_vec = PETSc.Vec().createWithArray(self.v, comm=self.comm)
-        self.wave_speed = material.wave_speed()
         # the wall: every owned boundary node is a candidate
         self.wall = None
         if wall is not None:
@@ -252,8 +229,6 @@ class FiniteRun:
         self._top = self._owned_node(0.0, float(hi[1]))
         self._bottom = self._owned_node(0.0, float(lo[1]))
         self._corner = self._owned_node(r_max, float(lo[1]))
-        self._f_prev = np.zeros(self.n_owned)
-        self._u_prev = np.zeros(self.n_owned)
 
     def _owned_node(self, r: float, z: float) -> int:
         """The owned node at (r, z) (m), or -1 if another rank owns it."""
@@ -266,8 +241,9 @@ class FiniteRun:
 
     # ------------------------------------------------------------ measures (every rank)
     def dt_limit(self) -> float:
-        """Current stable estimate min L / c (s) over all ranks (before the safety factor)."""
-        return self.comm.allreduce(self.force.length_min_local(), op=MPI.MIN) / self.wave_speed
+        """Current stable estimate min L / c (s) over all ranks (before the safety factor):
+        the force's own."""
+        return self.force.stable_dt()
 
     def tracked(self) -> tuple[float, float]:
         """(current length (m): the axis length, z of the node that started at (0, Z_max)
@@ -329,15 +305,6 @@ class FiniteRun:
     def has_temperature(self) -> bool:
         return getattr(self.material, "temperature_index", -1) >= 0
 
-    def _load_kernels(self, dt: float) -> None:
-        """Compile (or load from the cache) the loop's module-level kernels for its argument
-        types now, without running them (the force's kernels load with the force)."""
-        from .jit_watch import load
-
-        f = self.force.f_owned
-        load(trapezoid_work, f, self.u_owned, self._f_prev, self._u_prev)
-        load(velocity_update, self.coef, f, self.v, dt)  # (the wall's load with it)
-
     # ------------------------------------------------------------ the run
     def run(self, extra=None) -> dict:
         """Step to t_end and return the summary. With ``settings.out`` the run directory gets
@@ -354,12 +321,13 @@ class FiniteRun:
         require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
         require(s.history_every >= 1 and s.output_every >= 1,
                 "history_every and output_every must be >= 1")
-        dt_lim = self.dt_limit()
-        dt0 = min(s.dt if s.dt is not None else s.safety * dt_lim, s.t_end)
+        policy = self.step_policy = FollowingStep(self.dt_limit, s.t_end, s.dt, s.safety,
+                                                  s.dt_interval)
+        dt_lim = policy.limit
+        dt0 = policy.first()
         self._check_penalty(dt0, dt0, 0, 0.0)
         # the body's own stable step (s): at the start, and the smallest the run reaches
         self.stable_dt = {self.name: dt_lim}
-        self.stable_dt_smallest = {self.name: dt_lim}
         if comm.rank == 0 and not s.quiet:
             from .report import stable_step_line
 
@@ -387,10 +355,8 @@ class FiniteRun:
                 rundir.abandon_directory(staging, comm)
             stop.restore()
             raise
+        # (the force's kernels and the wall's load with them, at their set-up)
         self.setup_time = {"outputs": time.perf_counter() - t_setup}
-        t_load = time.perf_counter()
-        self._load_kernels(dt0)
-        self.setup_time["kernels"] = time.perf_counter() - t_load
         timers = PhaseTimers(PHASES) if s.timers else None
         progress = _TimeProgress(s.t_end, not s.quiet and comm.rank == 0)
         cap = 4096
@@ -398,9 +364,8 @@ class FiniteRun:
         n_rows, stride = 0, s.history_every
         K0 = self.kinetic()
         total_mass = comm.allreduce(float(self.mass[1::2].sum()))
-        w_int = taken = w_trap = 0.0
+        w_int = taken = 0.0
         t, dt_prev = 0.0, None
-        dts = [np.inf, 0.0]
         n = 0
         serial = comm.size == 1
         failure = None
@@ -414,37 +379,20 @@ class FiniteRun:
                 t0 = clock()
                 if n >= s.max_steps:
                     raise UnstableRunError(f"more than {s.max_steps} steps before t_end = {s.t_end} s")
-                new_limit = n % s.dt_interval == 0
-                if new_limit and n > 0:
-                    dt_lim = self.dt_limit()
-                    if dt_lim < self.stable_dt_smallest[self.name]:
-                        self.stable_dt_smallest[self.name] = dt_lim
-                if s.dt is None:
-                    dt = s.safety * dt_lim
-                else:
-                    dt = s.dt
-                    if dt > dt_lim:
-                        raise UnstableRunError(
-                            f"run stopped at step {n} (t = {t:.6g} s): the fixed dt = {dt:.4g} s is "
-                            f"above the current stable limit {dt_lim:.4g} s (elements flattened); "
-                            "use the adaptive step (dt = None) or a smaller dt")
-                if dt < s.t_end - t:  # the range of dt leaves out the last, clipped step
-                    dts[0], dts[1] = min(dts[0], dt), max(dts[1], dt)
-                dt = min(dt, s.t_end - t)
-                dt_avg = dt if dt_prev is None else 0.5 * (dt_prev + dt)
+                dt = policy.next(n, t)
+                dt_lim, dt_avg, new_limit = policy.limit, policy.h_avg, policy.renewed
                 if new_limit and n > 0 and self.wall is not None and self.wall.method == "penalty":
                     self._check_penalty(dt, dt_avg, n, t)
+                self.force.set_step(dt, dt_avg)
                 self.u_fn.x.scatter_forward()
-                f = self.force.compute(dt_prev if dt_prev is not None else dt)
-                w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
+                f = self.force.evaluate()  # f_int(u^n); v moves after the outputs of u^n
                 t1 = clock()
                 if writer is not None and n % s.output_every == 0:
                     writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
                 t2 = clock()
                 if n % stride == 0 or (table is not None and n % s.history_every == 0):
                     led = 0.0 if dt_prev is None else dt_prev  # the step to this state
-                    row = self._history_row(n, t, led, dt_lim, K0, w_int, taken, w_trap,
-                                            total_mass)
+                    row = self._history_row(n, t, led, dt_lim, K0, w_int, taken, total_mass)
                     if table is not None and n % s.history_every == 0:
                         table.row()[:] = row
                     if n % stride == 0:
@@ -455,7 +403,7 @@ class FiniteRun:
                             hist[n_rows] = row
                             n_rows += 1
                 t3 = clock()
-                w_int += velocity_update(self.coef, f, self.v, dt_avg)
+                w_int += self.force.add_increment(self.v, dt_avg)
                 advance_positions(dt, v_vec)
                 t4 = clock()
                 if self.wall is not None:
@@ -504,11 +452,10 @@ class FiniteRun:
         try:
             # the final state: force at u^N so that the state and the stored energy are current
             if self.status != "diverged":
+                self.force.set_step(dt_prev, dt_prev)  # its points' step: the last one taken
                 self.u_fn.x.scatter_forward()
-                f = self.force.compute(dt_prev)
-                w_trap += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
-                row = self._history_row(n, t, dt_prev, dt_lim, K0, w_int, taken, w_trap,
-                                        total_mass)
+                self.force.evaluate()
+                row = self._history_row(n, t, dt_prev, dt_lim, K0, w_int, taken, total_mass)
                 if table is not None:  # the last state, u^N, always
                     table.row()[:] = row
                 if n_rows == cap:
@@ -524,7 +471,7 @@ class FiniteRun:
                 writer.close()
             self.n_steps, self.t = n, t
             self.history = {c: hist[:n_rows, i].copy() for i, c in enumerate(HISTORY_COLUMNS)}
-            summary = self._summary(K0, n, t, dts, w_int, taken, w_trap, wall_time, timers)
+            summary = self._summary(K0, n, t, policy.h_range, w_int, taken, wall_time, timers)
             summary.update(s.summary_extra)
             if failure is not None:
                 summary["failure"] = failure
@@ -553,7 +500,12 @@ class FiniteRun:
             raise UnstableRunError(failure)
         return summary
 
-    def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, w_trap, total_mass) -> list:
+    @property
+    def stable_dt_smallest(self) -> dict[str, float]:
+        """The body's smallest stable step of the run so far (s)."""
+        return {self.name: self.step_policy.smallest}
+
+    def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, total_mass) -> list:
         """One history row (every rank the same): see HISTORY_COLUMNS (SI units); ``dt`` the
         step that led to this state (0 at the start), ``dt_lim`` the current limit."""
         comm, wall = self.comm, self.wall
@@ -568,10 +520,10 @@ class FiniteRun:
         force = comm.allreduce(wall.force_local) if wall is not None else 0.0
         vz = comm.allreduce(float(np.dot(self.mass[1::2], self.v[1::2]))) / total_mass
         return [n, t, dt, dt_lim, kin, wi, tk - spring, stored, wp, kin + wi + tk - K0,
-                comm.allreduce(w_trap) - stored - wp, n_act, self.force.j_min,
+                comm.allreduce(self.force.trapezoid_local) - stored - wp, n_act, self.force.j_min,
                 self.eps_p_max(), length, radius, force, spring, vz]
 
-    def _summary(self, K0, n, t, dts, w_int, taken, w_trap, wall_time, timers) -> dict:
+    def _summary(self, K0, n, t, dts, w_int, taken, wall_time, timers) -> dict:
         """The run's figures (SI units); every rank returns the same dictionary."""
         from .simulation import _provenance
 
@@ -595,7 +547,7 @@ class FiniteRun:
             "initial_kinetic": K0, "kinetic": K, "stored_elastic": stored, "plastic_work": wp,
             "internal_work": wi, "activation_loss": tk - spring, "penalty_energy": spring,
             "kinetic_identity_error": (K + wi + tk - K0) / K0 if K0 else K + wi + tk,
-            "work_gap": (comm.allreduce(w_trap) - stored - wp),
+            "work_gap": (comm.allreduce(self.force.trapezoid_local) - stored - wp),
             "final_length": length, "final_face_radius": radius, "eps_p_max": self.eps_p_max(),
             "j_min": self.force.j_min, "wall_time": wall_time,
             "length_definition": "final_length: the axis length, z of the node that started "

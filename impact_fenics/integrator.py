@@ -6,7 +6,8 @@ The modified Euler scheme
 
 runs as: each internal force adds -dt M^-1 f_int(u^n) into v (the linear
 bodies by  v <- A u + v, one MatMultAdd with A = -dt M^-1 K scaled once; a
-path-dependent body by its quadrature force, :mod:`.internal_force`), the few
+path-dependent body by its quadrature force: the forces of :mod:`.internal_force`,
+each behind the protocol of :mod:`.internal_force.base`), the few
 loaded dofs get dt M^-1 f^n, then  u <- u + dt v  (VecAXPY). Fixed dofs have
 zero rows in A (zero coefficients in the quadrature forces) and stay at rest.
 When every body is linear the step is the MatMultAdd and the AXPY, nothing else. The velocity is kept as a state of its own
@@ -59,15 +60,15 @@ class Integrator:
         self.mass = lumped_mass(model)
         self._free = np.ones(model.n_owned, dtype=bool)
         self._free[self.fixed] = False
-        # the internal forces: K over the linear bodies (K, A None without any), a
-        # quadrature force per path-dependent body
+        # the internal forces (internal_force.base.Force): K over the linear bodies (K, A
+        # None without any), a quadrature force per path-dependent body
         linear_parts = [p for p in model.parts if p[0].linear]
         self.linear = None
-        self.K = self.A = None
+        self.K = None
         if linear_parts:
-            self.linear = LinearForce(model, linear_parts, self.dt, self.mass,
-                                      model.to_global(self.fixed), matrix_type)
-            self.K, self.A = self.linear.K, self.linear.A
+            self.linear = LinearForce(model, linear_parts, self.dt, self.mass, self.fixed,
+                                      matrix_type)
+            self.K = self.linear.K
         nonlinear = [b.name for b in model.bodies.values() if not b.material.linear]
         self.nonlinear: list[QuadratureForce] = []
         self._u_fn = None
@@ -79,12 +80,16 @@ class Integrator:
             self._u = compat.petsc_vec(self._u_fn)
             self._v = self._u.duplicate()
             coef = np.where(self._free, -self.dt / self.mass, 0.0)
-            self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path)
-                              for name in nonlinear]
+            self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path,
+                                              mass=self.mass) for name in nonlinear]
         else:
             self._u = self.K.createVecRight()
             self._v = self.K.createVecRight()
         self._u.set(0.0), self._v.set(0.0)
+        if self.linear is not None:
+            self.linear.bind(self._u, self._v)
+        # every force, in the order their increments go into v: linear, then the others
+        self.forces = ([self.linear] if self.linear is not None else []) + self.nonlinear
         # numpy views on the owned entries of u and v (m, m/s): contact sets read the
         # prediction from them and write their corrected dofs back into them
         self.u_owned = self._u.array if self._u_fn is None else self._u_fn.x.array[:model.n_owned]
@@ -125,6 +130,11 @@ class Integrator:
         return out
 
     @property
+    def A(self) -> PETSc.Mat | None:
+        """The linear force's A = -dt M^-1 K (None without linear bodies)."""
+        return self.linear.A if self.linear is not None else None
+
+    @property
     def u_vec(self) -> PETSc.Vec:
         """The displacement vector u^n (read it, do not resize it)."""
         return self._u
@@ -132,13 +142,11 @@ class Integrator:
     # ------------------------------------------------------------ the step
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
-        if self.A is not None:
-            self.A.multAdd(self._u, self._v, self._v)
-        if self.nonlinear:
-            if self._scatter:
-                self._u_fn.x.scatter_forward()
-            for force in self.nonlinear:
-                force.add_velocity_increment(self.u_owned, self.v_owned)
+        u, v, dt = self.u_owned, self.v_owned, self.dt
+        if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none)
+            self._u_fn.x.scatter_forward()
+        for force in self.forces:
+            force.velocity_increment(u, v, dt)
         if self.loads:
             t = self.t
             v, add_load = self.v_owned, self._add_load
@@ -150,9 +158,9 @@ class Integrator:
 
     def predictor(self):
         """:meth:`predict` as a function for the loop: when every body is linear and no
-        load is applied, the step's two PETSc calls (MatMultAdd, VecAXPY) bound as locals
-        of a closure (about 0.15 us a step less than the method's attribute look-ups and
-        tests); otherwise the method itself. Same operations, same results."""
+        load is applied, the step's two PETSc calls (the linear force's MatMultAdd, VecAXPY)
+        bound as locals of a closure (about 0.15 us a step less than the method's attribute
+        look-ups and tests); otherwise the method itself. Same operations, same results."""
         if self.A is None or self.nonlinear or self.loads:
             return self.predict
         mult_add, axpy = self.A.multAdd, self._u.axpy

@@ -473,9 +473,9 @@ def kernels_cold(scene: Scene) -> float:
     from . import jit_watch
 
     if scene.finite:
-        from . import finite_run
+        from .internal_force import finite
 
-        kernels = (finite_run.velocity_update, finite_run.trapezoid_work)
+        kernels = (finite.velocity_update, finite.trapezoid_work)
     else:
         from . import energy, simulation, step_block  # noqa: F401  (the run's modules)
 

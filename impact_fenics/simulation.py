@@ -35,7 +35,9 @@ from .operators import assemble_stiffness
 from .probes import Probes
 from .xdmf import FieldWriter
 from .step_block import StepBlock, count_beyond as _count_beyond
-from .stability import converged_omega_max, critical_dt, element_omega_bounds
+from .stepping import ConstantStep
+from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
+                        ghosted_dofs)
 from .timers import PhaseTimers
 
 # Per-step divergence check: every DIVERGENCE_EVERY steps one VecNorm of v (a pass
@@ -96,16 +98,6 @@ class Settings:
     compiled_steps: bool = True  # the steps between events as compiled blocks where they apply
     title: str | None = None  # the run's name in its summary and pictures (a scene's title)
 
-    def steps(self) -> int:
-        """Number of steps to run."""
-        require(self.dt is not None and self.dt > 0, f"dt = {self.dt} s: must be > 0")
-        if self.n_steps is None:
-            require(self.t_end is not None and self.t_end > 0, "give t_end > 0 (s) or n_steps")
-            require(self.t_end >= self.dt * (1 - 1e-9), f"t_end = {self.t_end:.4g} s is shorter "
-                                                        f"than one step dt = {self.dt:.4g} s")
-            return int(math.ceil(self.t_end / self.dt - 1e-9))
-        require(self.n_steps > 0, f"n_steps = {self.n_steps}: must be > 0")
-        return int(self.n_steps)
 
 
 class Simulation:
@@ -140,14 +132,10 @@ class Simulation:
         self.stable_dt = {name: critical_dt(w) for name, w in omega.items()}
         self.stable_dt_limiting = min(self.stable_dt, key=self.stable_dt.__getitem__)
         self.dt_critical = critical_dt(max(omega.values()))
-        if settings.cfl is not None:
-            require(settings.cfl > 0, f"cfl = {settings.cfl}: must be > 0")
-            settings.dt = settings.cfl * self.dt_critical
-        self.n_steps = settings.steps()
-        if settings.dt > self.dt_critical and not settings.force_dt:
-            raise InputError(f"dt = {settings.dt:.4g} s is above the stable limit "
-                             f"{self.dt_critical:.4g} s (element bound on 2/omega_max, body "
-                             f"'{self.stable_dt_limiting}'); lower dt or force it")
+        self.step_policy = ConstantStep(settings.dt, settings.cfl, self.dt_critical,
+                                        settings.n_steps, settings.t_end, settings.force_dt,
+                                        self.stable_dt_limiting)
+        settings.dt, self.n_steps = self.step_policy.h, self.step_policy.n_steps
         t1 = clock()
         self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
@@ -191,13 +179,7 @@ class Simulation:
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
         """Local (ghosted) indices of fixed dofs given as owned ones: share them via a scatter."""
-        from dolfinx import fem
-
-        f = fem.Function(self.model.V)
-        f.x.array[:] = 0.0
-        f.x.array[owned] = 1.0
-        f.x.scatter_forward()
-        return np.flatnonzero(f.x.array > 0.5).astype(np.int32)
+        return ghosted_dofs(self.model, owned)
 
     # ------------------------------------------------------------ scene set-up
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:

@@ -114,6 +114,23 @@ def _quadrilateral_w2(model: DeformableModel, fixed_local: np.ndarray) -> np.nda
     return w2
 
 
+def ghosted_dofs(model: DeformableModel, owned: np.ndarray) -> np.ndarray:
+    """Local (ghosted) indices of the dofs given as owned local ones: their owners mark
+    them, one forward scatter shares the marks (collective)."""
+    f = fem.Function(model.V)
+    f.x.array[:] = 0.0
+    f.x.array[owned] = 1.0
+    f.x.scatter_forward()
+    return np.flatnonzero(f.x.array > 0.5).astype(np.int32)
+
+
+def parts_stable_dt(model: DeformableModel, fixed_owned: np.ndarray, names: list[str]) -> float:
+    """2 / omega (s) of the element bound over the bodies ``names``, with the owned (local)
+    dofs ``fixed_owned`` removed: a force's own stable step (collective)."""
+    omega = element_omega_bounds(model, ghosted_dofs(model, fixed_owned))
+    return critical_dt(max(omega[name] for name in names))
+
+
 def converged_omega_max(K: PETSc.Mat, mass: np.ndarray, fixed_global: np.ndarray,
                         tol: float = 1e-10) -> float:
     """omega_max (rad/s) of M^-1 K with the fixed dofs removed, by SLEPc Krylov-Schur.

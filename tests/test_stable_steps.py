@@ -32,43 +32,22 @@ import os
 
 import numpy as np
 import pytest
-from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from impact_fenics import compat
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials import LinearElastic
 from impact_fenics.materials.finite_j2 import FiniteJ2
-from impact_fenics.meshing import TaggedMesh
 from impact_fenics.simulation import Settings, Simulation
 from roundoff import rounding
+from two_halves import EIG, two_halves
 
 COMM = MPI.COMM_WORLD
 E, NU, RHO = 200e9, 0.3, 7850.0
 WIDTH, HEIGHT, N_R, N_Z = 0.5, 1.0, 8, 16  # m, cells: h = 1/16 m, dyadic
-# A largest element eigenvalue w^2 of S = M^-1/2 K M^-1/2 (6 x 6 or 8 x 8). LAPACK's
-# symmetric eigensolver is backward stable: |dw^2| <= c n EPS ||S||, and ||S|| = w^2 for
-# a positive semi-definite S. Take c n = 8 x 8. The element matrices' entries are
-# quadrature sums of products, each within 32 roundings. They enter w^2 by at most
-# sqrt(8) x their relative error (|dS| <= d |S| entrywise, so ||dS|| <= d sqrt(n) ||S||).
-# On quadrilaterals, a Jacobian entry sums 4 products of a coordinate with a weight.
-# Each product rounds on |z| <= z_max, and the sum is about h / 2: a relative error of
-# 8 EPS z_max / h, which enters K_e (1/J^2) and M_e (J) about 3 times.
-EIG = 64 + 3 * 32
-
-
 def _two_bodies(quadrilateral: bool, e_upper: float) -> DeformableModel:
     """The rectangle of 8 x 16 cells: 'soft' (E) below z = 1/2, 'stiff' (e_upper) above."""
-    cell = dmesh.CellType.quadrilateral if quadrilateral else dmesh.CellType.triangle
-    mesh = dmesh.create_rectangle(COMM, [np.array([0.0, 0.0]), np.array([WIDTH, HEIGHT])],
-                                  [N_R, N_Z], cell_type=cell)
-    cmap = mesh.topology.index_map(2)
-    cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
-    centre_z = mesh.geometry.x[compat.geometry_dofs(mesh)[cells], 1].mean(axis=1)
-    cell_tags = dmesh.meshtags(mesh, 2, cells, np.where(centre_z < 0.5, 1, 2).astype(np.int32))
-    facet_tags = dmesh.meshtags(mesh, 1, np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
-    tm = TaggedMesh(mesh, cell_tags, facet_tags, {"soft": 1, "stiff": 2}, {})
+    tm = two_halves(COMM, (0.0, 0.0), (WIDTH, HEIGHT), N_R, N_Z, quadrilateral, ("soft", "stiff"))
     model = DeformableModel(tm, [Body("soft", LinearElastic(E=E, nu=NU, density=RHO)),
                                  Body("stiff", LinearElastic(E=e_upper, nu=NU, density=RHO))])
     return model

@@ -53,13 +53,12 @@ def finite_bar(comm, h: float, yield_stress: float):
 
 def finite_step(run, dt: float):
     """One step of finite_run's loop (no wall, no history): see the module docstring."""
-    from ..finite_run import trapezoid_work, velocity_update
+    force = run.force
+    force.set_step(dt, dt)
 
     def step():
         run.u_fn.x.scatter_forward()
-        f = run.force.compute(dt)
-        trapezoid_work(f, run.u_owned, run._f_prev, run._u_prev)
-        velocity_update(run.coef, f, run.v, dt)
+        force.velocity_increment(run.u_owned, run.v, dt)
         run.u_vec.axpy(dt, run.v_vec)
     return step
 
@@ -82,7 +81,7 @@ def _finite_split(ctx, run, dt: float) -> dict:
     F_bar, tau_eff, P and the scatter)."""
     from mpi4py import MPI
 
-    from ..finite_run import trapezoid_work, velocity_update
+    from ..internal_force.finite import trapezoid_work, velocity_update
     from ..internal_force.finite import kernels
 
     force, g = run.force, run.force.geometry
@@ -102,8 +101,8 @@ def _finite_split(ctx, run, dt: float) -> dict:
         "kernel_without_material": ctx.median(kernel(bare, state, tau)),
         "ghost_reverse": ctx.median(lambda: compat.scatter_add(force.f.x)),
         "j_min_allreduce": ctx.median(lambda: comm.allreduce(1.0, op=MPI.MIN)),
-        "trapezoid_work": ctx.median(lambda: trapezoid_work(fo, run.u_owned, run._f_prev,
-                                                            run._u_prev)),
+        "trapezoid_work": ctx.median(lambda: trapezoid_work(fo, run.u_owned, run.force._f_prev,
+                                                            run.force._u_prev)),
         "velocity_update": ctx.median(lambda: velocity_update(run.coef, fo, run.v, dt)),
         "position_update": ctx.median(lambda: run.u_vec.axpy(dt, run.v_vec)),
     }

@@ -60,6 +60,7 @@ from numba import njit
 from .. import compat
 from ..errors import UnstableRunError
 from ..q1 import N_POINTS, QuadGeometry
+from .base import Booking
 
 WORK = 16  # scratch entries a point update may use
 
@@ -159,6 +160,29 @@ def kernels(update, energy):
 
 
 @njit(cache=True)
+def velocity_update(coef, f, v, dt_avg) -> float:
+    """v += dt_avg coef f (coef = -1/m, 0 on fixed dofs); returns dt_avg 1/2 (v^- + v~) . f (J)."""
+    work = 0.0
+    for i in range(coef.size):
+        vo = v[i]
+        vn = vo + dt_avg * coef[i] * f[i]
+        v[i] = vn
+        work += 0.5 * dt_avg * (vo + vn) * f[i]
+    return work
+
+
+@njit(cache=True)
+def trapezoid_work(f, u, f_prev, u_prev) -> float:
+    """1/2 (f_prev + f) . (u - u_prev) (J), and stores f, u as the previous ones."""
+    work = 0.0
+    for i in range(f.size):
+        work += 0.5 * (f_prev[i] + f[i]) * (u[i] - u_prev[i])
+        f_prev[i] = f[i]
+        u_prev[i] = u[i]
+    return work
+
+
+@njit(cache=True)
 def cell_length_min(dofs, X, u) -> float:
     """Smallest characteristic length A / max diagonal (m) of the cells in the current
     configuration x = X + u (A the area; for a square of side h it is h / sqrt 2)."""
@@ -208,11 +232,24 @@ class FiniteStrainForce:
     """f_int(u) of the finite-strain material ``material`` on the owned ``cells`` (Q1 mesh).
 
     ``u`` is the displacement Function (its ghost entries must be current on entry
-    to :meth:`compute`); the force goes to ``self.f`` (owned entries summed)."""
+    to :meth:`compute`); the force goes to ``self.f`` (owned entries summed). The driver
+    sets :attr:`coef`, -1/m (1/kg) on the free owned dofs and 0 on the fixed ones, before
+    the first increment.
+
+    A step is two halves, :meth:`evaluate` (f_int(u^n), the points moved to u^n, the
+    trapezoid work booked) and :meth:`add_increment` (v += h_n coef f, the kinetic
+    identity's work booked and returned); :meth:`velocity_increment` runs both. A driver
+    that writes the state at u^n with v^{n-1/2} calls the halves with its outputs between.
+    The point updates take the step just taken, h_{n-1/2} (h_{1/2} at the first step),
+    from :meth:`set_step`."""
 
     def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray, material,
                  u: fem.Function):
         self.V, self.material, self.u = V, material, u
+        self.coef: np.ndarray | None = None
+        self.h = self.h_avg = self.h_taken = None
+        self.work_local = 0.0       # sum h_n 1/2 (v^- + v~) . f^n (J): the kinetic identity's
+        self.trapezoid_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.node_xy = np.ascontiguousarray(node_xy)
         self.geometry = QuadGeometry(V, node_xy, cells)
         n = cells.size
@@ -229,6 +266,10 @@ class FiniteStrainForce:
         self.f_owned = self.f.x.array[: self.n_owned]
         self.plastic_work_local = 0.0
         self.j_min = 1.0
+        self.u_owned = self.u.x.array[: self.n_owned]
+        self._f_prev = np.zeros(self.n_owned)
+        self._u_prev = np.zeros(self.n_owned)
+        self.wave_speed = material.wave_speed()  # c (m/s), elastic dilatational
         self._force, self._stored = kernels(material.update, material.energy)
         self._load_kernels()
 
@@ -245,6 +286,8 @@ class FiniteStrainForce:
         load(self._stored, self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
              self.state, self._Fq, self._Jq, self._fbar, self._work)
         load(cell_length_min, g.dofs, self.node_xy, u)
+        load(trapezoid_work, self.f_owned, self.u_owned, self._f_prev, self._u_prev)
+        load(velocity_update, self.f_owned, self.f_owned, self.f_owned, 1.0)
         n = g.dofs.shape[0]
         load(cell_means, self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
              u, self._Fq, self._Jq, np.zeros((n, 4)), np.zeros(n), np.zeros(n), -1)
@@ -272,6 +315,44 @@ class FiniteStrainForce:
         compat.scatter_add(self.f.x)
         self.plastic_work_local += wp
         return self.f_owned
+
+    # ------------------------------------------------------------ the protocol
+    def set_step(self, h: float, h_avg: float) -> None:
+        """The step h = h_{n+1/2} and h_avg = h_n (s); the one taken before becomes the
+        point updates' step."""
+        self.h_taken = float(h) if self.h is None else self.h
+        self.h, self.h_avg = float(h), float(h_avg)
+
+    def evaluate(self) -> np.ndarray:
+        """f_int(u^n) (N, owned view) at the step just taken, and its trapezoid work booked."""
+        f = self.compute(self.h_taken)
+        self.trapezoid_local += trapezoid_work(f, self.u_owned, self._f_prev, self._u_prev)
+        return f
+
+    def add_increment(self, v: np.ndarray, h_avg: float) -> float:
+        """v += h_avg coef f^n (m/s) with the f of :meth:`evaluate`; returns the work
+        h_avg 1/2 (v^- + v~) . f^n (J), also booked in :attr:`work_local`."""
+        work = velocity_update(self.coef, self.f_owned, v, h_avg)
+        self.work_local += work
+        return work
+
+    def velocity_increment(self, u: np.ndarray, v: np.ndarray, h_avg: float) -> None:
+        """:meth:`evaluate` then :meth:`add_increment` (``u`` is the force's own Function's
+        owned array)."""
+        self.evaluate()
+        self.add_increment(v, h_avg)
+
+    def stable_dt(self) -> float:
+        """min over the current cells of L / c (s): L = A / (largest diagonal), c the
+        material's elastic dilatational speed (collective)."""
+        return (self.V.mesh.comm.allreduce(self.length_min_local(), op=_MIN)
+                / self.wave_speed)
+
+    def book(self) -> Booking:
+        """work: the trapezoid work; stored: sum_q w_q psi(F_bar_q); dissipated: the
+        plastic work (J, this rank)."""
+        return Booking(work=self.trapezoid_local, stored=self.stored_energy_local(),
+                       dissipated=self.plastic_work_local)
 
     def stored_energy_local(self) -> float:
         """sum_q w_q psi(F_bar_q) (J) on this rank's cells at the current u and state."""

@@ -51,7 +51,9 @@ from .. import q1
 from ..bodies import DeformableModel
 from ..errors import InputError
 from ..operators import compile_form
+from ..stability import parts_stable_dt
 from . import bbar
+from .base import Booking
 
 N_POINTS = 3  # points of the degree-2 triangle rule
 N_COMP = 4    # (rr, tt, zz, rz)
@@ -288,15 +290,19 @@ class QuadratureForce:
     """f_int of one path-dependent body (cells of group ``body``) and its energy terms.
 
     ``u`` is the displacement Function (m) whose array the integrator steps (ghosts
-    forward-scattered before :meth:`add_velocity_increment`); ``coef`` the owned
-    -dt / m (s/kg), 0 on fixed dofs; ``path`` 'fast' or 'generic' ('fast' only on a
-    quadrilateral mesh: B-bar, :mod:`.bbar`)."""
+    forward-scattered before :meth:`velocity_increment`); ``coef`` the owned
+    -h_n / m (s/kg), 0 on fixed dofs; ``path`` 'fast' or 'generic' ('fast' only on a
+    quadrilateral mesh: B-bar, :mod:`.bbar`); ``mass`` the owned lumped masses (kg),
+    needed by :meth:`set_step` only. ``dt`` (s) is the step the point updates see (a
+    rate-dependent model reads it): the step just taken, h_{n-1/2}."""
 
     def __init__(self, model: DeformableModel, body: str, u: fem.Function, dt: float,
-                 coef: np.ndarray, path: str = "fast"):
+                 coef: np.ndarray, path: str = "fast", mass: np.ndarray | None = None):
         if path not in ("fast", "generic"):
             raise ValueError(f"path = '{path}': use 'fast' or 'generic'")
         self.model, self.body, self.u, self.dt, self.path = model, body, u, float(dt), path
+        self.mass, self.h = mass, float(dt)
+        self._stable_dt = None
         self.material = model.bodies[body].material
         self.params = self.material.params()
         self.cells = owned_cells(model, body)
@@ -391,6 +397,34 @@ class QuadratureForce:
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         self.plastic_work_local += wp
         return self.f_owned
+
+    def set_step(self, h: float, h_avg: float) -> None:
+        """coef = -h_avg / m on the free dofs (written in place; the set-up's arithmetic);
+        the point updates take the step just taken (the previous h)."""
+        if self.mass is None:
+            raise ValueError("set_step needs the lumped masses: give mass to the force")
+        np.divide(-h_avg, self.mass, out=self.coef, where=self.coef != 0.0)
+        self.dt, self.h = self.h, float(h)
+
+    def velocity_increment(self, u: np.ndarray, v: np.ndarray, h_avg: float) -> None:
+        """v += coef f_int(u^n) (coef = -h_avg / m from :meth:`set_step`) on the free owned
+        dofs, and book the deformation work."""
+        self.add_velocity_increment(u, v)
+
+    def stable_dt(self) -> float:
+        """2 / omega of the element bound over the body's cells (s), the elastic element
+        matrices, the dofs where coef = 0 (the fixed ones) removed; computed once (small
+        strain: the cells do not move). Collective."""
+        if self._stable_dt is None:
+            fixed = np.flatnonzero(self.coef == 0.0).astype(np.int32)
+            self._stable_dt = parts_stable_dt(self.model, fixed, [self.body])
+        return self._stable_dt
+
+    def book(self) -> Booking:
+        """work: the deformation work; stored: psi_e of the current stresses; dissipated:
+        the plastic work (J, this rank)."""
+        return Booking(work=self.deformation_work_local, stored=self.elastic_energy_local(),
+                       dissipated=self.plastic_work_local)
 
     def add_velocity_increment(self, u_owned: np.ndarray, v_owned: np.ndarray) -> None:
         """v += -dt M^-1 f_int(u^n) on the free owned dofs, and book the deformation work."""

@@ -269,13 +269,12 @@ class _PreviousBooking:
         grew = bool(np.any(c.active & ~c.was_active))
         inc, jumped = _previous_booking(c.dt, first, c.mass, c.u, c.v, c.v_pred, c.u_now,
                                         c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, w.jumped)
-        state[0] += inc
+        to_loss = grew or state[3]
+        w.add(inc, jumped, grew)
         step = rounding(2 * (n_terms + 4), size)
         self.work_bound += step + rounding(1, abs(state[0]))
-        if grew or state[3]:
-            state[1] -= inc
+        if to_loss:
             self.loss_bound += step + rounding(1, abs(state[1]))
-        state[2], state[3] = float(jumped), float(grew)
         c.stats[0], c.stats[1] = np.count_nonzero(c.active), c.force.sum()
         c.stats[2] = gap_of(c.g0, c.cs, c.cc, c.u, c._gap_out).min()
 

@@ -714,12 +714,16 @@ class _ContactWork:
     def book(self, n_step: int) -> None:
         c = self.c
         integ = c.integrator
-        state = self._state
-        inc, jumped, grew = _commit(
+        self.add(*_commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
             c.dt, n_step == 0, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
             c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped, c.active,
-            c.was_active, c.b, c.lo, c.up, c.force, c.stats)
+            c.was_active, c.b, c.lo, c.up, c.force, c.stats))
+
+    def add(self, inc: float, jumped: bool, grew: bool) -> None:
+        """Step n's increment ``inc`` (J) into the work, and into the activation loss when
+        the active set grew in this step or the one before; whether it ``jumped``."""
+        state = self._state
         state[0] += inc
         if grew or state[3]:
             state[1] -= inc
@@ -731,14 +735,9 @@ class _ContactWork:
         :meth:`book` does (the one booking, state._book) and the history's stats."""
         c = self.c
         integ = c.integrator
-        state = self._state
         inc, jumped, grew, min_gap = _commit_segments(
             c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, n_step == 0, c.m_over_dt, c.u,
             c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped,
             c.active, c.was_active, c.g0, c.cs, c.cc, c._gap_out)
-        state[0] += inc
-        if grew or state[3]:
-            state[1] -= inc
-        state[2] = 1.0 if jumped else 0.0
-        state[3] = 1.0 if grew else 0.0
+        self.add(inc, jumped, grew)
         c.stats[0], c.stats[1], c.stats[2] = np.count_nonzero(c.active), c.force.sum(), min_gap

@@ -153,12 +153,13 @@ def _book(dt, first, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev
     interface._ContactWork) and roll the slots' state to n+1: every kind's booking.
 
     Slot k's contact force is its momentum change over the step,
-    F_k^n = (m_k / dt) (v_k^{n+1} - v~_k^{n+1}) (``m_over_dt``: m / dt, kg/s; 0 at a
-    fixed part's slot); the step adds 1/2 dt v^n . (F^{n-1} + F^n) (none at the first
-    step, ``first``). A set whose method ``jumps`` (positions apart from u^n + dt v^{n+1})
-    adds, over its ``n_deformable`` deformable slots, the previous step's jump j
-    (``jumped``: was any nonzero) times 1/2 K (u^{n-1} + u^n), K u^n = -(m / dt) (v~^{n+1}
-    - v^n) on a contact dof, and records this step's jump u^{n+1} - u^n - dt v^{n+1}.
+    F_k^n = (m_k / h_n) (v_k^{n+1} - v~_k^{n+1}) (``m_over_dt``: m / h_n, kg/s; 0 at a
+    fixed part's slot; ``dt``: the position step h_{n+1/2}, s); the step adds
+    1/2 dt v^n . (F^{n-1} + F^n) (none at the first step, ``first``). A set whose method
+    ``jumps`` (positions apart from u^n + dt v^{n+1}) adds, over its ``n_deformable``
+    deformable slots, the previous step's jump j (``jumped``: was any nonzero) times
+    1/2 K (u^{n-1} + u^n), K u^n = -(m / h_n) (v~^{n+1} - v^n) on a contact dof, and
+    records this step's jump u^{n+1} - u^n - dt v^{n+1}.
     Returns (the increment (J), whether this step jumped)."""
     inc = 0.0  # the work of the slots' forces,
     inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)

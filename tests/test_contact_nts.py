@@ -235,9 +235,9 @@ class _PreviousBooking:
     before), in place of ``_ContactWork.book_segments``; it adds up the round-off bound
     of the two bookings' difference as it goes.
 
-    The bound (class (b) of tests/roundoff.py, step by step, summed over the run: the
-    motion is the same to the bit, so no difference grows through the steps and the
-    spread of class (c) is zero; what is left is each step's own roundings). Both
+    The bound is class (b) of tests/roundoff.py, step by step, summed over the run: the
+    motion is the same to the bit, so no difference grows through the steps (the spread
+    of class (c) is zero) and what is left is each step's own roundings. Both
     bookings evaluate the same increment sum_k t_k in exact arithmetic (m dv / dt =
     (m / dt) dv); each term t_k = 1/2 dt v^n (F^{n-1} + F^n) or 1/2 j (Ku^{n-1} + Ku^n)
     rounds at most 4 times on its way (F: 2, the sum: 1, the products: 2, 1/2 dt
@@ -315,17 +315,17 @@ def test_the_one_booking_moves_the_ledger_at_round_off_only(scene, method):
         if col not in booked:
             assert np.array_equal(eo[col], ep[col]), col
     work, loss = previous.work_bound, previous.loss_bound
-    assert 0.0 < abs(c.contact_work) and abs(c.contact_work - p.contact_work) <= work
+    assert abs(c.contact_work - p.contact_work) <= work
     assert abs(c.activation_loss - p.activation_loss) <= loss
     assert spread(eo["contact_work"], ep["contact_work"]) <= work
     assert spread(eo["activation_loss"], ep["activation_loss"]) <= loss
     balance = work + rounding(1, np.abs(ep["balance_error"]).max())
     assert spread(eo["balance_error"], ep["balance_error"]) <= balance
-    # the ledger's scale, the largest |term| so far (energy.EnergyLedger.record); the
+    # the ledger's scale, the largest |term| so far (energy.Ledger.record); the
     # relative error moves by the balance's change and the scale's (|W| in it) over it
-    scale = np.maximum.accumulate(np.max(np.abs([ep["total"], np.full(len(ep["total"]), ep["total"][0]),
-                                                 ep["external_work"], ep["contact_work"]]),
-                                         axis=0))
+    terms = [ep["total"], np.full(len(ep["total"]), ep["total"][0]), ep["external_work"],
+             ep["contact_work"]]
+    scale = np.maximum.accumulate(np.abs(terms).max(axis=0))
     rel = ep["balance_error_rel"]
     assert np.all(np.abs(eo["balance_error_rel"] - rel)
                   <= (balance + rel * work) / scale + rounding(1, rel))

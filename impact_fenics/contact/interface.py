@@ -60,7 +60,7 @@ from .segments import SegmentConstraints
 from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER,
                     LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
                     RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_FACE, RIGID_MASS, RIGID_WORK,
-                    SEGMENTS, STATS, TO, WAVES, PhaseTimes, _book_segments, _commit,
+                    SEGMENTS, STATS, TO, WAVES, PhaseTimes, _commit, _commit_segments,
                     _committed_gap, _detect_gathered, _detect_local, _detect_segments, _pack,
                     _take, _unpack, apply_forces, gathered_order, kinetic_share, owned_slots)
 
@@ -324,6 +324,7 @@ class ContactSet:
          self.ku_prev, self.jump) = np.zeros((9, ns))
         self.mass = np.empty(ns)
         self._gather(integ.mass, integ.mass, self.mass, np.empty(ns))
+        self.m_over_dt = self.mass / self.h_avg  # m / h_n (kg/s): the booking's (state._book)
         free_owned = np.ones(model.n_owned)
         free_owned[integ.fixed] = 0.0
         free = np.empty(ns)
@@ -492,11 +493,11 @@ class ContactSet:
         integ = self.integrator
         calls = [(_detect_segments, (self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs,
                                      self.cc, self.gap, self.active, self.was_active)),
-                 (_take, (self.u, self.v, self._pos, self._local, integ.u_owned, integ.v_owned)),
-                 (_book_segments, (self.dt, True, self.mass, self.u, self.v, self.u_pred,
-                                   self.v_pred, self.u_now, self.v_now, self.f_prev,
-                                   self.ku_prev, self.jump, self.jumps, False, self.active,
-                                   self.was_active, self.g0, self.cs, self.cc, self._gap_out))]
+                 (_commit_segments, (self._local, self._pos, integ.u_owned, integ.v_owned,
+                                     self.dt, True, self.m_over_dt, self.u, self.v, self.v_pred,
+                                     self.u_now, self.v_now, self.f_prev, self.ku_prev,
+                                     self.jump, self.jumps, False, self.active, self.was_active,
+                                     self.g0, self.cs, self.cc, self._gap_out))]
         if self.comm.size == 1:
             calls.append((_take, (integ.u_owned, integ.v_owned, self._local, self._pos,
                                   self.u_pred, self.v_pred)))
@@ -713,12 +714,16 @@ class _ContactWork:
     def book(self, n_step: int) -> None:
         c = self.c
         integ = c.integrator
-        state = self._state
-        inc, jumped, grew = _commit(
+        self.add(*_commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
             c.dt, n_step == 0, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
             c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped, c.active,
-            c.was_active, c.b, c.lo, c.up, c.force, c.stats)
+            c.was_active, c.b, c.lo, c.up, c.force, c.stats))
+
+    def add(self, inc: float, jumped: bool, grew: bool) -> None:
+        """Step n's increment ``inc`` (J) into the work, and into the activation loss when
+        the active set grew in this step or the one before; whether it ``jumped``."""
+        state = self._state
         state[0] += inc
         if grew or state[3]:
             state[1] -= inc
@@ -726,19 +731,13 @@ class _ContactWork:
         state[3] = 1.0 if grew else 0.0
 
     def book_segments(self, n_step: int) -> None:
-        """The segment kind's commit: write the owned dofs back, book step n (as
-        :meth:`book`, F^n = m (v^{n+1} - v~^{n+1}) / dt) and the history's stats."""
+        """The segment kind's commit: write the owned dofs back, book step n as
+        :meth:`book` does (the one booking, state._book) and the history's stats."""
         c = self.c
         integ = c.integrator
-        state = self._state
-        _take(c.u, c.v, c._pos, c._local, integ.u_owned, integ.v_owned)
-        inc, jumped, grew, min_gap = _book_segments(
-            c.dt, n_step == 0, c.mass, c.u, c.v, c.u_pred, c.v_pred, c.u_now, c.v_now, c.f_prev,
-            c.ku_prev, c.jump, c.jumps, self.jumped, c.active, c.was_active, c.g0, c.cs, c.cc,
-            c._gap_out)
-        state[0] += inc
-        if grew or state[3]:
-            state[1] -= inc
-        state[2] = 1.0 if jumped else 0.0
-        state[3] = 1.0 if grew else 0.0
+        inc, jumped, grew, min_gap = _commit_segments(
+            c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, n_step == 0, c.m_over_dt, c.u,
+            c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped,
+            c.active, c.was_active, c.g0, c.cs, c.cc, c._gap_out)
+        self.add(inc, jumped, grew)
         c.stats[0], c.stats[1], c.stats[2] = np.count_nonzero(c.active), c.force.sum(), min_gap

@@ -10,8 +10,9 @@ fused step (:mod:`.fused`) and the compiled blocks read the same rows.
 The kernels here are what every method and both step paths share: the forces of
 a method applied to the slots (:func:`apply_forces`), the detection (take or
 unpack the predicted contact dofs, form the predicted gaps
-g~_i = b_i + u~[up_i] - u~[lo_i]) and the commit (write back the owned dofs, book
-the contact work, roll the state to n+1). :func:`owned_slots` gives which slots a
+g~_i = b_i + u~[up_i] - u~[lo_i], or g0 + G u~ for node to segment) and the commit
+(write back the owned dofs, then the one booking of every kind, :func:`_book`: the
+contact work, the state rolled to n+1). :func:`owned_slots` gives which slots a
 rank owns for the gather. Nothing here imports a method or the set: the methods
 and the set import it.
 
@@ -146,31 +147,23 @@ def _committed_gap(b, u_now, lo, up, out):
 
 
 @njit(cache=True)
-def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, u_pred, v_pred,
-            u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
-            force, stats):
-    """Write the corrected state back to the owned dofs, then book the contact work
-    increment of step n (see interface._ContactWork) and roll the state to n+1 (one call).
-    ``m_over_dt``: m / dt of each slot (kg/s). Returns the increment (J), whether this
-    step jumped and whether the active set grew; ``stats`` receives (number active,
-    total force (N), smallest committed gap (m))."""
-    for k in range(local.size):
-        dst_u[local[k]] = u[pos[k]]
-        dst_v[local[k]] = v[pos[k]]
+def _book(dt, first, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump,
+          jumps, jumped):
+    """Book the contact work increment of step n in the ledger's discrete form (see
+    interface._ContactWork) and roll the slots' state to n+1: every kind's booking.
+
+    Slot k's contact force is its momentum change over the step,
+    F_k^n = (m_k / h_n) (v_k^{n+1} - v~_k^{n+1}) (``m_over_dt``: m / h_n, kg/s; 0 at a
+    fixed part's slot; ``dt``: the position step h_{n+1/2}, s); the step adds
+    1/2 dt v^n . (F^{n-1} + F^n) (none at the first step, ``first``). A set whose method
+    ``jumps`` (positions apart from u^n + dt v^{n+1}) adds, over its ``n_deformable``
+    deformable slots, the previous step's jump j (``jumped``: was any nonzero) times
+    1/2 K (u^{n-1} + u^n), K u^n = -(m / h_n) (v~^{n+1} - v^n) on a contact dof, and
+    records this step's jump u^{n+1} - u^n - dt v^{n+1}.
+    Returns (the increment (J), whether this step jumped)."""
     inc = 0.0  # the work of the slots' forces,
     inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
-    n_active = 0
-    total = 0.0
     jumped_now = False
-    grew = False
-    min_gap = np.inf
-    for i in range(active.size):
-        total += force[i]
-        if active[i]:
-            n_active += 1
-            if not was_active[i]:
-                grew = True
-        min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
     for k in range(m_over_dt.size):
         f = m_over_dt[k] * (v[k] - v_pred[k])
         if not first:
@@ -192,10 +185,37 @@ def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, 
     for k in range(rolled, m_over_dt.size):
         u_now[k] = u[k]
         v_now[k] = v[k]
+    return inc + inc_jump, jumped_now
+
+
+@njit(cache=True)
+def _commit(local, pos, dst_u, dst_v, dt, first, n_deformable, m_over_dt, u, v, u_pred, v_pred,
+            u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
+            force, stats):
+    """The commit of node pairs and a rigid face: write the corrected state back to the
+    owned dofs, then book step n and roll the state to n+1 (:func:`_book`; one call).
+    Returns the increment (J), whether this step jumped and whether the active set grew;
+    ``stats`` receives (number active, total force (N), smallest committed gap (m))."""
+    for k in range(local.size):
+        dst_u[local[k]] = u[pos[k]]
+        dst_v[local[k]] = v[pos[k]]
+    n_active = 0
+    total = 0.0
+    grew = False
+    min_gap = np.inf
+    for i in range(active.size):
+        total += force[i]
+        if active[i]:
+            n_active += 1
+            if not was_active[i]:
+                grew = True
+        min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
+    inc, jumped_now = _book(dt, first, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now,
+                            f_prev, ku_prev, jump, jumps, jumped)
     stats[0] = n_active
     stats[1] = total
     stats[2] = min_gap
-    return inc + inc_jump, jumped_now, grew
+    return inc, jumped_now, grew
 
 
 @njit(cache=True)
@@ -211,14 +231,16 @@ def _detect_segments(u_pred, v_pred, u, v, g0, cs, cc, gap, active, was_active):
 
 
 @njit(cache=True)
-def _book_segments(dt, first, mass, u, v, u_pred, v_pred, u_now, v_now, f_prev, ku_prev, jump,
-                   jumps, jumped, active, was_active, g0, cs, cc, gap_buf):
-    """The contact work increment of a node-to-segment step in the ledger's discrete form
-    (as :func:`_commit` books it, with F^n = m (v^{n+1} - v~^{n+1}) / dt per slot), then
-    the state rolled to n+1. Returns (the increment (J), jumped, grew, the smallest
-    committed gap g0 + G u (m))."""
-    inc = 0.0
-    jumped_now = False
+def _commit_segments(local, pos, dst_u, dst_v, dt, first, m_over_dt, u, v, v_pred, u_now, v_now,
+                     f_prev, ku_prev, jump, jumps, jumped, active, was_active, g0, cs, cc,
+                     gap_buf):
+    """The commit of node to segment: write the corrected state back to the owned dofs,
+    then book step n and roll the state to n+1 (:func:`_book`, every slot deformable;
+    one call). Returns (the increment (J), jumped, grew, the smallest committed gap
+    g0 + G u (m))."""
+    for k in range(local.size):
+        dst_u[local[k]] = u[pos[k]]
+        dst_v[local[k]] = v[pos[k]]
     grew = False
     for i in range(active.size):
         if active[i] and not was_active[i]:
@@ -227,23 +249,8 @@ def _book_segments(dt, first, mass, u, v, u_pred, v_pred, u_now, v_now, f_prev, 
     min_gap = np.inf
     for i in range(gap_buf.size):
         min_gap = min(min_gap, gap_buf[i])
-    for k in range(mass.size):
-        f = mass[k] * (v[k] - v_pred[k]) / dt
-        if not first:
-            inc += 0.5 * dt * v_now[k] * (f_prev[k] + f)
-        f_prev[k] = f
-    if jumps:
-        for k in range(mass.size):
-            ku = -mass[k] * (v_pred[k] - v_now[k]) / dt
-            if jumped:
-                inc += 0.5 * jump[k] * (ku_prev[k] + ku)
-            ku_prev[k] = ku
-            jump[k] = u[k] - u_now[k] - dt * v[k]
-            if jump[k] != 0.0:
-                jumped_now = True
-    for k in range(mass.size):
-        u_now[k] = u[k]
-        v_now[k] = v[k]
+    inc, jumped_now = _book(dt, first, m_over_dt.size, m_over_dt, u, v, v_pred, u_now, v_now,
+                            f_prev, ku_prev, jump, jumps, jumped)
     return inc, jumped_now, grew, min_gap
 
 

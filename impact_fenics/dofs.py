@@ -105,6 +105,18 @@ class SceneDofs:
         out[self.n_owned:] = (BS * g[:, None] + np.arange(BS)).ravel()
         return out
 
+    def function_vec(self):
+        """A scene Vec and the ``fem.Function`` of mesh 0 that the generic force path
+        reads: with one mesh the Function's own ghosted vector, whose layout is the
+        scene's (the identity). Several meshes: not yet (a Function per mesh, its
+        slices copied in before each evaluation). Keep the Function while the Vec is
+        used: on 0.11 the Vec wraps the Function's memory."""
+        from dolfinx import fem
+
+        require(self.n_meshes == 1, "a Function over the scene needs one mesh")
+        fn = fem.Function(self.spaces[0])
+        return compat.petsc_vec(fn), fn
+
     def create_vec(self) -> PETSc.Vec:
         """A ghosted PETSc Vec over the scene (block size 2), zeroed."""
         vec = PETSc.Vec().createGhost(self.ghost_blocks, size=(self.n_owned, self.n_global),

@@ -14,7 +14,8 @@ import numpy as np
 from mpi4py import MPI
 from dolfinx import fem, mesh as dmesh
 
-from .compat import cell_dofs, vector_space
+from .compat import vector_space
+from .dofs import SceneDofs
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, require
 from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
 from .meshing import TaggedMesh
@@ -93,11 +94,14 @@ class DeformableModel:
         self.comm = self.mesh.comm
         self.bodies = {b.name: b for b in bodies}
         self.V = vector_space(self.mesh, "Lagrange", 1)
-        imap = self.V.dofmap.index_map
+        # the scene's numbering (one mesh: dolfinx's own) and the dofmap in its local
+        # block indices, which every kernel reads
+        self.dofs = SceneDofs([self.V])
+        self.cell_dofs: np.ndarray = self.dofs.cell_dofs(0)
         self.bs = self.V.dofmap.index_map_bs
-        self.n_owned = imap.size_local * self.bs
-        self.n_global = imap.size_global * self.bs
-        self.offset = imap.local_range[0] * self.bs
+        self.n_owned = self.dofs.n_owned
+        self.n_global = self.dofs.n_global
+        self.offset = self.dofs.offset
         covered = 0
         self.parts: list[Part] = []
         self.part_names: list[str] = [b.name for b in bodies]  # the body of each part
@@ -137,7 +141,7 @@ class DeformableModel:
         """Owned unrolled dofs of ``component`` of the nodes of body ``body``."""
         require(body in self.bodies, f"no body named '{body}' (bodies: {', '.join(self.bodies)})")
         cells = self.tmesh.cells(body)
-        blocks = np.unique(cell_dofs(self.V)[cells].ravel())
+        blocks = np.unique(self.cell_dofs[cells].ravel())
         return self._unrolled(blocks, component, owned=True)
 
     def axis_dofs(self, owned: bool = True) -> np.ndarray:

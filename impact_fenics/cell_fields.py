@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .compat import cell_dofs, eval_expression
+from .compat import eval_expression
 from .jit_watch import contiguous_float64, direct
 
 STRESS_NAMES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
@@ -352,7 +352,7 @@ class CellStress:
         mesh = model.mesh
         self.model = model
         self.n_cells = mesh.topology.index_map(2).size_local
-        dofs = cell_dofs(V)
+        dofs = model.cell_dofs
         self.xy = np.ascontiguousarray(model.node_xy)
         self.values = np.zeros((len(STRESS_NAMES), self.n_cells))
         self.peaks = np.full(3, -np.inf)
@@ -377,7 +377,7 @@ class CellStress:
 
                 cells = np.sort(model.tmesh.cells(body.name))
                 cells = cells[cells < self.n_cells].astype(np.int64)
-                self._quads.append((cells, QuadGeometry(V, self.xy, cells),
+                self._quads.append((cells, QuadGeometry(dofs, self.xy, cells),
                                     stiffness_matrix(body.material), np.zeros((cells.size, 4))))
                 continue
             cells = model.tmesh.cells(body.name)

@@ -24,7 +24,6 @@ import numpy as np
 from numba import njit
 from petsc4py import PETSc
 
-from . import compat
 from .bodies import DeformableModel
 from .errors import InputError
 from .internal_force import LinearForce, QuadratureForce
@@ -73,18 +72,16 @@ class Integrator:
         self.nonlinear: list[QuadratureForce] = []
         self._u_fn = None
         if nonlinear:
-            # u with ghost entries (the cell kernels read them); v needs none
-            from dolfinx import fem
-
-            self._u_fn = fem.Function(model.V)
-            self._u = compat.petsc_vec(self._u_fn)
-            self._v = self._u.duplicate()
+            # u with ghost entries (the cell kernels read them), the Function of the
+            # generic path its own
+            self._u, self._u_fn = model.dofs.function_vec()
+            self._v = model.dofs.create_vec()
             coef = np.where(self._free, -self.dt / self.mass, 0.0)
             self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path,
                                               mass=self.mass) for name in nonlinear]
         else:
-            self._u = self.K.createVecRight()
-            self._v = self.K.createVecRight()
+            self._u = model.dofs.create_vec()
+            self._v = model.dofs.create_vec()
         self._u.set(0.0), self._v.set(0.0)
         if self.linear is not None:
             self.linear.bind(self._u, self._v)
@@ -144,7 +141,7 @@ class Integrator:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
         u, v, dt = self.u_owned, self.v_owned, self.dt
         if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none)
-            self._u_fn.x.scatter_forward()
+            self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         for force in self.forces:
             force.velocity_increment(u, v, dt)
         if self.loads:

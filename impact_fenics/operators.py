@@ -55,7 +55,7 @@ def bbar_element_matrices(model: DeformableModel, part: Part
                           ) -> tuple[q1.QuadGeometry, np.ndarray]:
     """The Q1 geometry of the owned cells of ``part`` and their B-bar element matrices
     (n, 8, 8) (N/m, dof order 2 a + component; :func:`.q1.bbar_element_matrices`)."""
-    g = q1.QuadGeometry(model.V, model.node_xy, model.owned_cells(model.part_body(part)))
+    g = q1.QuadGeometry(model.cell_dofs, model.node_xy, model.owned_cells(model.part_body(part)))
     Ke = np.empty((g.dofs.shape[0], 8, 8))
     q1.bbar_element_matrices(g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, elastic_stiffness(part[0]), Ke)
     return g, Ke
@@ -126,7 +126,7 @@ def quadrilateral_lumped_mass(model: DeformableModel) -> np.ndarray:
     n_nodes = model.node_xy.shape[0]
     nodal = np.zeros(n_nodes)
     for name, (material, _) in zip(model.part_names, model.parts):
-        g = q1.QuadGeometry(model.V, model.node_xy, model.owned_cells(name))
+        g = q1.QuadGeometry(model.cell_dofs, model.node_xy, model.owned_cells(name))
         nodal += g.lumped_mass(material.density, n_nodes)
     m_fn.x.array[0::2] = nodal
     m_fn.x.array[1::2] = nodal

@@ -41,7 +41,7 @@ from numba import njit
 from . import q1
 from .cell_fields import (STRESS_NAMES, point_mean_stress, stiffness_matrix, stress_outputs,
                           triangle_strain, von_mises)
-from .compat import cell_dofs, colliding_cells, geometry_dofs
+from .compat import colliding_cells, geometry_dofs
 from .errors import InputError
 from .jit_watch import direct, load
 
@@ -65,7 +65,7 @@ def nearest_node(model, body: str, point: tuple[float, float]) -> tuple[int, np.
     n_owned = model.n_owned // model.bs
     cells = model.tmesh.cells(body)
     # P1 and Q1: a cell's dofs are its vertices, in the order of its geometry's nodes
-    nodes = cell_dofs(model.V)[cells].ravel()
+    nodes = model.cell_dofs[cells].ravel()
     xy = model.mesh.geometry.x[geometry_dofs(model.mesh)[cells].ravel(), :2]
     keep = nodes < n_owned
     nodes, xy = nodes[keep], xy[keep]
@@ -244,9 +244,9 @@ class _QuadCells:
         self.dofs = np.arange(4).reshape(1, 4)  # one cell's nodes, numbered 0..3
         self.eps = np.zeros((1, 4))  # its mean strain (scratch)
 
-    def fill(self, k: int, V, node_xy: np.ndarray, cell: int, point) -> None:
+    def fill(self, k: int, cell_nodes: np.ndarray, node_xy: np.ndarray, cell: int, point) -> None:
         """Probe k's entries from its cell (local index) on the owning rank."""
-        g = q1.QuadGeometry(V, node_xy, np.array([cell], dtype=np.int32))
+        g = q1.QuadGeometry(cell_nodes, node_xy, np.array([cell], dtype=np.int32))
         xi = q1.reference_point(node_xy[g.dofs[0]], np.asarray(point, dtype=float))
         self.weights[k] = q1.shape_functions(xi[None, :])[0][0]
         self.dNdR[k], self.dNdZ[k] = g.dNdR[0], g.dNdZ[0]
@@ -323,8 +323,8 @@ class Probes:
         self.midpoints = np.zeros((n, 2))  # (r, z) in m of each probe's cell
         self.X = np.zeros((n, 2))  # (r, z) in m of the node of an r or z probe
         dofs = np.zeros(width * n, dtype=np.int64)  # global unrolled dofs
-        imap = model.V.dofmap.index_map
-        cell_nodes = cell_dofs(model.V)
+        scene = model.dofs.local_to_scene()  # local unrolled dof -> its global index
+        cell_nodes = model.cell_dofs
         forces = {f.body: f for f in plastic_forces}
         owned_pos = {}  # probe -> position of its cell in its force's cells (owning rank)
         bodies = list(model.bodies.values())
@@ -339,12 +339,11 @@ class Probes:
                 nodes = cell_nodes[cell].astype(np.int32)
                 self.midpoints[k] = model.node_xy[nodes].mean(axis=0)
             if mine and quantity not in POSITION_QUANTITIES:
-                glob = imap.local_to_global(nodes)
-                dofs[width * k: width * (k + 1)] = np.column_stack([2 * glob,
-                                                                    2 * glob + 1]).ravel()
+                dofs[width * k: width * (k + 1)] = scene[np.column_stack([2 * nodes,
+                                                                          2 * nodes + 1]).ravel()]
                 self.xy[k] = model.node_xy[nodes]
                 if quad:
-                    self._quad.fill(k, model.V, model.node_xy, cell, point)
+                    self._quad.fill(k, model.cell_dofs, model.node_xy, cell, point)
             if mine:
                 which[k] = next(b for b, body in enumerate(bodies)
                                 if cell in model.tmesh.cells(body.name))
@@ -358,8 +357,7 @@ class Probes:
                 unused[width * k + 2: width * (k + 1)] = True
                 node, X = nearest_node(model, bodies[which[k]].name, point)
                 if X is not None:
-                    glob = int(imap.local_to_global(np.array([node], dtype=np.int32))[0])
-                    dofs[width * k: width * k + 2] = (2 * glob, 2 * glob + 1)
+                    dofs[width * k: width * k + 2] = scene[2 * node: 2 * node + 2]
                     self.X[k] = X
         for arr in ((dofs, self.xy, self.midpoints, self.X)
                     + (self._quad.arrays() if quad else ())):

@@ -43,7 +43,6 @@ import math
 import numpy as np
 from numba import njit
 
-from . import compat
 
 N_POINTS = 4
 N_NODES = 4
@@ -98,9 +97,10 @@ class QuadGeometry:
     inverses (1/m); ``w`` (n, 4) weights 1/4 |det J| 2 pi R_q (m^3); ``volume`` (n,) the
     cells' ring volumes V (m^3)."""
 
-    def __init__(self, V, node_xy: np.ndarray, cells: np.ndarray):
+    def __init__(self, cell_nodes: np.ndarray, node_xy: np.ndarray, cells: np.ndarray):
+        """``cell_nodes``: the dofmap (local cells, 4) in the block indices of ``node_xy``."""
         self.cells = cells
-        self.dofs = np.ascontiguousarray(compat.cell_dofs(V)[cells].astype(np.int32))
+        self.dofs = np.ascontiguousarray(cell_nodes[cells].astype(np.int32))
         X = node_xy[self.dofs]  # (n, 4, 2)
         N, dN = shape_functions(GAUSS)  # (4, 4), (4, 4, 2)
         self.N = np.ascontiguousarray(N)

@@ -71,7 +71,7 @@ def _triangle_w2(model: DeformableModel, fixed_local: np.ndarray) -> np.ndarray:
     bs = 2
     dofs = cell_dofs(V_dg)[:n_cells]
     dofs = (dofs[:, :, None] * bs + np.arange(bs)).reshape(n_cells, 6)
-    cg = cell_dofs(model.V)[:n_cells]
+    cg = model.cell_dofs[:n_cells]
     cg = (cg[:, :, None] * bs + np.arange(bs)).reshape(n_cells, 6)
     is_fixed = np.zeros(model.n_local, dtype=bool)
     is_fixed[fixed_local] = True

@@ -251,7 +251,7 @@ class FiniteStrainForce:
         self.work_local = 0.0       # sum h_n 1/2 (v^- + v~) . f^n (J): the kinetic identity's
         self.trapezoid_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.node_xy = np.ascontiguousarray(node_xy)
-        self.geometry = QuadGeometry(V, node_xy, cells)
+        self.geometry = QuadGeometry(compat.cell_dofs(V), node_xy, cells)
         n = cells.size
         self.params = material.params()
         self.state = np.empty((n, N_POINTS, max(material.n_state, 1)))

@@ -84,7 +84,7 @@ class CellGeometry:
         ref_points, ref_weights = reference_rule()
         assert ref_points.shape[0] == N_POINTS
         self.cells = cells
-        self.dofs = compat.cell_dofs(model.V)[cells].astype(np.int32)
+        self.dofs = model.cell_dofs[cells].astype(np.int32)
         xy = model.node_xy[self.dofs]  # (n, 3, 2)
         xi, eta = ref_points[:, 0], ref_points[:, 1]
         self.N = np.ascontiguousarray(np.stack([1.0 - xi - eta, xi, eta], axis=1))
@@ -113,7 +113,7 @@ class QuadPointGeometry:
     ``r``, ``inv_r`` (n, 4) (m, 1/m); ``w`` (n, 4) (m^3); ``quad`` the Q1 geometry."""
 
     def __init__(self, model: DeformableModel, cells: np.ndarray):
-        g = q1.QuadGeometry(model.V, model.node_xy, cells)
+        g = q1.QuadGeometry(model.cell_dofs, model.node_xy, cells)
         self.quad = g
         self.cells, self.dofs, self.N, self.w = cells, g.dofs, g.N, g.w
         self.dNdr, self.dNdz, self.r, self.inv_r = g.dNdR, g.dNdZ, g.R, g.inv_R

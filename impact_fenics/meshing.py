@@ -323,7 +323,8 @@ def msh_size(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
     the answer): {"groups": {name: (cells, smallest element size h in m: the side of the
     equilateral triangle, or square, of the smallest cell's area)}, "nodes": the nodes of
     the cells, "size": the largest extent in r or z (m), "cells" and "facets": the group
-    names}. Refuses what :func:`load_msh` refuses."""
+    names}, "quadrilaterals": every cell a quadrilateral (the step estimate's Q1 bound).
+    Refuses what :func:`load_msh` refuses."""
     require(os.path.isfile(path), f"mesh file '{path}' does not exist")
     out, error = None, None
     if comm.rank == 0:
@@ -334,7 +335,7 @@ def msh_size(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
             tags, xyz, _ = gmsh.model.mesh.getNodes()
             xy = np.zeros((int(tags.max()) + 1, 2))
             xy[tags.astype(np.int64)] = xyz.reshape(-1, 3)[:, :2]
-            groups, used = {}, []
+            groups, used, corner_counts = {}, [], set()
             for dim, tag in gmsh.model.getPhysicalGroups(2):
                 name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
                 cells, h = 0, np.inf
@@ -350,6 +351,7 @@ def msh_size(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
                                                    axis=1))
                         shape = (math.sqrt(3.0) / 4.0) if corners == 3 else 1.0
                         cells += conn.shape[0]
+                        corner_counts.add(int(corners))
                         h = min(h, float(np.sqrt(area.min() / shape)))
                         used.append(conn.ravel())
                 groups[name] = (cells, h)
@@ -358,7 +360,8 @@ def msh_size(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
             names = _physical_names(gmsh)
             out = {"groups": groups, "nodes": int(nodes.size),
                    "size": float(np.ptp(box, axis=0).max()) if box.size else 0.0,
-                   "cells": sorted(names[0]), "facets": sorted(names[1])}
+                   "cells": sorted(names[0]), "facets": sorted(names[1]),
+                   "quadrilaterals": corner_counts == {4}}
         except InputError as exc:
             error = str(exc)
         except Exception as exc:  # gmsh raises plain Exceptions for unreadable files

@@ -426,7 +426,8 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
 
         with within("[mesh]"):
             counts = meshing.msh_size(scene.mesh.file, comm)
-        regions = [resources.Region(name, float(n), 0.0, h, "unstructured")
+        kind = "quad" if counts["quadrilaterals"] else "unstructured"
+        regions = [resources.Region(name, float(n), 0.0, h, kind)
                    for name, (n, h) in counts["groups"].items()]
         nodes, radius = float(counts["nodes"]), None
     cells = sum(r.cells for r in regions)

@@ -270,3 +270,12 @@ def test_a_file_the_reader_takes_runs(tmp_path, kind):
     # the body's mass sums the nodes (n_dofs / 2 terms); the closed form rounds 5 times
     assert math.isclose(summary["bodies"]["disk"]["mass"], RHO * math.pi * R ** 2 * L,
                         rel_tol=rounding(30 + summary["n_dofs"] // 2 + 5))
+
+
+@pytest.mark.parametrize("kind", ["quadrilaterals", "corner_point"])
+def test_the_step_estimate_knows_the_cell_type(tmp_path, kind):
+    """The estimate reads a file of quadrilaterals as Q1 (its bound on the step, not the
+    triangles'): msh_size says whether every cell is a quadrilateral (an exact count)."""
+    base = _base(tmp_path)
+    path = _write(kind, base)
+    assert meshing.msh_size(path)["quadrilaterals"] == (kind == "quadrilaterals")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from . import console, interrupts, output, plotting, rundir
+from . import interrupts, output, plotting, rundir
 from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
 from .bodies import DeformableModel
 from .contact import ContactSet, RigidBody
@@ -34,6 +34,7 @@ from .loads import SurfaceLoad
 from .operators import assemble_stiffness
 from .probes import Probes
 from .xdmf import FieldWriter
+from .schedule import Progress as _Progress, Schedule as _Schedule, StopFlag as _StopFlag
 from .step_block import StepBlock, count_beyond as _count_beyond
 from .stepping import ConstantStep
 from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
@@ -1116,31 +1117,6 @@ _ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work"
                    "balance_error_rel")
 
 
-class _StopFlag:
-    """SIGINT/SIGTERM set a flag (interrupts.deferred) while this object lives; the loop
-    reads it and the ranks agree on it collectively."""
-
-    def __init__(self):
-        interrupts.clear()
-        self._guard = interrupts.deferred()
-        self._guard.__enter__()
-        self._open = True
-        self.signum = 0
-        self.name = None
-
-    def collective(self, comm: MPI.Comm) -> bool:
-        """True on every rank once any rank has caught a signal; all then name the same one."""
-        self.signum = interrupts.agree(comm)
-        if self.signum:
-            self.name = interrupts.name(self.signum)
-        return bool(self.signum)
-
-    def restore(self) -> None:
-        if self._open:
-            self._open = False
-            self._guard.__exit__(None, None, None)
-
-
 class _OwnedVec:
     """The largest speed max_i |v_i| over the owned entries of a numpy array on every rank,
     NaN on every rank if any rank holds a NaN (collective; no allocation: one scratch
@@ -1173,66 +1149,6 @@ class _OwnedVec:
         if self._comm.size > 1:
             self._comm.Allreduce(MPI.IN_PLACE, self._buf, op=MPI.MAX)
         return math.nan if self._buf[1] else float(self._buf[0])
-
-
-class _Progress:
-    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal.
-
-    The loop calls :meth:`update` only at step :attr:`due` (which it returns anew): a
-    line is due every 0.5 s, so the next look is about 0.1 s of steps ahead at the rate
-    so far; never when disabled (due past the last step)."""
-
-    def __init__(self, n_steps: int, dt: float, quiet: bool):
-        self.n_steps, self.dt = n_steps, dt
-        self.enabled = (not quiet) and console.on_terminal()
-        self.t0 = time.perf_counter()
-        self.last = self.t0
-        self.due = 1 if self.enabled else n_steps + 1
-
-    def update(self, n: int) -> int:
-        """Print the line of step ``n`` if one is due; return the step to look again."""
-        if not self.enabled:
-            return self.n_steps + 1
-        now = time.perf_counter()
-        rate = n / max(now - self.t0, 1e-9)
-        self.due = min(self.n_steps, n + max(1, int(0.1 * rate)))
-        if now - self.last < 0.5 and n < self.n_steps:
-            return self.due
-        self.last = now
-        eta = (self.n_steps - n) / max(rate, 1e-9)
-        sys.stdout.write(f"\rstep {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
-                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
-        sys.stdout.flush()
-        return self.due
-
-    def done(self) -> None:
-        if self.enabled:
-            sys.stdout.write("\n")
-            sys.stdout.flush()
-
-
-class _Schedule:
-    """The steps offset, offset + every, offset + 2 every, ... and the last step, as a
-    counter: :attr:`next` is the next of them; :meth:`due` says whether step n is one
-    (call it at every step that may be one, in order)."""
-
-    __slots__ = ("next", "every", "last")
-
-    def __init__(self, offset: int, every: int, last: int):
-        self.every, self.last = every, last
-        self.next = min(offset, last)
-
-    @classmethod
-    def never(cls, last: int) -> "_Schedule":
-        sched = cls(0, 1, last)
-        sched.next = last + 1
-        return sched
-
-    def due(self, n: int) -> bool:
-        if n != self.next:
-            return False
-        self.next = min(n + self.every, self.last) if n < self.last else self.last + 1
-        return True
 
 
 class _ContactTrack:

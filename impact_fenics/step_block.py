@@ -110,7 +110,7 @@ def count_beyond(values, limit) -> int:
 
 @njit(cache=True)
 def _next(k, every, last):
-    """The step after k of a schedule (simulation._Schedule.due)."""
+    """The step after k of a schedule (schedule.Schedule.due)."""
     return min(k + every, last) if k < last else last + 1
 
 
@@ -367,7 +367,7 @@ drop_stale_cache(run_steps, _callees())
 class StepBlock:
     """The compiled steps of one run (see the module docstring); build it by :meth:`for_run`.
 
-    ``schedules``: the loop's (output, check, pairs) schedules (simulation._Schedule:
+    ``schedules``: the loop's (output, check, pairs) schedules (schedule.Schedule:
     their ``next`` advances with the block's steps); ``pairs``: the contact set's
     per-pair table (output.PairHistory) or None; ``limit``: the runaway speed (m/s);
     ``last``: the run's last step; ``track``: the contact track's counters (layout T_*);

@@ -216,7 +216,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             u_r, v_r = contact_step(src_u, src_v, recv, F, c_ints, flags, misc, step == 0,
                                     f_ext[k - n0], f_in[k - n0])
             t2 = native.now(clock, timespec)
-            # the track (simulation._ContactTrack.step) of this step k
+            # the track (checks.ContactTrack.step) of this step k
             active = misc[STATS]
             if misc[STATS + 2] < track[T_LOWEST]:
                 track[T_LOWEST] = misc[STATS + 2]
@@ -270,7 +270,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         if k - 1 == next_check:
             next_check = _next(k - 1, check_every, last)
             count = count_beyond(src_v, limit)
-            if parallel:  # the largest count of the ranks (simulation._OwnedVec.exceeds)
+            if parallel:  # the largest count of the ranks (checks.OwnedVec.exceeds)
                 reduce[0] = count
                 native.allreduce(mpi, reduce[0:1], reduce[1:2], native.M_MAX)
                 count = reduce[1]
@@ -415,7 +415,7 @@ class StepBlock:
         else:  # (never filled)
             ints[I_PAIR_CAPACITY] = -1
             pair_arrays = (np.zeros((1, 2)), np.zeros((1, 3, 1)), np.zeros(1))
-        self.track = track  # simulation._ContactTrack.state: the block updates it too
+        self.track = track  # checks.ContactTrack.state: the block updates it too
         if times is not None:
             clocks = times.booking()
         else:

@@ -30,10 +30,10 @@ from .errors import (InputError, OutputError, UnstableRunError, file_system_fail
                      output_failed, require)
 from .integrator import Integrator
 from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
-from .worker import spare_core
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
+from .outputs import ENERGY_COLUMNS, momentum_columns, open_tables, record_pairs
 from .probes import Probes
 from .xdmf import FieldWriter
 from .schedule import Progress as _Progress, Schedule as _Schedule, StopFlag as _StopFlag
@@ -219,7 +219,10 @@ class Simulation:
             writer = self._field_writer(staging) if (staging and s.fields) else None
             probes = (Probes(model, self._probe_specs, integ.nonlinear) if self._probe_specs
                       else None)
-            tables = self._tables(staging, probes)
+            tables, self._history_row, self._pair_tables = open_tables(
+                staging, probes, self.contacts, integ, s.dt,
+                momentum_columns(self._body_z, self.contacts),
+                self.n_steps // s.pairs_every + 2, comm)
             if writer is not None:  # the initial state, outside the timed loop
                 self._write_fields(writer)
             self.setup_time["outputs"] = time.perf_counter() - t_setup
@@ -409,7 +412,7 @@ class Simulation:
                 if is_history:
                     history_row()
                 if is_pairs:
-                    self._pair_rows()
+                    record_pairs(self._pair_tables, integ.n, s.dt)
                 t4 = clock()
                 for body in rigid:
                     if not math.isfinite(body.v):
@@ -527,15 +530,15 @@ class Simulation:
         self._rigid_sets = [c for c in self.contacts if c.rigid is not None]
         self._rigid_v_now = [0.0] * len(self._rigid_sets)
         self._load_terms = list(zip(integ.loads, integ._load_dofs, integ._load_coef))
-        self._energy_row = dict.fromkeys(_ENERGY_COLUMNS, 0.0)
+        self._energy_row = dict.fromkeys(ENERGY_COLUMNS, 0.0)
         # an output step's numbers (layout: see
         # event_record_size), filled by _post_output or by the compiled steps (_row_from_record
         # makes the row from it)
         self._record = np.zeros(self.event_record_size())
         self._record_view = memoryview(self._record)
-        # the energy table's row: step, time, _ENERGY_COLUMNS, momentum_z, per body and
+        # the energy table's row: step, time, ENERGY_COLUMNS, momentum_z, per body and
         # per rigid body (the order _row_from_record writes)
-        layout = ["step", "time", *_ENERGY_COLUMNS, *self._momentum_columns()]
+        layout = ["step", "time", *ENERGY_COLUMNS, *momentum_columns(self._body_z, self.contacts)]
         if self.energy.columns != layout:
             raise RuntimeError(f"energy columns {self.energy.columns}, expected {layout}")
 
@@ -587,7 +590,7 @@ class Simulation:
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         """The energy row of the output step (step integ.n - 1) into the energy table, and
-        its energy columns (_ENERGY_COLUMNS, J) returned: a dict that every event updates
+        its energy columns (ENERGY_COLUMNS, J) returned: a dict that every event updates
         in place (after the run it holds the last row's). ``pre``: :meth:`_pre_output`'s.
         The step's numbers go into the record first (the compiled steps fill it alike)."""
         integ = self.integrator
@@ -731,106 +734,6 @@ class Simulation:
             self.comm.Allreduce(MPI.IN_PLACE, self._peak_buf, op=MPI.MAX)
             peaks = self._peak_buf
         self._track(peaks, t, self._peaks)
-
-    def _tables(self, staging: str | None, probes) -> dict:
-        """History, energy and per-pair tables (on disk with an output directory, written in
-        blocks; in memory without one).
-
-        A history row is raw: the probes' dofs this rank owns (summed over the ranks once
-        per block), then step, time, dt and the contact columns; the block's finish turns
-        the dofs into the probe values."""
-        comm = self.comm
-        path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
-        cols = ["step", "time", "dt"] + (probes.names if probes else [])
-        for k, c in enumerate(self.contacts):
-            tag = f"c{k}_" if len(self.contacts) > 1 else ""
-            # the total contact force (N); on a rigid body it is the force on that body
-            force = f"{c.rigid.name}_force" if c.rigid is not None else "contact_force"
-            cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
-            if c.rigid is not None:
-                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
-            cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
-        n_raw = probes.n_raw if probes else 0
-        n_probes = len(probes.names) if probes else 0
-        block = 256
-
-        out = np.empty((block, len(cols)))
-
-        def finish(raw: np.ndarray) -> np.ndarray:
-            o = out[: raw.shape[0]]
-            o[:, :3] = raw[:, n_raw: n_raw + 3]  # step, time, dt
-            if probes is not None:
-                probes.values(raw[:, :n_raw], o[:, 3: 3 + n_probes])
-            o[:, 3 + n_probes:] = raw[:, n_raw + 3:]
-            return o
-
-        tables = {"history": output.Table(path("history.csv"), cols, comm, block,
-                                          raw_columns=n_raw + len(cols) - n_probes,
-                                          summed=n_raw, finish=finish,
-                                          asynchronous=spare_core(comm)),
-                  "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
-                                         + self._momentum_columns(), comm, 16)}
-        self._history_row = self._history_filler(tables["history"], probes, n_raw)
-        # per-pair rows (rank 0 writes them): every pairs_every steps and after the last
-        self._pair_tables = []
-        for k, c in enumerate(self.contacts):
-            name = "contact_pairs.h5" if len(self.contacts) == 1 else f"contact_pairs_{k}.h5"
-            if staging:
-                tables[f"pairs{k}"] = output.PairHistory(
-                    path(name), c.r, comm, rows=self.n_steps // self.settings.pairs_every + 2)
-                if comm.rank == 0:
-                    self._pair_tables.append((c, tables[f"pairs{k}"]))
-                    tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active)
-        return tables
-
-    def _momentum_columns(self) -> list[str]:
-        names = list(self._body_z) + [c.rigid.name for c in self.contacts if c.rigid is not None]
-        return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
-
-    def _history_filler(self, table: output.Table, probes, offset: int):
-        """``history_row()``: one history row of the state after the step (step integ.n) into
-        ``table``'s block through its memoryview: no communication, no allocation, what
-        it reads bound as locals (about 1 us a row with a probe and a contact set)."""
-        integ, dt = self.integrator, self.settings.dt
-        next_row, cells = table.next_row, table.cells
-        record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
-        # per contact: its stats (number active, total force, smallest gap; updated in place
-        # by its step), its phase times, its rigid body and its first raw column
-        layout, k = [], offset + 3
-        for c in self.contacts:
-            layout.append((memoryview(c.stats), c.times, c.rigid, k))
-            k += 6 + (2 if c.rigid is not None else 0)
-
-        def history_row() -> None:
-            j = next_row()
-            if record is not None:
-                record(j)
-            n = integ.n
-            k = j + offset
-            cells[k] = float(n)
-            cells[k + 1] = n * dt
-            cells[k + 2] = dt  # the step that led to this state (constant)
-            for stats, times, rigid, k in layout:
-                k += j
-                cells[k] = stats[0]
-                cells[k + 1] = stats[1]
-                cells[k + 2] = stats[2]
-                if rigid is not None:
-                    cells[k + 3] = rigid.u
-                    cells[k + 4] = rigid.v
-                    k += 2
-                cells[k + 3] = times.detection
-                cells[k + 4] = times.solve
-                cells[k + 5] = times.update
-        return history_row
-
-    def _pair_rows(self) -> None:
-        """One per-pair row of every contact set (rank 0; the state of step integ.n): the
-        committed gaps (m), forces (N) and active flags."""
-        n = self.integrator.n
-        t = n * self.settings.dt
-        for c, pairs in self._pair_tables:
-            pairs.record(n, t, c.committed_gap(), c.force, c.active)
 
     def _body_figures(self) -> dict:
         """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
@@ -984,7 +887,7 @@ class Simulation:
             summary["peak_stress"] = dict(zip(PEAK_NAMES, self._peaks.tolist()))
         if last_energy is not None:
             last = last_energy
-            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}  # the last row's
+            summary["energy"] = {k: last[k] for k in ENERGY_COLUMNS}  # the last row's
             summary["energy_initial"] = self.ledger.E0  # E_0 (J), the first row's total
             summary["energy_balance_error_rel"] = max_bal
             if self.integrator.nonlinear:
@@ -1032,10 +935,3 @@ def _provenance() -> dict:
         version = "unknown"
     return {"version": version, "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "command_line": " ".join(sys.argv)}
-
-
-_ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
-                   "activation_loss", "plastic_work", "deformation_work", "balance_error",
-                   "balance_error_rel")
-
-

@@ -8,7 +8,6 @@ import gc
 import math
 import os
 import shutil
-import sys
 import time
 from dataclasses import dataclass
 
@@ -39,6 +38,8 @@ from .xdmf import FieldWriter
 from .schedule import Progress as _Progress, Schedule as _Schedule, StopFlag as _StopFlag
 from .step_block import StepBlock
 from .stepping import ConstantStep
+from .summary import mean_velocities, run_summary
+from .summary import provenance as _provenance  # noqa: F401  (finite_run imports it here)
 from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
                         ghosted_dofs)
 from .timers import PhaseTimers
@@ -244,7 +245,7 @@ class Simulation:
 
             print(stable_step_line(self.stable_dt, self.stable_dt_limiting,
                                    f"every body steps dt = {s.dt:.3g} s"), flush=True)
-        self._v_start = self._mean_velocities()
+        self._v_start = mean_velocities(integ, self._body_z, self.body_mass, self.contacts, comm)
         # the set-up made many Python objects (forms, compiled kernels): collect them now
         # and keep them out of later collections, so no collection of them lands in a step
         gc.collect()
@@ -486,8 +487,8 @@ class Simulation:
                 writer.close()
         try:
             comm.barrier()  # every table is on disk: any rank may read it back
-            summary = self._summary(times, stopped_at, wall, last_energy, max_bal,
-                                    track.as_dict())
+            summary = run_summary(self, times, stopped_at, wall, last_energy, max_bal,
+                                  track.as_dict())
             self.summary = summary
             if extra is not None and self.status.startswith("completed"):
                 summary.update(extra(self))
@@ -734,204 +735,3 @@ class Simulation:
             self.comm.Allreduce(MPI.IN_PLACE, self._peak_buf, op=MPI.MAX)
             peaks = self._peak_buf
         self._track(peaks, t, self._peaks)
-
-    def _body_figures(self) -> dict:
-        """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
-        and at the end kinetic 1/2 sum m v^2 and strain energy (J): 1/2 u . K u over its dofs,
-        or the stored elastic energy psi_e of a path-dependent body, which also gets its
-        plastic work (J)."""
-        integ, comm = self.integrator, self.comm
-        Ku = integ.u_vec.duplicate()
-        if integ.K is not None:  # the linear bodies' stiffness
-            integ.K.mult(integ.u_vec, Ku)
-        else:
-            Ku.set(0.0)
-        ku = Ku.array
-        psi = {f.body: f.elastic_energy_local() for f in integ.nonlinear}  # path-dependent
-        plastic = {f.body: f.plastic_work_local for f in integ.nonlinear}
-        v_end = self._mean_velocities()
-        out = {}
-        for name in self.model.bodies:
-            dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
-            strain = psi[name] if name in psi else 0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))
-            local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
-                                                  integ.v_owned[dofs])), strain,
-                              plastic.get(name, 0.0)])
-            comm.Allreduce(MPI.IN_PLACE, local)
-            out[name] = {"mass": self.body_mass[name],
-                         "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
-                         "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
-            if name in plastic:
-                out[name]["plastic_work"] = float(local[2])
-        Ku.destroy()
-        return out
-
-    def _eps_p_max(self) -> float:
-        """The largest equivalent plastic strain (-) at a point of the path-dependent bodies
-        at the final displacement (the points' update there, as in the last frame; their
-        last update if the run diverged). Collective."""
-        forces = self.integrator.nonlinear
-        if self.status != "diverged":
-            u = forces[0].u  # (every force's displacement Function)
-            u.x.scatter_forward()
-            states = [f.point_stresses(u.x.array).state for f in forces]
-        else:
-            states = [f.qs.state for f in forces]
-        local = max(float(st[..., 0].max(initial=0.0)) for st in states)
-        return self.comm.allreduce(local, op=MPI.MAX)
-
-    def _mean_velocities(self) -> dict[str, float]:
-        """Mean z velocity (m/s) of every body now: momentum / mass; a rigid body's own."""
-        integ = self.integrator
-        local = np.array([float(np.dot(integ.mass[d], integ.v_owned[d])) for d in self._body_z.values()])
-        self.comm.Allreduce(MPI.IN_PLACE, local)
-        out = {name: float(p / self.body_mass[name]) for name, p in zip(self._body_z, local)}
-        out.update({c.rigid.name: float(c.rigid.v) for c in self.contacts if c.rigid is not None})
-        return out
-
-    def _contact_bodies(self, c) -> dict[str, str]:
-        """The bodies of a contact set: {"lower": the body below, "upper": the body or rigid
-        body above}, as the scene names the faces of node pairs; for node to segment
-        the master's outward normals say which side the slave is on (their mean z
-        component > 0: above), and {"slave", "master"} name the two roles too."""
-        def body_of(global_dofs):
-            counts = np.array([np.isin(global_dofs, self.model.to_global(
-                self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
-            counts = self.comm.allreduce(counts)
-            return list(self.model.bodies)[int(np.argmax(counts))]
-
-        cons = c.constraints
-        if isinstance(cons, SegmentConstraints):  # (replicated on every rank)
-            slave, master = body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
-            above = float(np.mean(cons.normal[:, 1])) > 0.0  # the slave above the master?
-            lower, upper = (master, slave) if above else (slave, master)
-            return {"lower": lower, "upper": upper, "slave": slave, "master": master}
-        lower = body_of(cons.lower)
-        upper = c.rigid.name if c.rigid is not None else body_of(cons.upper)
-        return {"lower": lower, "upper": upper}
-
-    def _impact_figures(self) -> list[dict]:
-        """Per contact set: peak force, impulse, time in contact, separations and, where the
-        two sides part, the rebound velocities and the coefficient of restitution."""
-        from .report import contact_figures, restitution
-
-        h = self.history.data()
-        v_end = self._mean_velocities()
-        out = []
-        for k, c in enumerate(self.contacts):
-            tag = f"c{k}_" if len(self.contacts) > 1 else ""
-            force = f"{tag}{c.rigid.name}_force" if c.rigid is not None else f"{tag}contact_force"
-            bodies = self._contact_bodies(c)
-            lower, upper = bodies["lower"], bodies["upper"]
-            fig = {"surfaces": "/".join(c.constraints.names), **bodies}
-            fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], self.settings.dt))
-            fig.update(restitution((self._v_start[lower], v_end[lower]),
-                                   (self._v_start[upper], v_end[upper])))
-            out.append(fig)
-        return out
-
-    def _summary(self, times, stopped_at, wall, last_energy, max_bal, track) -> dict:
-        model, s = self.model, self.settings
-        n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
-        summary = {
-            "status": self.status,
-            "stopped_at_step": int(stopped_at),
-            "n_steps": int(self.n_steps),
-            "n_ranks": self.comm.size,
-            "n_dofs": int(model.n_global),
-            "n_cells": int(n_cells),
-            "dt": s.dt,
-            "dt_critical": self.dt_critical,
-            "stable_dt": dict(self.stable_dt),
-            "stable_dt_limiting": self.stable_dt_limiting,
-            "t_end": self.n_steps * s.dt,
-            "wall_time": wall,
-        }
-        if s.title is not None:
-            summary["title"] = s.title
-        summary.update(_provenance())
-        summary["setup_time"] = dict(self.setup_time)
-        if self.dt_converged is not None:
-            summary["dt_critical_converged"] = self.dt_converged
-        if times is not None and times.n_steps > 0:
-            medians = times.medians(self.comm)
-            totals = times.total(self.comm)
-            summary["time_per_step_median"] = medians
-            summary["time_per_step_total"] = totals
-            summary["step_time_median"] = step = times.median_of_sum(comm=self.comm)
-            # shares from the totals and walls averaged over the ranks: they add up to <= 1
-            mean = np.append(times.totals, wall)
-            self.comm.Allreduce(MPI.IN_PLACE, mean)
-            mean /= self.comm.size
-            share = {k: (float(mean[i] / mean[-1]) if mean[-1] > 0 else 0.0)
-                     for i, k in enumerate(times.phases)}
-            summary["timing"] = {  # the loop's wall time by phase (s), and its share
-                "phases": {k: {"total": totals[k], "median": medians[k], "share": share[k]}
-                           for k in totals},
-                "rest_share": max(0.0, 1.0 - sum(share.values())),
-                "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
-                "compiled_in_loop": list(self.compiled_in_loop),
-                "compiled_steps": self.compiled_steps,
-                "compiled_frames": self.compiled_frames,
-                "definition": "total and median: the slowest rank's (s); share: the phase's "
-                              "total over the loop's wall time, both averaged over the ranks; "
-                              "rest: the loop's own Python, progress and signal checks; "
-                              "compiled_in_loop: numba kernels that compiled inside the loop; "
-                              "compiled_steps: the steps ran as compiled blocks with their "
-                              "output steps' sums (linear bodies: step_block.py); "
-                              "compiled_frames: the blocks wrote the frames too (one rank)"}
-        summary["bodies"] = self._body_figures()
-        if self.contacts:
-            summary["impact"] = self._impact_figures()
-        if self._peaks[-1]:
-            summary["peak_stress"] = dict(zip(PEAK_NAMES, self._peaks.tolist()))
-        if last_energy is not None:
-            last = last_energy
-            summary["energy"] = {k: last[k] for k in ENERGY_COLUMNS}  # the last row's
-            summary["energy_initial"] = self.ledger.E0  # E_0 (J), the first row's total
-            summary["energy_balance_error_rel"] = max_bal
-            if self.integrator.nonlinear:
-                summary["plastic_dissipation"] = last["plastic_work"]
-            summary["energy_balance_definition"] = (
-                "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
-                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n (the linear bodies) + the stored "
-                "elastic energy and the plastic work of the path-dependent ones, W_n the work "
-                "of loads and contact")
-        if self.integrator.nonlinear:
-            summary["eps_p_max"] = self._eps_p_max()
-        if self.contacts:
-            c = self.contacts[0]
-            summary["contact"] = {  # the first contact set, or all of them for the figures below
-                "method": c.method.name,
-                "n_constraints": c.n,
-                "max_penetration": track["max_penetration"],
-                "method_info": getattr(c.method, "info", {}),
-                "first_contact_step": track["first_contact"],
-                "last_contact_step": track["last_contact"],
-            }
-            if len(self.contacts) > 1:
-                summary["contacts"] = [{"method": c.method.name, "n_constraints": c.n,
-                                        "surfaces": list(c.constraints.names),
-                                        "method_info": getattr(c.method, "info", {})}
-                                       for c in self.contacts]
-            for c in self.contacts:  # a rigid body driven by a rod: its wave energies (J)
-                if c.rigid is not None and c.rigid.impedance > 0:
-                    summary.setdefault("rod_waves", {})[c.rigid.name] = {
-                        "incident": c.rigid.wave_incident, "reflected": c.rigid.wave_reflected,
-                        "delivered": c.rigid.wave_delivered}
-            if times is not None and times.n_steps > 0:
-                summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
-                    ("contact_detection", "contact_solve", "contact_update"), self.comm)
-        return summary
-
-
-def _provenance() -> dict:
-    """Version of impact_fenics, the date (UTC) and the command line of this run."""
-    from importlib import metadata
-
-    try:
-        version = metadata.version("impact_fenics")
-    except metadata.PackageNotFoundError:
-        version = "unknown"
-    return {"version": version, "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "command_line": " ".join(sys.argv)}

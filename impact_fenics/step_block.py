@@ -257,7 +257,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                 history[c + 6] = 0.0
                 history[c + 7] = t2 - t1
                 history[c + 8] = 0.0
-        if pairs and k - 1 == next_pairs:  # simulation._pair_rows of the state after the step
+        if pairs and k - 1 == next_pairs:  # outputs.record_pairs of the state after the step
             next_pairs = _next(k - 1, pairs_every, last)
             _committed_gap(b, u_now, lo, up, gap)
             _pair_row(pair_clock, pair_state, pair_row, step + 1, (step + 1) * dt, gap, force,

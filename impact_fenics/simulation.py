@@ -8,57 +8,42 @@ import gc
 import math
 import os
 import shutil
-import sys
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
-from . import console, interrupts, output, plotting, rundir
+from . import interrupts, output, plotting, rundir
 from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
 from .bodies import DeformableModel
+from .checks import (DIVERGENCE_EVERY, PENALTY_BOUND, ContactTrack as _ContactTrack, Divergence,
+                     OwnedVec as _OwnedVec, penalty_trouble, runaway_speed)
 from .contact import ContactSet, RigidBody
 from .contact.interface import refuse_shared_rigid
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
-from .energy import (GREW, NOT_FINITE, Ledger, LoadWork, OutputSums, copy_state,
+from .energy import (Ledger, LoadWork, OutputSums, copy_state,
                      energy_verdict, half_dot, strain_from_prediction)
 from .errors import (InputError, OutputError, UnstableRunError, file_system_failure,
                      output_failed, require)
 from .integrator import Integrator
 from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
-from .worker import spare_core
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
 from .operators import assemble_stiffness
+from .outputs import ENERGY_COLUMNS, momentum_columns, open_tables, record_pairs
 from .probes import Probes
 from .xdmf import FieldWriter
-from .step_block import StepBlock, count_beyond as _count_beyond
+from .schedule import Progress as _Progress, Schedule as _Schedule, StopFlag as _StopFlag
+from .step_block import StepBlock
 from .stepping import ConstantStep
+from .summary import mean_velocities, run_summary
+from .summary import provenance as _provenance  # noqa: F401  (finite_run imports it here)
 from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
                         ghosted_dofs)
 from .timers import PhaseTimers
 
-# Per-step divergence check: every DIVERGENCE_EVERY steps one VecNorm of v (a pass
-# over 8 B/dof against the step's ~219 B/dof: 1-3 % of a step measured, so under
-# 0.2 % spread over 16 steps); a deformable node's velocity that is not finite or
-# exceeds the runaway speed (the fastest wave speed, or 10x the fastest initial
-# speed if higher: beyond it the strain would exceed 1) stops the run as diverged.
-# A rigid body's velocity is checked every step for being finite (it may be fast:
-# a punch that a soft penalty does not hold is wrong, not diverged).
-DIVERGENCE_EVERY = 16
-RUNAWAY_FACTOR = 10.0
-# Penalty misbehaviour, marked in the status of a run that completes: chatter, i.e.
-# the number of active penalty constraints reversing its trend (a rise followed by
-# a fall or the other way) at least CHATTER_MIN times and in CHATTER_SHARE of the
-# contact steps (a settling contact reverses a few times, a chattering one nearly
-# every step); and contact energy gain, i.e. contact work done ON the bodies (J), at
-# an output step after contact with every spring released, above GAIN_SHARE of the
-# energy put in (a released spring can only have given back what it took; while
-# springs are loaded their work includes the energy they store, of either sign).
-PENALTY_BOUND = 4.0 / 3.0
-CHATTER_MIN, CHATTER_SHARE, GAIN_SHARE = 10, 0.05, 0.01
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
 OUTPUT_PHASE = PHASES.index("output")
 
@@ -235,7 +220,10 @@ class Simulation:
             writer = self._field_writer(staging) if (staging and s.fields) else None
             probes = (Probes(model, self._probe_specs, integ.nonlinear) if self._probe_specs
                       else None)
-            tables = self._tables(staging, probes)
+            tables, self._history_row, self._pair_tables = open_tables(
+                staging, probes, self.contacts, integ, s.dt,
+                momentum_columns(self._body_z, self.contacts),
+                self.n_steps // s.pairs_every + 2, comm)
             if writer is not None:  # the initial state, outside the timed loop
                 self._write_fields(writer)
             self.setup_time["outputs"] = time.perf_counter() - t_setup
@@ -257,7 +245,7 @@ class Simulation:
 
             print(stable_step_line(self.stable_dt, self.stable_dt_limiting,
                                    f"every body steps dt = {s.dt:.3g} s"), flush=True)
-        self._v_start = self._mean_velocities()
+        self._v_start = mean_velocities(integ, self._body_z, self.body_mass, self.contacts, comm)
         # the set-up made many Python objects (forms, compiled kernels): collect them now
         # and keep them out of later collections, so no collection of them lands in a step
         gc.collect()
@@ -272,7 +260,8 @@ class Simulation:
         last_energy, max_bal = None, 0.0
         # the runaway speed of this run, fixed at its start (a diverged state's speeds
         # would give another): the check and its message use this one
-        runaway = self.runaway_speed = self._runaway_speed()
+        runaway = self.runaway_speed = runaway_speed(model, integ.v_owned, self.contacts, comm)
+        diverged = Divergence(s.dt, self.dt_critical, self.contacts, runaway, s.energy_growth_limit)
         v_check = _OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
         self.track = track = _ContactTrack(self.contacts)
@@ -323,7 +312,7 @@ class Simulation:
                 track.budget = max(track.budget, abs(ledger.E0 or 0.0), abs(row["external_work"]))
                 if rec[-1]:  # contact made, the springs all released
                     track.gain = max(track.gain, row["contact_work"])
-            self._check_stability(row, ledger, n)
+            diverged.energy_growth(row, ledger.E0, n)
 
         # linear bodies: the steps between events run as compiled blocks
         t_block = clock()
@@ -371,9 +360,9 @@ class Simulation:
                             rec, k = block.event(i)
                             output_event(self._row_from_record(rec, k + shift, ledger), rec, k)
                     if block.runaway >= 0:
-                        self._rigid_runaway(block.runaway, block.rigid)
+                        diverged.rigid_runaway(block.runaway, block.rigid)
                     if block.diverged >= 0:
-                        self._node_runaway(block.diverged, v_check)
+                        diverged.node_runaway(block.diverged, v_check)
                     if block.held:  # the frame of the block's last step, timed with it
                         fields_at.due(n - 1)
                         self._write_fields(writer)
@@ -424,14 +413,14 @@ class Simulation:
                 if is_history:
                     history_row()
                 if is_pairs:
-                    self._pair_rows()
+                    record_pairs(self._pair_tables, integ.n, s.dt)
                 t4 = clock()
                 for body in rigid:
                     if not math.isfinite(body.v):
-                        self._rigid_runaway(n, body)
+                        diverged.rigid_runaway(n, body)
                 if event:
                     if is_check and v_check.exceeds(runaway):
-                        self._node_runaway(n, v_check)
+                        diverged.node_runaway(n, v_check)
                     if is_output:
                         output_event(self._post_output(pre, buf, ledger, load_work),
                                      self._record_view, n)
@@ -476,7 +465,7 @@ class Simulation:
                     break
                 n += 1
             else:
-                self.status = "completed" + self._penalty_trouble(track.as_dict())
+                self.status = "completed" + penalty_trouble(track.as_dict())
         except UnstableRunError as exc:
             self.status = "diverged"
             stopped_at = integ.n
@@ -498,8 +487,8 @@ class Simulation:
                 writer.close()
         try:
             comm.barrier()  # every table is on disk: any rank may read it back
-            summary = self._summary(times, stopped_at, wall, last_energy, max_bal,
-                                    track.as_dict())
+            summary = run_summary(self, times, stopped_at, wall, last_energy, max_bal,
+                                  track.as_dict())
             self.summary = summary
             if extra is not None and self.status.startswith("completed"):
                 summary.update(extra(self))
@@ -542,15 +531,15 @@ class Simulation:
         self._rigid_sets = [c for c in self.contacts if c.rigid is not None]
         self._rigid_v_now = [0.0] * len(self._rigid_sets)
         self._load_terms = list(zip(integ.loads, integ._load_dofs, integ._load_coef))
-        self._energy_row = dict.fromkeys(_ENERGY_COLUMNS, 0.0)
+        self._energy_row = dict.fromkeys(ENERGY_COLUMNS, 0.0)
         # an output step's numbers (layout: see
         # event_record_size), filled by _post_output or by the compiled steps (_row_from_record
         # makes the row from it)
         self._record = np.zeros(self.event_record_size())
         self._record_view = memoryview(self._record)
-        # the energy table's row: step, time, _ENERGY_COLUMNS, momentum_z, per body and
+        # the energy table's row: step, time, ENERGY_COLUMNS, momentum_z, per body and
         # per rigid body (the order _row_from_record writes)
-        layout = ["step", "time", *_ENERGY_COLUMNS, *self._momentum_columns()]
+        layout = ["step", "time", *ENERGY_COLUMNS, *momentum_columns(self._body_z, self.contacts)]
         if self.energy.columns != layout:
             raise RuntimeError(f"energy columns {self.energy.columns}, expected {layout}")
 
@@ -602,7 +591,7 @@ class Simulation:
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:
         """The energy row of the output step (step integ.n - 1) into the energy table, and
-        its energy columns (_ENERGY_COLUMNS, J) returned: a dict that every event updates
+        its energy columns (ENERGY_COLUMNS, J) returned: a dict that every event updates
         in place (after the run it holds the last row's). ``pre``: :meth:`_pre_output`'s.
         The step's numbers go into the record first (the compiled steps fill it alike)."""
         integ = self.integrator
@@ -691,68 +680,6 @@ class Simulation:
         cells[j + 12] = p_total
         return row
 
-    @staticmethod
-    def _penalty_trouble(track: dict) -> str:
-        """' (penalty chatter ...; contact energy gain ...)' or '' (see CHATTER_MIN)."""
-        marks = []
-        rev = track["reversals"]
-        if rev >= CHATTER_MIN and rev >= CHATTER_SHARE * track["contact_steps"]:
-            marks.append(f"penalty chatter: the active set reversed {rev} times in "
-                         f"{track['contact_steps']} contact steps")
-        if track["gain"] > GAIN_SHARE * track["budget"] and track["gain"] > 0:
-            marks.append(f"contact energy gain: the penalty did {track['gain']:.4g} J of work "
-                         f"on the bodies ({track['gain'] / max(track['budget'], 1e-300):.1%} "
-                         "of the energy put in)")
-        return f" ({'; '.join(marks)})" if marks else ""
-
-    def _runaway_speed(self) -> float:
-        """Speed (m/s) above which a run counts as diverged: the fastest wave speed of
-        the materials, or RUNAWAY_FACTOR x the fastest initial speed if that is higher."""
-        waves = [b.material.wave_speed() for b in self.model.bodies.values()]
-        v0 = float(np.abs(self.integrator.v_owned).max(initial=0.0))
-        v0 = max([self.comm.allreduce(v0, op=MPI.MAX)] +
-                 [abs(c.rigid.v) for c in self.contacts if c.rigid is not None])
-        return max(max(waves), RUNAWAY_FACTOR * v0)
-
-    def _runaway(self, n: int, what: str) -> None:
-        """Stop at step n: ``what`` passed the runaway speed the run checked against
-        (:attr:`runaway_speed`, fixed at its start)."""
-        raise UnstableRunError(self._diagnosis(
-            n, f"{what}, beyond the runaway speed {self.runaway_speed:.4g} m/s "
-               "(not finite, or a strain beyond 1)"))
-
-    def _rigid_runaway(self, n: int, body: RigidBody) -> None:
-        """Stop at step n: ``body`` moves at a speed that is not finite."""
-        self._runaway(n, f"the rigid body '{body.name}' moves at {body.v} m/s")
-
-    def _node_runaway(self, n: int, v_check: "_OwnedVec") -> None:
-        """Stop at step n: a node moves beyond the runaway speed (collective)."""
-        self._runaway(n, f"a node moves at {v_check.norm_inf():.4g} m/s")
-
-    def _check_stability(self, row: dict, ledger: Ledger, n: int) -> None:
-        """Stop a run whose energy (J) is not finite or grew beyond energy_growth_limit x
-        the energy put in (E_0 or the external work)."""
-        ext = row["external_work"]
-        E0 = ledger.E0 or 0.0
-        limit = float(self.settings.energy_growth_limit)
-        verdict = energy_verdict(row["kinetic"], row["strain"], ext, row["contact_work"],
-                                 row["total"], E0, limit)
-        if verdict == NOT_FINITE:
-            raise UnstableRunError(self._diagnosis(n, "the energy is not finite"))
-        if verdict == GREW:
-            budget = max(abs(E0), abs(ext), 1e-300)
-            raise UnstableRunError(self._diagnosis(
-                n, f"the energy {row['total']:.4g} J grew beyond {limit:g} x the energy put in "
-                   f"({budget:.4g} J)"))
-
-    def _diagnosis(self, n: int, what: str) -> str:
-        penalty = [c.method.info.get("beta_max") for c in self.contacts if c.method.name == "penalty"]
-        extra = ""
-        if penalty:
-            extra = f"; penalty beta_max = {max(penalty):.3g} (stable below 4/3)"
-        return (f"run diverged at step {n} (t = {n * self.settings.dt:.6g} s): {what}; "
-                f"dt = {self.settings.dt:.4g} s, stable dt <= {self.dt_critical:.4g} s{extra}")
-
     # ------------------------------------------------------------ outputs
     def cell_fields(self) -> dict[str, np.ndarray]:
         """The plastic cell fields now, {name: values over this rank's owned cells}:
@@ -808,490 +735,3 @@ class Simulation:
             self.comm.Allreduce(MPI.IN_PLACE, self._peak_buf, op=MPI.MAX)
             peaks = self._peak_buf
         self._track(peaks, t, self._peaks)
-
-    def _tables(self, staging: str | None, probes) -> dict:
-        """History, energy and per-pair tables (on disk with an output directory, written in
-        blocks; in memory without one).
-
-        A history row is raw: the probes' dofs this rank owns (summed over the ranks once
-        per block), then step, time, dt and the contact columns; the block's finish turns
-        the dofs into the probe values."""
-        comm = self.comm
-        path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
-        cols = ["step", "time", "dt"] + (probes.names if probes else [])
-        for k, c in enumerate(self.contacts):
-            tag = f"c{k}_" if len(self.contacts) > 1 else ""
-            # the total contact force (N); on a rigid body it is the force on that body
-            force = f"{c.rigid.name}_force" if c.rigid is not None else "contact_force"
-            cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
-            if c.rigid is not None:
-                cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
-            cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
-        n_raw = probes.n_raw if probes else 0
-        n_probes = len(probes.names) if probes else 0
-        block = 256
-
-        out = np.empty((block, len(cols)))
-
-        def finish(raw: np.ndarray) -> np.ndarray:
-            o = out[: raw.shape[0]]
-            o[:, :3] = raw[:, n_raw: n_raw + 3]  # step, time, dt
-            if probes is not None:
-                probes.values(raw[:, :n_raw], o[:, 3: 3 + n_probes])
-            o[:, 3 + n_probes:] = raw[:, n_raw + 3:]
-            return o
-
-        tables = {"history": output.Table(path("history.csv"), cols, comm, block,
-                                          raw_columns=n_raw + len(cols) - n_probes,
-                                          summed=n_raw, finish=finish,
-                                          asynchronous=spare_core(comm)),
-                  "energy": output.Table(path("energy.csv"), ["step", "time"] + list(_ENERGY_COLUMNS)
-                                         + self._momentum_columns(), comm, 16)}
-        self._history_row = self._history_filler(tables["history"], probes, n_raw)
-        # per-pair rows (rank 0 writes them): every pairs_every steps and after the last
-        self._pair_tables = []
-        for k, c in enumerate(self.contacts):
-            name = "contact_pairs.h5" if len(self.contacts) == 1 else f"contact_pairs_{k}.h5"
-            if staging:
-                tables[f"pairs{k}"] = output.PairHistory(
-                    path(name), c.r, comm, rows=self.n_steps // self.settings.pairs_every + 2)
-                if comm.rank == 0:
-                    self._pair_tables.append((c, tables[f"pairs{k}"]))
-                    tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active)
-        return tables
-
-    def _momentum_columns(self) -> list[str]:
-        names = list(self._body_z) + [c.rigid.name for c in self.contacts if c.rigid is not None]
-        return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
-
-    def _history_filler(self, table: output.Table, probes, offset: int):
-        """``history_row()``: one history row of the state after the step (step integ.n) into
-        ``table``'s block through its memoryview: no communication, no allocation, what
-        it reads bound as locals (about 1 us a row with a probe and a contact set)."""
-        integ, dt = self.integrator, self.settings.dt
-        next_row, cells = table.next_row, table.cells
-        record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
-        # per contact: its stats (number active, total force, smallest gap; updated in place
-        # by its step), its phase times, its rigid body and its first raw column
-        layout, k = [], offset + 3
-        for c in self.contacts:
-            layout.append((memoryview(c.stats), c.times, c.rigid, k))
-            k += 6 + (2 if c.rigid is not None else 0)
-
-        def history_row() -> None:
-            j = next_row()
-            if record is not None:
-                record(j)
-            n = integ.n
-            k = j + offset
-            cells[k] = float(n)
-            cells[k + 1] = n * dt
-            cells[k + 2] = dt  # the step that led to this state (constant)
-            for stats, times, rigid, k in layout:
-                k += j
-                cells[k] = stats[0]
-                cells[k + 1] = stats[1]
-                cells[k + 2] = stats[2]
-                if rigid is not None:
-                    cells[k + 3] = rigid.u
-                    cells[k + 4] = rigid.v
-                    k += 2
-                cells[k + 3] = times.detection
-                cells[k + 4] = times.solve
-                cells[k + 5] = times.update
-        return history_row
-
-    def _pair_rows(self) -> None:
-        """One per-pair row of every contact set (rank 0; the state of step integ.n): the
-        committed gaps (m), forces (N) and active flags."""
-        n = self.integrator.n
-        t = n * self.settings.dt
-        for c, pairs in self._pair_tables:
-            pairs.record(n, t, c.committed_gap(), c.force, c.active)
-
-    def _body_figures(self) -> dict:
-        """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
-        and at the end kinetic 1/2 sum m v^2 and strain energy (J): 1/2 u . K u over its dofs,
-        or the stored elastic energy psi_e of a path-dependent body, which also gets its
-        plastic work (J)."""
-        integ, comm = self.integrator, self.comm
-        Ku = integ.u_vec.duplicate()
-        if integ.K is not None:  # the linear bodies' stiffness
-            integ.K.mult(integ.u_vec, Ku)
-        else:
-            Ku.set(0.0)
-        ku = Ku.array
-        psi = {f.body: f.elastic_energy_local() for f in integ.nonlinear}  # path-dependent
-        plastic = {f.body: f.plastic_work_local for f in integ.nonlinear}
-        v_end = self._mean_velocities()
-        out = {}
-        for name in self.model.bodies:
-            dofs = np.concatenate([self.model.body_dofs(name, 0), self.model.body_dofs(name, 1)])
-            strain = psi[name] if name in psi else 0.5 * float(np.dot(integ.u_owned[dofs], ku[dofs]))
-            local = np.array([0.5 * float(np.dot(integ.mass[dofs] * integ.v_owned[dofs],
-                                                  integ.v_owned[dofs])), strain,
-                              plastic.get(name, 0.0)])
-            comm.Allreduce(MPI.IN_PLACE, local)
-            out[name] = {"mass": self.body_mass[name],
-                         "velocity_z_initial": self._v_start[name], "velocity_z_final": v_end[name],
-                         "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
-            if name in plastic:
-                out[name]["plastic_work"] = float(local[2])
-        Ku.destroy()
-        return out
-
-    def _eps_p_max(self) -> float:
-        """The largest equivalent plastic strain (-) at a point of the path-dependent bodies
-        at the final displacement (the points' update there, as in the last frame; their
-        last update if the run diverged). Collective."""
-        forces = self.integrator.nonlinear
-        if self.status != "diverged":
-            u = forces[0].u  # (every force's displacement Function)
-            u.x.scatter_forward()
-            states = [f.point_stresses(u.x.array).state for f in forces]
-        else:
-            states = [f.qs.state for f in forces]
-        local = max(float(st[..., 0].max(initial=0.0)) for st in states)
-        return self.comm.allreduce(local, op=MPI.MAX)
-
-    def _mean_velocities(self) -> dict[str, float]:
-        """Mean z velocity (m/s) of every body now: momentum / mass; a rigid body's own."""
-        integ = self.integrator
-        local = np.array([float(np.dot(integ.mass[d], integ.v_owned[d])) for d in self._body_z.values()])
-        self.comm.Allreduce(MPI.IN_PLACE, local)
-        out = {name: float(p / self.body_mass[name]) for name, p in zip(self._body_z, local)}
-        out.update({c.rigid.name: float(c.rigid.v) for c in self.contacts if c.rigid is not None})
-        return out
-
-    def _contact_bodies(self, c) -> dict[str, str]:
-        """The bodies of a contact set: {"lower": the body below, "upper": the body or rigid
-        body above}, as the scene names the faces of node pairs; for node to segment
-        the master's outward normals say which side the slave is on (their mean z
-        component > 0: above), and {"slave", "master"} name the two roles too."""
-        def body_of(global_dofs):
-            counts = np.array([np.isin(global_dofs, self.model.to_global(
-                self.model.body_dofs(b, 1))).sum() for b in self.model.bodies])
-            counts = self.comm.allreduce(counts)
-            return list(self.model.bodies)[int(np.argmax(counts))]
-
-        cons = c.constraints
-        if isinstance(cons, SegmentConstraints):  # (replicated on every rank)
-            slave, master = body_of(cons.slave_dofs[:, 1]), body_of(cons.master_dofs[:, 1])
-            above = float(np.mean(cons.normal[:, 1])) > 0.0  # the slave above the master?
-            lower, upper = (master, slave) if above else (slave, master)
-            return {"lower": lower, "upper": upper, "slave": slave, "master": master}
-        lower = body_of(cons.lower)
-        upper = c.rigid.name if c.rigid is not None else body_of(cons.upper)
-        return {"lower": lower, "upper": upper}
-
-    def _impact_figures(self) -> list[dict]:
-        """Per contact set: peak force, impulse, time in contact, separations and, where the
-        two sides part, the rebound velocities and the coefficient of restitution."""
-        from .report import contact_figures, restitution
-
-        h = self.history.data()
-        v_end = self._mean_velocities()
-        out = []
-        for k, c in enumerate(self.contacts):
-            tag = f"c{k}_" if len(self.contacts) > 1 else ""
-            force = f"{tag}{c.rigid.name}_force" if c.rigid is not None else f"{tag}contact_force"
-            bodies = self._contact_bodies(c)
-            lower, upper = bodies["lower"], bodies["upper"]
-            fig = {"surfaces": "/".join(c.constraints.names), **bodies}
-            fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], self.settings.dt))
-            fig.update(restitution((self._v_start[lower], v_end[lower]),
-                                   (self._v_start[upper], v_end[upper])))
-            out.append(fig)
-        return out
-
-    def _summary(self, times, stopped_at, wall, last_energy, max_bal, track) -> dict:
-        model, s = self.model, self.settings
-        n_cells = self.comm.allreduce(model.mesh.topology.index_map(2).size_local)
-        summary = {
-            "status": self.status,
-            "stopped_at_step": int(stopped_at),
-            "n_steps": int(self.n_steps),
-            "n_ranks": self.comm.size,
-            "n_dofs": int(model.n_global),
-            "n_cells": int(n_cells),
-            "dt": s.dt,
-            "dt_critical": self.dt_critical,
-            "stable_dt": dict(self.stable_dt),
-            "stable_dt_limiting": self.stable_dt_limiting,
-            "t_end": self.n_steps * s.dt,
-            "wall_time": wall,
-        }
-        if s.title is not None:
-            summary["title"] = s.title
-        summary.update(_provenance())
-        summary["setup_time"] = dict(self.setup_time)
-        if self.dt_converged is not None:
-            summary["dt_critical_converged"] = self.dt_converged
-        if times is not None and times.n_steps > 0:
-            medians = times.medians(self.comm)
-            totals = times.total(self.comm)
-            summary["time_per_step_median"] = medians
-            summary["time_per_step_total"] = totals
-            summary["step_time_median"] = step = times.median_of_sum(comm=self.comm)
-            # shares from the totals and walls averaged over the ranks: they add up to <= 1
-            mean = np.append(times.totals, wall)
-            self.comm.Allreduce(MPI.IN_PLACE, mean)
-            mean /= self.comm.size
-            share = {k: (float(mean[i] / mean[-1]) if mean[-1] > 0 else 0.0)
-                     for i, k in enumerate(times.phases)}
-            summary["timing"] = {  # the loop's wall time by phase (s), and its share
-                "phases": {k: {"total": totals[k], "median": medians[k], "share": share[k]}
-                           for k in totals},
-                "rest_share": max(0.0, 1.0 - sum(share.values())),
-                "loop_over_steps_median": wall / (times.n_steps * step) if step > 0 else None,
-                "compiled_in_loop": list(self.compiled_in_loop),
-                "compiled_steps": self.compiled_steps,
-                "compiled_frames": self.compiled_frames,
-                "definition": "total and median: the slowest rank's (s); share: the phase's "
-                              "total over the loop's wall time, both averaged over the ranks; "
-                              "rest: the loop's own Python, progress and signal checks; "
-                              "compiled_in_loop: numba kernels that compiled inside the loop; "
-                              "compiled_steps: the steps ran as compiled blocks with their "
-                              "output steps' sums (linear bodies: step_block.py); "
-                              "compiled_frames: the blocks wrote the frames too (one rank)"}
-        summary["bodies"] = self._body_figures()
-        if self.contacts:
-            summary["impact"] = self._impact_figures()
-        if self._peaks[-1]:
-            summary["peak_stress"] = dict(zip(PEAK_NAMES, self._peaks.tolist()))
-        if last_energy is not None:
-            last = last_energy
-            summary["energy"] = {k: last[k] for k in _ENERGY_COLUMNS}  # the last row's
-            summary["energy_initial"] = self.ledger.E0  # E_0 (J), the first row's total
-            summary["energy_balance_error_rel"] = max_bal
-            if self.integrator.nonlinear:
-                summary["plastic_dissipation"] = last["plastic_work"]
-            summary["energy_balance_definition"] = (
-                "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
-                "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n (the linear bodies) + the stored "
-                "elastic energy and the plastic work of the path-dependent ones, W_n the work "
-                "of loads and contact")
-        if self.integrator.nonlinear:
-            summary["eps_p_max"] = self._eps_p_max()
-        if self.contacts:
-            c = self.contacts[0]
-            summary["contact"] = {  # the first contact set, or all of them for the figures below
-                "method": c.method.name,
-                "n_constraints": c.n,
-                "max_penetration": track["max_penetration"],
-                "method_info": getattr(c.method, "info", {}),
-                "first_contact_step": track["first_contact"],
-                "last_contact_step": track["last_contact"],
-            }
-            if len(self.contacts) > 1:
-                summary["contacts"] = [{"method": c.method.name, "n_constraints": c.n,
-                                        "surfaces": list(c.constraints.names),
-                                        "method_info": getattr(c.method, "info", {})}
-                                       for c in self.contacts]
-            for c in self.contacts:  # a rigid body driven by a rod: its wave energies (J)
-                if c.rigid is not None and c.rigid.impedance > 0:
-                    summary.setdefault("rod_waves", {})[c.rigid.name] = {
-                        "incident": c.rigid.wave_incident, "reflected": c.rigid.wave_reflected,
-                        "delivered": c.rigid.wave_delivered}
-            if times is not None and times.n_steps > 0:
-                summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
-                    ("contact_detection", "contact_solve", "contact_update"), self.comm)
-        return summary
-
-
-def _provenance() -> dict:
-    """Version of impact_fenics, the date (UTC) and the command line of this run."""
-    from importlib import metadata
-
-    try:
-        version = metadata.version("impact_fenics")
-    except metadata.PackageNotFoundError:
-        version = "unknown"
-    return {"version": version, "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "command_line": " ".join(sys.argv)}
-
-
-_ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
-                   "activation_loss", "plastic_work", "deformation_work", "balance_error",
-                   "balance_error_rel")
-
-
-class _StopFlag:
-    """SIGINT/SIGTERM set a flag (interrupts.deferred) while this object lives; the loop
-    reads it and the ranks agree on it collectively."""
-
-    def __init__(self):
-        interrupts.clear()
-        self._guard = interrupts.deferred()
-        self._guard.__enter__()
-        self._open = True
-        self.signum = 0
-        self.name = None
-
-    def collective(self, comm: MPI.Comm) -> bool:
-        """True on every rank once any rank has caught a signal; all then name the same one."""
-        self.signum = interrupts.agree(comm)
-        if self.signum:
-            self.name = interrupts.name(self.signum)
-        return bool(self.signum)
-
-    def restore(self) -> None:
-        if self._open:
-            self._open = False
-            self._guard.__exit__(None, None, None)
-
-
-class _OwnedVec:
-    """The largest speed max_i |v_i| over the owned entries of a numpy array on every rank,
-    NaN on every rank if any rank holds a NaN (collective; no allocation: one scratch
-    array and one two-value reduction), and the cheaper check whether any speed exceeds
-    a limit (or is NaN): one compiled pass and a one-value reduction. Read from the
-    array itself, so it sees every write. Not PETSc's NORM_INFINITY: with MPICH (the
-    wheels) its MPI_MAX drops a NaN on some ranks, so the ranks would disagree about a
-    runaway and hang."""
-
-    def __init__(self, array: np.ndarray, comm: MPI.Comm):
-        self._array, self._comm = array, comm
-        self._abs = np.empty_like(array)
-        self._buf = np.zeros(2)  # (largest |v|, 1 if a NaN)
-        self._count = np.zeros(1)
-        _count_beyond(array, np.inf)  # loaded now, not in a step
-
-    def exceeds(self, limit: float) -> bool:
-        """Does any |v_i| on any rank exceed ``limit`` or is it NaN? (the same answer on
-        every rank; about half the time of :meth:`norm_inf`)"""
-        self._count[0] = _count_beyond(self._array, limit)
-        if self._comm.size > 1:
-            self._comm.Allreduce(MPI.IN_PLACE, self._count, op=MPI.MAX)
-        return self._count[0] > 0
-
-    def norm_inf(self) -> float:
-        np.abs(self._array, out=self._abs)
-        local = float(self._abs.max()) if self._abs.size else 0.0
-        nan = local != local
-        self._buf[0], self._buf[1] = (0.0 if nan else local), (1.0 if nan else 0.0)
-        if self._comm.size > 1:
-            self._comm.Allreduce(MPI.IN_PLACE, self._buf, op=MPI.MAX)
-        return math.nan if self._buf[1] else float(self._buf[0])
-
-
-class _Progress:
-    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal.
-
-    The loop calls :meth:`update` only at step :attr:`due` (which it returns anew): a
-    line is due every 0.5 s, so the next look is about 0.1 s of steps ahead at the rate
-    so far; never when disabled (due past the last step)."""
-
-    def __init__(self, n_steps: int, dt: float, quiet: bool):
-        self.n_steps, self.dt = n_steps, dt
-        self.enabled = (not quiet) and console.on_terminal()
-        self.t0 = time.perf_counter()
-        self.last = self.t0
-        self.due = 1 if self.enabled else n_steps + 1
-
-    def update(self, n: int) -> int:
-        """Print the line of step ``n`` if one is due; return the step to look again."""
-        if not self.enabled:
-            return self.n_steps + 1
-        now = time.perf_counter()
-        rate = n / max(now - self.t0, 1e-9)
-        self.due = min(self.n_steps, n + max(1, int(0.1 * rate)))
-        if now - self.last < 0.5 and n < self.n_steps:
-            return self.due
-        self.last = now
-        eta = (self.n_steps - n) / max(rate, 1e-9)
-        sys.stdout.write(f"\rstep {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
-                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
-        sys.stdout.flush()
-        return self.due
-
-    def done(self) -> None:
-        if self.enabled:
-            sys.stdout.write("\n")
-            sys.stdout.flush()
-
-
-class _Schedule:
-    """The steps offset, offset + every, offset + 2 every, ... and the last step, as a
-    counter: :attr:`next` is the next of them; :meth:`due` says whether step n is one
-    (call it at every step that may be one, in order)."""
-
-    __slots__ = ("next", "every", "last")
-
-    def __init__(self, offset: int, every: int, last: int):
-        self.every, self.last = every, last
-        self.next = min(offset, last)
-
-    @classmethod
-    def never(cls, last: int) -> "_Schedule":
-        sched = cls(0, 1, last)
-        sched.next = last + 1
-        return sched
-
-    def due(self, n: int) -> bool:
-        if n != self.next:
-            return False
-        self.next = min(n + self.every, self.last) if n < self.last else self.last + 1
-        return True
-
-
-class _ContactTrack:
-    """Per step, from the contact sets' stats (number active, total force, smallest gap;
-    updated in place by their steps, read here through memoryviews): the largest committed
-    penetration (m), the first and last steps with contact, the steps in contact and the
-    reversals of the number of active penalty constraints (chatter); at output steps the
-    loop books the penalty's energy gain and budget (J, see CHATTER_MIN).
-
-    The counters are :attr:`state` (the compiled steps of step_block update it too);
-    :attr:`step` is a closure over a memoryview of it (an item costs less than an
-    attribute)."""
-
-    __slots__ = ("step", "state", "penalty", "gain", "budget")
-
-    def __init__(self, contacts: list):
-        stats = [memoryview(c.stats) for c in contacts]
-        self.gain = self.budget = 0.0
-        # the counters (layout step_block.T_*, which updates them in its compiled steps):
-        # the smallest committed gap (m) so far, or 0 (-max penetration); the first and
-        # last steps with contact (-1: none yet); the steps in contact; the reversals; then
-        # per penalty set its last number active and its last nonzero change
-        penalty = [(memoryview(c.stats), 5 + 2 * k) for k, c in
-                   enumerate(c for c in contacts if c.method.name == "penalty")]
-        self.penalty = bool(penalty)
-        self.state = np.zeros(5 + 2 * max(1, len(penalty)))
-        self.state[1:3] = -1.0
-        s = memoryview(self.state)
-
-        def step(n: int) -> None:
-            touching = False
-            for st in stats:
-                if st[2] < s[0]:
-                    s[0] = st[2]
-                if st[0] > 0.0:
-                    touching = True
-            if touching:
-                if s[1] < 0.0:
-                    s[1] = n
-                s[2] = n
-                s[3] += 1.0
-            for st, k in penalty:  # reversals of the number of active penalty constraints
-                n_active = st[0]
-                d = n_active - s[k]
-                if d * s[k + 1] < 0.0:
-                    s[4] += 1.0
-                s[k] = n_active
-                if d:
-                    s[k + 1] = d
-        self.step = step
-
-    @property
-    def first(self) -> int | None:
-        """The first step with contact (None before it)."""
-        return int(self.state[1]) if self.state[1] >= 0.0 else None
-
-    def as_dict(self) -> dict:
-        lowest, first, last, steps, reversals = self.state[:5].tolist()
-        return {"max_penetration": max(0.0, -lowest),
-                "first_contact": int(first) if first >= 0.0 else None,
-                "last_contact": int(last) if last >= 0.0 else None, "contact_steps": int(steps),
-                "reversals": int(reversals), "gain": self.gain, "budget": self.budget}

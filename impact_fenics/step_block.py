@@ -110,7 +110,7 @@ def count_beyond(values, limit) -> int:
 
 @njit(cache=True)
 def _next(k, every, last):
-    """The step after k of a schedule (simulation._Schedule.due)."""
+    """The step after k of a schedule (schedule.Schedule.due)."""
     return min(k + every, last) if k < last else last + 1
 
 
@@ -216,7 +216,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             u_r, v_r = contact_step(src_u, src_v, recv, F, c_ints, flags, misc, step == 0,
                                     f_ext[k - n0], f_in[k - n0])
             t2 = native.now(clock, timespec)
-            # the track (simulation._ContactTrack.step) of this step k
+            # the track (checks.ContactTrack.step) of this step k
             active = misc[STATS]
             if misc[STATS + 2] < track[T_LOWEST]:
                 track[T_LOWEST] = misc[STATS + 2]
@@ -257,7 +257,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                 history[c + 6] = 0.0
                 history[c + 7] = t2 - t1
                 history[c + 8] = 0.0
-        if pairs and k - 1 == next_pairs:  # simulation._pair_rows of the state after the step
+        if pairs and k - 1 == next_pairs:  # outputs.record_pairs of the state after the step
             next_pairs = _next(k - 1, pairs_every, last)
             _committed_gap(b, u_now, lo, up, gap)
             _pair_row(pair_clock, pair_state, pair_row, step + 1, (step + 1) * dt, gap, force,
@@ -270,7 +270,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         if k - 1 == next_check:
             next_check = _next(k - 1, check_every, last)
             count = count_beyond(src_v, limit)
-            if parallel:  # the largest count of the ranks (simulation._OwnedVec.exceeds)
+            if parallel:  # the largest count of the ranks (checks.OwnedVec.exceeds)
                 reduce[0] = count
                 native.allreduce(mpi, reduce[0:1], reduce[1:2], native.M_MAX)
                 count = reduce[1]
@@ -367,7 +367,7 @@ drop_stale_cache(run_steps, _callees())
 class StepBlock:
     """The compiled steps of one run (see the module docstring); build it by :meth:`for_run`.
 
-    ``schedules``: the loop's (output, check, pairs) schedules (simulation._Schedule:
+    ``schedules``: the loop's (output, check, pairs) schedules (schedule.Schedule:
     their ``next`` advances with the block's steps); ``pairs``: the contact set's
     per-pair table (output.PairHistory) or None; ``limit``: the runaway speed (m/s);
     ``last``: the run's last step; ``track``: the contact track's counters (layout T_*);
@@ -415,7 +415,7 @@ class StepBlock:
         else:  # (never filled)
             ints[I_PAIR_CAPACITY] = -1
             pair_arrays = (np.zeros((1, 2)), np.zeros((1, 3, 1)), np.zeros(1))
-        self.track = track  # simulation._ContactTrack.state: the block updates it too
+        self.track = track  # checks.ContactTrack.state: the block updates it too
         if times is not None:
             clocks = times.booking()
         else:

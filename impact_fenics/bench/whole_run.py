@@ -181,6 +181,7 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
     import gc
 
     from .. import rundir
+    from ..outputs import momentum_columns, open_tables, record_pairs
     from ..probes import Probes
 
     scratch = tempfile.mkdtemp(prefix="ifx_rows_") if comm.rank == 0 else None
@@ -188,7 +189,10 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
     sim, _ = _scene(kind, os.path.join(scratch, "run"), comm)
     staging = rundir.prepare_directory(os.path.join(scratch, "run"), comm)
     probes = Probes(sim.model, sim._probe_specs) if sim._probe_specs else None
-    tables = sim._tables(staging, probes)
+    tables, history_row, pair_tables = open_tables(
+        staging, probes, sim.contacts, sim.integrator, sim.settings.dt,
+        momentum_columns(sim.model.bodies, sim.contacts),
+        sim.n_steps // sim.settings.pairs_every + 2, comm)
     sim.integrator.predict()
     for c in sim.contacts:
         c.step()
@@ -202,13 +206,13 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
         samples = []
         for _ in range(repeats):
             table._n = 0
-            for _, pt in sim._pair_tables:
+            for _, pt in pair_tables:
                 pt._n, pt._rows = 0, 0
             t = clock()
             for _ in range(rows):
-                sim._history_row()
+                history_row()
                 if pairs:
-                    sim._pair_rows()
+                    record_pairs(pair_tables, sim.integrator.n, sim.settings.dt)
             samples.append((clock() - t) / rows)
         res[label] = float(np.median(samples))
     samples = []
@@ -219,7 +223,7 @@ def row_cost(kind: str, comm: MPI.Comm, rows: int = 200, repeats: int = 30) -> d
         samples.append((clock() - t) / table._buf.shape[0])
     res["block_write_per_row"] = float(np.median(samples))
     samples = []
-    for _, pt in sim._pair_tables:  # rank 0: a block of per-pair rows into contact_pairs.h5
+    for _, pt in pair_tables:  # rank 0: a block of per-pair rows into contact_pairs.h5
         for _ in range(repeats // 3):
             pt._n, pt._rows = pt._clock.shape[0], 0
             t = clock()

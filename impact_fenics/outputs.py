@@ -1,0 +1,131 @@
+"""A run's tables: history.csv (a row per history step: probes, contact columns), energy.csv
+(a row per output step: the ledger's columns, z momenta) and the per-pair rows of
+contact_pairs.h5; output.py writes them.
+
+Units: s, m, N, J, kg m/s.
+"""
+from __future__ import annotations
+
+import os
+from typing import Callable, Iterable
+
+import numpy as np
+from mpi4py import MPI
+
+from . import output
+from .worker import spare_core
+
+# the energy table's columns after step and time (J; balance_error_rel: -), then the
+# z momenta (momentum_columns)
+ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
+                  "activation_loss", "plastic_work", "deformation_work", "balance_error",
+                  "balance_error_rel")
+
+
+def momentum_columns(bodies: Iterable[str], contacts: list) -> list[str]:
+    """The z momentum columns (kg m/s): the total, then per body and per rigid body of the
+    contact sets."""
+    names = list(bodies) + [c.rigid.name for c in contacts if c.rigid is not None]
+    return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
+
+
+def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
+                momentum: list[str], pair_rows: int,
+                comm: MPI.Comm) -> tuple[dict, Callable[[], None], list]:
+    """History, energy and per-pair tables (on disk with an output directory ``staging``,
+    written in blocks; in memory without one), the history row's filler
+    (:func:`history_filler` of ``integ``'s state, dt in s) and the per-pair tables rank 0
+    writes, [(contact set, PairHistory)] (``pair_rows``: their rows at most).
+
+    A history row is raw: the probes' dofs this rank owns (summed over the ranks once
+    per block), then step, time, dt and the contact columns; the block's finish turns
+    the dofs into the probe values. ``momentum``: the energy table's momentum columns."""
+    path = (lambda name: os.path.join(staging, name)) if staging else (lambda name: None)
+    cols = ["step", "time", "dt"] + (probes.names if probes else [])
+    for k, c in enumerate(contacts):
+        tag = f"c{k}_" if len(contacts) > 1 else ""
+        # the total contact force (N); on a rigid body it is the force on that body
+        force = f"{c.rigid.name}_force" if c.rigid is not None else "contact_force"
+        cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
+        if c.rigid is not None:
+            cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
+        cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
+    n_raw = probes.n_raw if probes else 0
+    n_probes = len(probes.names) if probes else 0
+    block = 256
+
+    out = np.empty((block, len(cols)))
+
+    def finish(raw: np.ndarray) -> np.ndarray:
+        o = out[: raw.shape[0]]
+        o[:, :3] = raw[:, n_raw: n_raw + 3]  # step, time, dt
+        if probes is not None:
+            probes.values(raw[:, :n_raw], o[:, 3: 3 + n_probes])
+        o[:, 3 + n_probes:] = raw[:, n_raw + 3:]
+        return o
+
+    tables = {"history": output.Table(path("history.csv"), cols, comm, block,
+                                      raw_columns=n_raw + len(cols) - n_probes,
+                                      summed=n_raw, finish=finish,
+                                      asynchronous=spare_core(comm)),
+              "energy": output.Table(path("energy.csv"), ["step", "time"] + list(ENERGY_COLUMNS)
+                                     + momentum, comm, 16)}
+    history_row = history_filler(tables["history"], probes, n_raw, integ, dt, contacts)
+    # per-pair rows (rank 0 writes them): every pairs_every steps and after the last
+    pair_tables = []
+    for k, c in enumerate(contacts):
+        name = "contact_pairs.h5" if len(contacts) == 1 else f"contact_pairs_{k}.h5"
+        if staging:
+            tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm, rows=pair_rows)
+            if comm.rank == 0:
+                pair_tables.append((c, tables[f"pairs{k}"]))
+                tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active)
+    return tables, history_row, pair_tables
+
+
+def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
+                   contacts: list) -> Callable[[], None]:
+    """``history_row()``: one history row of the state after the step (step integ.n, time
+    n dt in s) into ``table``'s block through its memoryview: no communication, no
+    allocation, what it reads bound as locals (about 1 us a row with a probe and a
+    contact set)."""
+    next_row, cells = table.next_row, table.cells
+    record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
+    # per contact: its stats (number active, total force, smallest gap; updated in place
+    # by its step), its phase times, its rigid body and its first raw column
+    layout, k = [], offset + 3
+    for c in contacts:
+        layout.append((memoryview(c.stats), c.times, c.rigid, k))
+        k += 6 + (2 if c.rigid is not None else 0)
+
+    def history_row() -> None:
+        j = next_row()
+        if record is not None:
+            record(j)
+        n = integ.n
+        k = j + offset
+        cells[k] = float(n)
+        cells[k + 1] = n * dt
+        cells[k + 2] = dt  # the step that led to this state (constant)
+        for stats, times, rigid, k in layout:
+            k += j
+            cells[k] = stats[0]
+            cells[k + 1] = stats[1]
+            cells[k + 2] = stats[2]
+            if rigid is not None:
+                cells[k + 3] = rigid.u
+                cells[k + 4] = rigid.v
+                k += 2
+            cells[k + 3] = times.detection
+            cells[k + 4] = times.solve
+            cells[k + 5] = times.update
+    return history_row
+
+
+def record_pairs(pair_tables: list, n: int, dt: float) -> None:
+    """One per-pair row of every contact set of ``pair_tables`` (:func:`open_tables`'; rank 0)
+    for the state of step n (time n dt, s): the committed gaps (m), forces (N) and active
+    flags."""
+    t = n * dt
+    for c, pairs in pair_tables:
+        pairs.record(n, t, c.committed_gap(), c.force, c.active)

@@ -1,0 +1,100 @@
+"""When the loop does what: event schedules as step counters, the progress line, the
+signal flag.
+
+A schedule is the next step of an event (an energy row, a frame, the per-pair rows, a
+divergence check, the ranks' agreement on a signal), so the common step compares one
+integer instead of testing n % every. Time in s.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+from mpi4py import MPI
+
+from . import console, interrupts
+
+
+class StopFlag:
+    """SIGINT/SIGTERM set a flag (interrupts.deferred) while this object lives; the loop
+    reads it and the ranks agree on it collectively."""
+
+    def __init__(self):
+        interrupts.clear()
+        self._guard = interrupts.deferred()
+        self._guard.__enter__()
+        self._open = True
+        self.signum = 0
+        self.name = None
+
+    def collective(self, comm: MPI.Comm) -> bool:
+        """True on every rank once any rank has caught a signal; all then name the same one."""
+        self.signum = interrupts.agree(comm)
+        if self.signum:
+            self.name = interrupts.name(self.signum)
+        return bool(self.signum)
+
+    def restore(self) -> None:
+        if self._open:
+            self._open = False
+            self._guard.__exit__(None, None, None)
+
+
+class Progress:
+    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal.
+
+    The loop calls :meth:`update` only at step :attr:`due` (which it returns anew): a
+    line is due every 0.5 s, so the next look is about 0.1 s of steps ahead at the rate
+    so far; never when disabled (due past the last step)."""
+
+    def __init__(self, n_steps: int, dt: float, quiet: bool):
+        self.n_steps, self.dt = n_steps, dt
+        self.enabled = (not quiet) and console.on_terminal()
+        self.t0 = time.perf_counter()
+        self.last = self.t0
+        self.due = 1 if self.enabled else n_steps + 1
+
+    def update(self, n: int) -> int:
+        """Print the line of step ``n`` if one is due; return the step to look again."""
+        if not self.enabled:
+            return self.n_steps + 1
+        now = time.perf_counter()
+        rate = n / max(now - self.t0, 1e-9)
+        self.due = min(self.n_steps, n + max(1, int(0.1 * rate)))
+        if now - self.last < 0.5 and n < self.n_steps:
+            return self.due
+        self.last = now
+        eta = (self.n_steps - n) / max(rate, 1e-9)
+        sys.stdout.write(f"\rstep {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
+                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
+        sys.stdout.flush()
+        return self.due
+
+    def done(self) -> None:
+        if self.enabled:
+            sys.stdout.write("\n")
+            sys.stdout.flush()
+
+
+class Schedule:
+    """The steps offset, offset + every, offset + 2 every, ... and the last step, as a
+    counter: :attr:`next` is the next of them; :meth:`due` says whether step n is one
+    (call it at every step that may be one, in order)."""
+
+    __slots__ = ("next", "every", "last")
+
+    def __init__(self, offset: int, every: int, last: int):
+        self.every, self.last = every, last
+        self.next = min(offset, last)
+
+    @classmethod
+    def never(cls, last: int) -> "Schedule":
+        sched = cls(0, 1, last)
+        sched.next = last + 1
+        return sched
+
+    def due(self, n: int) -> bool:
+        if n != self.next:
+            return False
+        self.next = min(n + self.every, self.last) if n < self.last else self.last + 1
+        return True

@@ -312,7 +312,7 @@ class FiniteRun:
         signal stops the run at a step boundary with a complete directory). ``extra(run)``
         may return more summary entries (checks of a demo) of a completed run; they are
         written with the rest, before the output directory is published."""
-        from .simulation import _StopFlag  # the signal flag every run shares
+        from .schedule import StopFlag  # the signal flag every run shares
         from .xdmf import FieldWriter
 
         s, comm = self.settings, self.comm
@@ -337,7 +337,7 @@ class FiniteRun:
             print(stable_step_line(self.stable_dt, self.name, shared,
                                    "current cells, min L / c"), flush=True)
         t_setup = time.perf_counter()
-        stop = _StopFlag()
+        stop = StopFlag()
         staging = writer = table = None
         try:
             staging = rundir.prepare_directory(s.out, comm) if s.out else None
@@ -525,7 +525,7 @@ class FiniteRun:
 
     def _summary(self, K0, n, t, dts, w_int, taken, wall_time, timers) -> dict:
         """The run's figures (SI units); every rank returns the same dictionary."""
-        from .simulation import _provenance
+        from .summary import provenance
 
         s, comm = self.settings, self.comm
         K = self.kinetic()
@@ -570,7 +570,7 @@ class FiniteRun:
                 summary["wall"]["penalty"] = self.wall.penalty
                 summary["wall"]["beta_max"] = getattr(self, "beta_max", None)
                 summary["wall"]["beta_bound"] = 4.0 / 3.0
-        summary.update(_provenance())
+        summary.update(provenance())
         summary["setup_time"] = dict(getattr(self, "setup_time", {}))
         if timers is not None and timers.n_steps > 0:
             summary.update(timers.summary(comm, wall_time))

@@ -17,8 +17,8 @@ from mpi4py import MPI
 from . import interrupts, output, plotting, rundir
 from .cell_fields import PEAK_NAMES, STRESS_NAMES, CellStress, track_peaks
 from .bodies import DeformableModel
-from .checks import (DIVERGENCE_EVERY, PENALTY_BOUND, ContactTrack as _ContactTrack, Divergence,
-                     OwnedVec as _OwnedVec, penalty_trouble, runaway_speed)
+from .checks import (DIVERGENCE_EVERY, PENALTY_BOUND, ContactTrack, Divergence, OwnedVec,
+                     penalty_trouble, runaway_speed)
 from .contact import ContactSet, RigidBody
 from .contact.interface import refuse_shared_rigid
 from .contact.pairing import Constraints
@@ -35,11 +35,10 @@ from .operators import assemble_stiffness
 from .outputs import ENERGY_COLUMNS, momentum_columns, open_tables, record_pairs
 from .probes import Probes
 from .xdmf import FieldWriter
-from .schedule import Progress as _Progress, Schedule as _Schedule, StopFlag as _StopFlag
+from .schedule import Progress, Schedule, StopFlag
 from .step_block import StepBlock
 from .stepping import ConstantStep
 from .summary import mean_velocities, run_summary
-from .summary import provenance as _provenance  # noqa: F401  (finite_run imports it here)
 from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
                         ghosted_dofs)
 from .timers import PhaseTimers
@@ -211,7 +210,7 @@ class Simulation:
         n_steps = self.n_steps
         # from here a signal only sets a flag (interrupts.deferred) until the directory is
         # in place; one before the first step removes the staging directory and stops
-        stop = _StopFlag()
+        stop = StopFlag()
         staging = writer = None
         tables: dict = {}
         try:
@@ -262,27 +261,27 @@ class Simulation:
         # would give another): the check and its message use this one
         runaway = self.runaway_speed = runaway_speed(model, integ.v_owned, self.contacts, comm)
         diverged = Divergence(s.dt, self.dt_critical, self.contacts, runaway, s.energy_growth_limit)
-        v_check = _OwnedVec(integ.v_owned, comm)
+        v_check = OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
-        self.track = track = _ContactTrack(self.contacts)
-        progress = _Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
+        self.track = track = ContactTrack(self.contacts)
+        progress = Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"
         stopped_at = n_steps
         # The common step is short: the schedules are step counters (the next step of
-        # each, see _Schedule), locals stand for attributes, the phase times go through
+        # each, see Schedule), locals stand for attributes, the phase times go through
         # a memoryview into the timers' block (booked by one compiled call per block),
         # progress is looked at only when a line may be due, the signal flag is one
         # attribute. Everything else happens on the steps an event is due.
         last = n_steps - 1
         # energy rows (and their history rows)
-        output_at = _Schedule(0, s.energy_every or s.output_every, last)
-        fields_at = (_Schedule(s.output_every - 1, s.output_every, last)  # state n + 1 written
-                     if writer is not None else _Schedule.never(last))
-        pairs_at = _Schedule(0, s.pairs_every, last) if self._pair_tables else _Schedule.never(last)
-        check_at = _Schedule(DIVERGENCE_EVERY - 1, DIVERGENCE_EVERY, last)
+        output_at = Schedule(0, s.energy_every or s.output_every, last)
+        fields_at = (Schedule(s.output_every - 1, s.output_every, last)  # state n + 1 written
+                     if writer is not None else Schedule.never(last))
+        pairs_at = Schedule(0, s.pairs_every, last) if self._pair_tables else Schedule.never(last)
+        check_at = Schedule(DIVERGENCE_EVERY - 1, DIVERGENCE_EVERY, last)
         serial = comm.size == 1
-        agree_at = (_Schedule.never(last) if serial else
-                    _Schedule(interrupts.AGREE_EVERY - 1, interrupts.AGREE_EVERY, last))
+        agree_at = (Schedule.never(last) if serial else
+                    Schedule(interrupts.AGREE_EVERY - 1, interrupts.AGREE_EVERY, last))
         history_every = s.history_every
         next_history = 0
         next_event = min(output_at.next, fields_at.next, pairs_at.next, check_at.next, agree_at.next)

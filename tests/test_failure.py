@@ -166,7 +166,7 @@ def test_divergence_is_caught_between_outputs(tmp_path, capsys):
     by the per-step velocity check: the unstable mode grows about 30x a step, so the
     runaway speed (the wave speed) is passed within a few steps and the check, every
     DIVERGENCE_EVERY steps, reports it before the second check (not at the last step)."""
-    from impact_fenics.simulation import DIVERGENCE_EVERY
+    from impact_fenics.checks import DIVERGENCE_EVERY
 
     out = MPI.COMM_WORLD.bcast(str(tmp_path / "out"), root=0)
     (tmp_path / "scene.toml").write_text(replace(DIVERGING, "output_every = 5",
@@ -185,10 +185,10 @@ def test_the_velocity_check_sees_every_write():
     """The runaway check reads the numpy array that the loop and the contact write (a
     cached norm would hide a runaway), and a NaN on one rank is a NaN on every rank (the
     ranks must agree to stop together; PETSc's inf-norm under MPICH does not)."""
-    from impact_fenics.simulation import _OwnedVec
+    from impact_fenics.checks import OwnedVec
 
     v = np.zeros(4)
-    vec = _OwnedVec(v, MPI.COMM_WORLD)
+    vec = OwnedVec(v, MPI.COMM_WORLD)
     rank = MPI.COMM_WORLD.rank
     for k, value in enumerate((3.0, 4.0, np.nan)):
         if rank == 0:

@@ -2,16 +2,16 @@
 short as its step).
 
 The run's loop keeps the next output, field, per-pair, divergence-check and agreement
-step as counters (simulation._Schedule) instead of testing n % every at each step. The
+step as counters (schedule.Schedule) instead of testing n % every at each step. The
 oracle is the definition they replace: output and per-pair rows at n % every == 0 and
 at the last step; fields (state n + 1) at (n + 1) % every == 0 and the last step; checks
 and agreements at (n + 1) % every == 0 and the last step. Every combination of every
 and run length below, including every > steps and steps = 1, must give the same steps.
 """
-from impact_fenics.simulation import _Schedule
+from impact_fenics.schedule import Schedule
 
 
-def _steps(schedule: _Schedule, n_steps: int) -> list[int]:
+def _steps(schedule: Schedule, n_steps: int) -> list[int]:
     due = []
     for n in range(n_steps):
         if n == schedule.next:  # the loop asks only when a counter says so
@@ -28,6 +28,6 @@ def test_counters_match_the_modulo_definitions():
         for every in (1, 2, 3, 5, 16, 25, 64, 200):
             at_zero = [n for n in range(n_steps) if n % every == 0 or n == last]
             at_end = [n for n in range(n_steps) if (n + 1) % every == 0 or n == last]
-            assert _steps(_Schedule(0, every, last), n_steps) == at_zero, (n_steps, every)
-            assert _steps(_Schedule(every - 1, every, last), n_steps) == at_end, (n_steps, every)
-        assert _steps(_Schedule.never(last), n_steps) == []
+            assert _steps(Schedule(0, every, last), n_steps) == at_zero, (n_steps, every)
+            assert _steps(Schedule(every - 1, every, last), n_steps) == at_end, (n_steps, every)
+        assert _steps(Schedule.never(last), n_steps) == []

@@ -60,6 +60,22 @@ class Steps:
         return self.steps[n]
 
 
+class TopLoad:
+    """A load on the top nodes' z dofs (N per Pa, 1e-3 each) with a ramp history (Pa)
+    that makes t^n matter: the attributes the integrator reads of a surface load."""
+
+    def __init__(self, model):
+        n = model.n_owned
+        top = np.flatnonzero(np.isclose(model.node_xy[: n // 2, 1], Z1))
+        self.dofs = (2 * top + 1).astype(np.int32)
+        self.force = np.full(self.dofs.size, 1e-3)
+        self.name = "top"
+
+    @staticmethod
+    def history(t: float) -> float:
+        return 1e8 * (1.0 + t / 1e-5)
+
+
 def _initial(model) -> np.ndarray:
     n = model.n_owned
     x = model.node_xy[: n // 2]
@@ -74,7 +90,8 @@ def test_constant_half_step_is_modified_euler_array_for_array(policy):
     fixed = model.axis_dofs()
     pol = {"default": None, "constant": ConstantStep(DT, None, 1.0, n_steps=40),
            "same_step": SameStep(DT)}[policy]
-    integ = Integrator(model, DT, fixed, policy=pol)
+    load = TopLoad(model)
+    integ = Integrator(model, DT, fixed, [load], policy=pol)
     assert integ.step.constant == (policy != "same_step")
     n = model.n_owned
     v0 = _initial(model)
@@ -103,6 +120,7 @@ def test_constant_half_step_is_modified_euler_array_for_array(policy):
         A.multAdd(u, v, v)
         u_fn.x.scatter_forward()
         euler.add_velocity_increment(u_fn.x.array[:n], v.array)
+        v.array[load.dofs] += DT * load.force / mass[load.dofs] * load.history(k * DT)
         u.axpy(DT, v)
         predict()
         integ.advance()
@@ -123,7 +141,8 @@ def test_changing_step_takes_h_n_for_v_and_h_for_u():
     model = DeformableModel(tm, [Body(name, LinearElastic(E=E, nu=NU, density=RHO))
                                  for name in ("lower", "upper")])
     fixed = model.axis_dofs()
-    integ = Integrator(model, DT, fixed, policy=Steps(steps))
+    load = TopLoad(model)
+    integ = Integrator(model, DT, fixed, [load], policy=Steps(steps))
     assert not integ.step.constant
     integ.set_initial(None, _initial(model))
     n = model.n_owned
@@ -147,16 +166,18 @@ def test_changing_step_takes_h_n_for_v_and_h_for_u():
         u0, v0 = integ.u_owned.copy(), integ.v_owned.copy()
         K.mult(integ.u_vec, Ku)
         v1 = v0 + np.where(free, h_avg * -Ku.array / mass, 0.0)
+        v1[load.dofs] += h_avg * load.force * load.history(t) / mass[load.dofs]
         u1 = u0 + h * v1
         integ.predict()
         integ.advance()
         # one step from one state: a row of K u (row_terms products and sums), the scaling
-        # by h_n / m (2), the sum with v (1); then h v and its sum with u (2); on the
-        # magnitudes |v| + h_n |K|_inf max|u| / min m and |u| + h |v'|
+        # by h_n / m (2), the sum with v (1), the load's h_n f / m times its value (3) and
+        # its sum (1); then h v and its sum with u (2); on the magnitudes |v| + h_n
+        # (|K|_inf max|u| + max f p(t)) / min m and |u| + h |v'|
         u_max = COMM.allreduce(float(np.abs(u0).max()), op=MPI.MAX)
-        v_scale = COMM.allreduce(float(np.abs(v0).max()), op=MPI.MAX) + \
-            h_avg * K_inf * u_max / COMM.allreduce(float(mass.min()), op=MPI.MIN)
-        bound_v = rounding(row_terms + 3, v_scale)
+        v_scale = COMM.allreduce(float(np.abs(v0).max()), op=MPI.MAX) + h_avg * (
+            K_inf * u_max + 1e-3 * load.history(t)) / COMM.allreduce(float(mass.min()), op=MPI.MIN)
+        bound_v = rounding(row_terms + 7, v_scale)
         assert np.abs(integ.v_owned - v1).max(initial=0.0) <= bound_v
         assert np.abs(integ.u_owned - u1).max(initial=0.0) <= \
             rounding(2, u_max + h * v_scale) + h * bound_v

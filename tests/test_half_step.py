@@ -24,20 +24,15 @@ from petsc4py import PETSc
 from impact_fenics import compat
 from impact_fenics.integrator import Integrator
 from impact_fenics.internal_force import QuadratureForce
-from impact_fenics.operators import assemble_stiffness
 from impact_fenics.stepping import ConstantStep
 from roundoff import rounding
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.materials import LinearElastic
-from test_forces import E, N_R, N_Z, NU, R0, R1, RHO, Z1, _two_bodies
+from test_forces import E, N_R, N_Z, NU, R0, R1, RHO, Z1, _two_bodies, previous_A
 from two_halves import two_halves
 
 COMM = MPI.COMM_WORLD
 DT = 4e-6  # s: far below a cell's transit time 0.125 m / 8.9e3 m/s
-# PETSc adds the entries other ranks send to a row of K in their arrival order: from 3
-# ranks on two assemblies may differ in the last bit, so the scheme here then multiplies a
-# copy of the integrator's own A (1 and 2 ranks: an assembly of its own)
-REPRODUCIBLE_ASSEMBLY = COMM.size <= 2
 
 
 class SameStep:
@@ -100,15 +95,7 @@ def test_constant_half_step_is_modified_euler_array_for_array(policy):
     mass = integ.mass
     free = np.ones(n, dtype=bool)
     free[fixed] = False
-    linear_parts = [p for p in model.parts if p[0].linear]
-    if REPRODUCIBLE_ASSEMBLY:
-        A = assemble_stiffness(model, "aij", linear_parts)
-        scale = A.createVecRight()
-        scale.array[:] = -DT / mass
-        A.diagonalScale(L=scale)
-        A.zeroRows(model.to_global(fixed).astype(PETSc.IntType), diag=0.0)
-    else:
-        A = integ.A.copy()
+    A = previous_A(model, integ, DT, fixed)
     u_fn = fem.Function(model.V)
     u = compat.petsc_vec(u_fn)
     v = u.duplicate()

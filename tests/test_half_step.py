@@ -17,18 +17,15 @@ Oracles:
 """
 import numpy as np
 import pytest
-from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from impact_fenics import compat
+from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.integrator import Integrator
-from impact_fenics.internal_force import QuadratureForce
+from impact_fenics.materials import LinearElastic
 from impact_fenics.stepping import ConstantStep
 from roundoff import rounding
-from impact_fenics.bodies import Body, DeformableModel
-from impact_fenics.materials import LinearElastic
-from test_forces import E, N_R, N_Z, NU, R0, R1, RHO, Z1, _two_bodies, previous_A
+from test_forces import E, N_R, N_Z, NU, R0, R1, RHO, Z1, _two_bodies, previous_path
 from two_halves import two_halves
 
 COMM = MPI.COMM_WORLD
@@ -93,15 +90,7 @@ def test_constant_half_step_is_modified_euler_array_for_array(policy):
     integ.set_initial(None, v0)
 
     mass = integ.mass
-    free = np.ones(n, dtype=bool)
-    free[fixed] = False
-    A = previous_A(model, integ, DT, fixed)
-    u_fn = fem.Function(model.V)
-    u = compat.petsc_vec(u_fn)
-    v = u.duplicate()
-    u.set(0.0)
-    v.array[:] = v0
-    euler = QuadratureForce(model, "plastic", u_fn, DT, np.where(free, -DT / mass, 0.0))
+    A, u_fn, u, v, euler = previous_path(model, integ, DT, fixed, v0)
     predict = integ.predictor()
     for k in range(40):
         A.multAdd(u, v, v)

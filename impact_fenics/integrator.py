@@ -14,11 +14,17 @@ When every body is linear the step is the MatMultAdd and the AXPY, nothing else.
 (not recovered from differences of displacements), so a body that drifts far
 keeps its velocity to full precision.
 
+The step comes from a step policy (:mod:`.stepping`, a constant h by default) through
+the half steps of :mod:`.loop`: the increments into v take h_n, the AXPY h_{n+1/2}. Under
+a constant step both are h, nothing is rescaled, and the step is the one above.
+
 Between :meth:`predict` and :meth:`advance`, contact sets read the predicted
 state from the views ``u_owned``/``v_owned`` and write the corrected positions
 and velocities of their own dofs back into them.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -29,7 +35,9 @@ from .errors import InputError
 from .internal_force import LinearForce, QuadratureForce
 from .jit_watch import direct
 from .loads import SurfaceLoad
+from .loop import HalfStep
 from .operators import lumped_mass
+from .stepping import ConstantStep
 
 
 @njit(cache=True)
@@ -43,14 +51,18 @@ def _add_load(v, dofs, coef, value) -> None:
 class Integrator:
     """State (u^n, v^n) of the deformable dofs and the step without contact.
 
-    Units: dt in s, displacements in m, velocities in m/s, masses in kg.
+    Units: dt in s, displacements in m, velocities in m/s, masses in kg. ``dt`` is the
+    step the operators are built for (the first h_{n+1/2}); ``policy`` gives the steps
+    (``next(n, t)``, :mod:`.stepping`), by default the constant ``dt``.
     """
 
     def __init__(self, model: DeformableModel, dt: float, fixed_dofs: np.ndarray,
                  loads: list[SurfaceLoad] | None = None, matrix_type: str = "aij",
-                 f_int_path: str = "fast"):
+                 f_int_path: str = "fast", policy=None):
         if not dt > 0.0:
             raise InputError(f"dt = {dt} s: the time step must be > 0")
+        if policy is None:  # (the limit is the caller's to check; the count the run's)
+            policy = ConstantStep(dt, None, math.inf, n_steps=1)
         self.model = model
         self.dt = float(dt)
         self.n = 0
@@ -102,16 +114,19 @@ class Integrator:
                                  1.0) if self.loads else None)
         # serial: u has no ghosts, the scatter before the quadrature forces is not needed
         self._scatter = (self._u_fn is not None and model.comm.size > 1)
+        # the half steps: the forces and the loads rescaled when (h, h_n) changes
+        self.step = HalfStep(policy, self.dt, self.forces + [_LoadSteps(self)])
 
     # ------------------------------------------------------------ state
     @property
     def t(self) -> float:
-        """Time of the current state (s)."""
-        return self.n * self.dt
+        """Time t^n of the current state (s): n dt under a constant step."""
+        return self.step.time(self.n)
 
     def set_initial(self, u0: np.ndarray | None, v0: np.ndarray | None) -> None:
         """Set u^0 (m) and v^0 (m/s) on the owned dofs; fixed dofs are kept at zero."""
         self.n = 0
+        self.step.restart()
         for target, values in ((self.u_owned, u0), (self.v_owned, v0)):
             target[:] = 0.0 if values is None else values
             target[~self._free] = 0.0
@@ -139,11 +154,12 @@ class Integrator:
     # ------------------------------------------------------------ the step
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
-        u, v, dt = self.u_owned, self.v_owned, self.dt
+        u, v = self.u_owned, self.v_owned
+        h, h_avg = self.step.begin(self.n)
         if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none)
             self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         for force in self.forces:
-            force.velocity_increment(u, v, dt)
+            force.velocity_increment(u, v, h_avg)
         if self.loads:
             t = self.t
             v, add_load = self.v_owned, self._add_load
@@ -151,14 +167,15 @@ class Integrator:
                 value = float(ld.history(t))
                 if value != 0.0:
                     add_load(v, dofs, coef, value)
-        self._u.axpy(self.dt, self._v)
+        self._u.axpy(h, self._v)
 
     def predictor(self):
         """:meth:`predict` as a function for the loop: when every body is linear and no
         load is applied, the step's two PETSc calls (the linear force's MatMultAdd, VecAXPY)
         bound as locals of a closure (about 0.15 us a step less than the method's attribute
-        look-ups and tests); otherwise the method itself. Same operations, same results."""
-        if self.A is None or self.nonlinear or self.loads:
+        look-ups and tests), under a constant step only; otherwise the method itself. Same
+        operations, same results."""
+        if self.A is None or self.nonlinear or self.loads or not self.step.constant:
             return self.predict
         mult_add, axpy = self.A.multAdd, self._u.axpy
         u, v, dt = self._u, self._v, self.dt
@@ -170,4 +187,19 @@ class Integrator:
 
     def advance(self) -> None:
         """Accept the step: the corrected state becomes (u^{n+1}, v^{n+1})."""
+        self.step.end()
         self.n += 1
+
+
+class _LoadSteps:
+    """The loads' coefficients h_n f / m (m/s per unit of the pulse) of an integrator,
+    rewritten in place when h_n changes (the set-up's arithmetic)."""
+
+    def __init__(self, integ: Integrator):
+        self.integ = integ
+
+    def set_step(self, h: float, h_avg: float) -> None:
+        integ = self.integ
+        for ld, dofs, coef in zip(integ.loads, integ._load_dofs, integ._load_coef):
+            k = integ._free[ld.dofs]
+            coef[:] = h_avg * ld.force[k] / integ.mass[ld.dofs[k]]

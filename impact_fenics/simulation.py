@@ -263,6 +263,9 @@ class Simulation:
         diverged = Divergence(s.dt, self.dt_critical, self.contacts, runaway, s.energy_growth_limit)
         v_check = OwnedVec(integ.v_owned, comm)
         rigid = [c.rigid for c in self.contacts if c.rigid is not None]
+        for c in self.contacts:  # their step constants follow the step (h, h_n) with the forces'
+            if c not in integ.step.stepped:
+                integ.step.add(c)
         self.track = track = ContactTrack(self.contacts)
         progress = Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
         self.status = "running"

@@ -70,6 +70,37 @@ def _two_bodies(quadrilateral: bool) -> DeformableModel:
 REPRODUCIBLE_ASSEMBLY = COMM.size <= 2
 
 
+def previous_A(model: DeformableModel, integ: Integrator, dt: float, fixed: np.ndarray):
+    """A = -dt M^-1 K over the linear bodies as the Integrator built it before (zero rows
+    on ``fixed``), assembled here; from 3 ranks a copy of ``integ``'s own (see
+    REPRODUCIBLE_ASSEMBLY)."""
+    if not REPRODUCIBLE_ASSEMBLY:
+        return integ.A.copy()
+    A = assemble_stiffness(model, "aij", [p for p in model.parts if p[0].linear])
+    scale = A.createVecRight()
+    scale.array[:] = -dt / integ.mass
+    A.diagonalScale(L=scale)
+    A.zeroRows(model.to_global(fixed).astype(PETSc.IntType), diag=0.0)
+    return A
+
+
+def previous_path(model: DeformableModel, integ: Integrator, dt: float, fixed: np.ndarray,
+                  v0: np.ndarray):
+    """The previous small-strain step's pieces, at rest in u and at ``v0`` (m/s) in v:
+    (A of :func:`previous_A`, u's Function, u, v, the 'plastic' body's quadrature force
+    with its own coef = -dt / m on the free dofs)."""
+    free = np.ones(model.n_owned, dtype=bool)
+    free[fixed] = False
+    A = previous_A(model, integ, dt, fixed)
+    u_fn = fem.Function(model.V)
+    u = compat.petsc_vec(u_fn)
+    v = u.duplicate()
+    u.set(0.0)
+    v.array[:] = v0
+    force = QuadratureForce(model, "plastic", u_fn, dt, np.where(free, -dt / integ.mass, 0.0))
+    return A, u_fn, u, v, force
+
+
 @pytest.mark.parametrize("quadrilateral", [False, True], ids=["triangles", "quadrilaterals"])
 def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
     model = _two_bodies(quadrilateral)
@@ -84,25 +115,7 @@ def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
 
     # the previous path, kept here: A built as the Integrator built it, one MatMultAdd,
     # the quadrature force's own increment with coef = -dt / m, then u += dt v
-    mass = integ.mass
-    free = np.ones(n, dtype=bool)
-    free[fixed] = False
-    linear_parts = [p for p in model.parts if p[0].linear]
-    if REPRODUCIBLE_ASSEMBLY:
-        A = assemble_stiffness(model, "aij", linear_parts)
-        scale = A.createVecRight()
-        scale.array[:] = -dt / mass
-        A.diagonalScale(L=scale)
-        A.zeroRows(model.to_global(fixed).astype(PETSc.IntType), diag=0.0)
-    else:  # one assembly for both paths (see REPRODUCIBLE_ASSEMBLY)
-        A = integ.A.copy()
-    u_fn = fem.Function(model.V)
-    u = compat.petsc_vec(u_fn)
-    v = u.duplicate()
-    u.set(0.0)
-    v.array[:] = v0
-    coef = np.where(free, -dt / mass, 0.0)
-    old = QuadratureForce(model, "plastic", u_fn, dt, coef)
+    A, u_fn, u, v, old = previous_path(model, integ, dt, fixed, v0)
     new = integ.nonlinear[0]
     for _ in range(40):
         A.multAdd(u, v, v)

@@ -2,7 +2,7 @@
 
 All deformable bodies share one vector space (u_r, u_z) of degree 1: P1 on a mesh of
 triangles, Q1 on a mesh of quadrilaterals (the small-strain bodies of a Q1 mesh take
-mean dilatation, B-bar: :mod:`.q1`). Dof indices here are local, unrolled
+mean dilatation, B-bar: :mod:`.q1`; a finite-strain body, F-bar, needs quadrilaterals). Dof indices here are local, unrolled
 (2 * node + component) and, unless said otherwise, owned by this rank: they index the
 local arrays of the PETSc vectors directly.
 """
@@ -18,6 +18,7 @@ from .compat import vector_space
 from .dofs import SceneDofs
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, require
 from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
+from .materials import INTERFACE, interface_of, is_finite, missing_attributes
 from .meshing import TaggedMesh
 
 R, Z = 0, 1  # displacement components
@@ -31,27 +32,21 @@ class Body:
     material: Material
 
 
-# What the solver reads of a material (forms.Material): every material, a linear one
-# (the stress as a UFL expression, K assembled once), a path-dependent one (a compiled
-# point update at the quadrature points, internal_force/quadrature.py)
-MATERIAL_ATTRIBUTES = ("density", "linear", "wave_speed")
-LINEAR_ATTRIBUTES = ("stress",)
-PATH_DEPENDENT_ATTRIBUTES = ("lmbda", "mu", "n_state", "params", "update")
+# What the solver reads of a material, per kinematics: materials.INTERFACE
+_KIND_WORDS = {"small linear": " linear", "small": " path-dependent", "finite": " finite-strain"}
 
 
 def check_material(body: Body) -> None:
     """Refuse, in one line naming the class and the attribute, a material that lacks
-    what the solver reads of it."""
+    what the solver reads of it (materials.INTERFACE of its kinematics)."""
     m = body.material
-    needs = MATERIAL_ATTRIBUTES
-    if hasattr(m, "linear"):
-        needs += LINEAR_ATTRIBUTES if m.linear else PATH_DEPENDENT_ATTRIBUTES
-    missing = [name for name in needs if not hasattr(m, name)]
+    missing = missing_attributes(m)
     if missing:
-        kind = "" if "linear" in missing else " linear" if m.linear else " path-dependent"
+        kind = interface_of(m)
+        word = "" if "linear" in missing else _KIND_WORDS[kind]
         raise InputError(f"body '{body.name}': the material {type(m).__name__} has no "
-                         f"attribute '{missing[0]}' (a{kind} material needs "
-                         f"{', '.join(needs)})")
+                         f"attribute '{missing[0]}' (a{word} material needs "
+                         f"{', '.join(INTERFACE[kind])})")
 
 
 def check_quadrilateral_material(body: Body) -> None:
@@ -79,15 +74,11 @@ class DeformableModel:
         self.quadrilateral = cell_type == dmesh.CellType.quadrilateral
         for b in bodies:
             check_material(b)
-            if getattr(b.material, "strain", "small") == "finite":
+            if is_finite(b.material):
                 if not self.quadrilateral:
                     raise InputError(f"body '{b.name}': the mesh's cells are triangles: "
                                      f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
-                raise InputError(f"body '{b.name}': {type(b.material).__name__} is a "
-                                 "finite-strain material: it runs in the finite-strain driver "
-                                 "(finite_run.FiniteRun, strain = \"finite\" in a scene), and "
-                                 "this model holds small-strain bodies")
-            if self.quadrilateral:
+            elif self.quadrilateral:
                 check_quadrilateral_material(b)
         self.tmesh = tmesh
         self.mesh = tmesh.mesh

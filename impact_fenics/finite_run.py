@@ -62,6 +62,7 @@ from . import compat, console, interrupts, output, rundir
 from .contact.plane import FixedPlane
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .internal_force.finite import FiniteStrainForce
+from .materials import is_finite
 from .stepping import FollowingStep
 from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
@@ -162,8 +163,7 @@ class FiniteRun:
         require(mesh.topology.cell_type == dmesh.CellType.quadrilateral,
                 f"the mesh's cells are {mesh.topology.cell_type.name}s: "
                 f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
-        require(getattr(material, "finite", False) or getattr(material, "strain", "") == "finite",
-                "the material must be a finite-strain one")
+        require(is_finite(material), "the material must be a finite-strain one")
         self.mesh, self.material, self.settings = mesh, material, settings
         self.comm = mesh.comm
         self.V = compat.vector_space(mesh, "Lagrange", 1)

@@ -6,11 +6,12 @@ The modified Euler scheme
 
 runs as: each internal force adds -dt M^-1 f_int(u^n) into v (the linear
 bodies by  v <- A u + v, one MatMultAdd with A = -dt M^-1 K scaled once; a
-path-dependent body by its quadrature force: the forces of :mod:`.internal_force`,
-each behind the protocol of :mod:`.internal_force.base`), the few
-loaded dofs get dt M^-1 f^n, then  u <- u + dt v  (VecAXPY). Fixed dofs have
-zero rows in A (zero coefficients in the quadrature forces) and stay at rest.
-When every body is linear the step is the MatMultAdd and the AXPY, nothing else. The velocity is kept as a state of its own
+path-dependent body by its quadrature force, a finite-strain body (Q1, F-bar) by its
+finite-strain force: the forces of :mod:`.internal_force`, each behind the protocol of
+:mod:`.internal_force.base`), the few loaded dofs get dt M^-1 f^n, then  u <- u + dt v
+(VecAXPY). Fixed dofs have zero rows in A (zero coefficients in the other forces) and
+stay at rest. When every body is linear the step is the MatMultAdd and the AXPY,
+nothing else. The velocity is kept as a state of its own
 (not recovered from differences of displacements), so a body that drifts far
 keeps its velocity to full precision.
 
@@ -31,13 +32,15 @@ from numba import njit
 from petsc4py import PETSc
 
 from .bodies import DeformableModel
-from .errors import InputError
+from .errors import InputError, require
 from .internal_force import LinearForce, QuadratureForce
+from .internal_force.finite import FiniteStrainForce
 from .jit_watch import direct
 from .loads import SurfaceLoad
 from .loop import HalfStep
+from .materials import is_finite
 from .operators import lumped_mass
-from .stepping import ConstantStep
+from .stepping import ConstantStep, FollowingStep
 
 
 @njit(cache=True)
@@ -51,20 +54,22 @@ def _add_load(v, dofs, coef, value) -> None:
 class Integrator:
     """State (u^n, v^n) of the deformable dofs and the step without contact.
 
-    Units: dt in s, displacements in m, velocities in m/s, masses in kg. ``dt`` is the
-    step the operators are built for (the first h_{n+1/2}); ``policy`` gives the steps
-    (``next(n, t)``, :mod:`.stepping`), by default the constant ``dt``.
+    Units: dt in s, displacements in m, velocities in m/s, masses in kg. ``policy`` gives
+    the steps (``next(n, t)``, :mod:`.stepping`), by default the constant ``dt``; ``dt``
+    is the first step h_{1/2}, the one the operators are built for. A following policy
+    (:class:`~.stepping.FollowingStep`) not yet bound is bound here to the finite-strain
+    forces' limit (min over their current cells), and its first step is ``dt`` (give
+    None, or the same value).
     """
 
-    def __init__(self, model: DeformableModel, dt: float, fixed_dofs: np.ndarray,
+    def __init__(self, model: DeformableModel, dt: float | None, fixed_dofs: np.ndarray,
                  loads: list[SurfaceLoad] | None = None, matrix_type: str = "aij",
                  f_int_path: str = "fast", policy=None):
-        if not dt > 0.0:
-            raise InputError(f"dt = {dt} s: the time step must be > 0")
         if policy is None:  # (the limit is the caller's to check; the count the run's)
+            if dt is None or not dt > 0.0:
+                raise InputError(f"dt = {dt} s: the time step must be > 0")
             policy = ConstantStep(dt, None, math.inf, n_steps=1)
         self.model = model
-        self.dt = float(dt)
         self.n = 0
         self.loads = loads or []
         self.fixed = np.unique(np.asarray(fixed_dofs, dtype=np.int32))
@@ -72,7 +77,39 @@ class Integrator:
         self._free = np.ones(model.n_owned, dtype=bool)
         self._free[self.fixed] = False
         # the internal forces (internal_force.base.Force): K over the linear bodies (K, A
-        # None without any), a quadrature force per path-dependent body
+        # None without any), a quadrature force per path-dependent body, a finite-strain
+        # force per finite-strain body; the finite ones first: their limit can give the
+        # first step
+        finite = [b.name for b in model.bodies.values() if is_finite(b.material)]
+        nonlinear = [b.name for b in model.bodies.values()
+                     if not b.material.linear and b.name not in finite]
+        self.finite: list[FiniteStrainForce] = []
+        self._u_fn = None
+        if nonlinear or finite:
+            # u with ghost entries (the cell kernels read them), the Function of the
+            # generic path its own
+            self._u, self._u_fn = model.dofs.function_vec()
+        else:
+            self._u = model.dofs.create_vec()
+        self._v = model.dofs.create_vec()
+        # a finite-strain force's increment is h_n coef f with coef = -1/m (its kernel's
+        # arithmetic)
+        inverse = np.where(self._free, -1.0 / self.mass, 0.0) if finite else None
+        for name in finite:
+            force = FiniteStrainForce(model.V, model.node_xy, model.owned_cells(name),
+                                      model.bodies[name].material, self._u_fn)
+            force.coef = inverse
+            self.finite.append(force)
+        if isinstance(policy, FollowingStep) and not policy.bound:
+            require(self.finite, "a following step needs a finite-strain body (its cells "
+                                 "give the limit)")
+            policy.bind(self.finite_limit)
+        first = policy.first()
+        if dt is not None and dt != first:
+            raise ValueError(f"dt = {dt} s is not the policy's first step {first} s")
+        if not first > 0.0:
+            raise InputError(f"dt = {first} s: the time step must be > 0")
+        self.dt = float(first)
         linear_parts = [p for p in model.parts if p[0].linear]
         self.linear = None
         self.K = None
@@ -80,25 +117,19 @@ class Integrator:
             self.linear = LinearForce(model, linear_parts, self.dt, self.mass, self.fixed,
                                       matrix_type)
             self.K = self.linear.K
-        nonlinear = [b.name for b in model.bodies.values() if not b.material.linear]
         self.nonlinear: list[QuadratureForce] = []
-        self._u_fn = None
         if nonlinear:
-            # u with ghost entries (the cell kernels read them), the Function of the
-            # generic path its own
-            self._u, self._u_fn = model.dofs.function_vec()
-            self._v = model.dofs.create_vec()
             coef = np.where(self._free, -self.dt / self.mass, 0.0)
             self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path,
                                               mass=self.mass) for name in nonlinear]
-        else:
-            self._u = model.dofs.create_vec()
-            self._v = model.dofs.create_vec()
+        for force in self.finite:  # its point updates take the step just taken: h at the first
+            force.set_step(self.dt, self.dt)
         self._u.set(0.0), self._v.set(0.0)
         if self.linear is not None:
             self.linear.bind(self._u, self._v)
-        # every force, in the order their increments go into v: linear, then the others
-        self.forces = ([self.linear] if self.linear is not None else []) + self.nonlinear
+        # every force, in the order their increments go into v: linear, small, finite
+        self.forces = (([self.linear] if self.linear is not None else []) + self.nonlinear
+                       + self.finite)
         # numpy views on the owned entries of u and v (m, m/s): contact sets read the
         # prediction from them and write their corrected dofs back into them
         self.u_owned = self._u.array if self._u_fn is None else self._u_fn.x.array[:model.n_owned]
@@ -116,6 +147,11 @@ class Integrator:
         self._scatter = (self._u_fn is not None and model.comm.size > 1)
         # the half steps: the forces and the loads rescaled when (h, h_n) changes
         self.step = HalfStep(policy, self.dt, self.forces + [_LoadSteps(self)])
+
+    def finite_limit(self) -> float:
+        """The finite-strain forces' stable step now (s): min over their current cells of
+        L / c (collective)."""
+        return min(force.stable_dt() for force in self.finite)
 
     # ------------------------------------------------------------ state
     @property
@@ -175,7 +211,8 @@ class Integrator:
         bound as locals of a closure (about 0.15 us a step less than the method's attribute
         look-ups and tests), under a constant step only; otherwise the method itself. Same
         operations, same results."""
-        if self.A is None or self.nonlinear or self.loads or not self.step.constant:
+        if (self.A is None or self.nonlinear or self.finite or self.loads
+                or not self.step.constant):
             return self.predict
         mult_add, axpy = self.A.multAdd, self._u.axpy
         u, v, dt = self._u, self._v, self.dt

@@ -31,6 +31,7 @@ from .integrator import Integrator
 from .jit_watch import contiguous_float64, direct, gained, load, signature_counts
 from .internal_force.cell_fields import PlasticCellFields
 from .loads import SurfaceLoad
+from .materials import is_finite
 from .operators import assemble_stiffness
 from .outputs import ENERGY_COLUMNS, momentum_columns, open_tables, record_pairs
 from .probes import Probes
@@ -99,6 +100,12 @@ class Simulation:
         self.setup_time: dict[str, float] = {}
         t0 = clock()
         require((settings.dt is None) != (settings.cfl is None), "give either dt or cfl")
+        for name, body in model.bodies.items():  # (its ledger and events: the next step)
+            if is_finite(body.material):
+                raise InputError(f"body '{name}': {type(body.material).__name__} is a "
+                                 "finite-strain material: it runs in the finite-strain driver "
+                                 "(finite_run.FiniteRun, strain = \"finite\" in a scene), and "
+                                 "this run holds small-strain bodies")
         for key in ("output_every", "energy_every", "history_every", "pairs_every"):
             every = getattr(settings, key)
             if key == "energy_every" and every is None:
@@ -123,7 +130,8 @@ class Simulation:
         t1 = clock()
         self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
-                                     settings.matrix_type, settings.f_int_path)
+                                     settings.matrix_type, settings.f_int_path,
+                                     policy=self.step_policy)
         t2 = clock()
         self.setup_time["operators"] = t2 - t1
         self.dt_converged = None

@@ -12,6 +12,9 @@ Every body shares the step (no subcycling). Two rules:
   3) once the current limit falls below it. t accumulates; the last step is clipped
   to t_end.
 
+A policy gives ``first()``, the first step h_{1/2} (s) (the one the operators are built
+for), and ``next(n, t)``, h_{n+1/2} (s), called once per step in order.
+
 With h_{n-1/2} the step before (h_{-1/2} := h_{1/2}), the velocity increment takes
 h_n = 1/2 (h_{n-1/2} + h_{n+1/2}): under a constant step h_n = h.
 """
@@ -54,6 +57,10 @@ class ConstantStep:
         self.h = float(dt)
         self.limit = limit
 
+    def first(self) -> float:
+        """h_{1/2} (s): the one step."""
+        return self.h
+
     def next(self, n: int, t: float) -> float:
         """h_{n+1/2} (s): the one step."""
         return self.h
@@ -63,21 +70,39 @@ class FollowingStep:
     """h follows the limit ``limit()`` (s, collective: the current cells' min L / c):
     re-estimated at every step n with n % ``interval`` == 0 (n = 0 at set-up), h =
     ``safety`` x the limit, or the fixed ``dt`` checked against it; the last step clipped
-    to ``t_end`` (s).
+    to ``t_end`` (s). ``limit`` may be given later by :meth:`bind` (the loop that holds
+    the forces binds it); ``others`` (s) is the fixed limit of the bodies whose cells do
+    not move (their element bound), so the limit is min(limit(), others).
 
     After :meth:`next`: ``limit`` the current estimate (s), ``smallest`` the smallest one
     so far, ``h_range`` [smallest, largest] h before clipping (the clipped last step left
     out), ``h_avg`` the increment's step h_n (s), ``renewed`` whether it re-estimated."""
 
-    def __init__(self, limit: Callable[[], float], t_end: float, dt: float | None = None,
-                 safety: float = 0.5, interval: int = 10):
-        self._estimate, self.t_end, self.dt = limit, t_end, dt
+    def __init__(self, limit: Callable[[], float] | None, t_end: float,
+                 dt: float | None = None, safety: float = 0.5, interval: int = 10,
+                 others: float = math.inf):
+        self.t_end, self.dt, self.others = t_end, dt, others
         self.safety, self.interval = safety, interval
-        self.limit = self.start = self.smallest = limit()
+        self._estimate: Callable[[], float] | None = None
+        if limit is not None:
+            self.bind(limit)
         self.h_range = [math.inf, 0.0]
         self.h_prev: float | None = None
         self.h_avg: float | None = None
         self.renewed = False  # whether the last next() re-estimated the limit
+
+    @property
+    def bound(self) -> bool:
+        """Whether the limit's estimate is given."""
+        return self._estimate is not None
+
+    def bind(self, limit: Callable[[], float]) -> None:
+        """Estimate the limit (s) with ``limit()`` (collective), now and every interval."""
+        self._estimate = limit
+        self.limit = self.start = self.smallest = self._limit()
+
+    def _limit(self) -> float:
+        return min(self._estimate(), self.others)
 
     def first(self) -> float:
         """The first step h_{1/2} (s) as :meth:`next` will take it (the set-up's checks)."""
@@ -88,7 +113,7 @@ class FollowingStep:
         is above the current limit. Call once per step, in order."""
         self.renewed = n % self.interval == 0 and n > 0
         if self.renewed:
-            self.limit = self._estimate()
+            self.limit = self._limit()
             if self.limit < self.smallest:
                 self.smallest = self.limit
         if self.dt is None:

@@ -38,6 +38,9 @@ class SameStep:
     def __init__(self, h: float):
         self.h = h
 
+    def first(self) -> float:
+        return self.h
+
     def next(self, n: int, t: float) -> float:
         return self.h
 
@@ -47,6 +50,9 @@ class Steps:
 
     def __init__(self, steps: list[float]):
         self.steps = steps
+
+    def first(self) -> float:
+        return self.steps[0]
 
     def next(self, n: int, t: float) -> float:
         return self.steps[n]

@@ -46,9 +46,14 @@ INTERFACE: dict[str, tuple[str, ...]] = {
 }
 
 
+def is_finite(material) -> bool:
+    """Whether ``material`` (an instance) is a finite-strain one (its ``strain``)."""
+    return getattr(material, "strain", "small") == "finite"
+
+
 def interface_of(material) -> str:
     """The key of :data:`INTERFACE` a material (an instance) must satisfy."""
-    if getattr(material, "strain", "small") == "finite":
+    if is_finite(material):
         return "finite"
     return "small linear" if getattr(material, "linear", False) else "small"
 
@@ -60,4 +65,4 @@ def missing_attributes(material) -> list[str]:
 
 __all__ = ["DruckerPrager", "FiniteJ2", "INTERFACE", "IsotropicConstants", "J2", "JohnsonCook",
            "KINEMATICS", "LinearElastic", "MODELS", "NeoHookean", "Parameter", "STEEL",
-           "interface_of", "missing_attributes"]
+           "interface_of", "is_finite", "missing_attributes"]

@@ -56,13 +56,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
-from petsc4py import PETSc
 
-from . import compat, console, interrupts, output, rundir
+from . import console, interrupts, output, rundir
+from .bodies import Body, DeformableModel
 from .contact.plane import FixedPlane
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
-from .internal_force.finite import FiniteStrainForce
+from .integrator import Integrator
 from .materials import is_finite
+from .quad_meshes import one_body
 from .stepping import FollowingStep
 from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
@@ -71,7 +72,7 @@ HISTORY_COLUMNS = ("step", "time", "dt", "dt_limit", "kinetic", "internal_work",
                    "stored", "plastic_work", "balance_error", "work_gap", "n_active", "j_min",
                    "eps_p_max", "length", "face_radius", "wall_force", "penalty_energy",
                    "velocity_z")
-PHASES = ("f_int", "update", "wall", "history", "output")
+PHASES = ("f_int", "wall", "history", "output")  # f_int: the integrator's step
 CELL_FIELDS = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "eps_p_eq")
 
 
@@ -164,47 +165,46 @@ class FiniteRun:
                 f"the mesh's cells are {mesh.topology.cell_type.name}s: "
                 f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
         require(is_finite(material), "the material must be a finite-strain one")
+        s = settings
+        require(s.t_end > 0, f"t_end = {s.t_end} s: must be > 0")
+        require(s.dt is None or s.dt > 0, f"dt = {s.dt} s: must be > 0")
+        require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
+        require(s.history_every >= 1 and s.output_every >= 1,
+                "history_every and output_every must be >= 1")
         self.mesh, self.material, self.settings = mesh, material, settings
         self.comm = mesh.comm
-        self.V = compat.vector_space(mesh, "Lagrange", 1)
-        imap = self.V.dofmap.index_map
-        self.n_owned_nodes = imap.size_local
-        self.n_owned = 2 * imap.size_local
-        self.node_xy = self.V.tabulate_dof_coordinates()[:, :2].copy()
-        n_local_nodes = self.node_xy.shape[0]
-        cells = np.arange(mesh.topology.index_map(2).size_local, dtype=np.int32)
-        self.u_fn = fem.Function(self.V, name="displacement")
+        # the body through the one integrator: its finite-strain force, lumped mass (the Q1
+        # rule), u_r = 0 on the axis (and u_z on ``fixed_z``), the step following its cells
+        self.model = model = DeformableModel(one_body(mesh, name), [Body(name, material)])
+        self.V = model.V
+        self.n_owned_nodes = self.V.dofmap.index_map.size_local
+        self.n_owned = model.n_owned
+        self.node_xy = model.node_xy
+        fixed = model.axis_dofs()
+        if fixed_z is not None:
+            fixed = np.concatenate([fixed, 2 * np.asarray(fixed_z, dtype=np.int32) + 1])
+        self.step_policy = FollowingStep(None, s.t_end, s.dt, s.safety, s.dt_interval)
+        self.integrator = integ = Integrator(model, None, fixed, policy=self.step_policy)
+        self.force = integ.finite[0]
+        self.u_fn = integ.u_function
         self.u = self.u_fn.x.array  # owned + ghost
-        self.u_owned = self.u[: self.n_owned]
-        self.force = FiniteStrainForce(self.V, self.node_xy, cells, material, self.u_fn)
-        # lumped mass (kg) per node, summed over ranks, on both components
-        m_fn = fem.Function(self.V)
-        m_nodes = self.force.geometry.lumped_mass(material.density, n_local_nodes)
-        m_fn.x.array[0::2] = m_nodes
-        m_fn.x.array[1::2] = m_nodes
-        compat.scatter_add(m_fn.x)
-        self.mass = m_fn.x.array[: self.n_owned].copy()
+        self.u_owned = integ.u_owned
+        self.mass = integ.mass
+        self.free = integ._free
+        self.coef = self.force.coef
+        v0 = np.zeros(self.n_owned)
+        v0[0::2], v0[1::2] = velocity
+        integ.set_initial(None, v0)
+        self.v = integ.v_owned
+        self.u_vec, self.v_vec = integ.u_vec, integ.v_vec
+        n_local_nodes = self.node_xy.shape[0]
         hi = self.node_xy.max(axis=0) if n_local_nodes else np.full(2, -np.inf)
         lo = self.node_xy.min(axis=0) if n_local_nodes else np.full(2, np.inf)
         self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
         self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
         length, r_max = float(hi[1] - lo[1]), float(hi[0])
         self.length0 = length
-        owned_xy = self.node_xy[: self.n_owned_nodes]
-        free = np.ones(self.n_owned, dtype=bool)
-        free[2 * np.flatnonzero(np.abs(owned_xy[:, 0]) <= 1e-12 * max(r_max, 1e-300))] = False
-        if fixed_z is not None:
-            free[2 * np.asarray(fixed_z) + 1] = False
-        self.free = free
-        self.coef = np.where(free, -1.0 / self.mass, 0.0)
-        self.force.coef = self.coef
-        self.v = np.zeros(self.n_owned)
-        self.v[0::2], self.v[1::2] = velocity
-        self.v[~free] = 0.0
-        # u and v as PETSc Vecs over the same memory, made once (u: the Function's ghosted
-        # Vec, v: a Vec on the owned array): the position pass is one VecAXPY, u += dt v
-        self.u_vec = compat.petsc_vec(self.u_fn)
-        self.v_vec = PETSc.Vec().createWithArray(self.v, comm=self.comm)
+        imap = self.V.dofmap.index_map
         # the wall: every owned boundary node is a candidate
         self.wall = None
         if wall is not None:
@@ -245,22 +245,26 @@ class FiniteRun:
         the force's own."""
         return self.force.stable_dt()
 
-    def tracked(self) -> tuple[float, float]:
+    def tracked(self, u: np.ndarray | None = None) -> tuple[float, float]:
         """(current length (m): the axis length, z of the node that started at (0, Z_max)
         minus z of the one that started at (0, Z_min), on the wall or off it after a
-        rebound; current r (m) of the node that started at (R, Z_min))."""
+        rebound; current r (m) of the node that started at (R, Z_min)), of the current u
+        or of ``u`` (m)."""
+        u = self.u if u is None else u
         vals = np.full(3, -np.inf)  # top z, -bottom z, corner r (one MAX reduction)
         if self._top >= 0:
-            vals[0] = self.node_xy[self._top, 1] + self.u[2 * self._top + 1]
+            vals[0] = self.node_xy[self._top, 1] + u[2 * self._top + 1]
         if self._bottom >= 0:
-            vals[1] = -(self.node_xy[self._bottom, 1] + self.u[2 * self._bottom + 1])
+            vals[1] = -(self.node_xy[self._bottom, 1] + u[2 * self._bottom + 1])
         if self._corner >= 0:
-            vals[2] = self.node_xy[self._corner, 0] + self.u[2 * self._corner]
+            vals[2] = self.node_xy[self._corner, 0] + u[2 * self._corner]
         self.comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.MAX)
         return float(vals[0] + vals[1]), float(vals[2])
 
-    def kinetic(self) -> float:
-        return self.comm.allreduce(0.5 * float(np.dot(self.mass, self.v * self.v)))
+    def kinetic(self, v: np.ndarray | None = None) -> float:
+        """1/2 v M v (J) of the current v (v^{n-1/2}) or of ``v`` (m/s, owned)."""
+        v = self.v if v is None else v
+        return self.comm.allreduce(0.5 * float(np.dot(self.mass, v * v)))
 
     def eps_p_max(self) -> float:
         local = float(self.force.state[..., 0].max()) if self.force.state.size else 0.0
@@ -288,10 +292,10 @@ class FiniteRun:
             raise UnstableRunError(f"run stopped at step {n} (t = {t:.6g} s): {what} at the "
                                    f"current dt = {dt:.4g} s")
 
-    def _cell_values(self) -> dict[str, np.ndarray]:
-        """The cell fields of the current state: Cauchy stress (Pa), von Mises (Pa), eps_p_eq
-        (-) and the temperature (K) of a material with one."""
-        sig, eps, temp = self.force.cell_values()  # stress columns rr, tt, zz, rz
+    def _cell_values(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        """The cell fields of the state at ``u`` (m, every local entry): Cauchy stress (Pa),
+        von Mises (Pa), eps_p_eq (-) and the temperature (K) of a material with one."""
+        sig, eps, temp = self.force.cell_values(u)  # stress columns rr, tt, zz, rz
         m = sig[:, :3].mean(axis=1)
         d = sig[:, :3] - m[:, None]
         vm = np.sqrt(1.5 * ((d * d).sum(axis=1) + 2.0 * sig[:, 3] ** 2))
@@ -316,13 +320,7 @@ class FiniteRun:
         from .xdmf import FieldWriter
 
         s, comm = self.settings, self.comm
-        require(s.t_end > 0, f"t_end = {s.t_end} s: must be > 0")
-        require(s.dt is None or s.dt > 0, f"dt = {s.dt} s: must be > 0")
-        require(0 < s.safety <= 1 and s.dt_interval >= 1, "safety in (0, 1], dt_interval >= 1")
-        require(s.history_every >= 1 and s.output_every >= 1,
-                "history_every and output_every must be >= 1")
-        policy = self.step_policy = FollowingStep(self.dt_limit, s.t_end, s.dt, s.safety,
-                                                  s.dt_interval)
+        policy = self.step_policy
         dt_lim = policy.limit
         dt0 = policy.first()
         self._check_penalty(dt0, dt0, 0, 0.0)
@@ -362,7 +360,7 @@ class FiniteRun:
         cap = 4096
         hist = np.zeros((cap, len(HISTORY_COLUMNS)))
         n_rows, stride = 0, s.history_every
-        K0 = self.kinetic()
+        K0 = self.kinetic(self.v)
         total_mass = comm.allreduce(float(self.mass[1::2].sum()))
         w_int = taken = 0.0
         t, dt_prev = 0.0, None
@@ -370,7 +368,11 @@ class FiniteRun:
         serial = comm.size == 1
         failure = None
         clock = time.perf_counter
-        advance_positions, v_vec = self.u_vec.axpy, self.v_vec  # u += dt v (VecAXPY)
+        integ, force, wall = self.integrator, self.force, self.wall
+        step, predict, advance = integ.step, integ.predict, integ.advance
+        # the state u^n (every local entry), v^{n-1/2} an output step keeps, written after
+        # the step's force evaluation (the points' stresses at u^n)
+        u_kept, v_kept = np.empty_like(self.u), np.empty_like(self.v)
         self.status = "running"
         jit_before = signature_counts()
         t_run = clock()
@@ -379,20 +381,30 @@ class FiniteRun:
                 t0 = clock()
                 if n >= s.max_steps:
                     raise UnstableRunError(f"more than {s.max_steps} steps before t_end = {s.t_end} s")
-                dt = policy.next(n, t)
-                dt_lim, dt_avg, new_limit = policy.limit, policy.h_avg, policy.renewed
-                if new_limit and n > 0 and self.wall is not None and self.wall.method == "penalty":
+                frame = writer is not None and n % s.output_every == 0
+                row_due = n % stride == 0 or (table is not None and n % s.history_every == 0)
+                if frame or row_due:
+                    self.u_fn.x.scatter_forward()  # (u's ghosts, as the step's own scatter)
+                    u_kept[:] = self.u
+                    v_kept[:] = self.v
+                    w_kept, taken_kept = w_int, taken
+                # h_{n+1/2} from the policy, f_int(u^n), v^{n+1/2} = v^{n-1/2} + h_n M^-1 f,
+                # u^{n+1} = u^n + h_{n+1/2} v^{n+1/2}: the one integrator's step
+                predict()
+                dt, dt_avg = step.h, step.h_avg
+                dt_lim, new_limit = policy.limit, policy.renewed
+                w_int += force.last_work
+                if new_limit and n > 0 and wall is not None and wall.method == "penalty":
                     self._check_penalty(dt, dt_avg, n, t)
-                self.force.set_step(dt, dt_avg)
-                self.u_fn.x.scatter_forward()
-                f = self.force.evaluate()  # f_int(u^n); v moves after the outputs of u^n
                 t1 = clock()
-                if writer is not None and n % s.output_every == 0:
-                    writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
+                if frame:
+                    writer.write(t, n, u_kept, writer.ghosted(v_kept, 1),
+                                 self._cell_values(u_kept))
                 t2 = clock()
-                if n % stride == 0 or (table is not None and n % s.history_every == 0):
+                if row_due:
                     led = 0.0 if dt_prev is None else dt_prev  # the step to this state
-                    row = self._history_row(n, t, led, dt_lim, K0, w_int, taken, total_mass)
+                    row = self._history_row(n, t, led, dt_lim, K0, w_kept, taken_kept,
+                                            total_mass, u_kept, v_kept)
                     if table is not None and n % s.history_every == 0:
                         table.row()[:] = row
                     if n % stride == 0:
@@ -403,12 +415,10 @@ class FiniteRun:
                             hist[n_rows] = row
                             n_rows += 1
                 t3 = clock()
-                w_int += self.force.add_increment(self.v, dt_avg)
-                advance_positions(dt, v_vec)
-                t4 = clock()
-                if self.wall is not None:
-                    w_int += self.wall.step(self.u_owned, self.v, dt, dt_avg, f)
-                    taken = self.wall.contact_loss_local
+                if wall is not None:
+                    w_int += wall.step(self.u_owned, self.v, dt, dt_avg, force.f_owned)
+                    taken = wall.contact_loss_local
+                advance()
                 t += dt
                 dt_prev = dt
                 n += 1
@@ -419,7 +429,7 @@ class FiniteRun:
                 t5 = clock()
                 if timers is not None:
                     now = timers.current
-                    now[:] = (t1 - t0, t4 - t3, t5 - t4, t3 - t2, t2 - t1)
+                    now[:] = (t1 - t0, t5 - t3, t3 - t2, t2 - t1)
                     timers.record()
                 progress.show(n, t, dt)
                 done = not t < s.t_end * (1.0 - 1e-12)
@@ -455,7 +465,8 @@ class FiniteRun:
                 self.force.set_step(dt_prev, dt_prev)  # its points' step: the last one taken
                 self.u_fn.x.scatter_forward()
                 self.force.evaluate()
-                row = self._history_row(n, t, dt_prev, dt_lim, K0, w_int, taken, total_mass)
+                row = self._history_row(n, t, dt_prev, dt_lim, K0, w_int, taken, total_mass,
+                                        self.u, self.v)
                 if table is not None:  # the last state, u^N, always
                     table.row()[:] = row
                 if n_rows == cap:
@@ -464,7 +475,8 @@ class FiniteRun:
                 hist[n_rows] = row
                 n_rows += 1
                 if writer is not None:
-                    writer.write(t, n, self.u, writer.ghosted(self.v, 1), self._cell_values())
+                    writer.write(t, n, self.u, writer.ghosted(self.v, 1),
+                                 self._cell_values(self.u))
             if table is not None:
                 table.close()
             if writer is not None:
@@ -505,20 +517,21 @@ class FiniteRun:
         """The body's smallest stable step of the run so far (s)."""
         return {self.name: self.step_policy.smallest}
 
-    def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, total_mass) -> list:
-        """One history row (every rank the same): see HISTORY_COLUMNS (SI units); ``dt`` the
+    def _history_row(self, n, t, dt, dt_lim, K0, w_int, taken, total_mass, u, v) -> list:
+        """One history row (every rank the same) of the state ``u`` = u^n (m, every local
+        entry), ``v`` = v^{n-1/2} (m/s, owned): see HISTORY_COLUMNS (SI units); ``dt`` the
         step that led to this state (0 at the start), ``dt_lim`` the current limit."""
         comm, wall = self.comm, self.wall
-        stored = comm.allreduce(self.force.stored_energy_local()) if self.settings.ledger else 0.0
+        stored = comm.allreduce(self.force.stored_energy_local(u)) if self.settings.ledger else 0.0
         wp = comm.allreduce(self.force.plastic_work_local)
-        kin = self.kinetic()  # v^{n-1/2}
+        kin = self.kinetic(v)
         wi = comm.allreduce(w_int)
         tk = comm.allreduce(taken)
         spring = comm.allreduce(wall.spring_energy_local) if wall is not None else 0.0
-        length, radius = self.tracked()
+        length, radius = self.tracked(u)
         n_act = comm.allreduce(wall.n_active_local) if wall is not None else 0
         force = comm.allreduce(wall.force_local) if wall is not None else 0.0
-        vz = comm.allreduce(float(np.dot(self.mass[1::2], self.v[1::2]))) / total_mass
+        vz = comm.allreduce(float(np.dot(self.mass[1::2], v[1::2]))) / total_mass
         return [n, t, dt, dt_lim, kin, wi, tk - spring, stored, wp, kin + wi + tk - K0,
                 comm.allreduce(self.force.trapezoid_local) - stored - wp, n_act, self.force.j_min,
                 self.eps_p_max(), length, radius, force, spring, vz]

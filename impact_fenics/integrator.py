@@ -183,6 +183,17 @@ class Integrator:
         return self.linear.A if self.linear is not None else None
 
     @property
+    def u_function(self):
+        """The ``fem.Function`` u lives in (its ghosts read by the cell kernels), None when
+        every body is linear."""
+        return self._u_fn
+
+    @property
+    def v_vec(self) -> PETSc.Vec:
+        """The velocity vector (read it, do not resize it)."""
+        return self._v
+
+    @property
     def u_vec(self) -> PETSc.Vec:
         """The displacement vector u^n (read it, do not resize it)."""
         return self._u
@@ -191,9 +202,10 @@ class Integrator:
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
         u, v = self.u_owned, self.v_owned
-        h, h_avg = self.step.begin(self.n)
-        if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none)
+        if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none) and
+            # for a following policy's limit, which reads the current cells
             self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        h, h_avg = self.step.begin(self.n)
         for force in self.forces:
             force.velocity_increment(u, v, h_avg)
         if self.loads:

@@ -18,6 +18,17 @@ from .meshing import TaggedMesh
 SIDES = ("inner", "outer", "bottom", "top")
 
 
+def one_body(mesh: dmesh.Mesh, body: str = "body") -> TaggedMesh:
+    """``mesh`` with every cell (ghosts included) in the group ``body`` and no facet
+    group: a mesh that is one body."""
+    cmap = mesh.topology.index_map(mesh.topology.dim)
+    cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
+    cell_tags = dmesh.meshtags(mesh, mesh.topology.dim, cells, np.ones(cells.size, dtype=np.int32))
+    no_facets = np.zeros(0, dtype=np.int32)
+    facet_tags = dmesh.meshtags(mesh, mesh.topology.dim - 1, no_facets, no_facets)
+    return TaggedMesh(mesh, cell_tags, facet_tags, {body: 1}, {})
+
+
 def tag_rectangle(mesh: dmesh.Mesh, body: str = "body") -> TaggedMesh:
     """``mesh`` (quadrilaterals filling a rectangle) with every cell in the group ``body``
     and the facets of its sides in the groups ``axis`` (r = 0) or ``inner``, ``outer``,

@@ -249,6 +249,7 @@ class FiniteStrainForce:
         self.coef: np.ndarray | None = None
         self.h = self.h_avg = self.h_taken = None
         self.work_local = 0.0       # sum h_n 1/2 (v^- + v~) . f^n (J): the kinetic identity's
+        self.last_work = 0.0        # its term of the last step (J)
         self.trapezoid_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.node_xy = np.ascontiguousarray(node_xy)
         self.geometry = QuadGeometry(compat.cell_dofs(V), node_xy, cells)
@@ -334,6 +335,7 @@ class FiniteStrainForce:
         h_avg 1/2 (v^- + v~) . f^n (J), also booked in :attr:`work_local`."""
         work = velocity_update(self.coef, self.f_owned, v, h_avg)
         self.work_local += work
+        self.last_work = work
         return work
 
     def velocity_increment(self, u: np.ndarray, v: np.ndarray, h_avg: float) -> None:
@@ -354,25 +356,28 @@ class FiniteStrainForce:
         return Booking(work=self.trapezoid_local, stored=self.stored_energy_local(),
                        dissipated=self.plastic_work_local)
 
-    def stored_energy_local(self) -> float:
-        """sum_q w_q psi(F_bar_q) (J) on this rank's cells at the current u and state."""
+    def stored_energy_local(self, u: np.ndarray | None = None) -> float:
+        """sum_q w_q psi(F_bar_q) (J) on this rank's cells at the current state and the
+        current u, or ``u`` (m, every local entry: the state u^n a step kept)."""
         g = self.geometry
+        u = self.u.x.array if u is None else u
         return self._stored(self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume,
-                            self.u.x.array, self.state, self._Fq, self._Jq, self._fbar, self._work)
+                            u, self.state, self._Fq, self._Jq, self._fbar, self._work)
 
     def length_min_local(self) -> float:
         """Smallest current characteristic cell length on this rank (m)."""
         return cell_length_min(self.geometry.dofs, self.node_xy, self.u.x.array)
 
-    def cell_values(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def cell_values(self, u: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per owned cell: Cauchy stress (n, 4) (Pa), mean eps_bar_p (n,), mean temperature (K,
-        0 without one)."""
+        0 without one), at the current u or ``u`` (as :meth:`stored_energy_local`)."""
         g = self.geometry
         n = g.dofs.shape[0]
         sig, eps, temp = np.zeros((n, 4)), np.zeros(n), np.zeros(n)
         i_temp = getattr(self.material, "temperature_index", -1)
         cell_means(self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
-                   self.u.x.array, self._Fq, self._Jq, sig, eps, temp, i_temp)
+                   self.u.x.array if u is None else u, self._Fq, self._Jq, sig, eps, temp, i_temp)
         return sig, eps, temp
 
 

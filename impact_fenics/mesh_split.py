@@ -62,13 +62,13 @@ def to_dolfinx_meshes(comm: MPI.Comm, build, info: dict,
             error = str(exc)
         except Exception as exc:  # gmsh raises plain Exceptions for unreadable files
             error = f"mesh could not be built or read: {exc}"
-    plan, error = comm.bcast((plan, error), root=0)
-    if error is not None:
-        if comm.rank == 0:
-            meshing._restart_gmsh()  # a failed read can leave gmsh's model list broken
-        raise InputError(error)
     meshes = []
     try:
+        plan, error = comm.bcast((plan, error), root=0)
+        if error is not None:
+            if comm.rank == 0:
+                meshing._restart_gmsh()  # a failed read can leave gmsh's model list broken
+            raise InputError(error)
         for kind in plan:
             meshes.append(_read(comm, gmsh, kind, folder, info, where))
     finally:

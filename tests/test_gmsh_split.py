@@ -279,7 +279,7 @@ def _same(a, b) -> None:
     and in serial array for array."""
     assert (a.cell_names, a.facet_names, a.info) == (b.cell_names, b.facet_names, b.info)
     assert np.array_equal(_cells(a), _cells(b))
-    for name, tag in a.facet_names.items():
+    for name in a.facet_names:
         assert np.array_equal(_facet_ends(a, a.facets(name)), _facet_ends(b, b.facets(name)))
     if COMM.size == 1:
         assert np.array_equal(a.mesh.geometry.x, b.mesh.geometry.x)

@@ -115,16 +115,22 @@ _SHAPING = ("Mesh.MeshSizeMax", "Mesh.MeshSizeMin", "Mesh.MeshSizeFactor",
 _INITIAL: dict[str, float] = {}
 
 
+def _fresh_model(gmsh) -> None:
+    """An empty model with the options reset: no model, field or option left over from an
+    earlier mesh (rank 0)."""
+    gmsh.clear()
+    for option, value in (_INITIAL | _DEFAULTS).items():
+        gmsh.option.setNumber(option, value)
+    gmsh.model.add("impact_fenics")
+
+
 def _to_dolfinx(comm: MPI.Comm, build, info: dict) -> TaggedMesh:
     """Run ``build(gmsh)`` on rank 0 (it must leave a meshed model), read on all ranks."""
     gmsh = _gmsh()
     names = None
     error = None
     if comm.rank == 0:
-        gmsh.clear()  # no model, field or option left over from an earlier mesh
-        for option, value in (_INITIAL | _DEFAULTS).items():
-            gmsh.option.setNumber(option, value)
-        gmsh.model.add("impact_fenics")
+        _fresh_model(gmsh)
         try:
             build(gmsh)
             names = _physical_names(gmsh)
@@ -157,7 +163,7 @@ def load_msh(path: str, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     return _to_dolfinx(comm, build, {"source": os.path.abspath(path)})
 
 
-def _open_msh(gmsh, path: str) -> None:
+def _open_msh(gmsh, path: str, mixed: bool = False) -> None:
     """Open a .msh file in gmsh and refuse, in one line, what the reader cannot take.
 
     dolfinx's gmsh reader (0.5) ends the process (a segmentation fault, an abort or a
@@ -166,8 +172,9 @@ def _open_msh(gmsh, path: str) -> None:
     on a cell in two groups, on a line that is no cell's side and on a point group
     whose point is no cell's node, and keeps a side that is in two groups in one of
     them only; on 0.11 it builds a mesh the solver cannot use (several cell types,
-    second-order cells) or stops MPI. A mesh holds one cell type until a scene can hold
-    several meshes."""
+    second-order cells) or stops MPI. A mesh holds one cell type: ``mixed`` lets
+    triangles and quadrilaterals through for a reader that splits the model by cell
+    type (:mod:`impact_fenics.mesh_split`)."""
     gmsh.open(path)
     where = f"mesh file '{path}'"
     if gmsh.model.getDimension() != 2:
@@ -189,7 +196,7 @@ def _open_msh(gmsh, path: str) -> None:
     gmsh.model.mesh.renumberNodes()
     _refuse_unmeshed_entities(gmsh, where)
     _refuse_entities_in_two_groups(gmsh, where)
-    _refuse_cell_types(gmsh, where)
+    _refuse_cell_types(gmsh, where, mixed)
     _refuse_lines_off_the_cells(gmsh, where)
     _refuse_points_off_the_cells(gmsh, where)
 
@@ -247,15 +254,22 @@ def _cell_kind(gmsh, kind: int) -> str:
     return f"{nodes}-node {shape}"
 
 
-def _refuse_cell_types(gmsh, where: str) -> None:
-    """Second-order cells, and cells of more than one type (one cell type per mesh)."""
-    kinds: dict[int, list[str]] = {}  # gmsh element type -> the groups that hold it
+def _cell_kinds(gmsh) -> dict[int, list[str]]:
+    """gmsh element type -> the names of the cell groups that hold cells of it."""
+    kinds: dict[int, list[str]] = {}
     for dim, tag in gmsh.model.getPhysicalGroups(2):
         for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
             for kind in gmsh.model.mesh.getElementTypes(2, entity):
                 names = kinds.setdefault(int(kind), [])
                 if _group_name(gmsh, dim, tag) not in names:
                     names.append(_group_name(gmsh, dim, tag))
+    return kinds
+
+
+def _refuse_cell_types(gmsh, where: str, mixed: bool = False) -> None:
+    """Second-order cells, and (unless ``mixed``) cells of more than one type (one cell
+    type per mesh)."""
+    kinds = _cell_kinds(gmsh)
     said = [f"{_cell_kind(gmsh, k)} in {', '.join(repr(n) for n in names)}"
             for k, names in sorted(kinds.items())]
     higher = [s for k, s in zip(sorted(kinds), said)
@@ -264,7 +278,7 @@ def _refuse_cell_types(gmsh, where: str) -> None:
         raise InputError(f"{where} has second-order cells ({'; '.join(higher)}); the solver's "
                          "cells are first order: mesh with element order 1 (gmsh -order 1, "
                          "Mesh.ElementOrder = 1)")
-    if len(kinds) > 1:
+    if len(kinds) > 1 and not mixed:
         raise InputError(f"{where} mixes cell types ({'; '.join(said)}); a mesh holds one cell "
                          "type for now (several meshes in one scene are to come): mesh every "
                          "body with one cell type (all triangles, or every surface recombined "

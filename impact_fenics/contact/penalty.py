@@ -59,7 +59,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .banded import apply_multipliers, gershgorin_beta
+from .banded import apply_multipliers, gershgorin_beta, gershgorin_of
 from .state import apply_forces, is_banded
 
 STABILITY_BOUND = 4.0 / 3.0
@@ -135,9 +135,18 @@ class Penalty:
                      "beta_max": beta_max, "beta_bound": STABILITY_BOUND}
 
     def _setup_banded(self, c) -> None:
-        """p on a banded S (node to segment): beta_max by Gershgorin's row sums."""
+        """p on a banded S (node to segment): beta_max by Gershgorin's row sums. A set that
+        re-pairs (``repair_every`` > 0) scales p by the largest diagonal a row of its
+        slave can have, S_ii <= h^2 (1/m_s + 1/m_min) with m_min the lightest free master
+        node (N_a^2 + N_b^2 <= 1), instead of the set-up row's."""
         d = c.band[:, 0]
-        if self.choice == "scaled":
+        if self.choice == "scaled" and getattr(c, "repair_every", 0):
+            n_slave = c.constraints.slave_xy.shape[0]
+            worst = float(c.minv[2 * n_slave:].max(initial=0.0))
+            slave_minv = np.maximum(c.minv[0:2 * n_slave:2], c.minv[1:2 * n_slave:2])
+            self.p = 1.0 / (c.dt * c.dt * (slave_minv + worst))
+            self.p *= self.beta_target / gershgorin_beta(c.band, c.bw, self.p)
+        elif self.choice == "scaled":
             self.p = 1.0 / d
             self.p *= self.beta_target / gershgorin_beta(c.band, c.bw, self.p)
         elif self.choice == "auto":
@@ -155,12 +164,23 @@ class Penalty:
                      "p_max": float(self.p.max()), "beta_max": beta,
                      "beta_bound": STABILITY_BOUND}
 
+    def rebanded(self, c) -> None:
+        """S was rebuilt (a re-pairing): ``beta_max`` keeps the largest Gershgorin bound of
+        the rows the run has used (p is the set-up's)."""
+        beta = gershgorin_of(c.band, c.bw, self.p)
+        if beta > self.info["beta_max"]:
+            self.info["beta_max"] = beta
+
     def kernel_calls(self, c) -> list:
         """(kernel, arguments) of every compiled call of :meth:`correct` on a banded S (the
         node-pair and rigid sets load theirs by one call)."""
         if not is_banded(c):
             return []
-        return [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
+        if getattr(c, "repair_every", 0):
+            load = [(gershgorin_of, (c.band, c.bw, self.p))]
+        else:
+            load = []
+        return load + [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
                                    c.dt, c.u, c.v))]
 
     def correct(self, c) -> None:

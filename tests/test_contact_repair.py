@@ -131,10 +131,11 @@ class _Watch:
         self.rows.append(rows.copy())
 
 
-@pytest.fixture(scope="module", params=["film", "dme"])
+@pytest.fixture(scope="module", params=["film", "dme", "penalty"])
 def sliding(request):
     """A run whose faces slide, re-paired every step, every re-pairing checked."""
-    method = FILM() if request.param == "film" else DME(restitution=0.0)
+    method = {"film": FILM, "dme": lambda: DME(restitution=0.0),
+              "penalty": lambda: Penalty("scaled")}[request.param]()
     sim = _bars(method)
     sim.contacts[0].set_repairing(1)
     watch = _Watch(sim)
@@ -156,6 +157,18 @@ def test_pairs_are_the_brute_force_at_every_repairing(sliding):
     assert watch.changed > 0  # the faces slid: slaves changed segments
 
 
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
+def test_repairing_compiles_nothing_in_the_loop(method):
+    """Every kernel of a re-pairing is loaded at set-up (set_repairing)."""
+    make = {"film": FILM, "dme": lambda: DME(restitution=0.0),
+            "penalty": lambda: Penalty("scaled")}[method]
+    sim = _bars(make())
+    sim.contacts[0].set_repairing(3)
+    sim.run()
+    assert sim.compiled_in_loop == []
+    assert sim.contacts[0].repairs == -(-sim.n_steps // 3)  # steps 0, 3, 6, ...
+
+
 def test_momentum_and_ledger_with_repairing(sliding):
     sim, _, _, summary = sliding
     energy = sim.energy.data()
@@ -163,6 +176,9 @@ def test_momentum_and_ledger_with_repairing(sliding):
     bound = ledger(summary["n_steps"], summary["n_dofs"])
     assert np.abs(p - p[0]).max() <= bound * abs(p[0])
     assert summary["energy_balance_error_rel"] <= bound
+    method = sim.contacts[0].method
+    if method.name == "penalty":  # p bounded over every row: the rows used stay stable
+        assert method.info["beta_max"] < method.info["beta_bound"]
 
 
 def test_a_slave_past_the_end_is_released_and_paired_again(sliding):

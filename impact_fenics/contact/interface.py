@@ -5,7 +5,9 @@ to segment (constraints from :mod:`.segments`, S banded); the methods (penalty, 
 DME) have a kernel for each structure of S. What follows is written for node pairs and
 rigid faces; the segment kind (:meth:`ContactSet._init_segments`) gathers both
 components of its slave and master nodes the same way, forms g~ = g0 + G u~ and books
-the same ledger, with its method's kernels called between.
+the same ledger, with its method's kernels called between. Told to
+(:meth:`ContactSet.set_repairing`), it re-pairs its slaves every few steps at the
+start of the step, in X + u^n, and rebuilds G, g0 and S from the new pairs.
 
 Each step the explicit loop predicts without contact; :meth:`ContactSet.step`
 then
@@ -382,6 +384,7 @@ class ContactSet:
         self.repair_every = every
         if not every:
             return
+        self.has_row = np.ones(self.n, dtype=np.bool_)  # which slaves have a row (_repair)
         c = self.constraints
         n_slave = c.slave_xy.shape[0]
         self._repairing = Repairing(c, repair_reach(c) if reach is None else reach)

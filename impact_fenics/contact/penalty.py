@@ -51,7 +51,13 @@ Node to segment, S is banded (contact.banded) and symmetric positive definite bu
 positive off-diagonal entries where slaves share a master node, not an M-matrix:
 ``scaled`` puts every constraint at p_i = c / S_ii with c from Gershgorin's bound, so
 that beta_max <= beta_target; a given p whose Gershgorin bound exceeds 4/3 is refused
-at set-up unless forced. The forces move each row's six dofs by G' force.
+at set-up unless forced. The forces move each row's six dofs by G' force. A set that
+re-pairs in the time loop changes S at each re-pairing but keeps p: ``scaled`` then
+takes each slave's p from the largest diagonal any of its rows can have,
+S_ii <= dt^2 (1/m_s + 1/m_min) (m_min the lightest free master node, since
+N_a^2 + N_b^2 <= 1), scaled by Gershgorin's bound at set-up; ``beta_max`` is the
+largest Gershgorin bound of the rows the run used (their off-diagonal entries change
+with the pairing).
 """
 from __future__ import annotations
 

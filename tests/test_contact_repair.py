@@ -32,7 +32,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from mpi4py import MPI
 
 from impact_fenics import meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel

@@ -182,12 +182,11 @@ class Penalty:
         node-pair and rigid sets load theirs by one call)."""
         if not is_banded(c):
             return []
-        if getattr(c, "repair_every", 0):
-            load = [(gershgorin_of, (c.band, c.bw, self.p))]
-        else:
-            load = []
-        return load + [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
-                                   c.dt, c.u, c.v))]
+        calls = [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
+                                    c.dt, c.u, c.v))]
+        if getattr(c, "repair_every", 0):  # a re-pairing's bound (rebanded)
+            calls.append((gershgorin_of, (c.band, c.bw, self.p)))
+        return calls
 
     def correct(self, c) -> None:
         if is_banded(c):

@@ -89,6 +89,42 @@ def bandwidth(cs: np.ndarray, cc: np.ndarray, minv: np.ndarray) -> int:
 
 
 @njit(cache=True)
+def bandwidth_of(cs, cc, minv, first):
+    """:func:`bandwidth` compiled, with ``first`` (one int64 a slot) as its scratch: the
+    first row that moves each slot (-1: none yet)."""
+    for s in range(first.size):
+        first[s] = -1
+    bw = 0
+    for i in range(cs.shape[0]):
+        for p in range(cs.shape[1]):
+            s = cs[i, p]
+            if cc[i, p] == 0.0 or minv[s] == 0.0:
+                continue
+            if first[s] >= 0:
+                bw = max(bw, i - first[s])
+            else:
+                first[s] = i
+    return bw
+
+
+@njit(cache=True)
+def gershgorin_of(band, bw, p):
+    """:func:`gershgorin_beta` compiled, without temporaries: the largest row sum of
+    |P^1/2 S P^1/2| (-)."""
+    n = band.shape[0]
+    top = 0.0
+    for i in range(n):
+        row = band[i, 0] * p[i]
+        for k in range(1, bw + 1):
+            if i - k >= 0:
+                row += abs(band[i, k]) * np.sqrt(p[i]) * np.sqrt(p[i - k])
+            if i + k < n:
+                row += abs(band[i + k, k]) * np.sqrt(p[i + k]) * np.sqrt(p[i])
+        top = max(top, row)
+    return top
+
+
+@njit(cache=True)
 def band_factor(band, bw, idx, m, L):
     """Cholesky S_AA = L L' of the principal submatrix on idx[:m] (sorted), in band
     form L[p, k] = L_(p, p-k). Returns False if S_AA is not positive definite."""
@@ -306,6 +342,19 @@ class Pivoting:
         self.S = dense_s(band, bw) if solver == "dense" else None
         self.iterations = 0
         info.update({"bandwidth": int(bw), "iterations_max": 0, "iterations_total": 0})
+
+    def rebanded(self, band: np.ndarray, bw: int, rows: np.ndarray) -> None:
+        """S was rebuilt (a re-pairing): its band is ``band`` (at least bw + 1 columns, the
+        ones past bw unread) of bandwidth ``bw``, ``rows`` (bool) the constraints that have
+        a row (a released one has none: a zero row of S, out of the warm start's loaded
+        set). The kept factor no longer holds; the factor's rows grow only when the band
+        does."""
+        self.band, self.bw = band, bw
+        np.logical_and(self.free, rows, out=self.free)
+        self.factored[-1] = False
+        if self.L.shape[1] < band.shape[1]:
+            self.L = np.zeros(band.shape)
+        self.info["bandwidth"] = max(int(self.info["bandwidth"]), int(bw))
 
     def kernel_calls(self, gap: np.ndarray) -> list:
         """(kernel, arguments) of :meth:`solve`, for loading at set-up."""

@@ -83,6 +83,10 @@ class DME:
         self.vfree = np.zeros(c.n, dtype=np.bool_)
         self.vw = np.zeros(c.n)
 
+    def rebanded(self, c) -> None:
+        """S was rebuilt (a re-pairing): the pivoting works on its new band."""
+        self.pivoting.rebanded(c.band, c.bw, c.has_row)
+
     def kernel_calls(self, c) -> list:
         """(kernel, arguments) of every compiled call of :meth:`correct` on a banded S (the
         node-pair and rigid sets load theirs by one call)."""

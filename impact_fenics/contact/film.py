@@ -160,6 +160,10 @@ class FILM:
             self.info = {"solver": solver}
             self.pivoting = Pivoting(c.band, c.bw, solver, self.name, self.info)
 
+    def rebanded(self, c) -> None:
+        """S was rebuilt (a re-pairing): the pivoting works on its new band."""
+        self.pivoting.rebanded(c.band, c.bw, c.has_row)
+
     @property
     def iterations(self) -> int:
         """Iterations of the last step's pivoting (node to segment)."""

@@ -5,7 +5,9 @@ to segment (constraints from :mod:`.segments`, S banded); the methods (penalty, 
 DME) have a kernel for each structure of S. What follows is written for node pairs and
 rigid faces; the segment kind (:meth:`ContactSet._init_segments`) gathers both
 components of its slave and master nodes the same way, forms g~ = g0 + G u~ and books
-the same ledger, with its method's kernels called between.
+the same ledger, with its method's kernels called between. Told to
+(:meth:`ContactSet.set_repairing`), it re-pairs its slaves every few steps at the
+start of the step, in X + u^n, and rebuilds G, g0 and S from the new pairs.
 
 Each step the explicit loop predicts without contact; :meth:`ContactSet.step`
 then
@@ -51,12 +53,13 @@ from mpi4py import MPI
 
 from ..errors import InputError
 from . import fused
-from .banded import apply_multipliers, band_of_s, bandwidth, gap_of
+from .banded import apply_multipliers, band_of_s, bandwidth, bandwidth_of, gap_of
 from .dme import DME
 from .film import FILM
 from .pairing import Constraints
 from .penalty import Penalty, lambda_max_diag_plus_rank_one
-from .segments import SegmentConstraints
+from .segments import (Repairing, SegmentConstraints, current_positions, repair_reach,
+                       rows_of_pairs)
 from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER,
                     LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
                     RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_FACE, RIGID_MASS, RIGID_WORK,
@@ -354,7 +357,84 @@ class ContactSet:
         self.stats[:] = 0.0, 0.0, np.inf
         self.jumps = bool(getattr(self.method, "jumps", False))
         self._ledger = _ContactWork(self)
+        self.repair_every = 0  # re-pairing off (set_repairing): the set-up's pairs
         self.method.setup(self)
+
+    def set_repairing(self, every: int, reach: float | None = None) -> None:
+        """Re-pair the slaves with the segments they face every ``every`` steps (0: never,
+        the set-up's pairs for the whole run), in the configuration X + u^n at the start
+        of the step, within ``reach`` (m; :func:`.segments.repair_reach` unless given).
+        Call before the run. The segment kind only.
+
+        Each re-pairing (:meth:`_repair`) rewrites the rows of G, their gaps' constants
+        and the band of S in place; a slave beyond an end of the master face (or out of
+        reach) has no row until it comes back (:func:`.segments.rows_of_pairs`). The
+        band's storage grows only when a re-pairing widens it past every earlier one.
+        A penalty keeps the p chosen at set-up, there bounded over every row a
+        re-pairing can make (:meth:`.penalty.Penalty.setup`); its ``beta_max`` is the
+        largest Gershgorin bound of the rows the run used."""
+        if self.kind != SEGMENTS:
+            raise InputError("re-pairing is for node-to-segment contact")
+        every = int(every)
+        if every < 0:
+            raise InputError(f"contact: repair_every = {every} must be >= 0 (0: never)")
+        if every and getattr(getattr(self.method, "pivoting", None), "solver", "") == "dense":
+            raise InputError("contact: re-pairing needs the band solver (film solver = "
+                             "'fast'): the dense one keeps S as it was at set-up")
+        self.repair_every = every
+        if not every:
+            return
+        self.has_row = np.ones(self.n, dtype=np.bool_)  # which slaves have a row (_repair)
+        c = self.constraints
+        n_slave = c.slave_xy.shape[0]
+        self._repairing = Repairing(c, repair_reach(c) if reach is None else reach)
+        self._slave_x = np.empty((n_slave, 2))
+        self._master_x = np.empty((c.master_xy.shape[0], 2))
+        self._first_row = np.empty(self.n_slots, np.int64)  # bandwidth_of's scratch
+        self.repairs = 0  # re-pairings made
+        self.method.setup(self)  # a penalty's p, bounded over every row (the flag is set)
+        self._load_repair_kernels()
+
+    def _repair(self) -> None:
+        """Re-pair at X + u^n and rebuild G, g0 and S's band (see :meth:`set_repairing`).
+
+        u^n is the set's committed state ``u_now``: every rank's commit writes the owners'
+        copies of the contact dofs from the same gathered data, so ``u_now`` equals the
+        owners' u^n bit for bit on every rank; X is the set-up's, each node from its
+        owner's copy (:func:`.segments.owned_coordinates`). No message and no allocation
+        but a wider band's."""
+        c, n_slave = self.constraints, self.constraints.slave_xy.shape[0]
+        current_positions(c.slave_xy, self.u_now, 0, self._slave_x)
+        current_positions(c.master_xy, self.u_now, n_slave, self._master_x)
+        p = self._repairing(self._slave_x, self._master_x)
+        rows_of_pairs(p.active, p.a, p.b, p.xi, p.normal, p.gap, p.dist, self._repairing.reach,
+                      n_slave, self.u_now, self.cs, self.cc, self.g0)
+        self.has_row = p.active
+        bw = bandwidth_of(self.cs, self.cc, self.minv, self._first_row)
+        if bw + 1 > self.band.shape[1]:
+            self.band = np.empty((self.n, bw + 1))
+        self.bw = bw
+        band_of_s(self.cs, self.cc, self.minv, self.dt, bw, self.band)
+        rebanded = getattr(self.method, "rebanded", None)  # a user's method: none
+        if rebanded is not None:
+            rebanded(self)
+        self.repairs += 1
+
+    def _load_repair_kernels(self) -> None:
+        """Load the re-pairing's compiled calls by their argument types (none runs)."""
+        from ..jit_watch import load
+
+        c, n_slave = self.constraints, self.constraints.slave_xy.shape[0]
+        p, r = self._repairing.pairs, self._repairing
+        r(c.slave_xy, c.master_xy)  # the search's kernels, by one call (its pairs are scratch)
+        load(current_positions, c.slave_xy, self.u_now, 0, self._slave_x)
+        load(rows_of_pairs, p.active, p.a, p.b, p.xi, p.normal, p.gap, p.dist, r.reach, n_slave,
+             self.u_now, self.cs, self.cc, self.g0)
+        load(bandwidth_of, self.cs, self.cc, self.minv, self._first_row)
+        load(band_of_s, self.cs, self.cc, self.minv, self.dt, self.bw, self.band)
+        method_calls = getattr(self.method, "kernel_calls", None)  # its own, re-pairing's too
+        for fn, args in (method_calls(self) if method_calls else []):
+            load(fn, *args)
 
     # ------------------------------------------------------------ the step's constants
     def _step_constants(self) -> None:
@@ -609,6 +689,8 @@ class ContactSet:
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
+        if self.repair_every and integ.n % self.repair_every == 0:
+            self._repair()
         self._gather(integ.u_owned, integ.v_owned, self.u_pred, self.v_pred)
         _detect_segments(self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs, self.cc,
                          self.gap, self.active, self.was_active)

@@ -51,7 +51,13 @@ Node to segment, S is banded (contact.banded) and symmetric positive definite bu
 positive off-diagonal entries where slaves share a master node, not an M-matrix:
 ``scaled`` puts every constraint at p_i = c / S_ii with c from Gershgorin's bound, so
 that beta_max <= beta_target; a given p whose Gershgorin bound exceeds 4/3 is refused
-at set-up unless forced. The forces move each row's six dofs by G' force.
+at set-up unless forced. The forces move each row's six dofs by G' force. A set that
+re-pairs in the time loop changes S at each re-pairing but keeps p: ``scaled`` then
+takes each slave's p from the largest diagonal any of its rows can have,
+S_ii <= dt^2 (1/m_s + 1/m_min) (m_min the lightest free master node, since
+N_a^2 + N_b^2 <= 1), scaled by Gershgorin's bound at set-up; ``beta_max`` is the
+largest Gershgorin bound of the rows the run used (their off-diagonal entries change
+with the pairing).
 """
 from __future__ import annotations
 
@@ -59,7 +65,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .banded import apply_multipliers, gershgorin_beta
+from .banded import apply_multipliers, gershgorin_beta, gershgorin_of
 from .state import apply_forces, is_banded
 
 STABILITY_BOUND = 4.0 / 3.0
@@ -135,9 +141,18 @@ class Penalty:
                      "beta_max": beta_max, "beta_bound": STABILITY_BOUND}
 
     def _setup_banded(self, c) -> None:
-        """p on a banded S (node to segment): beta_max by Gershgorin's row sums."""
+        """p on a banded S (node to segment): beta_max by Gershgorin's row sums. A set that
+        re-pairs (``repair_every`` > 0) scales p by the largest diagonal a row of its
+        slave can have, S_ii <= h^2 (1/m_s + 1/m_min) with m_min the lightest free master
+        node (N_a^2 + N_b^2 <= 1), instead of the set-up row's."""
         d = c.band[:, 0]
-        if self.choice == "scaled":
+        if self.choice == "scaled" and getattr(c, "repair_every", 0):
+            n_slave = c.constraints.slave_xy.shape[0]
+            worst = float(c.minv[2 * n_slave:].max(initial=0.0))
+            slave_minv = np.maximum(c.minv[0:2 * n_slave:2], c.minv[1:2 * n_slave:2])
+            self.p = 1.0 / (c.dt * c.dt * (slave_minv + worst))
+            self.p *= self.beta_target / gershgorin_beta(c.band, c.bw, self.p)
+        elif self.choice == "scaled":
             self.p = 1.0 / d
             self.p *= self.beta_target / gershgorin_beta(c.band, c.bw, self.p)
         elif self.choice == "auto":
@@ -155,13 +170,23 @@ class Penalty:
                      "p_max": float(self.p.max()), "beta_max": beta,
                      "beta_bound": STABILITY_BOUND}
 
+    def rebanded(self, c) -> None:
+        """S was rebuilt (a re-pairing): ``beta_max`` keeps the largest Gershgorin bound of
+        the rows the run has used (p is the set-up's)."""
+        beta = gershgorin_of(c.band, c.bw, self.p)
+        if beta > self.info["beta_max"]:
+            self.info["beta_max"] = beta
+
     def kernel_calls(self, c) -> list:
         """(kernel, arguments) of every compiled call of :meth:`correct` on a banded S (the
         node-pair and rigid sets load theirs by one call)."""
         if not is_banded(c):
             return []
-        return [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
-                                   c.dt, c.u, c.v))]
+        calls = [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
+                                    c.dt, c.u, c.v))]
+        if getattr(c, "repair_every", 0):  # a re-pairing's bound (rebanded)
+            calls.append((gershgorin_of, (c.band, c.bw, self.p)))
+        return calls
 
     def correct(self, c) -> None:
         if is_banded(c):

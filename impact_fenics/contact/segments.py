@@ -50,13 +50,15 @@ the pairs are exactly those of projecting every slave onto every segment within
 reach (same arithmetic, same candidates, same order), at a cost that grows with the
 number of contact nodes, not their product.
 
-Re-pairing (:class:`Repairing`, for finite strain; not yet called by the time loop):
+Re-pairing (:class:`Repairing`, for finite strain; in the time loop every few steps
+when the set is told to, :meth:`~impact_fenics.contact.interface.ContactSet.set_repairing`):
 the same search in a current configuration x = X + u, the segments' normals turned
-with them, the reach, xi_tol and tie_tol of the set-up. A slave whose closest point
-is an end vertex of the master face (a node of one segment, off the axis) and which
-lies beyond it, or which has no segment within reach, has no row (released); it
-stays in the list and is paired again when it comes back. Current gaps are returned
-as they are (negative when penetrating): the gaps of a step come from its prediction.
+with them, xi_tol and tie_tol of the set-up, the reach of the set-up or a shorter one
+(:func:`repair_reach`, the time loop's). A slave whose closest point is an end vertex
+of the master face (a node of one segment, off the axis) and which lies beyond it, or
+which has no segment within reach, has no row (released); it stays in the list and is
+paired again when it comes back. Current gaps are returned as they are (negative when
+penetrating): the gaps of a step come from its prediction (:func:`rows_of_pairs`).
 """
 from __future__ import annotations
 
@@ -532,7 +534,8 @@ class Repairing:
     """Re-pairs the slaves of ``c`` against its master segments in a current
     configuration (finite strain): positions x = X + u of the slaves and the masters
     (in the constraints' orders), the segments' normals turned with them (each keeps
-    the outside it had at set-up), the closest segment within the set-up reach by the
+    the outside it had at set-up), the closest segment within ``reach`` (m; the set-up
+    reach unless given: a time loop gives :func:`repair_reach`) by the
     bucket search (:class:`BucketSearch`, ties as at set-up), the axis rule as at
     set-up. A slave whose closest point is the end vertex of the master face and
     which lies beyond it (xi outside [0, 1] on the outermost segment, no neighbour;
@@ -542,11 +545,12 @@ class Repairing:
     may be negative). Every array is kept between calls: a call allocates nothing
     but what a larger grid needs (:class:`BucketSearch`)."""
 
-    def __init__(self, c: SegmentConstraints):
+    def __init__(self, c: SegmentConstraints, reach: float | None = None):
         if c.seg_normal is None:
             raise ValueError("re-pairing needs constraints from build()")
         self.c = c
-        self.search = BucketSearch(c.reach)
+        self.reach = c.reach if reach is None else float(reach)
+        self.search = BucketSearch(self.reach)
         t = c.master_xy[c.segments[:, 1]] - c.master_xy[c.segments[:, 0]]
         self.side = np.where(c.seg_normal[:, 0] * t[:, 1] - c.seg_normal[:, 1] * t[:, 0] >= 0.0,
                              1.0, -1.0)
@@ -565,6 +569,62 @@ class Repairing:
         _axis_normals(slave_x, c.segments, master_x, p.seg, p.xi, c.tie_tol, p.normal, p.gap)
         _release_beyond_ends(p.seg, p.xi, p.kind, c.segments, self.end, p.a, p.b, p.active)
         return p
+
+
+def repair_reach(c: SegmentConstraints) -> float:
+    """The reach (m) of a re-pairing in the time loop: two of the longest master segments
+    at set-up. A slave in contact lies within a fraction of a segment of its master (a
+    step moves a node by far less than a cell), so two segments find it with room for
+    the face's curvature, while the set-up's default (:func:`default_reach`, which adds
+    the faces' depth: a nose's radius) would put a curved face in a few cells of the
+    search and cost the brute force's O(N M). A slave farther than this has no row
+    (released) until it comes within reach."""
+    t = c.master_xy[c.segments[:, 1]] - c.master_xy[c.segments[:, 0]]
+    return 2.0 * float(np.sqrt(np.max(np.sum(t * t, axis=1))))
+
+
+@njit(cache=True)
+def current_positions(xy0, u, first_slot, out):
+    """x = X + u (m) of the nodes whose reference (r, z) are ``xy0`` (k, 2), with u read
+    from the slots (2 (first_slot + k), 2 (first_slot + k) + 1) of ``u`` (m), into ``out``."""
+    for k in range(xy0.shape[0]):
+        out[k, 0] = xy0[k, 0] + u[2 * (first_slot + k)]
+        out[k, 1] = xy0[k, 1] + u[2 * (first_slot + k) + 1]
+
+
+@njit(cache=True)
+def rows_of_pairs(active, a, b, xi, normal, gap, dist, reach, n_slave, u, cs, cc, g0):
+    """The rows of G and the gaps' constants from a re-pairing (:class:`Pairs`), in place:
+    slave i's row holds its (r, z) slots (2i, 2i + 1) with the normal n and its master
+    nodes' slots with -N_a n, -N_b n (N_a = 1 - xi, N_b = xi; master node k has the slots
+    2 (n_slave + k), + 1), and g0_i = g_i - G_i u (m) with g_i the pair's current gap and
+    u the displacements (m) of the configuration it was found in, so that the step's
+    gap g0 + G u~ = g_i + G (u~ - u). A released slave (not ``active``) keeps a row of
+    zero coefficients on its own slots and a constant positive gap (its distance, or
+    ``reach`` with no segment within reach): no force, no coupling, and its slots keep
+    their place in the set, paired again when it comes back."""
+    for i in range(active.size):
+        s_r, s_z = 2 * i, 2 * i + 1
+        if not active[i]:
+            for k in range(3):
+                cs[i, 2 * k] = s_r
+                cs[i, 2 * k + 1] = s_z
+            for k in range(6):
+                cc[i, k] = 0.0
+            g0[i] = dist[i] if np.isfinite(dist[i]) else reach
+            continue
+        ma, mb = 2 * (n_slave + a[i]), 2 * (n_slave + b[i])
+        cs[i, 0], cs[i, 1], cs[i, 2], cs[i, 3], cs[i, 4], cs[i, 5] = s_r, s_z, ma, ma + 1, mb, \
+            mb + 1
+        na, nb = 1.0 - xi[i], xi[i]
+        nr, nz = normal[i, 0], normal[i, 1]
+        cc[i, 0], cc[i, 1] = nr, nz
+        cc[i, 2], cc[i, 3] = -na * nr, -na * nz
+        cc[i, 4], cc[i, 5] = -nb * nr, -nb * nz
+        s = gap[i]
+        for k in range(6):
+            s -= cc[i, k] * u[cs[i, k]]
+        g0[i] = s
 
 
 # ----------------------------------------------------------------------------- from a model

@@ -29,12 +29,18 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .dofs import BS, SceneDofs
 from .errors import require
 
 AIJ_TYPES = (PETSc.Mat.Type.AIJ, PETSc.Mat.Type.SEQAIJ, PETSc.Mat.Type.MPIAIJ)
+
+
+def _everywhere(dofs: SceneDofs, holds: bool) -> bool:
+    """Whether ``holds`` on every rank (collective: every rank refuses together)."""
+    return bool(dofs.comm.allreduce(int(holds), op=MPI.MIN))
 
 
 def stacked_operator(dofs: SceneDofs, mats: Sequence[PETSc.Mat]) -> PETSc.Mat:
@@ -50,10 +56,11 @@ def stacked_operator(dofs: SceneDofs, mats: Sequence[PETSc.Mat]) -> PETSc.Mat:
     for k, (K, V) in enumerate(zip(mats, dofs.spaces)):
         require(K.getType() in AIJ_TYPES, f"mesh {k}'s matrix is {K.getType()}, not AIJ")
         im = V.dofmap.index_map
-        n_rows = BS * im.size_local
-        require(K.getOwnershipRange() == (BS * im.local_range[0], BS * im.local_range[0] + n_rows)
-                and K.getSize() == (BS * im.size_global, BS * im.size_global),
-                f"mesh {k}'s matrix is not laid out by its space's index map")
+        first, n_rows = BS * im.local_range[0], BS * im.size_local
+        laid_out = (K.getOwnershipRange() == (first, first + n_rows)
+                    and K.getSize() == (BS * im.size_global, BS * im.size_global))
+        require(_everywhere(dofs, laid_out), f"mesh {k}'s matrix is not laid out by its space's "
+                "index map")
         indptr, cols, vals = K.getValuesCSR()  # owned rows, global columns sorted per row
         cols = np.asarray(cols, dtype=np.int64)
         indptr_parts.append(np.asarray(indptr[1:], dtype=np.int64) + row_start)
@@ -75,12 +82,13 @@ def stacked_mass(dofs: SceneDofs, masses: Sequence[np.ndarray]) -> PETSc.Vec:
     copied into mesh k's owned slice, ghosts filled by one forward scatter."""
     require(len(masses) == dofs.n_meshes,
             f"a stacked mass needs one vector per mesh: {len(masses)} for {dofs.n_meshes}")
+    for k, m in enumerate(masses):
+        s = dofs.owned_slice(k)
+        require(_everywhere(dofs, np.shape(m) == (s.stop - s.start,)),
+                f"mesh {k}'s mass does not have its slice's owned entries on every rank")
     vec = dofs.create_vec()
     owned = vec.array  # a view of the owned entries
     for k, m in enumerate(masses):
-        s = dofs.owned_slice(k)
-        require(np.shape(m) == (s.stop - s.start,),
-                f"mesh {k}'s mass has {np.size(m)} owned entries, its slice {s.stop - s.start}")
-        owned[s] = m
+        owned[dofs.owned_slice(k)] = m
     vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     return vec

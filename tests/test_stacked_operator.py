@@ -27,6 +27,7 @@ from dolfinx import mesh as dmesh
 from impact_fenics import compat
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.dofs import SceneDofs
+from impact_fenics.errors import InputError
 from impact_fenics.materials import LinearElastic
 from impact_fenics.meshing import TaggedMesh
 from impact_fenics.operators import assemble_stiffness, lumped_mass
@@ -42,22 +43,6 @@ ALUMINIUM = LinearElastic(E=70e9, nu=0.33, density=2700.0)
 # 1/4 m, exact in binary (the mass bound below relies on it)
 TRIANGLES = ([0.0, -1.0], [2.0, 0.0], [8, 4])
 QUADS = ([0.0, 0.0], [0.5, 2.0], [2, 8])
-
-
-def _all_but_last_rank():
-    """A cell partitioner that gives the mesh to ranks 0 .. size - 2 (dolfinx's own
-    partitioner asked for one part fewer), so that the last rank holds no cell of it."""
-    if compat.LEGACY:  # 0.5: (comm, n_parts, tdim, cells, ghost_mode)
-        base = dmesh.create_cell_partitioner()
-
-        def partition(comm, n_parts, tdim, cells, ghost_mode):
-            return base(comm, n_parts - 1, tdim, cells, ghost_mode)
-    else:  # 0.11: (comm, n_parts, cell_types, cells), the ghost mode bound in
-        base = dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)
-
-        def partition(comm, n_parts, cell_types, cells):
-            return base(comm, n_parts - 1, cell_types, cells)
-    return partition
 
 
 def _rectangle(spec, cell_type, partitioner=None) -> dmesh.Mesh:
@@ -100,7 +85,7 @@ def two():
 def empty_share():
     if COMM.size < 2:
         pytest.skip("an empty share needs a second rank")
-    models = [_triangle_model(), _quad_model(partitioner=_all_but_last_rank())]
+    models = [_triangle_model(), _quad_model(partitioner=compat.partitioner_on_fewer_ranks(1))]
     dofs, mats = _scene(models)
     return models, dofs, mats, stacked_operator(dofs, mats)
 
@@ -162,6 +147,19 @@ def test_one_mesh_gives_K_itself(make):
     assert A.getOwnershipRange() == K.getOwnershipRange()
     for a, k in zip(A.getValuesCSR(), K.getValuesCSR()):
         assert np.array_equal(a, k)
+
+
+def test_a_matrix_per_mesh_in_its_own_layout(two):
+    models, dofs, mats, _ = two
+    with pytest.raises(InputError, match="one matrix per mesh"):
+        stacked_operator(dofs, mats[:1])
+    with pytest.raises(InputError, match="not laid out by its space"):
+        stacked_operator(dofs, mats[::-1])
+    masses = [lumped_mass(model) for model in models]
+    with pytest.raises(InputError, match="one vector per mesh"):
+        stacked_mass(dofs, masses[:1])
+    with pytest.raises(InputError, match="slice's owned entries"):
+        stacked_mass(dofs, masses[::-1])
 
 
 # -------------------------------------------------------------------- the lumped mass

@@ -71,6 +71,30 @@ def model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):
     return msh, cell_tags, facet_tags
 
 
+def partitioner_on_fewer_ranks(fewer: int = 1):
+    """A cell partitioner (for ``create_rectangle``, ``create_mesh``) that gives a mesh to
+    ranks 0 .. size - 1 - ``fewer`` only: dolfinx's own (ghosting by shared facet; on
+    0.5 by the mesh's ghost mode, shared facet by default) asked for ``fewer`` parts
+    less. The last ``fewer`` ranks hold none of its cells: an empty share, which every
+    piece of a scene must take.
+
+    0.5: ``create_cell_partitioner()``, called as (comm, n_parts, tdim, cells, ghost_mode).
+    0.11: ``create_cell_partitioner(ghost_mode, max_facet_to_cell_links)``, called as
+    (comm, n_parts, cell_types, cells)."""
+    from dolfinx import mesh as _mesh
+
+    if LEGACY:
+        base = _mesh.create_cell_partitioner()
+    else:
+        base = _mesh.create_cell_partitioner(_mesh.GhostMode.shared_facet, 2)
+
+    def partition(comm, n_parts, *rest):
+        if n_parts <= fewer:
+            raise ValueError(f"a mesh on {n_parts} ranks cannot leave {fewer} of them empty")
+        return base(comm, n_parts - fewer, *rest)
+    return partition
+
+
 def colliding_cells(mesh, x: np.ndarray):
     """Adjacency list point -> local cells that contain it; ``x`` is (n, 3) in m.
 

@@ -92,6 +92,11 @@ class SceneDofs:
         q = np.searchsorted(rng, g, side="right") - 1
         return self.start[q] + self.prefix[q, k] + BS * (g - rng[q]) + np.asarray(c, dtype=np.int64)
 
+    def owned_slice(self, k: int) -> slice:
+        """Mesh ``k``'s owned dofs in the owned (and local) array: ``owned_off[k]`` to
+        ``owned_off[k + 1]``, in mesh k's own owned order."""
+        return slice(int(self.owned_off[k]), int(self.owned_off[k + 1]))
+
     def cell_dofs(self, k: int) -> np.ndarray:
         """Mesh ``k``'s dofmap (local cells incl. ghosts, dofs per cell) in the scene's
         local block indices (int32)."""

@@ -40,6 +40,7 @@ from .loads import SurfaceLoad
 from .loop import HalfStep
 from .materials import is_finite
 from .operators import lumped_mass
+from .stability import parts_stable_dt
 from .stepping import ConstantStep, FollowingStep
 
 
@@ -103,6 +104,9 @@ class Integrator:
         if isinstance(policy, FollowingStep) and not policy.bound:
             require(self.finite, "a following step needs a finite-strain body (its cells "
                                  "give the limit)")
+            others = [b for b in model.bodies if b not in finite]
+            if others:  # the element bound of the bodies whose cells do not move
+                policy.others = min(policy.others, parts_stable_dt(model, self.fixed, others))
             policy.bind(self.finite_limit)
         first = policy.first()
         if dt is not None and dt != first:
@@ -114,8 +118,9 @@ class Integrator:
         self.linear = None
         self.K = None
         if linear_parts:
+            # a finite-strain body makes the step vary: the per-step pass, not A
             self.linear = LinearForce(model, linear_parts, self.dt, self.mass, self.fixed,
-                                      matrix_type)
+                                      matrix_type, scaled=not self.finite)
             self.K = self.linear.K
         self.nonlinear: list[QuadratureForce] = []
         if nonlinear:

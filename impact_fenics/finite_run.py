@@ -54,12 +54,12 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from dolfinx import fem, mesh as dmesh
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from . import console, interrupts, output, rundir
 from .bodies import Body, DeformableModel
-from .contact.plane import FixedPlane
+from .contact.plane import FixedPlane, boundary_nodes
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .integrator import Integrator
 from .materials import is_finite
@@ -204,23 +204,13 @@ class FiniteRun:
         self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
         length, r_max = float(hi[1] - lo[1]), float(hi[0])
         self.length0 = length
-        imap = self.V.dofmap.index_map
         # the wall: every owned boundary node is a candidate
         self.wall = None
         if wall is not None:
-            tdim = mesh.topology.dim
-            mesh.topology.create_connectivity(tdim - 1, tdim)
-            facets = dmesh.exterior_facet_indices(mesh.topology)
-            nodes = fem.locate_dofs_topological(self.V, tdim - 1, facets)
-            nodes = np.sort(nodes[nodes < self.n_owned_nodes])
-            self.wall = FixedPlane(self.comm, nodes, self.node_xy, 2 * imap.local_range[0],
-                                   self.mass, self.u_owned, self.v, wall, z_wall,
-                                   penalty=penalty, beta_target=penalty_beta)
-            gap = self.comm.allreduce(float((self.node_xy[nodes, 1] - z_wall).min(initial=np.inf)),
-                                      op=MPI.MIN)
-            if gap < -1e-12 * length:
-                raise InputError(f"the wall z = {z_wall:.6g} m cuts the body (its lowest boundary "
-                                 f"node is at z = {z_wall + gap:.6g} m): the body must start above it")
+            self.wall = FixedPlane(self.comm, boundary_nodes(self.V, self.n_owned_nodes),
+                                   self.node_xy, model.offset, self.mass, self.u_owned, self.v,
+                                   wall, z_wall, penalty=penalty, beta_target=penalty_beta,
+                                   length=length)
         self.name = name
         self.status = "set up"
         self.signal = 0

@@ -26,7 +26,9 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   10);
 * no [[contact]], [rigid], [[loads]], [[fixed]] or [[probes]] (refused, one line).
 
-A small-strain scene may not use [wall] or dt_interval. On ``quad_bar`` it has one
+A small-strain scene may not use dt_interval; its [wall] is the same plane below every
+boundary node (a fixed rigid part with its contact set, :mod:`.contact.plane`), with
+``face = "contact"`` only (a held face is a [[fixed]] u_z). On ``quad_bar`` it has one
 body, Q1 with mean dilatation (the Simulation of scene_file.py, :func:`quad_bar_mesh`),
 in contact with rigid bodies only.
 Every refusal is an InputError naming the table and the key (exit 2).
@@ -69,10 +71,9 @@ def check_kind(scene) -> None:
     """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
     kinds = {b.strain for b in scene.bodies}
     if not scene.finite:
-        if scene.wall is not None:
-            raise InputError('[wall] a rigid wall needs a finite-strain body ([bodies.NAME] '
-                             'strain = "finite"); small-strain bodies meet rigid bodies through '
-                             "[rigid.NAME] and [[contact]]")
+        if scene.wall is not None and scene.wall.face == "held":
+            raise InputError('[wall] face = "held": a finite-strain body\'s condition; hold a '
+                             "small-strain body's face with [[fixed]] (components = [\"z\"])")
         if scene.mesh.generator == "quad_bar":
             if len(scene.bodies) > 1:
                 raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '

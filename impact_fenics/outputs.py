@@ -23,9 +23,9 @@ ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
 
 
 def momentum_columns(bodies: Iterable[str], contacts: list) -> list[str]:
-    """The z momentum columns (kg m/s): the total, then per body and per rigid body of the
-    contact sets."""
-    names = list(bodies) + [c.rigid.name for c in contacts if c.rigid is not None]
+    """The z momentum columns (kg m/s): the total, then per body and per moving rigid body
+    of the contact sets (a fixed one takes any impulse and keeps none)."""
+    names = list(bodies) + [c.rigid.name for c in contacts if c.moving_rigid is not None]
     return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
 
 

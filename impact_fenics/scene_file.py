@@ -603,6 +603,14 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 profile = None if c.button is None else spherical_button(c.button)
                 sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
                                 method, rigid=body)
+    if scene.wall is not None:  # a fixed rigid part under every boundary node
+        from .contact.plane import boundary_nodes, plane_below, wall_part
+
+        w = scene.wall
+        with within("[wall]"):
+            cons = plane_below(comm, boundary_nodes(model.V, model.n_owned // 2), model.node_xy,
+                               model.offset, w.z, model.length_scale)
+            sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
     for p in scene.probes:
         with within(p.where):
             locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()

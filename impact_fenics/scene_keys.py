@@ -336,8 +336,9 @@ _PROBES = Section("probes", "[[probes]]", (
 ))
 
 _WALL = Section("wall", "[wall]", (
-    "Finite strain only: a fixed rigid frictionless plane z = const (normal +z) at or "
-    "below the body."), (
+    "A fixed rigid frictionless plane z = const (normal +z) at or below the body: every "
+    "boundary node a unilateral candidate (a side node that folds onto it joins as it "
+    "reaches it); its contact columns are named boundary/wall."), (
     Key("z", "number", "m", 0.0, "height of the plane"),
     Key("method", "text", "", REQUIRED, "the wall's contact method", choices=WALL_METHODS),
     Key("penalty", "stiffness", "N/m", "scaled", "penalty: a stiffness p", choices=("scaled",),
@@ -345,7 +346,8 @@ _WALL = Section("wall", "[wall]", (
         "\"scaled\": beta = 1 at every step (FILM's correction as a spring)."),
     Key("face", "text", "", "contact", "the impact face", choices=WALL_FACES,
         note="contact: unilateral (its rim may lift off); held: u_z = 0 on Z = 0 from t = 0, "
-        "sliding radially (the Taylor references' condition; needs z = 0)."),
+        "sliding radially (the Taylor references' condition; needs z = 0; finite strain "
+        "only: a small-strain face is held by [[fixed]])."),
 ))
 
 _TABLES = (_MESH, _MATERIALS, _BODIES, _RIGID, _CONTACT, _LOADS, _FIXED, _TIME, _OUTPUT, _PROBES,

@@ -538,7 +538,7 @@ class Simulation:
                 raise TypeError("an output buffer is not a contiguous float64 array over the "
                                 "owned dofs")
         self._event_buf = buf
-        self._rigid_sets = [c for c in self.contacts if c.rigid is not None]
+        self._rigid_sets = [c for c in self.contacts if c.moving_rigid is not None]
         self._rigid_v_now = [0.0] * len(self._rigid_sets)
         self._load_terms = list(zip(integ.loads, integ._load_dofs, integ._load_coef))
         self._energy_row = dict.fromkeys(ENERGY_COLUMNS, 0.0)
@@ -596,7 +596,7 @@ class Simulation:
         body, the extra local numbers: J, kg m/s), per contact set its work and activation
         loss (J), per rigid body v^n, v^{n+1} (m/s) and its external work (J), then 1 if
         contact was made and no constraint is active after the step (else 0)."""
-        n_rigid = sum(c.rigid is not None for c in self.contacts)
+        n_rigid = sum(c.moving_rigid is not None for c in self.contacts)
         return self._output_sums.size + 2 * len(self.contacts) + 3 * n_rigid + 1
 
     def _post_output(self, pre, buf, ledger, load_work) -> dict:

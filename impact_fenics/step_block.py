@@ -473,8 +473,9 @@ class StepBlock:
         if integ.A is None or integ.nonlinear or integ.loads or len(sim.contacts) > 1:
             return None
         contact = sim.contacts[0] if sim.contacts else None
-        if contact is not None and (type(contact) is not ContactSet or contact._fused is None):
-            return None
+        if contact is not None and (type(contact) is not ContactSet or contact._fused is None
+                                    or (contact.rigid is not None and contact.rigid.fixed)):
+            return None  # (a fixed part, a wall: the Python step)
         if probes is not None and probes._plastic:
             return None
         addresses = native.addresses()

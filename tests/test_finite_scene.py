@@ -357,8 +357,9 @@ def test_a_signal_in_the_loop_leaves_a_complete_directory(tmp_path, monkeypatch)
 CASES = [
     ("finite on triangles", ("n_r = 2", "h = 1e-3"),
      '[mesh] generator = "bar": a finite-strain body needs generator = "quad_bar"'),
-    ("wall without finite strain", ('strain = "finite"\n', ""),
-     "[wall] a rigid wall needs a finite-strain body"),
+    ("held face without finite strain", ('strain = "finite"\n\n[wall]\nz = 0.0\nmethod = "film"',
+                                         '\n[wall]\nz = 0.0\nmethod = "film"\nface = "held"'),
+     '[wall] face = "held": a finite-strain body\'s condition'),
     ("bad strain", ('strain = "finite"', 'strain = "large"'),
      '[bodies.bar] strain = "large": use one of small, finite'),
     ("bad wall method", ('method = "film"', 'method = "glue"'),

@@ -731,6 +731,12 @@ class ContactSet:
         """Work (J) of the external force on the rigid body."""
         return self._ledger.rigid_external_work
 
+    @property
+    def moving_rigid(self) -> RigidBody | None:
+        """The set's rigid part if it moves (its kinetic energy, momentum and work are the
+        run's), None without one or for a fixed part (a wall: it never moves)."""
+        return self.rigid if self.rigid is not None and not self.rigid.fixed else None
+
     def kinetic_energy_rigid(self, v_now: float, v_next: float) -> float:
         """1/2 m_p v^n v^{n+1} (J) of the rigid body."""
         return 0.0 if self.rigid is None else 0.5 * self.rigid.mass * v_now * v_next

@@ -26,6 +26,7 @@ when the node leaves).
 from __future__ import annotations
 
 import numpy as np
+from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from ..errors import InputError
@@ -37,6 +38,44 @@ from .penalty import STABILITY_BOUND, Penalty
 from .state import kinetic_share
 
 METHODS = ("film", "dme", "penalty")
+
+
+def boundary_nodes(V, n_owned_nodes: int) -> np.ndarray:
+    """The owned nodes (local indices, sorted) on the exterior boundary of V's mesh: a
+    plane's candidates (a side node that folds onto it joins the step it reaches it)."""
+    mesh = V.mesh
+    tdim = mesh.topology.dim
+    mesh.topology.create_connectivity(tdim - 1, tdim)
+    facets = dmesh.exterior_facet_indices(mesh.topology)
+    nodes = fem.locate_dofs_topological(V, tdim - 1, facets)
+    return np.sort(nodes[nodes < n_owned_nodes])
+
+
+def plane_below(comm: MPI.Comm, nodes: np.ndarray, node_xy: np.ndarray, offset: int,
+                z_wall: float, length: float) -> Constraints:
+    """The constraints g_i = (Z_i - z_wall) + u_z,i >= 0 (m) of the owned ``nodes`` (their
+    reference coordinates in ``node_xy``, m; owned dofs (r, z) pairs from global dof
+    ``offset``) against the plane z = ``z_wall`` below them, in one global order on every
+    rank (by r, then Z). Refused if the plane cuts the body (a node below it by more than
+    1e-12 of the body's ``length``, m)."""
+    xy = node_xy[nodes]
+    dofs = offset + 2 * np.asarray(nodes, dtype=np.int64) + 1
+    gap = comm.allreduce(float((xy[:, 1] - z_wall).min(initial=np.inf)), op=MPI.MIN)
+    if gap < -1e-12 * length:
+        raise InputError(f"the wall z = {z_wall:.6g} m cuts the body (its lowest boundary "
+                         f"node is at z = {z_wall + gap:.6g} m): the body must start above it")
+    if comm.size > 1:
+        xy = np.concatenate(comm.allgather(xy)).reshape(-1, 2)
+        dofs = np.concatenate(comm.allgather(dofs))
+    order = np.lexsort((xy[:, 1], xy[:, 0]))
+    xy, dofs = xy[order], dofs[order].astype(np.int64)
+    return Constraints(r=xy[:, 0].copy(), b=xy[:, 1] - z_wall, lower=None, upper=dofs,
+                       names=("boundary", "wall"))
+
+
+def wall_part() -> RigidBody:
+    """The plane as a rigid part: fixed (zero inverse mass: no method moves it)."""
+    return RigidBody("wall", 1.0, fixed=True)
 
 
 class _Host:
@@ -58,12 +97,13 @@ class FixedPlane:
     are (r, z) pairs from global dof ``offset``, lumped masses ``mass`` (kg, per owned
     dof) and state ``u_owned``, ``v_owned``; ``method`` 'film', 'dme' or 'penalty' with
     ``penalty`` a stiffness in N/m or 'scaled' (beta = ``beta_target``); ``dt`` the first
-    step (s; :meth:`step` sets each step's)."""
+    step (s; :meth:`step` sets each step's), ``length`` (m) the body's (the cut check's
+    scale, :func:`plane_below`)."""
 
     def __init__(self, comm: MPI.Comm, nodes: np.ndarray, node_xy: np.ndarray, offset: int,
                  mass: np.ndarray, u_owned: np.ndarray, v_owned: np.ndarray, method: str = "dme",
                  z_wall: float = 0.0, penalty: float | str = "scaled", beta_target: float = 1.0,
-                 dt: float = 1.0):
+                 dt: float = 1.0, length: float = 1.0):
         if method not in METHODS:
             raise InputError(f"wall method = '{method}': use one of {', '.join(METHODS)}")
         if isinstance(penalty, str) and penalty != "scaled":
@@ -76,20 +116,11 @@ class FixedPlane:
         self.penalty, self.beta_target = penalty, float(beta_target)
         self.nodes = np.ascontiguousarray(nodes, dtype=np.int64)
         self.mass = mass[2 * self.nodes + 1].copy()  # kg, the owned candidates'
-        # the candidates in one global order on every rank (by r, then Z)
-        xy = node_xy[self.nodes]
-        dofs = offset + 2 * self.nodes + 1
-        if comm.size > 1:
-            xy = np.concatenate(comm.allgather(xy)).reshape(-1, 2)
-            dofs = np.concatenate(comm.allgather(dofs))
-        order = np.lexsort((xy[:, 1], xy[:, 0]))
-        xy, dofs = xy[order], dofs[order].astype(np.int64)
-        cons = Constraints(r=xy[:, 0].copy(), b=xy[:, 1] - self.z_wall, lower=None, upper=dofs,
-                           names=("boundary", "wall"))
+        cons = plane_below(comm, self.nodes, node_xy, offset, self.z_wall, length)
         chosen = {"film": lambda: FILM("fast"), "dme": lambda: DME(),
                   "penalty": lambda: Penalty(penalty, beta_target=beta_target)}[method]()
         self._host = _Host(comm, offset, mass, u_owned, v_owned, dt)
-        self.set = ContactSet(cons, self._host, chosen, RigidBody("wall", 1.0, fixed=True))
+        self.set = ContactSet(cons, self._host, chosen, wall_part())
         self.set.initialize()
         from ..jit_watch import load
 

@@ -47,7 +47,7 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         # the total contact force (N); on a rigid body it is the force on that body
         force = f"{c.rigid.name}_force" if c.rigid is not None else "contact_force"
         cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
-        if c.rigid is not None:
+        if c.moving_rigid is not None:  # (a fixed part's would be zeros)
             cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
         cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
     n_raw = probes.n_raw if probes else 0
@@ -95,8 +95,8 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
     # by its step), its phase times, its rigid body and its first raw column
     layout, k = [], offset + 3
     for c in contacts:
-        layout.append((memoryview(c.stats), c.times, c.rigid, k))
-        k += 6 + (2 if c.rigid is not None else 0)
+        layout.append((memoryview(c.stats), c.times, c.moving_rigid, k))
+        k += 6 + (2 if c.moving_rigid is not None else 0)
 
     def history_row() -> None:
         j = next_row()

@@ -451,12 +451,15 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
     for c in scene.contacts:  # the nodes of the (slave, lower) face
         across = c.radius if c.rigid is not None else radius
         pairs.append(across / h_min + 1 if across else math.sqrt(cells))
+    if scene.wall is not None and not scene.finite:  # its set: every boundary node
+        pairs.append(4 * math.sqrt(cells))
     if scene.finite:
         columns, cell_fields = 19, 6  # finite_run.HISTORY_COLUMNS, CELL_FIELDS
         energy_columns = 0
     else:
         columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
                                               for c in scene.contacts)
+        columns += 6 if scene.wall is not None else 0
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
         energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
     shape = resources.RunShape(

@@ -29,7 +29,9 @@ from numba import njit
 from .. import compat
 from .bar import step_fn
 from .common import per_dof
-from .plastic import j2_integrator, linear_reference, yielding_steel
+from . import roofline
+from .plastic import (j2_integrator, linear_floors, linear_reference, small_strain_floor,
+                      yielding_steel)
 
 # the Taylor bar of each mode: (cells across the radius, end time in s)
 TAYLOR = {"smoke": (2, 4e-6), "quick": (4, 80e-6), "full": (8, 80e-6)}
@@ -116,6 +118,9 @@ def part_finite(ctx) -> dict:
     step = step_fn(integ)
     step()  # the first step yields most points of the random state
     t["j2_small_strain"] = ctx.median(step)
+    floors = linear_floors(ctx, lin, N, t)
+    floors["j2_small_strain"] = small_strain_floor(ctx, integ, "j2_small_strain",
+                                                   t["j2_small_strain"])
     small = integ.nonlinear[0]
     small_yielded = comm.allreduce(int((small.qs.state[..., 0] > 0).sum())) / max(
         comm.allreduce(int(small.qs.state[..., 0].size)), 1)
@@ -126,6 +131,12 @@ def part_finite(ctx) -> dict:
     fstep = finite_step(run, dt)
     fstep()
     t["j2_finite_strain"] = ctx.median(fstep)
+    local = roofline.finite_strain_bytes(run.force, run.n_owned)
+    most, its_points = max(comm.allgather((local, run.force.state.shape[0]
+                                           * run.force.state.shape[1])))
+    floors["j2_finite_strain"] = roofline.with_ratio(roofline.floor(
+        roofline.machine_rates(ctx), most, roofline.point_arithmetic("j2_finite_strain", its_points)),
+        t["j2_finite_strain"])
     split = _finite_split(ctx, run, dt)
     others = sum(v for k, v in split.items()
                  if k not in ("zero_f", "fused_kernel", "kernel_without_material"))
@@ -140,17 +151,21 @@ def part_finite(ctx) -> dict:
            "ratio_to_linear_step": {k: v / t["linear_step"] for k, v in t.items()},
            "ratio_to_matmult": {k: v / t["matmult"] for k, v in t.items()},
            "finite_over_small_strain_j2": t["j2_finite_strain"] / t["j2_small_strain"],
-           "goal_finite_over_small_strain_j2": 1.5}
+           "goal_finite_over_small_strain_j2": 1.5, "floor": floors,
+           "machine_rates": roofline.machine_rates(ctx)}
     labels = {"matmult": "MatMult K u", "linear_step": "linear step (MatMultAdd + AXPY)",
               "j2_small_strain": "J2 small strain, fused kernel (3 points per triangle)",
               "j2_finite_strain": "J2 finite strain, Q1 mean dilatation (2x2 points per quad)"}
     rows = [[label, f"{1e3 * t[k]:.3f}", f"{res['ns_per_dof'][k]:.2f}",
-             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}"]
+             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}",
+             roofline.floor_cell(floors.get(k))]
             for k, label in labels.items()]
     ctx.table(f"9. Finite-strain J2 against small-strain J2 and the linear step: {N:,} dofs "
               f"({n_cells:,} quadrilaterals or {2 * n_cells:,} triangles on the same nodes), "
               f"{comm.size} rank(s); yielded points {small_yielded:.0%} small, {yielded:.0%} "
-              "finite", ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step"], rows)
+              "finite", ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step",
+                        "x the floor"], rows)
+    ctx.log(roofline.rates_line(res["machine_rates"]))
     points = max(4 * n_cells / comm.size, 1)
     share = split["fused_kernel_by_difference"] / t["j2_finite_strain"]
     material = max(split["fused_kernel"] - split["kernel_without_material"], 0.0)

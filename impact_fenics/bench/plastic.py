@@ -11,7 +11,8 @@ import numpy as np
 
 from .. import compat
 from ..materials.j2 import J2
-from .bar import bar_integrator, random_state, step_fn, time_matmult
+from . import roofline
+from .bar import bar_integrator, matrix_bytes, random_state, step_fn, time_matmult
 from .common import per_dof
 
 J2_ELASTIC = J2(E=200e9, nu=0.3, density=7850.0, yield_stress=1e15)  # never yields
@@ -102,13 +103,41 @@ def linear_reference(ctx):
     return tmesh, h, int(model.n_global), lin, t
 
 
+def linear_floors(ctx, lin, N: int, t: dict) -> dict:
+    """:func:`.roofline.floor` of MatMult and of the linear step, with their times ``t``."""
+    rates, ranks = roofline.machine_rates(ctx), ctx.comm.size
+    mb = matrix_bytes(lin.A, N)
+    mm = roofline.floor(rates, roofline.linear_bytes(mb["matmult_bytes_per_dof"], N, ranks),
+                        {"flops": 2.0 * mb["nnz"] / ranks})
+    step = roofline.floor(rates, roofline.linear_bytes(mb["step_bytes_per_dof"], N, ranks),
+                          roofline.linear_arithmetic(mb["nnz"], N, ranks))
+    return {"matmult": roofline.with_ratio(mm, t["matmult"]),
+            "linear_step": roofline.with_ratio(step, t["linear_step"])}
+
+
+def small_strain_floor(ctx, integ, kernel: str, seconds: float) -> dict:
+    """:func:`.roofline.floor` of the small-strain path-dependent step of ``integ`` (its
+    first force; the rank with the most bytes), with its time."""
+    force = integ.nonlinear[0]
+    comm = ctx.comm
+    local = roofline.small_strain_bytes(force, integ.model.n_owned)
+    points = force.qs.state.shape[0] * force.qs.state.shape[1]
+    most, its_points = max(comm.allgather((local, points)))
+    rec = roofline.floor(roofline.machine_rates(ctx), most,
+                         roofline.point_arithmetic(kernel, its_points))
+    return roofline.with_ratio(rec, seconds)
+
+
 def part_j2(ctx) -> dict:
     comm = ctx.comm
     tmesh, h, N, lin, t = linear_reference(ctx)
     steel = yielding_steel(h)
     res = {"n_dofs": N, "h": h, "dt": lin.dt, "yield_stress": steel.yield_stress}
+    floors = linear_floors(ctx, lin, N, t)
     _, integ = j2_integrator(tmesh, "fast", lin.dt, J2_ELASTIC)
     t["j2_fast_elastic"] = ctx.median(step_fn(integ))
+    floors["j2_fast_elastic"] = small_strain_floor(ctx, integ, "j2_small_strain_elastic",
+                                                   t["j2_fast_elastic"])
     del integ
     splits = {}
     for path in ("fast", "generic"):
@@ -116,6 +145,7 @@ def part_j2(ctx) -> dict:
         step = step_fn(integ)
         step()  # the first step yields most points of the random state
         t[f"j2_{path}"] = ctx.median(step)
+        floors[f"j2_{path}"] = small_strain_floor(ctx, integ, "j2_small_strain", t[f"j2_{path}"])
         force = integ.nonlinear[0]
         splits[path] = _split(ctx, integ)
         inside = ("point_updates",) if path == "fast" else ()  # fast: inside the fused kernel
@@ -127,6 +157,8 @@ def part_j2(ctx) -> dict:
         res["n_cells"] = comm.allreduce(int(force.cells.size))
     res["timings"] = t
     res["split"] = splits
+    res["floor"] = floors
+    res["machine_rates"] = roofline.machine_rates(ctx)
     res["ns_per_dof"] = per_dof(t, N)
     res["ratio_to_linear_step"] = {k: v / t["linear_step"] for k, v in t.items()}
     res["ratio_to_matmult"] = {k: v / t["matmult"] for k, v in t.items()}
@@ -134,12 +166,15 @@ def part_j2(ctx) -> dict:
               "j2_fast_elastic": "J2 step, fused kernel, every point elastic",
               "j2_fast": "J2 step, fused cell kernel", "j2_generic": "J2 step, generic dolfinx"}
     rows = [[label, f"{1e3 * t[k]:.3f}", f"{res['ns_per_dof'][k]:.2f}",
-             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}"]
+             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}",
+             roofline.floor_cell(floors.get(k))]
             for k, label in labels.items()]
     ctx.table(f"8. J2 plasticity (3 points per cell, {res['n_cells']:,} cells, "
               f"{res['yielded_fraction_fast']:.0%} of the points yielded): {N:,} dofs, "
               f"{comm.size} rank(s)",
-              ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step"], rows)
+              ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step", "x the floor"],
+              rows)
+    ctx.log(roofline.rates_line(res["machine_rates"]))
     for path in ("fast", "generic"):
         parts = ", ".join(f"{k} {1e3 * v:.3f}" for k, v in splits[path].items())
         inside = ("; point_updates (state in and out and the update at every point, timed "

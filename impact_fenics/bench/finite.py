@@ -152,6 +152,9 @@ def part_finite(ctx) -> dict:
            "ratio_to_matmult": {k: v / t["matmult"] for k, v in t.items()},
            "finite_over_small_strain_j2": t["j2_finite_strain"] / t["j2_small_strain"],
            "goal_finite_over_small_strain_j2": 1.5, "floor": floors,
+           # per element: a quadrilateral for the finite step, a triangle for the others
+           "ns_per_element_cycle": {k: 1e9 * v / (n_cells if k == "j2_finite_strain"
+                                                  else 2 * n_cells) for k, v in t.items()},
            "machine_rates": roofline.machine_rates(ctx)}
     labels = {"matmult": "MatMult K u", "linear_step": "linear step (MatMultAdd + AXPY)",
               "j2_small_strain": "J2 small strain, fused kernel (3 points per triangle)",

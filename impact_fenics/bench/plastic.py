@@ -158,6 +158,8 @@ def part_j2(ctx) -> dict:
     res["timings"] = t
     res["split"] = splits
     res["floor"] = floors
+    # per triangle (every row runs on the same triangles)
+    res["ns_per_element_cycle"] = {k: 1e9 * v / res["n_cells"] for k, v in t.items()}
     res["machine_rates"] = roofline.machine_rates(ctx)
     res["ns_per_dof"] = per_dof(t, N)
     res["ratio_to_linear_step"] = {k: v / t["linear_step"] for k, v in t.items()}

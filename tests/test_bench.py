@@ -110,8 +110,9 @@ def test_smoke_run_writes_the_expected_figures(smoke):
     # the roofline: every timed step of the J2 and finite parts has its floor, the larger of
     # its memory and compute terms, and its time over it; and its time per element per cycle
     for part, steps in ((j2, ("matmult", "linear_step", "j2_fast_elastic", "j2_fast",
-                              "j2_generic")),
-                        (fin, ("matmult", "linear_step", "j2_small_strain", "j2_finite_strain"))):
+                              "j2_generic", "dp_fast")),
+                        (fin, ("matmult", "linear_step", "j2_small_strain", "j2_finite_strain",
+                               "jc_finite_strain", "nh_finite_strain"))):
         rates = part["machine_rates"]
         assert rates["triad_gbs"] > 0 and rates["gflops"] > 0
         for k in steps:

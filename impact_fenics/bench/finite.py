@@ -38,19 +38,47 @@ TAYLOR = {"smoke": (2, 4e-6), "quick": (4, 80e-6), "full": (8, 80e-6)}
 CARINA_US_PER_ELEMENT_STEP = (0.65, 1.43)  # 12-64 CPU threads
 
 
-def finite_bar(comm, h: float, yield_stress: float):
+def finite_bar(comm, h: float, yield_stress: float, material=None):
     """A FiniteRun of the benchmark's bar on square quadrilaterals of side h (the nodes of the
-    triangle bar), J2 steel yielding at ``yield_stress`` (Pa), in a random state."""
+    triangle bar), J2 steel yielding at ``yield_stress`` (Pa) or ``material``, in a random
+    state."""
     from ..finite_run import FiniteRun, FiniteSettings, quad_bar
     from ..materials.finite_j2 import FiniteJ2
 
-    steel = FiniteJ2(E=200e9, nu=0.3, density=7850.0, yield_stress=yield_stress, hardening=2e9)
+    steel = material or FiniteJ2(E=200e9, nu=0.3, density=7850.0, yield_stress=yield_stress,
+                                 hardening=2e9)
     mesh = quad_bar(comm, 0.5, 1.0, max(1, round(0.5 / h)), max(1, round(1.0 / h)))
     run = FiniteRun(mesh, steel, FiniteSettings())
     rng = np.random.default_rng(11 + 7919 * comm.rank)
     run.u_owned[:] = np.where(run.free, 1e-6 * rng.standard_normal(run.n_owned), 0.0)
     run.v[:] = np.where(run.free, 1e-3 * rng.standard_normal(run.n_owned), 0.0)
     return run
+
+
+def finite_floor(ctx, run, kernel: str, seconds: float) -> dict:
+    """:func:`.roofline.floor` of the finite-strain step of ``run`` (the rank with the most
+    bytes, its points and their yielded fraction now), with its time."""
+    local = roofline.finite_strain_bytes(run.force, run.n_owned)
+    state = run.force.state
+    eps_bar = state[..., 0] if state.shape[-1] > 0 else np.zeros(state.shape[:2])
+    most, points, yielded = max(ctx.comm.allgather(
+        (local, eps_bar.size, float((eps_bar > 0).mean()) if eps_bar.size else 0.0)))
+    return roofline.with_ratio(roofline.floor(
+        roofline.machine_rates(ctx), most, roofline.point_arithmetic(kernel, points, yielded)),
+        seconds)
+
+
+def other_finite_materials(steel):
+    """{key: (label, material)} of the other finite-strain materials the part times on the
+    same bar: Johnson-Cook with the steel's elastic constants and its yield stress as A
+    (rate and temperature terms at their defaults), and neo-Hookean (elastic)."""
+    from ..materials import JohnsonCook, NeoHookean
+
+    return {"jc_finite_strain": ("Johnson-Cook finite strain, Q1 F-bar",
+                                 JohnsonCook(E=200e9, nu=0.3, density=7850.0,
+                                             A=steel.yield_stress, B=2e9)),
+            "nh_finite_strain": ("neo-Hookean finite strain, Q1 F-bar",
+                                 NeoHookean(E=200e9, nu=0.3, density=7850.0))}
 
 
 def finite_step(run, dt: float):
@@ -131,12 +159,7 @@ def part_finite(ctx) -> dict:
     fstep = finite_step(run, dt)
     fstep()
     t["j2_finite_strain"] = ctx.median(fstep)
-    local = roofline.finite_strain_bytes(run.force, run.n_owned)
-    most, its_points = max(comm.allgather((local, run.force.state.shape[0]
-                                           * run.force.state.shape[1])))
-    floors["j2_finite_strain"] = roofline.with_ratio(roofline.floor(
-        roofline.machine_rates(ctx), most, roofline.point_arithmetic("j2_finite_strain", its_points)),
-        t["j2_finite_strain"])
+    floors["j2_finite_strain"] = finite_floor(ctx, run, "j2_finite_strain", t["j2_finite_strain"])
     split = _finite_split(ctx, run, dt)
     others = sum(v for k, v in split.items()
                  if k not in ("zero_f", "fused_kernel", "kernel_without_material"))
@@ -144,6 +167,19 @@ def part_finite(ctx) -> dict:
     state = run.force.state[..., 0]
     yielded = comm.allreduce(int((state > 0).sum())) / max(comm.allreduce(int(state.size)), 1)
     n_cells = comm.allreduce(int(run.force.geometry.dofs.shape[0]))
+    del run, fstep
+    labels_other, yielded_other = {}, {}
+    for key, (label, material) in other_finite_materials(steel).items():
+        other = finite_bar(comm, h, steel.yield_stress, material)
+        ostep = finite_step(other, 0.5 * other.dt_limit())
+        ostep()
+        t[key] = ctx.median(ostep)
+        floors[key] = finite_floor(ctx, other, key, t[key])
+        st = other.force.state
+        yielded_other[key] = (comm.allreduce(int((st[..., 0] > 0).sum())) / max(
+            comm.allreduce(int(st[..., 0].size)), 1)) if st.shape[-1] > 0 else 0.0
+        labels_other[key] = label
+        del other, ostep
     res = {"n_dofs": N, "n_dofs_quadrilateral": N_q, "h": h, "n_cells_quadrilateral": n_cells,
            "yield_stress": steel.yield_stress, "yielded_fraction_small": small_yielded,
            "yielded_fraction_finite": yielded, "timings": t, "split_finite": split,
@@ -152,13 +188,15 @@ def part_finite(ctx) -> dict:
            "ratio_to_matmult": {k: v / t["matmult"] for k, v in t.items()},
            "finite_over_small_strain_j2": t["j2_finite_strain"] / t["j2_small_strain"],
            "goal_finite_over_small_strain_j2": 1.5, "floor": floors,
+           "yielded_fraction_other": yielded_other,
            # per element: a quadrilateral for the finite step, a triangle for the others
            "ns_per_element_cycle": {k: 1e9 * v / (n_cells if k == "j2_finite_strain"
                                                   else 2 * n_cells) for k, v in t.items()},
            "machine_rates": roofline.machine_rates(ctx)}
     labels = {"matmult": "MatMult K u", "linear_step": "linear step (MatMultAdd + AXPY)",
               "j2_small_strain": "J2 small strain, fused kernel (3 points per triangle)",
-              "j2_finite_strain": "J2 finite strain, Q1 mean dilatation (2x2 points per quad)"}
+              "j2_finite_strain": "J2 finite strain, Q1 mean dilatation (2x2 points per quad)",
+              **labels_other}
     rows = [[label, f"{1e3 * t[k]:.3f}", f"{res['ns_per_dof'][k]:.2f}",
              f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}",
              roofline.floor_cell(floors.get(k))]

@@ -40,18 +40,27 @@ TRIAD_MIN_ENTRIES = 1 << 22  # 32 MiB per array: far above any L3 of one core's 
 TRANSCENDENTAL_ENTRIES = 2048  # 16 KiB: in L1
 FUNCTIONS = ("log", "exp", "sqrt", "cbrt")
 
-# Adds and multiplies and the transcendental calls per quadrature point of each kernel,
-# counted by hand from the kernel and its update (a yielding point; the elastic one does
-# less). small-strain J2: the strains (3 products of 3 per cell shared by 3 points, the
-# hoop strain), the trial stress and its deviator, the norm, the radial return, the
-# stress weighted into the cell sums and the plastic work; finite-strain J2: F at the
-# point from 4 nodes, J and the F-bar scaling, the trial b_e = F a F', its 2x2 eigen
-# split with the hoop value, the principal Kirchhoff stress, the return, b_e back from
-# its principal values, P = tau F^-T and the nodal forces.
+# Adds, multiplies and divisions (one flop each) and the calls of FUNCTIONS per quadrature
+# point of each kernel with its material update, counted by hand from the source: (every
+# point, the extra of a point that yields). Small strain (3 points a triangle): the strains
+# (shared by the cell's points) and the hoop strain, the trial stress, its deviator and
+# norm, the stress weighted into the cell's sums; yielding: the square root, the return,
+# the plastic strain and the plastic work. Finite strain (2x2 points a quadrilateral): F
+# from 4 nodes and the hoop stretch, J and the F-bar scaling (a cube root), the trial b_e
+# = F a F', its 2x2 eigen split (a square root, 3 logarithms, a normalised direction),
+# the principal Kirchhoff stress and its norm (a square root), tau, P = tau F^-T and the
+# nodal forces; yielding: the return, b_e back from its principal values (3 exponentials).
+# Johnson-Cook adds its flow stress: a power (log + exp) at the yield check and, yielding,
+# at least five more evaluations (the bracket's ends, one regula falsi step, the work's
+# two) of a power and a rate logarithm each; a point that needs more iterations does more,
+# so the count is a lower bound, as a floor's must be. Neo-Hookean: F, F-bar, ln J, tau.
 POINT_FLOPS = {
-    "j2_small_strain": {"flops": 110, "sqrt": 1, "log": 0, "exp": 0, "cbrt": 0},
-    "j2_small_strain_elastic": {"flops": 75, "sqrt": 1, "log": 0, "exp": 0, "cbrt": 0},
-    "j2_finite_strain": {"flops": 330, "sqrt": 3, "log": 3, "exp": 3, "cbrt": 1},
+    "j2_small_strain": ({"flops": 65}, {"flops": 45, "sqrt": 1}),
+    "dp_small_strain": ({"flops": 80, "sqrt": 1}, {"flops": 70, "sqrt": 1}),
+    "j2_finite_strain": ({"flops": 185, "sqrt": 3, "log": 3, "cbrt": 1}, {"flops": 70, "exp": 3}),
+    "jc_finite_strain": ({"flops": 200, "sqrt": 3, "log": 4, "exp": 1, "cbrt": 1},
+                         {"flops": 145, "log": 15, "exp": 13}),
+    "nh_finite_strain": ({"flops": 127, "log": 1, "cbrt": 1}, {}),
 }
 
 
@@ -172,9 +181,12 @@ def linear_arithmetic(nnz: float, n_dofs: int, ranks: int) -> dict:
     return {"flops": (2.0 * nnz + 3.0 * n_dofs) / ranks}
 
 
-def point_arithmetic(kernel: str, n_points: int) -> dict:
-    """POINT_FLOPS of ``kernel`` times the points on this rank."""
-    return {k: v * n_points for k, v in POINT_FLOPS[kernel].items()}
+def point_arithmetic(kernel: str, n_points: int, yielded: float) -> dict:
+    """POINT_FLOPS of ``kernel`` on ``n_points`` points of which the fraction ``yielded``
+    yields."""
+    every, extra = POINT_FLOPS[kernel]
+    return {k: every.get(k, 0) * n_points + extra.get(k, 0) * yielded * n_points
+            for k in ("flops",) + FUNCTIONS}
 
 
 def floor(rates: dict, bytes_: float, arithmetic: dict) -> dict:

@@ -37,7 +37,6 @@ def test_two_bodies_report_the_time_per_element_per_cycle():
         b = s["bodies"][name]
         assert b["n_cells"] > 0 and b["ns_per_element_cycle"] > 0
         assert _close(b["ns_per_element_cycle"], 1e9 * f_int / (cells * steps))
-    assert b["ns_per_element_cycle"] <= whole  # a phase of the loop: within its wall time
     if MPI.COMM_WORLD.rank == 0:
         assert any(line.startswith("cost: ") and "ns per element per cycle" in line
                    for line in console_lines(s))

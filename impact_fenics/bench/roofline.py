@@ -7,8 +7,10 @@ bus), the slowest rank counting:
 - bandwidth: the STREAM triad a_i = b_i + s c_i compiled by numba on three arrays of
   at least 32 MiB each (far larger than any cache); 24 bytes per entry as STREAM counts
   them (the write-allocate of a is not counted, nor is it in the steps' bytes);
-- arithmetic rate: eight independent multiply-add chains x = a x + b (2 flops each)
-  compiled by numba, in registers;
+- arithmetic rate: eight nested multiply-adds v = a v + b (2 flops each) of every entry
+  of an in-cache array, compiled (and vectorised) by numba: the rate a kernel can reach
+  (eight independent scalar chains, what a loop that does not vectorise gets, is kept
+  beside it);
 - a transcendental function's cost: log, exp, sqrt, cbrt of an in-cache array, summed,
   less the same loop summing the array, in seconds per call.
 
@@ -87,6 +89,24 @@ def _fma_chains(n, a, b):
 
 
 @njit(cache=True)
+def _polynomial(x, y, a, b, reps):
+    """y = 8 nested multiply-adds of x, entry by entry (the compiler may vectorise it),
+    ``reps`` times over the in-cache x: 16 flops an entry a repeat."""
+    for _ in range(reps):
+        for i in range(x.size):
+            v = x[i]
+            v = a * v + b
+            v = a * v + b
+            v = a * v + b
+            v = a * v + b
+            v = a * v + b
+            v = a * v + b
+            v = a * v + b
+            v = a * v + b
+            y[i] = v
+
+
+@njit(cache=True)
 def _sum_of(kind, x):
     """sum_i f(x_i) for f = identity (0), log, exp, sqrt, cbrt (1-4)."""
     s = 0.0
@@ -119,17 +139,24 @@ def machine_rates(ctx) -> dict:
     t_triad = ctx.median(lambda: _triad(a, b, c, 1e-9))
     del a, b, c
     m = 1 << 20
-    t_fma = ctx.median(lambda: _fma_chains(m, 0.999999, 1e-7))
+    t_chains = ctx.median(lambda: _fma_chains(m, 0.999999, 1e-7))
     x = np.linspace(0.5, 1.5, TRANSCENDENTAL_ENTRIES)  # exp, log of O(1): the usual range
+    y = np.empty_like(x)
+    reps = m // x.size
+    t_simd = ctx.median(lambda: _polynomial(x, y, 0.999999, 1e-7, reps))
     t_sum = ctx.median(lambda: _sum_of(0, x))
     cost = {f: max(ctx.median(lambda k=k: _sum_of(k, x)) - t_sum, 0.0) / x.size
             for k, f in enumerate(FUNCTIONS, start=1)}
     rates = {"triad_entries": n, "triad_gbs": 24.0 * n / t_triad / 1e9,
-             "gflops": 16.0 * m / t_fma / 1e9, "seconds_per_call": cost,
+             "gflops": 16.0 * reps * x.size / t_simd / 1e9,
+             "gflops_scalar_chains": 16.0 * m / t_chains / 1e9, "seconds_per_call": cost,
              "definition": "triad_gbs: a = b + s c over arrays of triad_entries float64, 24 B "
                            "an entry, one rank's (all ranks at once, the slowest); gflops: "
-                           "8 independent multiply-add chains; seconds_per_call: an in-cache "
-                           "loop summing f(x) less one summing x, per entry"}
+                           "8 nested multiply-adds of each entry of an in-cache array (the "
+                           "compiler vectorises it: the core's rate, the floor's); "
+                           "gflops_scalar_chains: 8 independent scalar multiply-add chains "
+                           "(what a loop the compiler cannot vectorise gets); seconds_per_call: "
+                           "an in-cache loop summing f(x) less one summing x, per entry"}
     ctx._roofline_rates = rates
     return rates
 
@@ -221,6 +248,7 @@ def rates_line(rates: dict) -> str:
     """The console line of the measured rates the floors stand on."""
     c = rates["seconds_per_call"]
     return (f"   floor: the larger of bytes / {rates['triad_gbs']:.1f} GB/s (numba STREAM triad, "
-            f"one rank) and flops / {rates['gflops']:.2f} Gflop/s + calls x (log "
+            f"one rank) and flops / {rates['gflops']:.2f} Gflop/s (vectorised; scalar "
+            f"{rates['gflops_scalar_chains']:.2f}) + calls x (log "
             f"{1e9 * c['log']:.1f}, exp {1e9 * c['exp']:.1f}, sqrt {1e9 * c['sqrt']:.1f}, cbrt "
             f"{1e9 * c['cbrt']:.1f} ns); (memory) or (compute): which is larger")

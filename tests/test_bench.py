@@ -121,6 +121,10 @@ def test_smoke_run_writes_the_expected_figures(smoke):
             assert f["over_floor"] == f["seconds"] / f["floor_seconds"], k
             assert f["bound"] in ("memory", "compute") and part["ns_per_element_cycle"][k] > 0
     assert fin["floor"]["j2_finite_strain"]["arithmetic"]["log"] > 0
+    # per element: a quadrilateral for the finite-strain rows, a triangle for the others
+    for k, ns in fin["ns_per_element_cycle"].items():
+        cells = fin["n_cells_quadrilateral"] * (1 if k.endswith("_finite_strain") else 2)
+        assert ns == 1e9 * fin["timings"][k] / cells, k
 
     for path, value in _numbers(smoke):
         assert math.isfinite(value), path

@@ -56,6 +56,7 @@ def test_smoke_run_writes_the_expected_figures(smoke):
     for k in ("step", "simulation", "matmult", "multadd", "axpy"):
         assert step["ns_per_dof"][k] > 0 and step["ratio_to_matmult"][k] > 0, k
     assert step["nnz_per_row"] > 0 and step["step_bytes_per_dof"] > step["matrix_bytes_per_dof"]
+    assert step["simulation"]["ns_per_element_cycle"] > 0
 
     assert {r["method"] for r in smoke["contact"]["rigid"]} == set(CONTACT_METHODS)
     for kind in ("rigid", "pairs"):

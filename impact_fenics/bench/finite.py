@@ -236,6 +236,7 @@ def taylor_rate(comm, n_r: int, t_end: float) -> dict:
     return {"n_r": n_r, "t_end": t_end, "n_cells": s["n_cells"], "n_steps": s["n_steps"],
             "n_ranks": comm.size, "wall_time": s["wall_time"], "element_steps_per_second": rate,
             "us_per_element_step": 1e6 / rate,
+            "ns_per_element_cycle": s["ns_per_element_cycle"],
             "us_per_element_step_median_step": 1e6 * s["step_time_median"] / s["n_cells"],
             "final_length": s["final_length"],
             "final_face_radius": s["final_face_radius"],

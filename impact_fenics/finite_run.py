@@ -566,6 +566,7 @@ class FiniteRun:
                                  "trapezoid - stored - plastic (O(dt^2))",
         }
         summary["element_steps_per_second"] = n_cells * n / max(wall_time, 1e-300)
+        summary["ns_per_element_cycle"] = 1e9 * wall_time / max(n_cells * n, 1)
         if self.wall is not None:
             summary["wall"] = {"method": self.wall.method, "z": self.wall.z_wall,
                                "n_candidates": comm.allreduce(self.wall.nodes.size)}

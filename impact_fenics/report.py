@@ -129,6 +129,13 @@ def console_lines(s: dict) -> list[str]:
         lines.append(f"time: loop {wall:.3g} s = {timing['loop_over_steps_median']:.2f} x "
                      f"(steps x median step {s['step_time_median'] * 1e6:.1f} us); {parts}, "
                      f"rest {timing['rest_share']:.0%}" + (f"; steps {steps}" if steps else ""))
+        if "ns_per_element_cycle" in s:
+            per_body = ", ".join(f"{name} {b['ns_per_element_cycle']:.0f}"
+                                 for name, b in s.get("bodies", {}).items()
+                                 if "ns_per_element_cycle" in b)
+            lines.append(f"cost: {s['ns_per_element_cycle']:.0f} ns per element per cycle "
+                         "(the loop's wall time / (cells x steps))"
+                         + (f"; f_int per body {per_body} ns" if per_body else ""))
         setup = ", ".join(f"{k} {v:.2f} s" for k, v in s.get("setup_time", {}).items())
         lines.append(f"set-up: {setup}")
     return lines

@@ -75,6 +75,8 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
                           "compiled_frames: the blocks wrote the frames too (one rank)"}
     summary["bodies"] = body_figures(model, sim.integrator, sim.body_mass, sim._v_start,
                                       _velocities(sim), comm)
+    element_cycle_figures(summary, {name: model.owned_cells(name).size for name in model.bodies},
+                          comm)
     if sim.contacts:
         summary["impact"] = impact_figures(sim.history.data(), sim.contacts, sim._v_start,
                                            _velocities(sim), s.dt, model, comm)
@@ -118,6 +120,32 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
             summary["contact_cpu_time_per_step_median"] = times.median_of_sum(
                 ("contact_detection", "contact_solve", "contact_update"), comm)
     return summary
+
+
+def element_cycle_figures(summary: dict, body_cells: dict[str, int], comm: MPI.Comm) -> None:
+    """The time per element per cycle (ns; LS-DYNA's "time per zone cycle") into ``summary``:
+    the whole run's, the loop's wall time / (cells x steps taken), and each body's, its
+    share of the f_int phase (the slowest rank's total) by its cells over its cells x
+    steps: the phase times every body's force together, so the share goes by cells and
+    each body's figure is the f_int phase's time per element per cycle. ``body_cells``:
+    each body's cells owned by this rank. Collective."""
+    steps = summary["stopped_at_step"]
+    cells = summary["n_cells"]
+    if steps <= 0 or cells <= 0:
+        return
+    summary["ns_per_element_cycle"] = 1e9 * summary["wall_time"] / (cells * steps)
+    phases = summary.get("timing", {}).get("phases", {})
+    f_int = phases.get("f_int", {}).get("total")
+    counts = comm.allreduce(np.array(list(body_cells.values()), dtype=np.int64))
+    for (name, _), n in zip(body_cells.items(), counts):
+        body = summary["bodies"].setdefault(name, {})
+        body["n_cells"] = int(n)
+        if f_int is not None and n > 0:
+            body["ns_per_element_cycle"] = 1e9 * (f_int * n / cells) / (n * steps)
+    summary["ns_per_element_cycle_definition"] = (
+        "the loop's wall time / (n_cells x stopped_at_step) (ns); per body: the f_int phase's "
+        "total time (the slowest rank's) shared among the bodies by their cells, over the "
+        "body's n_cells x stopped_at_step (the phase times all bodies together)")
 
 
 def provenance() -> dict:

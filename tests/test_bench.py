@@ -56,6 +56,7 @@ def test_smoke_run_writes_the_expected_figures(smoke):
     for k in ("step", "simulation", "matmult", "multadd", "axpy"):
         assert step["ns_per_dof"][k] > 0 and step["ratio_to_matmult"][k] > 0, k
     assert step["nnz_per_row"] > 0 and step["step_bytes_per_dof"] > step["matrix_bytes_per_dof"]
+    assert step["simulation"]["ns_per_element_cycle"] > 0
 
     assert {r["method"] for r in smoke["contact"]["rigid"]} == set(CONTACT_METHODS)
     for kind in ("rigid", "pairs"):
@@ -107,6 +108,25 @@ def test_smoke_run_writes_the_expected_figures(smoke):
     assert fin["n_dofs_quadrilateral"] == fin["n_dofs"]  # the same nodes, quadrilaterals
     assert fin["yielded_fraction_finite"] > 0.1 and fin["split_finite"]["fused_kernel"] > 0
 
+    # the roofline: every timed step of the J2 and finite parts has its floor, the larger of
+    # its memory and compute terms, and its time over it; and its time per element per cycle
+    for part, steps in ((j2, ("matmult", "linear_step", "j2_fast_elastic", "j2_fast",
+                              "j2_generic", "dp_fast")),
+                        (fin, ("matmult", "linear_step", "j2_small_strain", "j2_finite_strain",
+                               "jc_finite_strain", "nh_finite_strain"))):
+        rates = part["machine_rates"]
+        assert rates["triad_gbs"] > 0 and rates["gflops"] > 0
+        for k in steps:
+            f = part["floor"][k]
+            assert f["floor_seconds"] == max(f["memory_seconds"], f["compute_seconds"]) > 0, k
+            assert f["over_floor"] == f["seconds"] / f["floor_seconds"], k
+            assert f["bound"] in ("memory", "compute") and part["ns_per_element_cycle"][k] > 0
+    assert fin["floor"]["j2_finite_strain"]["arithmetic"]["log"] > 0
+    # per element: a quadrilateral for the finite-strain rows, a triangle for the others
+    for k, ns in fin["ns_per_element_cycle"].items():
+        cells = fin["n_cells_quadrilateral"] * (1 if k.endswith("_finite_strain") else 2)
+        assert ns == 1e9 * fin["timings"][k] / cells, k
+
     for path, value in _numbers(smoke):
         assert math.isfinite(value), path
         if path.rsplit("/", 1)[-1] in TIMING_KEYS:
@@ -128,3 +148,22 @@ def test_scipy_loop_is_the_integrator_update():
 def test_unknown_part_is_refused():
     with pytest.raises(SystemExit):
         main(["--smoke", "--quiet", "--parts", "step,nonsense"])
+
+
+def test_small_strain_bytes_are_the_hand_count():
+    """The bytes of a small-strain J2 step on a few cells against a count by hand: per
+    triangle 3 points of 9 float64 (plastic strain 4, equivalent plastic strain 1, stress 4)
+    read and written (432 B), its geometry read (3 int32 dofs, dN/dr, dN/dz, 1/r and w at 3
+    values each: 12 + 96 B); per local dof u gathered and f zeroed, summed into and read
+    back (32 B); per owned dof the velocity update (72 B) and the position update (24 B)."""
+    from impact_fenics.bench.bar import bar_mesh
+    from impact_fenics.bench.plastic import J2_ELASTIC, j2_integrator
+    from impact_fenics.bench.roofline import small_strain_bytes
+
+    tmesh, _ = bar_mesh(MPI.COMM_WORLD, 200)
+    model, integ = j2_integrator(tmesh, "fast", 1e-7, J2_ELASTIC)
+    force = integ.nonlinear[0]
+    cells = force.qs.state.shape[0]
+    n_local, n_owned = force.f.x.array.size, model.n_owned
+    assert force.geometry.dofs.dtype.itemsize == 4 and force.qs.state.shape[1:] == (3, 1)
+    assert small_strain_bytes(force, n_owned) == (432 + 108) * cells + 32 * n_local + 96 * n_owned

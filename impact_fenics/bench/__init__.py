@@ -31,6 +31,10 @@ akantu    Akantu's explicit lumped-mass plane-strain step in its own venv       
 whole     whole runs against their steps (punch Sim3, bars; default outputs),    whole_run.py
           the set-up by phase, the contact share at Sim3, history and field cost.
 
+The j2 and finite parts print each step's time over its floor ("x the floor", roofline.py:
+the larger of its bytes over the one-core STREAM triad and its arithmetic over the core's
+rate, both measured in the run) and its time per element per cycle.
+
 The rest: run.py (options, the order of the parts, the JSON), common.py (modes,
 the timer, the run context, child processes), bar.py (the benchmark's bar and
 what a step on it costs), machine.py (the machine), tables.py (printing).

@@ -29,26 +29,56 @@ from numba import njit
 from .. import compat
 from .bar import step_fn
 from .common import per_dof
-from .plastic import j2_integrator, linear_reference, yielding_steel
+from . import roofline
+from .plastic import (j2_integrator, linear_floors, linear_reference, small_strain_floor,
+                      yielding_steel)
 
 # the Taylor bar of each mode: (cells across the radius, end time in s)
 TAYLOR = {"smoke": (2, 4e-6), "quick": (4, 80e-6), "full": (8, 80e-6)}
 CARINA_US_PER_ELEMENT_STEP = (0.65, 1.43)  # 12-64 CPU threads
 
 
-def finite_bar(comm, h: float, yield_stress: float):
+def finite_bar(comm, h: float, yield_stress: float, material=None):
     """A FiniteRun of the benchmark's bar on square quadrilaterals of side h (the nodes of the
-    triangle bar), J2 steel yielding at ``yield_stress`` (Pa), in a random state."""
+    triangle bar), J2 steel yielding at ``yield_stress`` (Pa) or ``material``, in a random
+    state."""
     from ..finite_run import FiniteRun, FiniteSettings, quad_bar
     from ..materials.finite_j2 import FiniteJ2
 
-    steel = FiniteJ2(E=200e9, nu=0.3, density=7850.0, yield_stress=yield_stress, hardening=2e9)
+    steel = material or FiniteJ2(E=200e9, nu=0.3, density=7850.0, yield_stress=yield_stress,
+                                 hardening=2e9)
     mesh = quad_bar(comm, 0.5, 1.0, max(1, round(0.5 / h)), max(1, round(1.0 / h)))
     run = FiniteRun(mesh, steel, FiniteSettings())
     rng = np.random.default_rng(11 + 7919 * comm.rank)
     run.u_owned[:] = np.where(run.free, 1e-6 * rng.standard_normal(run.n_owned), 0.0)
     run.v[:] = np.where(run.free, 1e-3 * rng.standard_normal(run.n_owned), 0.0)
     return run
+
+
+def finite_floor(ctx, run, kernel: str, seconds: float) -> dict:
+    """:func:`.roofline.floor` of the finite-strain step of ``run`` (the rank with the most
+    bytes, its points and their yielded fraction now), with its time."""
+    local = roofline.finite_strain_bytes(run.force, run.n_owned)
+    state = run.force.state
+    eps_bar = state[..., 0] if state.shape[-1] > 0 else np.zeros(state.shape[:2])
+    most, points, yielded = max(ctx.comm.allgather(
+        (local, eps_bar.size, float((eps_bar > 0).mean()) if eps_bar.size else 0.0)))
+    return roofline.with_ratio(roofline.floor(
+        roofline.machine_rates(ctx), most, roofline.point_arithmetic(kernel, points, yielded)),
+        seconds)
+
+
+def other_finite_materials(steel):
+    """{key: (label, material)} of the other finite-strain materials the part times on the
+    same bar: Johnson-Cook with the steel's elastic constants and its yield stress as A
+    (rate and temperature terms at their defaults), and neo-Hookean (elastic)."""
+    from ..materials import JohnsonCook, NeoHookean
+
+    return {"jc_finite_strain": ("Johnson-Cook finite strain, Q1 F-bar",
+                                 JohnsonCook(E=200e9, nu=0.3, density=7850.0,
+                                             A=steel.yield_stress, B=2e9)),
+            "nh_finite_strain": ("neo-Hookean finite strain, Q1 F-bar",
+                                 NeoHookean(E=200e9, nu=0.3, density=7850.0))}
 
 
 def finite_step(run, dt: float):
@@ -116,6 +146,9 @@ def part_finite(ctx) -> dict:
     step = step_fn(integ)
     step()  # the first step yields most points of the random state
     t["j2_small_strain"] = ctx.median(step)
+    floors = linear_floors(ctx, lin, N, t)
+    floors["j2_small_strain"] = small_strain_floor(ctx, integ, "j2_small_strain",
+                                                   t["j2_small_strain"])
     small = integ.nonlinear[0]
     small_yielded = comm.allreduce(int((small.qs.state[..., 0] > 0).sum())) / max(
         comm.allreduce(int(small.qs.state[..., 0].size)), 1)
@@ -126,6 +159,7 @@ def part_finite(ctx) -> dict:
     fstep = finite_step(run, dt)
     fstep()
     t["j2_finite_strain"] = ctx.median(fstep)
+    floors["j2_finite_strain"] = finite_floor(ctx, run, "j2_finite_strain", t["j2_finite_strain"])
     split = _finite_split(ctx, run, dt)
     others = sum(v for k, v in split.items()
                  if k not in ("zero_f", "fused_kernel", "kernel_without_material"))
@@ -133,6 +167,19 @@ def part_finite(ctx) -> dict:
     state = run.force.state[..., 0]
     yielded = comm.allreduce(int((state > 0).sum())) / max(comm.allreduce(int(state.size)), 1)
     n_cells = comm.allreduce(int(run.force.geometry.dofs.shape[0]))
+    del run, fstep
+    labels_other, yielded_other = {}, {}
+    for key, (label, material) in other_finite_materials(steel).items():
+        other = finite_bar(comm, h, steel.yield_stress, material)
+        ostep = finite_step(other, 0.5 * other.dt_limit())
+        ostep()
+        t[key] = ctx.median(ostep)
+        floors[key] = finite_floor(ctx, other, key, t[key])
+        st = other.force.state
+        yielded_other[key] = (comm.allreduce(int((st[..., 0] > 0).sum())) / max(
+            comm.allreduce(int(st[..., 0].size)), 1)) if st.shape[-1] > 0 else 0.0
+        labels_other[key] = label
+        del other, ostep
     res = {"n_dofs": N, "n_dofs_quadrilateral": N_q, "h": h, "n_cells_quadrilateral": n_cells,
            "yield_stress": steel.yield_stress, "yielded_fraction_small": small_yielded,
            "yielded_fraction_finite": yielded, "timings": t, "split_finite": split,
@@ -140,17 +187,26 @@ def part_finite(ctx) -> dict:
            "ratio_to_linear_step": {k: v / t["linear_step"] for k, v in t.items()},
            "ratio_to_matmult": {k: v / t["matmult"] for k, v in t.items()},
            "finite_over_small_strain_j2": t["j2_finite_strain"] / t["j2_small_strain"],
-           "goal_finite_over_small_strain_j2": 1.5}
+           "goal_finite_over_small_strain_j2": 1.5, "floor": floors,
+           "yielded_fraction_other": yielded_other,
+           # per element: a quadrilateral for the finite step, a triangle for the others
+           "ns_per_element_cycle": {k: 1e9 * v / (n_cells if k.endswith("_finite_strain")
+                                                  else 2 * n_cells) for k, v in t.items()},
+           "machine_rates": roofline.machine_rates(ctx)}
     labels = {"matmult": "MatMult K u", "linear_step": "linear step (MatMultAdd + AXPY)",
               "j2_small_strain": "J2 small strain, fused kernel (3 points per triangle)",
-              "j2_finite_strain": "J2 finite strain, Q1 mean dilatation (2x2 points per quad)"}
+              "j2_finite_strain": "J2 finite strain, Q1 mean dilatation (2x2 points per quad)",
+              **labels_other}
     rows = [[label, f"{1e3 * t[k]:.3f}", f"{res['ns_per_dof'][k]:.2f}",
-             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}"]
+             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}",
+             roofline.floor_cell(floors.get(k))]
             for k, label in labels.items()]
     ctx.table(f"9. Finite-strain J2 against small-strain J2 and the linear step: {N:,} dofs "
               f"({n_cells:,} quadrilaterals or {2 * n_cells:,} triangles on the same nodes), "
               f"{comm.size} rank(s); yielded points {small_yielded:.0%} small, {yielded:.0%} "
-              "finite", ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step"], rows)
+              "finite", ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step",
+                        "x the floor"], rows)
+    ctx.log(roofline.rates_line(res["machine_rates"]))
     points = max(4 * n_cells / comm.size, 1)
     share = split["fused_kernel_by_difference"] / t["j2_finite_strain"]
     material = max(split["fused_kernel"] - split["kernel_without_material"], 0.0)
@@ -180,6 +236,7 @@ def taylor_rate(comm, n_r: int, t_end: float) -> dict:
     return {"n_r": n_r, "t_end": t_end, "n_cells": s["n_cells"], "n_steps": s["n_steps"],
             "n_ranks": comm.size, "wall_time": s["wall_time"], "element_steps_per_second": rate,
             "us_per_element_step": 1e6 / rate,
+            "ns_per_element_cycle": s["ns_per_element_cycle"],
             "us_per_element_step_median_step": 1e6 * s["step_time_median"] / s["n_cells"],
             "final_length": s["final_length"],
             "final_face_radius": s["final_face_radius"],

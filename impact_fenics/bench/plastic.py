@@ -11,7 +11,8 @@ import numpy as np
 
 from .. import compat
 from ..materials.j2 import J2
-from .bar import bar_integrator, random_state, step_fn, time_matmult
+from . import roofline
+from .bar import bar_integrator, matrix_bytes, random_state, step_fn, time_matmult
 from .common import per_dof
 
 J2_ELASTIC = J2(E=200e9, nu=0.3, density=7850.0, yield_stress=1e15)  # never yields
@@ -102,13 +103,60 @@ def linear_reference(ctx):
     return tmesh, h, int(model.n_global), lin, t
 
 
+def linear_floors(ctx, lin, N: int, t: dict) -> dict:
+    """:func:`.roofline.floor` of MatMult and of the linear step, with their times ``t``."""
+    rates, ranks = roofline.machine_rates(ctx), ctx.comm.size
+    mb = matrix_bytes(lin.A, N)
+    mm = roofline.floor(rates, roofline.linear_bytes(mb["matmult_bytes_per_dof"], N, ranks),
+                        {"flops": 2.0 * mb["nnz"] / ranks})
+    step = roofline.floor(rates, roofline.linear_bytes(mb["step_bytes_per_dof"], N, ranks),
+                          roofline.linear_arithmetic(mb["nnz"], N, ranks))
+    return {"matmult": roofline.with_ratio(mm, t["matmult"]),
+            "linear_step": roofline.with_ratio(step, t["linear_step"])}
+
+
+def small_strain_floor(ctx, integ, kernel: str, seconds: float) -> dict:
+    """:func:`.roofline.floor` of the small-strain path-dependent step of ``integ`` (its
+    first force; the rank with the most bytes, its points and their yielded fraction now),
+    with its time."""
+    force = integ.nonlinear[0]
+    local = roofline.small_strain_bytes(force, integ.model.n_owned)
+    eps_bar = force.qs.state[..., 0]
+    most, points, yielded = max(ctx.comm.allgather(
+        (local, eps_bar.size, float((eps_bar > 0).mean()) if eps_bar.size else 0.0)))
+    rec = roofline.floor(roofline.machine_rates(ctx), most,
+                         roofline.point_arithmetic(kernel, points, yielded))
+    return roofline.with_ratio(rec, seconds)
+
+
+def yielding_rock(h: float):
+    """Drucker-Prager with the elastic constants of the steel and its unconfined compressive
+    strength at :func:`yielding_steel`'s yield stress: most points yield, at any mesh size."""
+    from ..materials.drucker_prager import DruckerPrager
+
+    ucs = 2.0 * 200e9 * 1e-6 / h
+    return DruckerPrager(E=200e9, nu=0.3, density=7850.0, ucs=ucs, tensile_strength=0.05 * ucs)
+
+
 def part_j2(ctx) -> dict:
     comm = ctx.comm
     tmesh, h, N, lin, t = linear_reference(ctx)
     steel = yielding_steel(h)
     res = {"n_dofs": N, "h": h, "dt": lin.dt, "yield_stress": steel.yield_stress}
+    floors = linear_floors(ctx, lin, N, t)
     _, integ = j2_integrator(tmesh, "fast", lin.dt, J2_ELASTIC)
     t["j2_fast_elastic"] = ctx.median(step_fn(integ))
+    floors["j2_fast_elastic"] = small_strain_floor(ctx, integ, "j2_small_strain",
+                                                   t["j2_fast_elastic"])
+    del integ
+    _, integ = j2_integrator(tmesh, "fast", lin.dt, yielding_rock(h))
+    step = step_fn(integ)
+    step()  # the first step yields most points of the random state
+    t["dp_fast"] = ctx.median(step)
+    floors["dp_fast"] = small_strain_floor(ctx, integ, "dp_small_strain", t["dp_fast"])
+    eps_bar = integ.nonlinear[0].qs.state[..., 0]
+    res["yielded_fraction_dp"] = comm.allreduce(int((eps_bar > 0).sum())) / max(
+        comm.allreduce(int(eps_bar.size)), 1)
     del integ
     splits = {}
     for path in ("fast", "generic"):
@@ -116,6 +164,7 @@ def part_j2(ctx) -> dict:
         step = step_fn(integ)
         step()  # the first step yields most points of the random state
         t[f"j2_{path}"] = ctx.median(step)
+        floors[f"j2_{path}"] = small_strain_floor(ctx, integ, "j2_small_strain", t[f"j2_{path}"])
         force = integ.nonlinear[0]
         splits[path] = _split(ctx, integ)
         inside = ("point_updates",) if path == "fast" else ()  # fast: inside the fused kernel
@@ -127,19 +176,28 @@ def part_j2(ctx) -> dict:
         res["n_cells"] = comm.allreduce(int(force.cells.size))
     res["timings"] = t
     res["split"] = splits
+    res["floor"] = floors
+    # per triangle (every row runs on the same triangles)
+    res["ns_per_element_cycle"] = {k: 1e9 * v / res["n_cells"] for k, v in t.items()}
+    res["machine_rates"] = roofline.machine_rates(ctx)
     res["ns_per_dof"] = per_dof(t, N)
     res["ratio_to_linear_step"] = {k: v / t["linear_step"] for k, v in t.items()}
     res["ratio_to_matmult"] = {k: v / t["matmult"] for k, v in t.items()}
     labels = {"matmult": "MatMult K u", "linear_step": "linear step (MatMultAdd + AXPY)",
               "j2_fast_elastic": "J2 step, fused kernel, every point elastic",
-              "j2_fast": "J2 step, fused cell kernel", "j2_generic": "J2 step, generic dolfinx"}
+              "j2_fast": "J2 step, fused cell kernel", "j2_generic": "J2 step, generic dolfinx",
+              "dp_fast": "Drucker-Prager step, fused cell kernel"}
     rows = [[label, f"{1e3 * t[k]:.3f}", f"{res['ns_per_dof'][k]:.2f}",
-             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}"]
+             f"{res['ratio_to_matmult'][k]:.2f}", f"{res['ratio_to_linear_step'][k]:.2f}",
+             roofline.floor_cell(floors.get(k))]
             for k, label in labels.items()]
     ctx.table(f"8. J2 plasticity (3 points per cell, {res['n_cells']:,} cells, "
-              f"{res['yielded_fraction_fast']:.0%} of the points yielded): {N:,} dofs, "
+              f"{res['yielded_fraction_fast']:.0%} of the points yielded, Drucker-Prager "
+              f"{res['yielded_fraction_dp']:.0%}): {N:,} dofs, "
               f"{comm.size} rank(s)",
-              ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step"], rows)
+              ["what", "ms/step", "ns/dof/step", "/ MatMult", "/ linear step", "x the floor"],
+              rows)
+    ctx.log(roofline.rates_line(res["machine_rates"]))
     for path in ("fast", "generic"):
         parts = ", ".join(f"{k} {1e3 * v:.3f}" for k, v in splits[path].items())
         inside = ("; point_updates (state in and out and the update at every point, timed "

@@ -94,7 +94,8 @@ def _simulation_loop(sim) -> dict:
     summary = sim.run()
     return {"n_steps": summary["n_steps"], "step_time_median": summary["step_time_median"],
             "f_int_median": summary["time_per_step_median"]["f_int"],
-            "wall_per_step": summary["wall_time"] / summary["n_steps"]}
+            "wall_per_step": summary["wall_time"] / summary["n_steps"],
+            "ns_per_element_cycle": summary["ns_per_element_cycle"]}
 
 
 def part_step(ctx) -> dict:
@@ -134,6 +135,8 @@ def part_step(ctx) -> dict:
             f"{res['step_bytes_per_dof']:.0f}; implied bandwidth: MatMult "
             f"{res['implied_bandwidth_gbs']['matmult']:.1f} GB/s, step "
             f"{res['implied_bandwidth_gbs']['step']:.1f} GB/s")
+    ctx.log(f"   Simulation loop: {res['simulation']['ns_per_element_cycle']:.1f} ns per element "
+            "per cycle (the loop's wall time / (cells x steps))")
     if "equivalence" in res:
         e = res["equivalence"]
         ctx.log(f"   SciPy == PETSc after {e['steps']} steps: max rel. diff u "

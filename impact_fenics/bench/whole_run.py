@@ -125,6 +125,9 @@ def measure(kind: str, comm: MPI.Comm, h: float = BAR_H, compiled: bool = True) 
            "wall_over_steps_matmult": wall / (n * matmult),
            "setup": setup, "phase_totals": totals, "phase_medians": medians,
            "beyond_median": beyond,
+           "ns_per_element_cycle": summary.get("ns_per_element_cycle"),
+           "ns_per_element_cycle_bodies": {k: b.get("ns_per_element_cycle")
+                                           for k, b in summary.get("bodies", {}).items()},
            "compiled_in_loop": summary.get("timing", {}).get("compiled_in_loop"),
            "compiled_steps": summary.get("timing", {}).get("compiled_steps", False),
            "compiled_frames": summary.get("timing", {}).get("compiled_frames", False)}
@@ -303,7 +306,7 @@ _RUNS = ((("punch_sim3", BAR_H, True), ("bars", BAR_H, True), ("bars", BAR_H, Fa
 
 
 HEADERS = ["scene", "dofs", "steps", "loop (s)", "median step (us)", "MatMult (us)",
-           "wall/(n x step)", "wall/(n x MatMult)", "steps between events",
+           "wall/(n x step)", "wall/(n x MatMult)", "ns/element/cycle", "steps between events",
            "set-up (s): mesh, sim, run"]
 
 
@@ -328,6 +331,7 @@ def _row(r: dict) -> list:
     return [r["scene"], r["n_dofs"], r["n_steps"], f"{r['loop_wall']:.3f}", f"{1e6 * r['step_median']:.1f}",
             f"{1e6 * r['matmult']:.1f}", f"{r['wall_over_steps_median']:.2f}",
             f"{r['wall_over_steps_matmult']:.2f}",
+            f"{r['ns_per_element_cycle']:.0f}" if r.get("ns_per_element_cycle") else "-",
             ("compiled, frames too" if r.get("compiled_frames") else "compiled")
             if r.get("compiled_steps") else "Python",
             f"{s['mesh']:.2f}, {s['simulation']:.2f}, {s['run_outside_loop']:.2f}"]

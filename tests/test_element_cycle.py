@@ -1,0 +1,57 @@
+"""The time per element per cycle a run reports (summary.json, the console) is the loop's wall
+time over cells x steps, from the summary's own numbers; each body's is its share of the
+f_int phase by its cells.
+
+No timed assertion: only that the figures are there, positive, and the quotients of the
+summary's other figures. Serial and under MPI (the summary is the same on every rank).
+"""
+from mpi4py import MPI
+
+from impact_fenics import scenes
+from impact_fenics.contact import Penalty
+from impact_fenics.report import console_lines
+from impact_fenics.simulation import Settings
+from roundoff import rounding
+
+# 1e9 * wall / (cells * steps) computed twice in another order: a product and a division or
+# two, each rounding once (4 roundings of a number of the result's size)
+QUOTIENT = rounding(4)
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= QUOTIENT * abs(b)
+
+
+def test_two_bodies_report_the_time_per_element_per_cycle():
+    sim = scenes.bar_impact(Settings(dt=1e-6, n_steps=30, output_every=10, quiet=True),
+                            Penalty(1e10), h=0.04, nu=0.0, radius=0.1, striker_length=0.4,
+                            target_length=0.4, observe=None)
+    s = sim.run()
+    steps, cells = s["stopped_at_step"], s["n_cells"]
+    assert steps == 30 and cells > 0
+    whole = s["ns_per_element_cycle"]
+    assert whole > 0 and _close(whole, 1e9 * s["wall_time"] / (cells * steps))
+    f_int = s["time_per_step_total"]["f_int"]
+    assert sum(s["bodies"][b]["n_cells"] for b in ("striker", "target")) == cells
+    for name in ("striker", "target"):
+        b = s["bodies"][name]
+        assert b["n_cells"] > 0 and b["ns_per_element_cycle"] > 0
+        assert _close(b["ns_per_element_cycle"], 1e9 * f_int / (cells * steps))
+    if MPI.COMM_WORLD.rank == 0:
+        assert any(line.startswith("cost: ") and "ns per element per cycle" in line
+                   for line in console_lines(s))
+
+
+def test_a_finite_strain_run_reports_the_time_per_element_per_cycle():
+    from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+    from impact_fenics.materials import FiniteJ2
+
+    copper = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
+    mesh = quad_bar(MPI.COMM_WORLD, 3.2e-3, 32.4e-3, 2, 20)
+    s = FiniteRun(mesh, copper, FiniteSettings(t_end=2e-6, quiet=True, plots=False),
+                  velocity=(0.0, -227.0)).run()
+    assert s["n_steps"] > 0
+    ns = s["ns_per_element_cycle"]
+    assert ns > 0 and _close(ns, 1e9 * s["wall_time"] / (s["n_cells"] * s["n_steps"]))
+    # the same figure as the summary's element-steps per second, inverted
+    assert _close(ns, 1e9 / s["element_steps_per_second"])

@@ -33,6 +33,7 @@ from mpi4py import MPI
 
 from impact_fenics import cli
 from impact_fenics.finite_run import FiniteRun
+from pvbatch_run import pvbatch_json
 from roundoff import ledger, rounding
 from scene_texts import launch, replace
 
@@ -250,33 +251,9 @@ def test_a_held_face_stays_on_the_wall(tmp_path_factory):
     assert r_face.max() > R
 
 
-def _paraview(xdmf: str):
-    """tests/pvbatch_fields.py's JSON on ``xdmf``, or None without pvbatch: off-screen
-    rendering first, then a virtual X server (either may be missing on a machine)."""
-    import shutil
-    import subprocess
-
-    from conftest import clean_mpi_env
-
-    if not shutil.which("pvbatch"):
-        return None
-    script = os.path.join(os.path.dirname(__file__), "pvbatch_fields.py")
-    tried = []
-    for cmd in (["pvbatch", "--force-offscreen-rendering", script, xdmf],
-                ["xvfb-run", "-a", "pvbatch", script, xdmf]):
-        if not shutil.which(cmd[0]):
-            continue
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
-                              env=clean_mpi_env())
-        if proc.returncode == 0:
-            return json.loads(proc.stdout.strip().splitlines()[-1])
-        tried.append(f"{' '.join(cmd[:2])}: {proc.stderr[-500:]}")
-    raise AssertionError("pvbatch failed: " + " | ".join(tried))
-
-
 def test_paraview_default_reader_opens_the_quadrilaterals(taylor_run):
     out, s = taylor_run
-    result = _paraview(os.path.join(out, "fields.xdmf")) if COMM.rank == 0 else None
+    result = pvbatch_json(os.path.join(out, "fields.xdmf")) if COMM.rank == 0 else None
     result = COMM.bcast(result, root=0)
     if result is None:
         pytest.skip("pvbatch (ParaView) is not installed: the structure is checked from the files")

@@ -19,12 +19,9 @@
   colour range of sigma_zz is the data's range and Warp By Vector applies.
   Without pvbatch that part is skipped; the structure is checked above anyway.
 """
-import json
 import math
 import os
 import shutil
-import subprocess
-import time
 import xml.etree.ElementTree as ET
 
 import h5py
@@ -32,12 +29,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from conftest import clean_mpi_env
 from impact_fenics import scenes
 from impact_fenics.cell_fields import STRESS_NAMES, CellStress
 from impact_fenics.compat import eval_expression
 from impact_fenics.contact import FILM
 from impact_fenics.simulation import Settings
+from pvbatch_run import pvbatch_json
 from roundoff import LIBM, rounding
 
 RHO, E = 7850.0, 200e9
@@ -309,34 +306,11 @@ def test_stress_range_is_the_kernels_one_by_one():
         assert np.array_equal(got, ref)
 
 
-def _pvbatch(xdmf: str):
-    """pvbatch's JSON of tests/pvbatch_fields.py, or None without ParaView."""
-    if not shutil.which("pvbatch"):
-        return None
-    script = os.path.join(os.path.dirname(__file__), "pvbatch_fields.py")
-    cmd = ["pvbatch", script, xdmf]
-    if shutil.which("xvfb-run"):
-        cmd = ["xvfb-run", "-a"] + cmd
-    else:
-        cmd.insert(1, "--force-offscreen-rendering")
-    for attempt in range(5):
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
-                              env=clean_mpi_env())
-        # xvfb-run -a picks its display number racily: with other X servers starting at
-        # the same moment, ParaView may find none and abort in creating its window; the
-        # next try waits a little longer each time (another pvbatch on the machine)
-        if "CreateAWindow" not in proc.stderr:
-            break
-        time.sleep(1.0 + attempt)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    return json.loads(proc.stdout.strip().splitlines()[-1])
-
-
 def test_paraview_default_reader_sees_every_array(run):
     out, sim, summary = run
     result = None
     if MPI.COMM_WORLD.rank == 0:
-        result = _pvbatch(os.path.join(out, "fields.xdmf"))
+        result = pvbatch_json(os.path.join(out, "fields.xdmf"))
     result = MPI.COMM_WORLD.bcast(result, root=0)
     if result is None:
         pytest.skip("pvbatch (ParaView) is not installed: the structure is checked from the files")
@@ -524,7 +498,7 @@ def test_more_frames_than_announced_go_to_a_new_block(tmp_path_factory):
     with h5py.File(os.path.join(out, h5), "r") as f:
         assert sorted(f["/frames"]) == ["cells_0", "cells_1", "points_0", "points_1"]
         assert f["/frames/cells_0"].shape[0] == 2 and f["/frames/cells_1"].shape[0] == 16
-    result = _pvbatch(os.path.join(out, "fields.xdmf")) if comm.rank == 0 else None
+    result = pvbatch_json(os.path.join(out, "fields.xdmf")) if comm.rank == 0 else None
     result = comm.bcast(result, root=0)
     if result is None:
         pytest.skip("pvbatch (ParaView) is not installed: the files were checked with h5py")

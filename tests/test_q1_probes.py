@@ -240,7 +240,7 @@ def test_scene_fields_are_quadrilaterals_paraview_opens(scene_run):
     """fields.xdmf's pieces are Quadrilateral; pvbatch's default reader (if installed) sees
     every cell once at every time, with sigma_zz on the cells."""
     out, summary = scene_run
-    from test_outputs import _pvbatch
+    from pvbatch_run import pvbatch_json
 
     n_cells = 10 * 200
     result = None
@@ -248,7 +248,7 @@ def test_scene_fields_are_quadrilaterals_paraview_opens(scene_run):
         root = ET.parse(os.path.join(out, "fields.xdmf")).getroot()
         types = {t.get("TopologyType") for t in root.iter("Topology")}
         assert types == {"Quadrilateral"}, types
-        result = _pvbatch(os.path.join(out, "fields.xdmf"))
+        result = pvbatch_json(os.path.join(out, "fields.xdmf"))
     result = COMM.bcast(result, root=0)
     if result is None:
         pytest.skip("pvbatch (ParaView) is not installed: the topology is checked from the file")

@@ -1,0 +1,170 @@
+"""The fused cell kernel of the small-strain path-dependent force against the kernel it
+replaces, kept here while the new one lands.
+
+Oracle: exact equivalence. The new kernel reads the same arrays through flat views,
+hoists the rule's shape values and unrolls the state copies, but performs the same
+floating-point operations in the same order; so the run must be the previous one bit for
+bit (array_equal / ==, no tolerance): the displacement, velocity, force, stresses,
+plastic strains and state variables after every step, and the booked plastic work, on a
+J2 bar whose points yield and unload, and on a Drucker-Prager bar whose points return to
+the cone and to the tension cut-off. Under MPI each rank runs both kernels on its own
+cells and ghosts, so the comparison holds on every rank.
+"""
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from numba import njit
+
+from impact_fenics import meshing
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.integrator import Integrator
+from impact_fenics.materials.drucker_prager import DruckerPrager
+from impact_fenics.materials.j2 import J2
+
+COMM = MPI.COMM_WORLD
+H = 0.05          # element size (m) of the bar r in [0, 0.25], z in [0, 0.5]
+N_STEPS = 30
+
+
+def previous_kernel(update):
+    """The fused cell kernel as it was before (verbatim), specialised on ``update``."""
+
+    @njit
+    def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
+        """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
+        sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
+        # the point's variables go through small scratch arrays: a view into the big
+        # arrays per point would cost two reference-count updates each. (The generic
+        # path's loop below repeats this point block: a compiled helper for it, called
+        # or inlined by numba, made this kernel 2-5x slower.)
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :state.shape[2]]
+        ns = state.shape[2]
+        wp = 0.0
+        for c in range(dofs.shape[0]):
+            a0, a1, a2 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2]
+            ur0, ur1, ur2 = u[a0], u[a1], u[a2]
+            uz0, uz1, uz2 = u[a0 + 1], u[a1 + 1], u[a2 + 1]
+            gr0, gr1, gr2 = dNdr[c, 0], dNdr[c, 1], dNdr[c, 2]
+            gz0, gz1, gz2 = dNdz[c, 0], dNdz[c, 1], dNdz[c, 2]
+            e_rr = gr0 * ur0 + gr1 * ur1 + gr2 * ur2
+            e_zz = gz0 * uz0 + gz1 * uz1 + gz2 * uz2
+            e_rz = 0.5 * ((gz0 * ur0 + gz1 * ur1 + gz2 * ur2) + (gr0 * uz0 + gr1 * uz1 + gr2 * uz2))
+            # P1 gradients are constant in the cell: f_i = B_i' sum_q w_q sigma_q needs the
+            # weighted sums of sigma_rr, sigma_zz, sigma_rz and, for the hoop term, of
+            # w_q sigma_tt,q / r_q N_i(x_q)
+            S_rr = S_zz = S_rz = h0 = h1 = h2 = 0.0
+            for q in range(3):
+                ir = inv_r[c, q]
+                n0, n1, n2 = N[q, 0], N[q, 1], N[q, 2]
+                eps[0] = e_rr
+                eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
+                eps[2] = e_zz
+                eps[3] = e_rz
+                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
+                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                for k in range(ns):
+                    st[k] = state[c, q, k]
+                update(eps, ep, st, params, dt, s)
+                for k in range(ns):
+                    state[c, q, k] = st[k]
+                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                wq = w[c, q]
+                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
+                    o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                    wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                      + 2.0 * (o3 + s3) * d3)
+                    eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = \
+                        ep[0], ep[1], ep[2], ep[3]
+                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
+                S_rr += wq * s0
+                S_zz += wq * s2
+                S_rz += wq * s3
+                t = wq * s1 * ir
+                h0 += t * n0
+                h1 += t * n1
+                h2 += t * n2
+            f[a0] += gr0 * S_rr + gz0 * S_rz + h0
+            f[a1] += gr1 * S_rr + gz1 * S_rz + h1
+            f[a2] += gr2 * S_rr + gz2 * S_rz + h2
+            f[a0 + 1] += gz0 * S_zz + gr0 * S_rz
+            f[a1 + 1] += gz1 * S_zz + gr1 * S_rz
+            f[a2 + 1] += gz2 * S_zz + gr2 * S_rz
+        return wp
+
+    return fused
+
+
+def _bar(material, strain: float, seed: int, tension: float = 0.0) -> Integrator:
+    """The bar of ``material``, axis fixed, in a random state of strains ~ ``strain``
+    (displacements strain x H) below z = 1/4 and velocities that change them by about as
+    much over the run: points load, yield and unload; plus the uniform dilatation
+    eps = ``tension`` I (u = tension x (r, z)) everywhere."""
+    tm = meshing.bar(radius=0.25, length=0.5, h=H, structured=True, comm=COMM)
+    model = DeformableModel(tm, [Body("bar", material)])
+    c = math.sqrt((material.lmbda + 2.0 * material.mu) / material.density)
+    dt = 0.2 * H / c  # below the element bound (about 0.5 h / c on these cells)
+    integ = Integrator(model, dt, model.axis_dofs())
+    rng = np.random.default_rng(seed + 7919 * COMM.rank)
+    n = model.n_owned
+    xy = model.node_xy[: n // 2]  # owned nodes (r, z) (m); dof 2 a + i is node a's i-th
+    lower = np.repeat(xy[:, 1] < 0.25, 2)
+    u0 = strain * H * rng.standard_normal(n) * lower + tension * xy.reshape(-1)
+    v0 = strain * H / (N_STEPS * dt) * rng.standard_normal(n)
+    integ.set_initial(u0, v0)
+    return integ
+
+
+def _run_both(material, strain: float, tension: float = 0.0) -> list:
+    """Run the bar twice, with the previous and with the new kernel; compare every step."""
+    runs = [_bar(material, strain, seed=3, tension=tension) for _ in range(2)]
+    old, new = runs[0].nonlinear[0], runs[1].nonlinear[0]
+    old._fused = previous_kernel(material.update)
+    assert new._fused is not old._fused
+    for _ in range(N_STEPS):
+        for integ in runs:
+            integ.predict()
+            integ.advance()
+        a, b = runs
+        assert np.array_equal(a.u_owned, b.u_owned)
+        assert np.array_equal(a.v_owned, b.v_owned)
+        assert np.array_equal(old.f.x.array, new.f.x.array)
+        for name in ("sigma", "eps_p", "state"):
+            assert np.array_equal(getattr(old.qs, name), getattr(new.qs, name)), name
+        assert old.plastic_work_local == new.plastic_work_local
+        assert old.deformation_work_local == new.deformation_work_local
+    return [new.qs, new.plastic_work_local]
+
+
+def test_j2_bar_bit_for_bit():
+    qs, wp = _run_both(J2(E=200e9, nu=0.3, density=7850.0, yield_stress=250e6,
+                          hardening=2e9), strain=3e-3)
+    yielded = COMM.allreduce(int((qs.state[..., 0] > 0.0).sum()))
+    points = COMM.allreduce(int(qs.state[..., 0].size))
+    assert yielded > points // 4  # the return mapping ran, not only the elastic branch
+    assert COMM.allreduce(wp) > 0.0
+
+
+def test_drucker_prager_bar_bit_for_bit():
+    rock = DruckerPrager(hardening=-5e9, viscosity=0.0)
+    # the dilatation: a mean stress 3 K 1e-3 = 120 MPa above p_t = 10 MPa, a small deviator
+    qs, wp = _run_both(rock, strain=4e-3, tension=1e-3)
+    eps_bar, kappa = qs.state[..., 0], qs.state[..., 1]
+    cone = COMM.allreduce(int((kappa > 0.0).sum()))                           # d gamma > 0
+    cut_off = COMM.allreduce(int(((eps_bar > 0.0) & (kappa == 0.0)).sum()))   # d lambda only
+    assert cone > 0 and cut_off > 0
+    assert COMM.allreduce(wp) > 0.0
+
+
+def test_state_of_another_size_is_refused():
+    """The kernel is built for the material's number of state variables."""
+    integ = _bar(J2(yield_stress=250e6), strain=1e-4, seed=1)
+    force = integ.nonlinear[0]
+    g, qs = force.geometry, force.qs
+    wrong = np.zeros(qs.state.shape[:2] + (2,))
+    with pytest.raises(ValueError, match="n_state"):
+        force.cell_kernel(force.params, force.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
+                          force.u.x.array, force.f.x.array, qs.eps_p, wrong, qs.sigma, force.work)

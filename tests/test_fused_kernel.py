@@ -20,7 +20,10 @@ from numba import njit
 from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.integrator import Integrator
-from impact_fenics.materials.drucker_prager import DruckerPrager
+from impact_fenics.materials import drucker_prager as dp
+from impact_fenics.materials.axisym import SQRT_2_3, elastic_stress
+from impact_fenics.materials.drucker_prager import (ALPHA_F, ALPHA_G, EPS_BAR_P, K0, KAPPA, LMBDA,
+                                                    MU, P_T, DruckerPrager, _cohesion, _try)
 from impact_fenics.materials.j2 import J2
 
 COMM = MPI.COMM_WORLD
@@ -98,6 +101,59 @@ def previous_kernel(update):
     return fused
 
 
+@njit
+def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
+    """The Drucker-Prager point update as it was before (verbatim)."""
+    lmbda, mu = params[LMBDA], params[MU]
+    af, p_t = params[ALPHA_F], params[P_T]
+    elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
+    s0 = sigma[0]
+    s1 = sigma[1]
+    s2 = sigma[2]
+    s3 = sigma[3]
+    m_tr = (s0 + s1 + s2) / 3.0
+    d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
+    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    p_tr = -m_tr
+    kappa_n = state[KAPPA]
+    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    t_tr = -p_tr - p_t
+    scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
+    if f_tr <= scale_tol and t_tr <= scale_tol:
+        return  # elastic
+    dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
+    if f_tr > scale_tol:
+        dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
+    if not ok and t_tr > scale_tol:
+        dg, dl, q, p, ok = _try(2, params, kappa_n, q_tr, p_tr, dt)
+    if not ok:
+        dg, dl, q, p, ok = _try(3, params, kappa_n, q_tr, p_tr, dt)
+    dg = max(dg, 0.0)
+    dl = max(dl, 0.0)
+    q = max(q, 0.0)
+    # stress at n+1: the deviator scaled radially, the mean stress from p
+    ratio = q / q_tr if q_tr > 0.0 else 0.0
+    m = -p
+    sigma[0] = m + ratio * d0
+    sigma[1] = m + ratio * d1
+    sigma[2] = m + ratio * d2
+    sigma[3] = ratio * s3
+    # plastic strain increment: d gamma (3/2 s/q + alpha_g/3 I) + d lambda I/3, written as
+    # the elastic strain change that gives the stress change (exact for the linear return)
+    dvol = (params[ALPHA_G] * dg + dl) / 3.0
+    c_dev = 1.5 * dg / q_tr if q_tr > 0.0 else 0.0
+    e0 = c_dev * d0 + dvol
+    e1 = c_dev * d1 + dvol
+    e2 = c_dev * d2 + dvol
+    e3 = c_dev * s3
+    eps_p[0] += e0
+    eps_p[1] += e1
+    eps_p[2] += e2
+    eps_p[3] += e3
+    state[EPS_BAR_P] += SQRT_2_3 * math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + 2.0 * e3 * e3)
+    state[KAPPA] = kappa_n + dg
+
+
 def _bar(material, strain: float, seed: int, tension: float = 0.0) -> Integrator:
     """The bar of ``material``, axis fixed, in a random state of strains ~ ``strain``
     (displacements strain x H) below z = 1/4 and velocities that change them by about as
@@ -118,11 +174,12 @@ def _bar(material, strain: float, seed: int, tension: float = 0.0) -> Integrator
     return integ
 
 
-def _run_both(material, strain: float, tension: float = 0.0) -> list:
-    """Run the bar twice, with the previous and with the new kernel; compare every step."""
+def _run_both(material, strain: float, tension: float = 0.0, previous_update=None) -> list:
+    """Run the bar twice, with the previous kernel (and ``previous_update``, default the
+    material's) and with the new one; compare every step."""
     runs = [_bar(material, strain, seed=3, tension=tension) for _ in range(2)]
     old, new = runs[0].nonlinear[0], runs[1].nonlinear[0]
-    old._fused = previous_kernel(material.update)
+    old._fused = previous_kernel(previous_update or material.update)
     assert new._fused is not old._fused
     for _ in range(N_STEPS):
         for integ in runs:
@@ -151,12 +208,55 @@ def test_j2_bar_bit_for_bit():
 def test_drucker_prager_bar_bit_for_bit():
     rock = DruckerPrager(hardening=-5e9, viscosity=0.0)
     # the dilatation: a mean stress 3 K 1e-3 = 120 MPa above p_t = 10 MPa, a small deviator
-    qs, wp = _run_both(rock, strain=4e-3, tension=1e-3)
+    qs, wp = _run_both(rock, strain=4e-3, tension=1e-3, previous_update=previous_dp_update)
     eps_bar, kappa = qs.state[..., 0], qs.state[..., 1]
     cone = COMM.allreduce(int((kappa > 0.0).sum()))                           # d gamma > 0
     cut_off = COMM.allreduce(int(((eps_bar > 0.0) & (kappa == 0.0)).sum()))   # d lambda only
     assert cone > 0 and cut_off > 0
     assert COMM.allreduce(wp) > 0.0
+
+
+def test_drucker_prager_update_near_its_surfaces():
+    """The update (its elastic test without the square root) against the previous one, bit
+    for bit, at trial states on the cone and on the cut-off moved by relative amounts from
+    one ulp to 1e-6 either way, and at random states."""
+    rock = DruckerPrager(hardening=1e9)
+    prm = rock.params()
+    rng = np.random.default_rng(11)
+    af, k0, p_t = prm[ALPHA_F], prm[K0], prm[P_T]
+    deltas = [0.0] + [sg * d for d in (1e-16, 1e-15, 1e-13, 1e-12, 1e-11, 1e-9, 1e-6)
+                      for sg in (-1.0, 1.0)]
+    young, nu = rock.E, rock.nu
+    cases = 0
+    for _ in range(200):
+        kappa = abs(rng.standard_normal()) * 1e-3 * (rng.random() < 0.5)
+        k = max(k0 + prm[dp.H] * kappa, prm[dp.K_RES])
+        n = rng.standard_normal(4)
+        n[:3] -= n[:3].mean()                                    # a deviatoric direction
+        n /= math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2 + 2.0 * n[3] ** 2)
+        for d in deltas:
+            for which in ("cone", "cut_off", "random"):
+                if which == "cone":   # q = k + alpha_f p (1 + d)
+                    p = rng.uniform(-p_t, 2.0 * k)
+                    q = (k + af * p) * (1.0 + d)
+                elif which == "cut_off":  # sigma_m = p_t (1 + d), inside the cone
+                    p = -p_t * (1.0 + d)
+                    q = rng.uniform(0.0, k - af * p_t)
+                else:
+                    p, q = rng.uniform(-2.0 * p_t, 3.0 * k), rng.uniform(0.0, 3.0 * k)
+                sig = -p * np.array([1.0, 1.0, 1.0, 0.0]) + SQRT_2_3 * q * n
+                tr = sig[:3].sum()
+                eps_p = 1e-4 * rng.standard_normal(4)
+                eps = eps_p + ((1.0 + nu) * sig - nu * tr * np.array([1.0, 1.0, 1.0, 0.0])) / young
+                out = []
+                for upd in (previous_dp_update, dp.update):
+                    ep, st, s = eps_p.copy(), np.array([0.0, kappa]), np.zeros(4)
+                    upd(eps, ep, st, prm, 1e-7, s)
+                    out.append((ep, st, s))
+                for a, b in zip(*out):
+                    assert np.array_equal(a, b), (which, d)
+                cases += 1
+    assert cases == 200 * len(deltas) * 3
 
 
 def test_state_of_another_size_is_refused():

@@ -182,10 +182,21 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
     s3 = sigma[3]
     m_tr = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
-    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
     p_tr = -m_tr
     kappa_n = state[KAPPA]
-    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    k_n = _cohesion(params, kappa_n)
+    # clearly inside both surfaces: elastic, without the square root. The cut-off holds
+    # exactly (t_tr = sigma_m - p_t <= 0 <= tol below); the cone with a margin
+    # 1e-12 (k + |alpha_f p|) far above the few roundings of f_tr (each <= EPS (q + |alpha_f
+    # p| + k), q <= k + |alpha_f p| here), so f_tr <= 0 <= tol below: the test below would
+    # give elastic too, and the trial stress is the result either way.
+    if m_tr <= p_t:
+        bound = k_n + af * p_tr - 1e-12 * (k_n + abs(af * p_tr))
+        if bound > 0.0 and q2_tr <= bound * bound:
+            return
+    q_tr = math.sqrt(q2_tr)
+    f_tr = q_tr - af * p_tr - k_n
     t_tr = -p_tr - p_t
     scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
     if f_tr <= scale_tol and t_tr <= scale_tol:

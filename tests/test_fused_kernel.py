@@ -2,12 +2,15 @@
 replaces, kept here while the new one lands.
 
 Oracle: exact equivalence. The new kernel reads the same arrays through flat views,
-hoists the rule's shape values and unrolls the state copies, but performs the same
-floating-point operations in the same order; so the run must be the previous one bit for
-bit (array_equal / ==, no tolerance): the displacement, velocity, force, stresses,
-plastic strains and state variables after every step, and the booked plastic work, on a
-J2 bar whose points yield and unload, and on a Drucker-Prager bar whose points return to
-the cone and to the tension cut-off. Under MPI each rank runs both kernels on its own
+hoists the rule's shape values and calls the materials' updates on scalars (J2's and
+Drucker-Prager's ``point``; the latter skips a square root where a state is clearly
+elastic), but performs the same floating-point operations in the same order on every
+value it returns; so the run must be the previous one (previous kernel, previous updates,
+kept verbatim here) bit for bit (array_equal / ==, no tolerance): the displacement,
+velocity, force, stresses, plastic strains and state variables after every step, and the
+booked plastic work, on a J2 bar whose points yield and unload, and on a Drucker-Prager
+bar whose points return to the cone and to the tension cut-off; by the scalar ``point``
+and by the array ``update`` (the seam of a material that gives no ``point``). Under MPI each rank runs both kernels on its own
 cells and ghosts, so the comparison holds on every rank.
 """
 import math
@@ -20,7 +23,9 @@ from numba import njit
 from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.integrator import Integrator
+from impact_fenics.internal_force.quadrature import kernels
 from impact_fenics.materials import drucker_prager as dp
+from impact_fenics.materials import j2
 from impact_fenics.materials.axisym import SQRT_2_3, elastic_stress
 from impact_fenics.materials.drucker_prager import (ALPHA_F, ALPHA_G, EPS_BAR_P, K0, KAPPA, LMBDA,
                                                     MU, P_T, DruckerPrager, _cohesion, _try)
@@ -102,6 +107,38 @@ def previous_kernel(update):
 
 
 @njit
+def previous_j2_update(eps, eps_p, state, params, dt, sigma) -> None:
+    """The J2 radial return as it was before (verbatim)."""
+    lmbda, mu = params[j2.LAMBDA], params[j2.MU]
+    # trial stress sigma_tr = C : (eps - eps_p,n), its deviator and sigma_eq
+    e0, e1, e2, e3 = eps[0] - eps_p[0], eps[1] - eps_p[1], eps[2] - eps_p[2], eps[3] - eps_p[3]
+    lt = lmbda * (e0 + e1 + e2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * e0, lt + 2.0 * mu * e1, lt + 2.0 * mu * e2, 2.0 * mu * e3
+    m = (s0 + s1 + s2) / 3.0
+    d0, d1, d2 = s0 - m, s1 - m, s2 - m
+    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)  # sigma_eq,tr^2
+    sy = params[j2.YIELD_STRESS] + params[j2.HARDENING] * state[0]
+    if q2_tr <= sy * sy:  # f_tr <= 0 (sigma_y > 0): elastic, no square root needed
+        sigma[0], sigma[1], sigma[2], sigma[3] = s0, s1, s2, s3
+        return
+    q_tr = math.sqrt(q2_tr)
+    f_tr = q_tr - sy
+    viscous = params[j2.VISCOSITY] / dt if params[j2.VISCOSITY] > 0.0 else 0.0
+    dg = f_tr / (3.0 * mu + params[j2.HARDENING] + viscous)  # Delta eps_bar_p
+    k = 1.5 * dg / q_tr  # Delta eps_p = k s_tr
+    eps_p[0] += k * d0
+    eps_p[1] += k * d1
+    eps_p[2] += k * d2
+    eps_p[3] += k * s3
+    state[0] += dg
+    c = 2.0 * mu * k  # sigma = sigma_tr - 2 mu Delta eps_p
+    sigma[0] = s0 - c * d0
+    sigma[1] = s1 - c * d1
+    sigma[2] = s2 - c * d2
+    sigma[3] = s3 - c * s3
+
+
+@njit
 def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     """The Drucker-Prager point update as it was before (verbatim)."""
     lmbda, mu = params[LMBDA], params[MU]
@@ -174,12 +211,14 @@ def _bar(material, strain: float, seed: int, tension: float = 0.0) -> Integrator
     return integ
 
 
-def _run_both(material, strain: float, tension: float = 0.0, previous_update=None) -> list:
-    """Run the bar twice, with the previous kernel (and ``previous_update``, default the
-    material's) and with the new one; compare every step."""
+def _run_both(material, strain: float, tension: float, previous_update, seam: str) -> list:
+    """Run the bar twice, with the previous kernel and update and with the new kernel on
+    the material's ``seam`` ('point' or 'array'); compare every step."""
     runs = [_bar(material, strain, seed=3, tension=tension) for _ in range(2)]
     old, new = runs[0].nonlinear[0], runs[1].nonlinear[0]
-    old._fused = previous_kernel(previous_update or material.update)
+    old._fused = previous_kernel(previous_update)
+    if seam == "array":
+        new._fused = kernels(material.update, material.n_state)[0]
     assert new._fused is not old._fused
     for _ in range(N_STEPS):
         for integ in runs:
@@ -196,19 +235,21 @@ def _run_both(material, strain: float, tension: float = 0.0, previous_update=Non
     return [new.qs, new.plastic_work_local]
 
 
-def test_j2_bar_bit_for_bit():
+@pytest.mark.parametrize("seam", ["point", "array"])
+def test_j2_bar_bit_for_bit(seam):
     qs, wp = _run_both(J2(E=200e9, nu=0.3, density=7850.0, yield_stress=250e6,
-                          hardening=2e9), strain=3e-3)
+                          hardening=2e9), 3e-3, 0.0, previous_j2_update, seam)
     yielded = COMM.allreduce(int((qs.state[..., 0] > 0.0).sum()))
     points = COMM.allreduce(int(qs.state[..., 0].size))
     assert yielded > points // 4  # the return mapping ran, not only the elastic branch
     assert COMM.allreduce(wp) > 0.0
 
 
-def test_drucker_prager_bar_bit_for_bit():
+@pytest.mark.parametrize("seam", ["point", "array"])
+def test_drucker_prager_bar_bit_for_bit(seam):
     rock = DruckerPrager(hardening=-5e9, viscosity=0.0)
     # the dilatation: a mean stress 3 K 1e-3 = 120 MPa above p_t = 10 MPa, a small deviator
-    qs, wp = _run_both(rock, strain=4e-3, tension=1e-3, previous_update=previous_dp_update)
+    qs, wp = _run_both(rock, 4e-3, 1e-3, previous_dp_update, seam)
     eps_bar, kappa = qs.state[..., 0], qs.state[..., 1]
     cone = COMM.allreduce(int((kappa > 0.0).sum()))                           # d gamma > 0
     cut_off = COMM.allreduce(int(((eps_bar > 0.0) & (kappa == 0.0)).sum()))   # d lambda only

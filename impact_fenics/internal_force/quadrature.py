@@ -132,13 +132,23 @@ class QuadratureState:
 _KERNELS: dict = {}
 
 
-def kernels(update, n_state: int = 1):
+@njit(cache=True)
+def _no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
+    """The stand-in of a material without a scalar ``point``: never called."""
+    return e0, e1, e2, e3, p0, p1, p2, p3
+
+
+def kernels(update, n_state: int = 1, point=None):
     """The fused cell kernel and the point loop of the generic path for ``update``, whose
-    points carry ``n_state`` variables (the last axis of the state array, at least 1)."""
-    key = (update, max(int(n_state), 1))
+    points carry ``n_state`` variables (the last axis of the state array, at least 1).
+    With ``point``, the same update on scalars (:mod:`..materials.axisym`), the fused
+    kernel calls that instead, on the point's values where they are."""
+    key = (update, max(int(n_state), 1), point)
     if key in _KERNELS:
         return _KERNELS[key]
     ns = key[1]
+    scalar = point is not None  # a constant of the compiled kernel: one branch is compiled
+    point = _no_point if point is None else point
 
     @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
@@ -147,15 +157,14 @@ def kernels(update, n_state: int = 1):
 
         Every array is C-contiguous (the force's are). The arrays are read through flat
         views with the cell and point offsets computed once (a 2- or 3-d index multiplies
-        by run-time strides at every access), the rule's shape values are hoisted out of
-        the cell loop (they are the same for every cell) and the copies of the state are
-        unrolled (``ns`` is fixed when the kernel is built): the arithmetic, and its
-        order, is the point update's and the assembly's as before, so the results are
-        unchanged to the bit."""
-        # the point's variables go through small scratch arrays: a view into the big
-        # arrays per point would cost two reference-count updates each. (The generic
-        # path's loop below repeats this point block: a compiled helper for it, called
-        # or inlined by numba, made this kernel 2-5x slower.)
+        by run-time strides at every access) and the rule's shape values are hoisted out
+        of the cell loop (they are the same for every cell). A material's scalar
+        ``point`` takes the strain and plastic strain as numbers and its state where it
+        lies; otherwise its ``update`` sees them through small scratch arrays (a view
+        into the big arrays per point would cost two reference-count updates each),
+        copied in and out (unrolled: ``ns`` is fixed when the kernel is built)."""
+        # (The generic path's loop below repeats the point block: a compiled helper for
+        # it, called or inlined by numba, made this kernel 2-5x slower.)
         if state.shape[2] != ns:
             raise ValueError("state array: its last axis is not the kernel's n_state")
         eps, ep, s = work[0], work[1], work[2]
@@ -192,25 +201,28 @@ def kernels(update, n_state: int = 1):
                 j = 4 * i   # its first tensor component
                 k0 = ns * i  # its first state variable
                 ir = ir_q[i]
-                eps[0] = e_rr
-                eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
-                eps[2] = e_zz
-                eps[3] = e_rz
+                e_tt = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
                 p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
-                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
-                for k in range(ns):
-                    st[k] = st_q[k0 + k]
-                update(eps, ep, st, params, dt, s)
-                for k in range(ns):
-                    st_q[k0 + k] = st[k]
-                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                if scalar:
+                    s0, s1, s2, s3, q0, q1, q2, q3 = point(e_rr, e_tt, e_zz, e_rz, p0, p1, p2,
+                                                           p3, st_q, k0, params, dt)
+                else:
+                    eps[0], eps[1], eps[2], eps[3] = e_rr, e_tt, e_zz, e_rz
+                    ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                    for k in range(ns):
+                        st[k] = st_q[k0 + k]
+                    update(eps, ep, st, params, dt, s)
+                    for k in range(ns):
+                        st_q[k0 + k] = st[k]
+                    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                    q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
                 wq = w_q[i]
-                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
                 if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
                     o0, o1, o2, o3 = sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3]
                     wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
                                       + 2.0 * (o3 + s3) * d3)
-                    ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = ep[0], ep[1], ep[2], ep[3]
+                    ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = q0, q1, q2, q3
                 sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3] = s0, s1, s2, s3
                 S_rr += wq * s0
                 S_zz += wq * s2
@@ -349,7 +361,8 @@ class QuadratureForce:
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
         self._fused, self._points = ((bbar.kernel(self.material.update), None) if quad
-                                     else kernels(self.material.update, self.material.n_state))
+                                     else kernels(self.material.update, self.material.n_state,
+                                             getattr(self.material, "point", None)))
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()

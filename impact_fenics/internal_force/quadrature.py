@@ -30,8 +30,8 @@ integrates owned cells only), so every point belongs to exactly one rank; the
 ghost entries of f_int are summed into their owners by the reverse scatter.
 The displacement's ghost entries must be current on entry.
 
-The kernels are specialised on the material's compiled ``update`` and built
-once per process and material (numba cannot cache a function that calls
+The kernels are specialised on the material's compiled ``update`` and its number
+of state variables, and built once per process and material (numba cannot cache a function that calls
 another compiled function given at run time).
 """
 from __future__ import annotations
@@ -132,29 +132,57 @@ class QuadratureState:
 _KERNELS: dict = {}
 
 
-def kernels(update):
-    """The fused cell kernel and the point loop of the generic path for ``update``."""
-    if update in _KERNELS:
-        return _KERNELS[update]
+@njit(cache=True)
+def _no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
+    """The stand-in of a material without a scalar ``point``: never called."""
+    return e0, e1, e2, e3, p0, p1, p2, p3
+
+
+def kernels(update, n_state: int = 1, point=None):
+    """The fused cell kernel and the point loop of the generic path for ``update``, whose
+    points carry ``n_state`` variables (the last axis of the state array, at least 1).
+    With ``point``, the same update on scalars (:mod:`..materials.axisym`), the fused
+    kernel calls that instead, on the point's values where they are."""
+    key = (update, max(int(n_state), 1), point)
+    if key in _KERNELS:
+        return _KERNELS[key]
+    ns = key[1]
+    scalar = point is not None  # a constant of the compiled kernel: one branch is compiled
+    point = _no_point if point is None else point
 
     @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
         """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
-        sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
-        # the point's variables go through small scratch arrays: a view into the big
-        # arrays per point would cost two reference-count updates each. (The generic
-        # path's loop below repeats this point block: a compiled helper for it, called
-        # or inlined by numba, made this kernel 2-5x slower.)
+        sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J).
+
+        Every array is C-contiguous (the force's are). The arrays are read through flat
+        views with the cell and point offsets computed once (a 2- or 3-d index multiplies
+        by run-time strides at every access) and the rule's shape values are hoisted out
+        of the cell loop (they are the same for every cell). A material's scalar
+        ``point`` takes the strain and plastic strain as numbers and its state where it
+        lies; otherwise its ``update`` sees them through small scratch arrays (a view
+        into the big arrays per point would cost two reference-count updates each),
+        copied in and out (unrolled: ``ns`` is fixed when the kernel is built)."""
+        # (The generic path's loop below repeats the point block: a compiled helper for
+        # it, called or inlined by numba, made this kernel 2-5x slower.)
+        if state.shape[2] != ns:
+            raise ValueError("state array: its last axis is not the kernel's n_state")
         eps, ep, s = work[0], work[1], work[2]
-        st = work[3, :state.shape[2]]
-        ns = state.shape[2]
+        st = work[3, :ns]
+        dof, g_r, g_z = dofs.reshape(-1), dNdr.reshape(-1), dNdz.reshape(-1)
+        ir_q, w_q = inv_r.reshape(-1), w.reshape(-1)
+        ep_q, st_q, sg_q = eps_p.reshape(-1), state.reshape(-1), sigma.reshape(-1)
+        n00, n01, n02 = N[0, 0], N[0, 1], N[0, 2]
+        n10, n11, n12 = N[1, 0], N[1, 1], N[1, 2]
+        n20, n21, n22 = N[2, 0], N[2, 1], N[2, 2]
         wp = 0.0
         for c in range(dofs.shape[0]):
-            a0, a1, a2 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2]
+            c3 = 3 * c  # the cell's first node, and its first point
+            a0, a1, a2 = 2 * dof[c3], 2 * dof[c3 + 1], 2 * dof[c3 + 2]
             ur0, ur1, ur2 = u[a0], u[a1], u[a2]
             uz0, uz1, uz2 = u[a0 + 1], u[a1 + 1], u[a2 + 1]
-            gr0, gr1, gr2 = dNdr[c, 0], dNdr[c, 1], dNdr[c, 2]
-            gz0, gz1, gz2 = dNdz[c, 0], dNdz[c, 1], dNdz[c, 2]
+            gr0, gr1, gr2 = g_r[c3], g_r[c3 + 1], g_r[c3 + 2]
+            gz0, gz1, gz2 = g_z[c3], g_z[c3 + 1], g_z[c3 + 2]
             e_rr = gr0 * ur0 + gr1 * ur1 + gr2 * ur2
             e_zz = gz0 * uz0 + gz1 * uz1 + gz2 * uz2
             e_rz = 0.5 * ((gz0 * ur0 + gz1 * ur1 + gz2 * ur2) + (gr0 * uz0 + gr1 * uz1 + gr2 * uz2))
@@ -163,29 +191,39 @@ def kernels(update):
             # w_q sigma_tt,q / r_q N_i(x_q)
             S_rr = S_zz = S_rz = h0 = h1 = h2 = 0.0
             for q in range(3):
-                ir = inv_r[c, q]
-                n0, n1, n2 = N[q, 0], N[q, 1], N[q, 2]
-                eps[0] = e_rr
-                eps[1] = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
-                eps[2] = e_zz
-                eps[3] = e_rz
-                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
-                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
-                for k in range(ns):
-                    st[k] = state[c, q, k]
-                update(eps, ep, st, params, dt, s)
-                for k in range(ns):
-                    state[c, q, k] = st[k]
-                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
-                wq = w[c, q]
-                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                if q == 0:
+                    n0, n1, n2 = n00, n01, n02
+                elif q == 1:
+                    n0, n1, n2 = n10, n11, n12
+                else:
+                    n0, n1, n2 = n20, n21, n22
+                i = c3 + q  # the point
+                j = 4 * i   # its first tensor component
+                k0 = ns * i  # its first state variable
+                ir = ir_q[i]
+                e_tt = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
+                p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
+                if scalar:
+                    s0, s1, s2, s3, q0, q1, q2, q3 = point(e_rr, e_tt, e_zz, e_rz, p0, p1, p2,
+                                                           p3, st_q, k0, params, dt)
+                else:
+                    eps[0], eps[1], eps[2], eps[3] = e_rr, e_tt, e_zz, e_rz
+                    ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                    for k in range(ns):
+                        st[k] = st_q[k0 + k]
+                    update(eps, ep, st, params, dt, s)
+                    for k in range(ns):
+                        st_q[k0 + k] = st[k]
+                    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                    q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
+                wq = w_q[i]
+                d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
                 if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
-                    o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                    o0, o1, o2, o3 = sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3]
                     wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
                                       + 2.0 * (o3 + s3) * d3)
-                    eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = \
-                        ep[0], ep[1], ep[2], ep[3]
-                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
+                    ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = q0, q1, q2, q3
+                sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3] = s0, s1, s2, s3
                 S_rr += wq * s0
                 S_zz += wq * s2
                 S_rz += wq * s3
@@ -207,8 +245,7 @@ def kernels(update):
         the stresses also go to ``sigma_q`` (the quadrature Function's array) at
         ``qdofs`` (n, 3). Returns the plastic work increment (J), as :func:`fused`."""
         eps, ep, s = work[0], work[1], work[2]
-        st = work[3, :state.shape[2]]
-        ns = state.shape[2]
+        st = work[3, :ns]
         wp = 0.0
         for c in range(eps_all.shape[0]):
             for q in range(3):
@@ -232,7 +269,7 @@ def kernels(update):
                                        + 2.0 * (o3 + s[3]) * (ep[3] - p3))
         return wp
 
-    _KERNELS[update] = (fused, points)
+    _KERNELS[key] = (fused, points)
     return fused, points
 
 
@@ -324,7 +361,8 @@ class QuadratureForce:
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
         self._fused, self._points = ((bbar.kernel(self.material.update), None) if quad
-                                     else kernels(self.material.update))
+                                     else kernels(self.material.update, self.material.n_state,
+                                             getattr(self.material, "point", None)))
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()

@@ -23,6 +23,17 @@ The internal force (:mod:`impact_fenics.internal_force.quadrature`) calls the
 update once per quadrature point and step from a compiled cell kernel, with
 small scratch arrays for ``eps``, ``eps_p``, ``state`` and ``sigma``: an
 update must not allocate, and may read ``sigma`` only as output.
+
+A material may also give the same update on scalars, as its ``point`` (the
+package's J2 and Drucker-Prager do; their ``update`` calls it):
+
+    point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt) -> (s0, s1, s2, s3, q0, q1, q2, q3)
+
+(e0..e3) the strain at t_{n+1}, (p0..p3) the plastic strain at t_n, the returned
+stress at t_{n+1} (Pa) and plastic strain at t_{n+1}; the point's variables are
+``state[k:k + n_state]`` of the array of every point's, updated in place. The cell
+kernel then calls it with the strain and the state where they are, without the
+copies through scratch arrays.
 """
 from __future__ import annotations
 

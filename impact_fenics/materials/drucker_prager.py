@@ -95,7 +95,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import require
-from .axisym import SQRT_2_3, elastic_stress
+from .axisym import SQRT_2_3
 from .elastic import IsotropicConstants
 from .parameters import CLASS_DEFAULT, Parameter, check, non_negative, positive
 
@@ -167,29 +167,40 @@ def _try(mode, params, kappa_n, q_tr, p_tr, dt):
 
 
 @njit(cache=True)
-def update(eps, eps_p, state, params, dt, sigma) -> None:
-    """Drucker-Prager point update (signature and notation of :mod:`.axisym`).
+def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
+    """Drucker-Prager point update on scalars (the scalar seam of :mod:`.axisym`).
 
-    eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
-    equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
+    (e0..e3) the total strain at t_{n+1}, (p0..p3) the plastic strain at t_n;
+    state[k + 0] the equivalent plastic strain, state[k + 1] kappa, updated in place;
+    dt (s). Returns the stress (Pa) and the plastic strain at t_{n+1}, eight floats.
     """
     lmbda, mu = params[LMBDA], params[MU]
     af, p_t = params[ALPHA_F], params[P_T]
-    elastic_stress(lmbda, mu, eps, eps_p, sigma)  # the trial stress
-    s0 = sigma[0]
-    s1 = sigma[1]
-    s2 = sigma[2]
-    s3 = sigma[3]
+    # the trial stress C : (eps - eps_p,n)
+    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
+    lt = lmbda * (x0 + x1 + x2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
     m_tr = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
-    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
     p_tr = -m_tr
-    kappa_n = state[KAPPA]
-    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    kappa_n = state[k + KAPPA]
+    k_n = _cohesion(params, kappa_n)
+    # clearly inside both surfaces: elastic, without the square root. The cut-off holds
+    # exactly (t_tr = sigma_m - p_t <= 0 <= tol below); the cone with a margin
+    # 1e-12 (k + |alpha_f p|) far above the few roundings of f_tr (each <= EPS (q + |alpha_f
+    # p| + k), q <= k + |alpha_f p| here), so f_tr <= 0 <= tol below: the test below would
+    # give elastic too, and the trial stress is the result either way.
+    if m_tr <= p_t:
+        bound = k_n + af * p_tr - 1e-12 * (k_n + abs(af * p_tr))
+        if bound > 0.0 and q2_tr <= bound * bound:
+            return s0, s1, s2, s3, p0, p1, p2, p3
+    q_tr = math.sqrt(q2_tr)
+    f_tr = q_tr - af * p_tr - k_n
     t_tr = -p_tr - p_t
     scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
     if f_tr <= scale_tol and t_tr <= scale_tol:
-        return  # elastic
+        return s0, s1, s2, s3, p0, p1, p2, p3  # elastic
     dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
     if f_tr > scale_tol:
         dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
@@ -200,27 +211,34 @@ def update(eps, eps_p, state, params, dt, sigma) -> None:
     dg = max(dg, 0.0)
     dl = max(dl, 0.0)
     q = max(q, 0.0)
-    # stress at n+1: the deviator scaled radially, the mean stress from p
-    ratio = q / q_tr if q_tr > 0.0 else 0.0
-    m = -p
-    sigma[0] = m + ratio * d0
-    sigma[1] = m + ratio * d1
-    sigma[2] = m + ratio * d2
-    sigma[3] = ratio * s3
     # plastic strain increment: d gamma (3/2 s/q + alpha_g/3 I) + d lambda I/3, written as
     # the elastic strain change that gives the stress change (exact for the linear return)
     dvol = (params[ALPHA_G] * dg + dl) / 3.0
     c_dev = 1.5 * dg / q_tr if q_tr > 0.0 else 0.0
-    e0 = c_dev * d0 + dvol
-    e1 = c_dev * d1 + dvol
-    e2 = c_dev * d2 + dvol
-    e3 = c_dev * s3
-    eps_p[0] += e0
-    eps_p[1] += e1
-    eps_p[2] += e2
-    eps_p[3] += e3
-    state[EPS_BAR_P] += SQRT_2_3 * math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + 2.0 * e3 * e3)
-    state[KAPPA] = kappa_n + dg
+    de0 = c_dev * d0 + dvol
+    de1 = c_dev * d1 + dvol
+    de2 = c_dev * d2 + dvol
+    de3 = c_dev * s3
+    state[k + EPS_BAR_P] += SQRT_2_3 * math.sqrt(de0 * de0 + de1 * de1 + de2 * de2
+                                                 + 2.0 * de3 * de3)
+    state[k + KAPPA] = kappa_n + dg
+    # stress at n+1: the deviator scaled radially, the mean stress from p
+    ratio = q / q_tr if q_tr > 0.0 else 0.0
+    m = -p
+    return (m + ratio * d0, m + ratio * d1, m + ratio * d2, ratio * s3,
+            p0 + de0, p1 + de1, p2 + de2, p3 + de3)
+
+
+@njit(cache=True)
+def update(eps, eps_p, state, params, dt, sigma) -> None:
+    """Drucker-Prager point update (the array seam of :mod:`.axisym`): :func:`point`.
+
+    eps: total strain at t_{n+1}; eps_p: plastic strain, in/out; state[0]:
+    equivalent plastic strain, state[1]: kappa, in/out; dt (s); sigma out (Pa).
+    """
+    (sigma[0], sigma[1], sigma[2], sigma[3], eps_p[0], eps_p[1], eps_p[2], eps_p[3]) = point(
+        eps[0], eps[1], eps[2], eps[3], eps_p[0], eps_p[1], eps_p[2], eps_p[3], state, 0,
+        params, dt)
 
 
 # ----------------------------------------------------------------------------- the material
@@ -265,6 +283,7 @@ class DruckerPrager(IsotropicConstants):
                      scene_default=0.0),
     )
     update = staticmethod(update)  # the compiled point update (numba), signature of axisym
+    point = staticmethod(point)    # the same on scalars (the scalar seam of axisym)
 
     def __post_init__(self) -> None:
         self.check_elastic()

@@ -46,37 +46,42 @@ LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
 
 
 @njit(cache=True)
-def update(eps, eps_p, state, params, dt, sigma) -> None:
-    """Radial return for J2 at one point (the seam of :mod:`.axisym`).
+def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
+    """Radial return for J2 at one point, on scalars (the scalar seam of :mod:`.axisym`).
 
-    ``state[0]`` is the equivalent plastic strain eps_bar_p. Units: Pa, Pa s, s."""
+    (e0..e3) the strain at t_{n+1}, (p0..p3) the plastic strain at t_n; ``state[k]`` the
+    equivalent plastic strain eps_bar_p, updated in place. Returns the stress (Pa) and
+    the plastic strain at t_{n+1}, eight floats. Units: Pa, Pa s, s."""
     lmbda, mu = params[LAMBDA], params[MU]
     # trial stress sigma_tr = C : (eps - eps_p,n), its deviator and sigma_eq
-    e0, e1, e2, e3 = eps[0] - eps_p[0], eps[1] - eps_p[1], eps[2] - eps_p[2], eps[3] - eps_p[3]
-    lt = lmbda * (e0 + e1 + e2)
-    s0, s1, s2, s3 = lt + 2.0 * mu * e0, lt + 2.0 * mu * e1, lt + 2.0 * mu * e2, 2.0 * mu * e3
+    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
+    lt = lmbda * (x0 + x1 + x2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
     m = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m, s1 - m, s2 - m
     q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)  # sigma_eq,tr^2
-    sy = params[YIELD_STRESS] + params[HARDENING] * state[0]
+    sy = params[YIELD_STRESS] + params[HARDENING] * state[k]
     if q2_tr <= sy * sy:  # f_tr <= 0 (sigma_y > 0): elastic, no square root needed
-        sigma[0], sigma[1], sigma[2], sigma[3] = s0, s1, s2, s3
-        return
+        return s0, s1, s2, s3, p0, p1, p2, p3
     q_tr = math.sqrt(q2_tr)
     f_tr = q_tr - sy
     viscous = params[VISCOSITY] / dt if params[VISCOSITY] > 0.0 else 0.0
     dg = f_tr / (3.0 * mu + params[HARDENING] + viscous)  # Delta eps_bar_p
-    k = 1.5 * dg / q_tr  # Delta eps_p = k s_tr
-    eps_p[0] += k * d0
-    eps_p[1] += k * d1
-    eps_p[2] += k * d2
-    eps_p[3] += k * s3
-    state[0] += dg
-    c = 2.0 * mu * k  # sigma = sigma_tr - 2 mu Delta eps_p
-    sigma[0] = s0 - c * d0
-    sigma[1] = s1 - c * d1
-    sigma[2] = s2 - c * d2
-    sigma[3] = s3 - c * s3
+    kp = 1.5 * dg / q_tr  # Delta eps_p = kp s_tr
+    state[k] += dg
+    c = 2.0 * mu * kp  # sigma = sigma_tr - 2 mu Delta eps_p
+    return (s0 - c * d0, s1 - c * d1, s2 - c * d2, s3 - c * s3,
+            p0 + kp * d0, p1 + kp * d1, p2 + kp * d2, p3 + kp * s3)
+
+
+@njit(cache=True)
+def update(eps, eps_p, state, params, dt, sigma) -> None:
+    """Radial return for J2 at one point (the array seam of :mod:`.axisym`): :func:`point`.
+
+    ``state[0]`` is the equivalent plastic strain eps_bar_p. Units: Pa, Pa s, s."""
+    (sigma[0], sigma[1], sigma[2], sigma[3], eps_p[0], eps_p[1], eps_p[2], eps_p[3]) = point(
+        eps[0], eps[1], eps[2], eps[3], eps_p[0], eps_p[1], eps_p[2], eps_p[3], state, 0,
+        params, dt)
 
 
 @dataclass(frozen=True)
@@ -115,3 +120,8 @@ class J2(IsotropicConstants):
     def update(self):
         """The compiled point update (radial return)."""
         return update
+
+    @property
+    def point(self):
+        """The compiled point update on scalars (the same radial return)."""
+        return point

@@ -49,8 +49,10 @@ work[3:5] (cos 2 theta, sin 2 theta), work[5:8] the principal values of b_e
 (trial, then returned), work[8:11] the principal stresses.
 
 Compiled with numpy's error model (a float division by zero gives inf or nan, as
-in numpy, instead of a test and a Python exception at every division); float64
-and no fast-math.
+in numpy, instead of a test and a Python exception at every division) and inlined
+into the force kernel (numba's inline="always": a call would pass each array as
+seven scalars and spill the kernel's registers); float64 and no fast-math. The
+materials' ``update`` functions are inlined the same way.
 """
 from __future__ import annotations
 
@@ -61,7 +63,7 @@ from numba import njit
 SQRT_3_2 = math.sqrt(1.5)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def trial_log_strains(F, state, work) -> None:
     """Principal trial elastic log strains into work[0:3], (cos 2 theta, sin 2 theta) into
     work[3:5], the principal values of the trial b_e into work[5:8]."""
@@ -92,7 +94,7 @@ def trial_log_strains(F, state, work) -> None:
     work[5], work[6], work[7] = l1, l2, l3
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def principal_kirchhoff(lmbda, mu, work, out) -> float:
     """Trial Kirchhoff principal stresses tau_i = lambda tr eps + 2 mu eps_i into out[0:3]
     (Pa) from the log strains in work[0:3]; returns the von Mises value sqrt(3/2 s:s)."""
@@ -104,7 +106,7 @@ def principal_kirchhoff(lmbda, mu, work, out) -> float:
     return SQRT_3_2 * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def radial_return(mu, dgamma, q_trial, principal, work) -> None:
     """Scale the deviator of the principal stresses by 1 - 3 mu dgamma / q_trial, take
     dgamma 3/2 dev tau / q_trial off the log strains (the exponential-map return) and
@@ -127,7 +129,7 @@ def radial_return(mu, dgamma, q_trial, principal, work) -> None:
     work[7] /= x0 * x1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def kirchhoff(principal, work, tau) -> None:
     """tau (rr, tt, zz, rz) (Pa) from the principal stresses and the directions in work[3:5]."""
     c2, s2 = work[3], work[4]
@@ -139,7 +141,7 @@ def kirchhoff(principal, work, tau) -> None:
     tau[1] = principal[2]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def finish(F, principal, work, state, tau) -> None:
     """tau as :func:`kirchhoff`, and a = C_p^-1 = F^-1 b_e F^-T from the returned principal
     values of b_e in work[5:8] (after plastic flow only: an elastic step leaves a
@@ -162,7 +164,7 @@ def finish(F, principal, work, state, tau) -> None:
     state[4] = work[7] / (ftt * ftt)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def elastic_energy(lmbda, mu, work) -> float:
     """psi_e = mu |dev eps_e|^2 + K/2 (tr eps_e)^2 (J/m^3) of the log strains in work[0:3]."""
     tr = work[0] + work[1] + work[2]
@@ -171,7 +173,7 @@ def elastic_energy(lmbda, mu, work) -> float:
     return mu * (d0 * d0 + d1 * d1 + d2 * d2) + 0.5 * (lmbda + 2.0 * mu / 3.0) * tr * tr
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def stored_energy(F, state, params, work) -> float:
     """psi_e (J/m^3) at F with the plastic state a = C_p^-1 in state[1:5]; params[0:2] =
     (lambda, mu) in Pa (the ``energy`` of every Hencky model)."""

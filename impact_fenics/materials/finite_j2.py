@@ -35,7 +35,7 @@ from . import hencky
 LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def update(F, state, params, dt, tau, work) -> float:
     """Exponential-map radial return at one point; returns the plastic work increment (J/m^3)."""
     lmbda, mu, sy0, h = params[LAMBDA], params[MU], params[YIELD_STRESS], params[HARDENING]

@@ -83,7 +83,7 @@ def return_increment(params, mu, q, eps_bar, dt, temperature) -> float:
     return x
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def update(F, state, params, dt, tau, work) -> float:
     """Johnson-Cook return at one point; returns the plastic work increment (J/m^3)."""
     lmbda, mu = params[LAMBDA], params[MU]

@@ -29,7 +29,7 @@ from numba import njit
 from .elastic import IsotropicConstants
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def update(F, state, params, dt, tau, work) -> float:
     """tau = mu (b - I) + lambda ln J I (Pa); no internal variables."""
     lmbda, mu = params[0], params[1]

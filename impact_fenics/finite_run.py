@@ -190,7 +190,7 @@ class FiniteRun:
         self.u = self.u_fn.x.array  # owned + ghost
         self.u_owned = integ.u_owned
         self.mass = integ.mass
-        self.free = integ._free
+        self.free = integ.free
         self.coef = self.force.coef
         v0 = np.zeros(self.n_owned)
         v0[0::2], v0[1::2] = velocity

@@ -75,8 +75,8 @@ class Integrator:
         self.loads = loads or []
         self.fixed = np.unique(np.asarray(fixed_dofs, dtype=np.int32))
         self.mass = lumped_mass(model)
-        self._free = np.ones(model.n_owned, dtype=bool)
-        self._free[self.fixed] = False
+        self.free = np.ones(model.n_owned, dtype=bool)  # owned dofs not fixed
+        self.free[self.fixed] = False
         # the internal forces (internal_force.base.Force): K over the linear bodies (K, A
         # None without any), a quadrature force per path-dependent body, a finite-strain
         # force per finite-strain body; the finite ones first: their limit can give the
@@ -95,7 +95,7 @@ class Integrator:
         self._v = model.dofs.create_vec()
         # a finite-strain force's increment is h_n coef f with coef = -1/m (its kernel's
         # arithmetic)
-        inverse = np.where(self._free, -1.0 / self.mass, 0.0) if finite else None
+        inverse = np.where(self.free, -1.0 / self.mass, 0.0) if finite else None
         for name in finite:
             force = FiniteStrainForce(model.V, model.node_xy, model.owned_cells(name),
                                       model.bodies[name].material, self._u_fn)
@@ -124,7 +124,7 @@ class Integrator:
             self.K = self.linear.K
         self.nonlinear: list[QuadratureForce] = []
         if nonlinear:
-            coef = np.where(self._free, -self.dt / self.mass, 0.0)
+            coef = np.where(self.free, -self.dt / self.mass, 0.0)
             self.nonlinear = [QuadratureForce(model, name, self._u_fn, self.dt, coef, f_int_path,
                                               mass=self.mass) for name in nonlinear]
         for force in self.finite:  # its point updates take the step just taken: h at the first
@@ -139,12 +139,13 @@ class Integrator:
         # prediction from them and write their corrected dofs back into them
         self.u_owned = self._u.array if self._u_fn is None else self._u_fn.x.array[:model.n_owned]
         self.v_owned = self._v.array
-        # per load: its free dofs (a fixed dof stays at rest under any load), dt f / m
-        # there, and two buffers
-        free = [self._free[ld.dofs] for ld in self.loads]
+        # per load: its free dofs (a fixed dof stays at rest under any load), their force
+        # (N per unit of the pulse) and masses (kg), and dt f / m there
+        free = [self.free[ld.dofs] for ld in self.loads]
         self._load_dofs = [ld.dofs[k].astype(np.intp) for ld, k in zip(self.loads, free)]
-        self._load_coef = [self.dt * ld.force[k] / self.mass[ld.dofs[k]]
-                           for ld, k in zip(self.loads, free)]
+        self._load_force = [ld.force[k] for ld, k in zip(self.loads, free)]
+        self._load_mass = [self.mass[d] for d in self._load_dofs]
+        self._load_coef = [self.dt * f / m for f, m in zip(self._load_force, self._load_mass)]
         # the loads' compiled increment, its entry taken now (no dispatch in the loop)
         self._add_load = (direct(_add_load, self.v_owned, self._load_dofs[0], self._load_coef[0],
                                  1.0) if self.loads else None)
@@ -170,7 +171,7 @@ class Integrator:
         self.step.restart()
         for target, values in ((self.u_owned, u0), (self.v_owned, v0)):
             target[:] = 0.0 if values is None else values
-            target[~self._free] = 0.0
+            target[~self.free] = 0.0
 
     def displacement(self, out: np.ndarray) -> np.ndarray:
         """u^n (m) on the owned dofs, copied into ``out``."""
@@ -254,6 +255,6 @@ class _LoadSteps:
 
     def set_step(self, h: float, h_avg: float) -> None:
         integ = self.integ
-        for ld, dofs, coef in zip(integ.loads, integ._load_dofs, integ._load_coef):
-            k = integ._free[ld.dofs]
-            coef[:] = h_avg * ld.force[k] / integ.mass[ld.dofs[k]]
+        for f, m, coef in zip(integ._load_force, integ._load_mass, integ._load_coef):
+            np.multiply(h_avg, f, out=coef)  # (h_n f) / m, in place
+            np.divide(coef, m, out=coef)

@@ -414,6 +414,17 @@ def _floor_table(part: dict, names: list) -> list[str]:
     return out
 
 
+def _rerun(bench: dict, part: str) -> list[str]:
+    """A line for a part measured in a later run of its own (meta.rerun_parts), if it was."""
+    r = bench.get("meta", {}).get("rerun_parts", {}).get(part)
+    if not r:
+        return []
+    la, la_end = r["load_average"], r["load_average_end"]
+    return ["", f"(This part was measured in a later run of its own, started {r['started']}, "
+            f"load average {la[0]:.2f} at its start and {la_end[0]:.2f} at its end; its ratios "
+            "are within that run.)"]
+
+
 def _j2(j2: dict, bench: dict) -> list[str]:
     names = [("matmult", "MatMult K u"), ("linear_step", "linear step (MatMultAdd + AXPY)"),
              ("j2_fast_elastic", "J2, fused cell kernel, every point elastic"),
@@ -429,7 +440,7 @@ def _j2(j2: dict, bench: dict) -> list[str]:
     if "point_updates" in split and "fused_kernel" in split:
         out += ["", f"The point updates take {split['point_updates'] / split['fused_kernel']:.0%}"
                 " of the fused kernel's time."]
-    return out
+    return out + _rerun(bench, "j2")
 
 
 def _finite(fi: dict, bench: dict) -> list[str]:
@@ -446,9 +457,10 @@ def _finite(fi: dict, bench: dict) -> list[str]:
     out += _floor_table(fi, names)
     out += ["", f"Finite over small-strain J2: **{fi['finite_over_small_strain_j2']:.2f}×**. The "
             f"fused kernel is {fi['kernel_share_of_step']:.0%} of the step, and the material "
-            f"update (Hencky J2: eigenvectors of b_e, logarithms, exponentials) "
+            f"update (Hencky J2: the closed-form split of b_e's (r, z) block, logarithms, "
+            f"exponentials) "
             f"{fi['material_share_of_kernel']:.0%} of the kernel."]
-    return out
+    return out + _rerun(bench, "finite")
 
 
 def _taylor(ta: dict, bench: dict) -> list[str]:

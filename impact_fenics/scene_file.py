@@ -73,6 +73,7 @@ class ContactSpec:
     slave: str | None = None     # facet group of the slave nodes (node to segment)
     master: str | None = None    # facet group of the master segments (node to segment)
     reach: float | None = None   # m, node to segment: farthest master segment of a slave
+    repair_every: int = 0        # node to segment: steps between re-pairings (0: never)
     given: tuple[str, ...] = ()  # the keys the file gave
 
 
@@ -308,6 +309,7 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
         if c.slave == c.master:
             raise t.error("master", "the two contact surfaces must differ")
         c.reach = t.value("reach")
+        c.repair_every = t.value("repair_every")
     else:
         c.lower = t.value("lower")
         c.upper = t.value("upper")
@@ -595,6 +597,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 from .contact.segments import node_to_segment
 
                 sim.add_contact(node_to_segment(model, c.slave, c.master, reach=c.reach), method)
+                if c.repair_every:
+                    sim.contacts[-1].set_repairing(c.repair_every)
             elif c.rigid is None:
                 sim.add_contact(pair_surfaces(model, c.lower, c.upper), method)
             else:

@@ -106,6 +106,9 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
             "first_contact_step": track["first_contact"],
             "last_contact_step": track["last_contact"],
         }
+        if getattr(c, "repair_every", 0):  # node to segment re-paired in the loop
+            summary["contact"]["repair_every"] = c.repair_every
+            summary["contact"]["repairs"] = c.repairs
         if len(sim.contacts) > 1:
             summary["contacts"] = [{"method": c.method.name, "n_constraints": c.n,
                                     "surfaces": list(c.constraints.names),

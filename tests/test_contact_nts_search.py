@@ -16,7 +16,8 @@ import pytest
 from mpi4py import MPI
 from numba import njit
 
-from impact_fenics.contact.segments import FACE, VERTEX, Repairing, build, node_to_segment
+from impact_fenics.contact.segments import (END_TOLERANCE, FACE, VERTEX, Repairing, build,
+                                           node_to_segment)
 from roundoff import rounding
 from test_contact_nts_geometry import FLAT, _constraints, _random_interface, _surface
 from test_contact_nts_masters import SCENES
@@ -94,15 +95,30 @@ def _current_normals(c, master_x):
     return n
 
 
-def _released(c, seg, xi, kind):
-    """A slave beyond an end vertex of the master face (a node of one segment, off the
-    axis) or with no segment (seg -1)."""
+def _end_rule(c, seg, xi, kind, normal, gap, slave_x, master_x, end_tol=END_TOLERANCE):
+    """The rule at the master face's ends, written again: a slave whose contact point is an
+    end vertex (a node of one segment, off the axis) and that lies beyond it by at most
+    ``end_tol`` of the end segment is on the face's continuation (kind FACE, the segment's
+    normal, gap n . (x_s - x_end)); farther beyond, or with no segment (seg -1), it is
+    released. Returns (released, kind, normal, gap), the last three new arrays."""
     count = np.bincount(c.segments.ravel(), minlength=c.master_xy.shape[0])
+    normals = _current_normals(c, master_x)
+    kind, normal, gap = kind.copy(), normal.copy(), gap.copy()
     out = seg < 0
     for i in np.flatnonzero((kind == VERTEX) & (seg >= 0)):
-        node = c.segments[seg[i], 0 if xi[i] == 0.0 else 1]
-        out[i] = count[node] == 1 and abs(c.master_xy[node, 0]) > c.tie_tol
-    return out
+        a, b = c.segments[seg[i]]
+        node = a if xi[i] == 0.0 else b
+        if count[node] != 1 or abs(c.master_xy[node, 0]) <= c.tie_tol:
+            continue
+        t = master_x[b] - master_x[a]
+        raw = (slave_x[i] - master_x[a]) @ t / (t @ t)
+        if (raw - 1.0 if node == b else -raw) > end_tol:
+            out[i] = True
+            continue
+        kind[i] = FACE
+        normal[i] = normals[seg[i]]
+        gap[i] = normal[i] @ (slave_x[i] - master_x[node])
+    return out, kind, normal, gap
 
 
 def _assert_repairing_is_brute_force(c, pairing, slave_x, master_x):
@@ -112,11 +128,12 @@ def _assert_repairing_is_brute_force(c, pairing, slave_x, master_x):
     seg, xi, normal, g, kind, dist = _brute_force(c, slave_x, master_x,
                                                   _current_normals(c, master_x))
     near = dist <= c.reach
+    released, kind, normal, g = _end_rule(c, np.where(near, seg, -1), xi, kind, normal, g,
+                                          slave_x, master_x, pairing.end_tol)
     assert np.array_equal(p.seg[~near], np.full((~near).sum(), -1))
     for name, got, want in (("seg", p.seg, seg), ("xi", p.xi, xi), ("normal", p.normal, normal),
                             ("gap", p.gap, g), ("kind", p.kind, kind), ("dist", p.dist, dist)):
         assert np.array_equal(got[near], want[near]), name
-    released = _released(c, np.where(near, seg, -1), xi, kind)
     assert np.array_equal(p.active, ~released)
     assert np.array_equal(p.a[~released], c.segments[seg[~released], 0])
     assert np.array_equal(p.b[~released], c.segments[seg[~released], 1])
@@ -256,8 +273,9 @@ def test_face_stretched_to_twice_its_radius_is_still_found(bulge):
 
 def test_slave_sliding_off_the_end_is_released_and_paired_again():
     """One slave 0.1 segment above a flat master face r <= R (end at r = R, off the
-    axis) slides out to 1.2 R and back: beyond the end it has no row but keeps its
-    place; back over the face it is paired again, xi and gap by closed form."""
+    axis) slides out to 1.2 R and back: within the end tolerance past the end (half of
+    it) it stays on the face's continuation; beyond it has no row but keeps its place;
+    back over the face it is paired again, xi and gap by closed form."""
     R, n = 0.01, 10
     ell = R / n
     master = np.stack([np.linspace(0.0, R, n + 1), np.zeros(n + 1)], axis=1)
@@ -266,11 +284,15 @@ def test_slave_sliding_off_the_end_is_released_and_paired_again():
     pairing = Repairing(c)
     last = int(np.argmax(c.master_xy[c.segments[:, 1], 0]))  # the segment ending at R
     seen = []
-    for r in (0.95 * R, 1.05 * R, 1.2 * R, 0.95 * R):
+    just_past = R + 0.5 * END_TOLERANCE * ell
+    for r in (0.95 * R, just_past, 1.05 * R, 1.2 * R, 0.95 * R):
         slave = np.array([[r, 0.1 * ell]])
         p = _assert_repairing_is_brute_force(c, pairing, slave, c.master_xy)
         seen.append(bool(p.active[0]))
-        if p.active[0]:
+        if r == just_past:  # the face continued: its end, its normal, the height above it
+            assert p.seg[0] == last and p.kind[0] == FACE and p.xi[0] == 1.0
+            assert p.gap[0] == 0.1 * ell
+        elif p.active[0]:
             assert p.seg[0] == last and p.kind[0] == FACE
             # xi = (r - r_a) / (r_b - r_a) on the stored coordinates: both differences
             # are exact (operands within a factor 2), (dr t_r) / (t_r t_r) rounds 3 times
@@ -280,7 +302,7 @@ def test_slave_sliding_off_the_end_is_released_and_paired_again():
         else:
             # beyond the end vertex (1.05 R), or beyond the reach, 2 segments (1.2 R)
             assert (p.seg[0] == last and p.kind[0] == VERTEX) or p.seg[0] == -1
-    assert seen == [True, False, False, True]
+    assert seen == [True, True, False, False, True]
     assert c.n == 1 and pairing.pairs.active.size == 1  # kept, never dropped
 
 
@@ -323,9 +345,10 @@ def test_candidate_projections_grow_with_the_nodes_not_their_product():
         c = _nose_over_arc(n, int(1.4 * n), reach=2.0 * ell)
         pairing = Repairing(c)
         p = _assert_repairing_is_brute_force(c, pairing, c.slave_xy, c.master_xy)
-        # every slave has a row but the one at the rim, radially beyond the nose's end
-        rim = int(np.argmax(c.slave_xy[:, 0]))
-        assert np.flatnonzero(~p.active).tolist() == [rim]
+        # every slave has a row, the rim's too: it lies 1e-3 R outside the nose's end
+        # node, along the end segment's normal (the segment runs along z there), so on
+        # the face's continuation, not beyond its end by the end tolerance
+        assert p.active.all()
         search = pairing.search
         assert search.grid[2] == c.reach  # cells of the reach (memory not capped)
         bound = _candidates_per_slave(c, search, c.master_xy)

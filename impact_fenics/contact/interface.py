@@ -58,8 +58,8 @@ from .dme import DME
 from .film import FILM
 from .pairing import Constraints
 from .penalty import Penalty, lambda_max_diag_plus_rank_one
-from .segments import (Repairing, SegmentConstraints, current_positions, repair_reach,
-                       rows_of_pairs)
+from .segments import (END_TOLERANCE, Repairing, SegmentConstraints, current_positions,
+                       repair_reach, rows_of_pairs)
 from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER,
                     LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
                     RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_FACE, RIGID_MASS, RIGID_WORK,
@@ -360,11 +360,13 @@ class ContactSet:
         self.repair_every = 0  # re-pairing off (set_repairing): the set-up's pairs
         self.method.setup(self)
 
-    def set_repairing(self, every: int, reach: float | None = None) -> None:
+    def set_repairing(self, every: int, reach: float | None = None,
+                      end_tol: float = END_TOLERANCE) -> None:
         """Re-pair the slaves with the segments they face every ``every`` steps (0: never,
         the set-up's pairs for the whole run), in the configuration X + u^n at the start
-        of the step, within ``reach`` (m; :func:`.segments.repair_reach` unless given).
-        Call before the run. The segment kind only.
+        of the step, within ``reach`` (m; :func:`.segments.repair_reach` unless given),
+        the master face continued past its ends by ``end_tol`` of the end segment
+        (:class:`.segments.Repairing`). Call before the run. The segment kind only.
 
         Each re-pairing (:meth:`_repair`) rewrites the rows of G, their gaps' constants
         and the band of S in place; a slave beyond an end of the master face (or out of
@@ -387,7 +389,7 @@ class ContactSet:
         self.has_row = np.ones(self.n, dtype=np.bool_)  # which slaves have a row (_repair)
         c = self.constraints
         n_slave = c.slave_xy.shape[0]
-        self._repairing = Repairing(c, repair_reach(c) if reach is None else reach)
+        self._repairing = Repairing(c, repair_reach(c) if reach is None else reach, end_tol)
         self._slave_x = np.empty((n_slave, 2))
         self._master_x = np.empty((c.master_xy.shape[0], 2))
         self._first_row = np.empty(self.n_slots, np.int64)  # bandwidth_of's scratch

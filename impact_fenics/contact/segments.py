@@ -491,18 +491,44 @@ def _oriented_normals(node_xy, seg_nodes, side, out):
 
 
 @njit(cache=True)
-def _release_beyond_ends(seg, xi, kind, seg_nodes, end, a, b, active):
-    """A slave has a row unless it has no segment within reach or its contact point is
-    the vertex of a face's end (``end``: master nodes of one segment, off the axis) it
-    lies beyond; writes the row's master nodes ``a``, ``b`` (-1 without a row)."""
+def _face_ends(x, node_xy, seg_normal, end_tol, seg, xi, kind, normal, gap, seg_nodes, end, a,
+               b, active):
+    """The rule at the ends of the master face. A slave whose contact point is the end
+    vertex of the face (``end``: master nodes of one segment, off the axis) and which
+    lies beyond it by at most ``end_tol`` of the end segment's length (its projection's
+    xi in [-end_tol, 0) or (1, 1 + end_tol]) is on the face's continuation: kind FACE,
+    xi at the end (0 or 1), the segment's normal and the signed gap n . (x_s - x_end)
+    (m). Farther beyond, or with no segment within reach, it has no row (released).
+    Writes the row's master nodes ``a``, ``b`` (-1 without a row) and ``active``."""
     for i in range(seg.shape[0]):
         j = seg[i]
         released = j < 0
         if not released and kind[i] == VERTEX:
-            released = end[seg_nodes[j, 0] if xi[i] == 0.0 else seg_nodes[j, 1]]
+            at_b = xi[i] != 0.0
+            node = seg_nodes[j, 1] if at_b else seg_nodes[j, 0]
+            if end[node]:
+                pa, pb = seg_nodes[j, 0], seg_nodes[j, 1]
+                tr = node_xy[pb, 0] - node_xy[pa, 0]
+                tz = node_xy[pb, 1] - node_xy[pa, 1]
+                raw = ((x[i, 0] - node_xy[pa, 0]) * tr + (x[i, 1] - node_xy[pa, 1]) * tz) / (
+                    tr * tr + tz * tz)
+                beyond = raw - 1.0 if at_b else -raw
+                if beyond <= end_tol:
+                    kind[i] = FACE
+                    normal[i, 0] = seg_normal[j, 0]
+                    normal[i, 1] = seg_normal[j, 1]
+                    gap[i] = (seg_normal[j, 0] * (x[i, 0] - node_xy[node, 0])
+                              + seg_normal[j, 1] * (x[i, 1] - node_xy[node, 1]))
+                else:
+                    released = True
         active[i] = not released
         a[i] = -1 if released else seg_nodes[j, 0]
         b[i] = -1 if released else seg_nodes[j, 1]
+
+
+# the default of Repairing's end_tol: a slave within 1 % of the end segment's length
+# beyond the master face's end stays on the face's continuation (see Repairing)
+END_TOLERANCE = 0.01
 
 
 @dataclass
@@ -537,18 +563,29 @@ class Repairing:
     the outside it had at set-up), the closest segment within ``reach`` (m; the set-up
     reach unless given: a time loop gives :func:`repair_reach`) by the
     bucket search (:class:`BucketSearch`, ties as at set-up), the axis rule as at
-    set-up. A slave whose closest point is the end vertex of the master face and
-    which lies beyond it (xi outside [0, 1] on the outermost segment, no neighbour;
-    an end on the axis r = 0 is not an end: the face continues by symmetry), or with
-    no segment within reach, has no row (``active`` False): released, not lost, it is
-    paired again when it comes back. Gaps are not snapped nor checked (a current gap
-    may be negative). Every array is kept between calls: a call allocates nothing
-    but what a larger grid needs (:class:`BucketSearch`)."""
+    set-up. At the ends of the master face (an end vertex: the node of one segment;
+    an end on the axis r = 0 is not an end, the face continues by symmetry) the face
+    is continued by ``end_tol`` of its end segment's length (:func:`_face_ends`): a
+    slave beyond the end by less keeps a row on the end segment with the face's
+    normal, so that the sub-micron radial motion of a rim node where two faces of
+    equal radius meet does not release and re-pair it on alternate steps; a slave
+    farther beyond, or with no segment within reach, has no row (``active`` False):
+    released, not lost, it is paired again when it comes back. A slave that slides off
+    the face is released once it is ``end_tol`` of a segment past the edge: the end of
+    a meshed face is resolved to a cell, and 1 % of one is well inside that. Gaps are
+    not snapped nor checked (a current gap may be negative). Every array is kept
+    between calls: a call allocates nothing but what a larger grid needs
+    (:class:`BucketSearch`)."""
 
-    def __init__(self, c: SegmentConstraints, reach: float | None = None):
+    def __init__(self, c: SegmentConstraints, reach: float | None = None,
+                 end_tol: float = END_TOLERANCE):
         if c.seg_normal is None:
             raise ValueError("re-pairing needs constraints from build()")
+        if not 0.0 <= end_tol < 1.0:
+            raise InputError(f"contact: end_tolerance = {end_tol} must lie in [0, 1) (a "
+                             "fraction of the end segment)")
         self.c = c
+        self.end_tol = float(end_tol)
         self.reach = c.reach if reach is None else float(reach)
         self.search = BucketSearch(self.reach)
         t = c.master_xy[c.segments[:, 1]] - c.master_xy[c.segments[:, 0]]
@@ -567,7 +604,8 @@ class Repairing:
         self.search.pair(slave_x, c.segments, master_x, self.seg_normal, c.xi_tol, c.tie_tol,
                          p.seg, p.xi, p.normal, p.gap, p.kind, p.dist)
         _axis_normals(slave_x, c.segments, master_x, p.seg, p.xi, c.tie_tol, p.normal, p.gap)
-        _release_beyond_ends(p.seg, p.xi, p.kind, c.segments, self.end, p.a, p.b, p.active)
+        _face_ends(slave_x, master_x, self.seg_normal, self.end_tol, p.seg, p.xi, p.kind,
+                   p.normal, p.gap, c.segments, self.end, p.a, p.b, p.active)
         return p
 
 

@@ -318,6 +318,20 @@ def _ranks(rk: dict, bench: dict) -> list[str]:
     return out
 
 
+def _gain(gn: dict, bench: dict) -> list[str]:
+    steps = gn.get("steps")
+    if not steps:
+        return []
+    out = ["## Nonlinear steps on two ranks", "",
+           f"Each step's gain from the second rank (t₁/t₂, the same global mesh) over the "
+           f"STREAM triad's gain in the same run ({gn['triad_gain']:.2f}×): 1 means the step "
+           "gains what the shared memory bus gives; the goal is at least 0.9.", ""]
+    out += _table(["step", "1 rank (ms)", "2 ranks (ms)", "gain t₁/t₂", "gain / triad gain"],
+                  [[k, f"{r['ms_1']:.3f}", f"{r['ms_2']:.3f}", f"{r['gain']:.2f}",
+                    f"{r['over_triad']:.2f}"] for k, r in steps.items()])
+    return out
+
+
 def _format(fm: dict, bench: dict) -> list[str]:
     out = ["## Matrix format", "",
            "K and A assembled as AIJ and as BAIJ with block size 2 (`Settings(matrix_type="
@@ -539,7 +553,7 @@ def performance_page(bench: dict) -> str:
     """docs/performance.md, from the benchmark's JSON ``bench``."""
     renderers = [("step", _step), ("scaling", _scaling), ("ranks", _ranks), ("format", _format),
                  ("matfree", _matfree), ("contact", _contact), ("nts", _nts), ("j2", _j2),
-                 ("finite", _finite), ("taylor", _taylor), ("akantu", _akantu),
+                 ("finite", _finite), ("taylor", _taylor), ("gain", _gain), ("akantu", _akantu),
                  ("whole", _whole)]
     out = [_banner("docs/bench.json, the JSON of `python -m impact_fenics.bench` "
                    "(`make docs BENCH=results/bench.json` takes a new one)")]

@@ -240,10 +240,11 @@ _CONTACT = Section("contact", "[[contact]]", (
     Key("repair_every", "count", "-", 0, "node to segment: steps between re-pairings of the "
         "slaves with the segments they face, in the current configuration (the set-up's "
         "pairs for the whole run when absent)", groups=("segment",), default_text="never",
-        note="For faces that slide along each other by more than a fraction of a segment. Each re-pairing searches within two "
-        "of the longest master segments; a slave past an end of the master face by more "
-        "than 1 % of the end segment has no row until it comes back "
-        "([node_to_segment.md](node_to_segment.md)). Needs film_solver = \"fast\"."),
+        note="For faces that slide along each other by more than a fraction of a segment. "
+        "Each re-pairing searches within two of the longest master segments; a slave past "
+        "an end of the master face by more than 1 % of the end segment has no row until "
+        "it comes back ([node_to_segment.md](node_to_segment.md)). Needs film_solver = "
+        "\"fast\"."),
     Key("method", "text", "", REQUIRED, "the contact method", choices=METHODS),
     Key("penalty", "stiffness", "N/m", "scaled", "penalty: a stiffness p", choices=("auto", "scaled"),
         note="\"auto\": the paper's rule (both readings reported); \"scaled\": from the "

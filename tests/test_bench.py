@@ -18,7 +18,7 @@ from impact_fenics.bench.step import scipy_equivalence
 from roundoff import rounding
 
 # akantu needs a venv of its own that CI does not have: left out here
-PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite"
+PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite,gain"
 TIMING_KEYS = ("median", "gbs", "step", "matmult", "multadd", "axpy", "contact", "fast", "force",
                "numba_call_floor")
 
@@ -93,8 +93,16 @@ def test_smoke_run_writes_the_expected_figures(smoke):
         # sqrt(18) of max |K u| for the random u)
         assert mf["rel_diff_to_K_u"] <= rounding(2 * (26 + 18) * math.sqrt(18))
         assert mf["ns_per_dof"]["matfree"] > 0
+        gain = smoke["gain"]  # every nonlinear step timed on 2 ranks beside its 1-rank time
+        assert "error" not in gain, gain.get("error")
+        assert gain["meta_two_ranks"]["ranks"] == 2 and gain["triad_gain"] > 0
+        assert {"j2_fast", "dp_fast", "j2_finite_strain"} <= set(gain["steps"])
+        for k, r in gain["steps"].items():
+            # gain = t1 / t2; the ms columns are 1e3 t each: 3 more roundings
+            assert r["gain"] > 0, k
+            assert abs(r["gain"] - r["ms_1"] / r["ms_2"]) <= rounding(4) * r["gain"], k
     else:
-        for part in ("ranks", "matfree"):
+        for part in ("ranks", "gain", "matfree"):
             assert "skipped" in smoke[part]
 
     j2 = smoke["j2"]

@@ -23,10 +23,11 @@ PART_FUNCTIONS = {
     "scaling": scaling.part_scaling, "stream": scaling.part_stream, "ranks": scaling.part_ranks,
     "format": matrix_format.part_format, "matfree": peers.part_matfree, "akantu": peers.part_akantu,
     "j2": plastic.part_j2, "finite": finite.part_finite, "taylor": finite.part_taylor,
+    "gain": scaling.part_gain,
     "whole": whole_run.part_whole_run,
 }
 PARTS = tuple(PART_FUNCTIONS)
-SERIAL_ONLY = ("ranks", "matfree", "akantu")  # launchers and serial prototypes
+SERIAL_ONLY = ("ranks", "gain", "matfree", "akantu")  # launchers and serial prototypes
 
 
 def parse_args(argv=None) -> argparse.Namespace:

@@ -76,7 +76,7 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
     summary["bodies"] = body_figures(model, sim.integrator, sim.body_mass, sim._v_start,
                                       _velocities(sim), comm)
     element_cycle_figures(summary, {name: model.owned_cells(name).size for name in model.bodies},
-                          comm)
+                          comm, sim.integrator)
     if sim.contacts:
         summary["impact"] = impact_figures(sim.history.data(), sim.contacts, sim._v_start,
                                            _velocities(sim), s.dt, model, comm)
@@ -125,30 +125,47 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
     return summary
 
 
-def element_cycle_figures(summary: dict, body_cells: dict[str, int], comm: MPI.Comm) -> None:
+def element_cycle_figures(summary: dict, body_cells: dict[str, int], comm: MPI.Comm,
+                          integrator=None) -> None:
     """The time per element per cycle (ns; LS-DYNA's "time per zone cycle") into ``summary``:
-    the whole run's, the loop's wall time / (cells x steps taken), and each body's, its
-    share of the f_int phase (the slowest rank's total) by its cells over its cells x
-    steps: the phase times every body's force together, so the share goes by cells and
-    each body's figure is the f_int phase's time per element per cycle. ``body_cells``:
-    each body's cells owned by this rank. Collective."""
+    the whole run's, the loop's wall time / (cells x steps taken), and each body's,
+    ``f_int_seconds`` (its force's time, the slowest rank's) over its cells x steps. With
+    two or more forces (``integrator.force_seconds``, timed apart) a body's time is its
+    own force's, shared by cells among the linear bodies (one operator steps them all);
+    with one, the f_int phase's, shared by cells. ``body_cells``: each body's cells owned
+    by this rank. Collective."""
     steps = summary["stopped_at_step"]
     cells = summary["n_cells"]
     if steps <= 0 or cells <= 0:
         return
     summary["ns_per_element_cycle"] = 1e9 * summary["wall_time"] / (cells * steps)
-    phases = summary.get("timing", {}).get("phases", {})
-    f_int = phases.get("f_int", {}).get("total")
-    counts = comm.allreduce(np.array(list(body_cells.values()), dtype=np.int64))
-    for (name, _), n in zip(body_cells.items(), counts):
+    counts = dict(zip(body_cells, comm.allreduce(np.array(list(body_cells.values()),
+                                                          dtype=np.int64))))
+    timed = integrator is not None and len(getattr(integrator, "forces", ())) > 1
+    if timed:
+        seconds = np.empty_like(integrator.force_seconds)
+        comm.Allreduce(integrator.force_seconds, seconds, op=MPI.MAX)
+        shares = [(t, bodies) for t, bodies in zip(seconds, integrator.force_bodies)]
+    else:
+        f_int = summary.get("timing", {}).get("phases", {}).get("f_int", {}).get("total")
+        shares = [] if f_int is None else [(f_int, list(body_cells))]
+    for name, n in counts.items():
         body = summary["bodies"].setdefault(name, {})
         body["n_cells"] = int(n)
-        if f_int is not None and n > 0:
-            body["ns_per_element_cycle"] = 1e9 * (f_int * n / cells) / (n * steps)
+    for t, bodies in shares:
+        n_force = sum(int(counts[b]) for b in bodies)
+        for b in bodies:
+            n = int(counts[b])
+            if n > 0:
+                body = summary["bodies"][b]
+                body["f_int_seconds"] = float(t) * n / n_force
+                body["ns_per_element_cycle"] = 1e9 * body["f_int_seconds"] / (n * steps)
     summary["ns_per_element_cycle_definition"] = (
-        "the loop's wall time / (n_cells x stopped_at_step) (ns); per body: the f_int phase's "
-        "total time (the slowest rank's) shared among the bodies by their cells, over the "
-        "body's n_cells x stopped_at_step (the phase times all bodies together)")
+        "the loop's wall time / (n_cells x stopped_at_step) (ns); per body: f_int_seconds / "
+        "(the body's n_cells x stopped_at_step), f_int_seconds the time of the body's own "
+        "force (the slowest rank's) when the bodies have forces of their own, shared by "
+        "cells among the linear bodies (one operator), else the f_int phase's time shared "
+        "by cells")
 
 
 def provenance() -> dict:

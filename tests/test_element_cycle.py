@@ -1,6 +1,7 @@
 """The time per element per cycle a run reports (summary.json, the console) is the loop's wall
-time over cells x steps, from the summary's own numbers; each body's is its share of the
-f_int phase by its cells.
+time over cells x steps, from the summary's own numbers; each body's is its own force's time
+over its cells x steps where the bodies have forces of their own (a linear and a J2 body),
+else its share of the f_int phase by its cells.
 
 No timed assertion: only that the figures are there, positive, and the quotients of the
 summary's other figures. Serial and under MPI (the summary is the same on every rank).
@@ -40,6 +41,27 @@ def test_two_bodies_report_the_time_per_element_per_cycle():
     if MPI.COMM_WORLD.rank == 0:
         assert any(line.startswith("cost: ") and "ns per element per cycle" in line
                    for line in console_lines(s))
+
+
+def test_bodies_with_forces_of_their_own_are_timed_apart(tmp_path):
+    """The plastic bar impact (an elastic striker, a J2 target): two forces, each timed on
+    its own; each body's figure is its force's time over its cells x steps."""
+    import os
+
+    from impact_fenics import scene_file
+    from scene_texts import ROOT
+
+    scene = scene_file.read_scene(os.path.join(ROOT, "scenes", "plastic_bar_impact.toml"))
+    sim = scene_file.build(scene, {"quiet": True, "n_steps": 20, "t_end": None,
+                                   "plots": False})
+    assert len(sim.integrator.forces) == 2
+    assert sim.integrator.force_bodies == [["striker"], ["target"]]  # linear, then J2
+    s = sim.run()
+    steps = s["stopped_at_step"]
+    for name in ("striker", "target"):
+        b = s["bodies"][name]
+        assert b["f_int_seconds"] > 0 and b["n_cells"] > 0
+        assert _close(b["ns_per_element_cycle"], 1e9 * b["f_int_seconds"] / (b["n_cells"] * steps))
 
 
 def test_a_finite_strain_run_reports_the_time_per_element_per_cycle():

@@ -35,7 +35,7 @@ from impact_fenics.xdmf import FieldSeries
 from roundoff import ledger
 
 COMM = MPI.COMM_WORLD
-TIMED = "ns_per_element_cycle"  # a body figure that is a measured time
+TIMED = ("ns_per_element_cycle", "f_int_seconds")  # body figures that are measured times
 
 
 def _settings(out, compiled, **kw):
@@ -77,7 +77,7 @@ def _written(sim) -> dict:
     for key in ("status", "stopped_at_step", "contact", "impact", "energy", "peak_stress"):
         got[f"summary.{key}"] = repr(s.get(key))
     # each body's figures but its time per element per cycle (a measured time)
-    got["summary.bodies"] = repr({name: {k: v for k, v in body.items() if k != TIMED}
+    got["summary.bodies"] = repr({name: {k: v for k, v in body.items() if k not in TIMED}
                                   for name, body in s["bodies"].items()})
     got["track"] = repr(sim.track.as_dict())  # contact steps, penalty reversals
     integ = sim.integrator

@@ -1,0 +1,173 @@
+"""The split Hopkinson bar's wave analysis (impact_fenics.shpb.waves) on waves made by the
+1D theory of the test, so the answer is known: a specimen of a smooth law
+sigma(eps) = sigma_y tanh(E_s eps / sigma_y) + H eps, strained at a rate that rises smoothly
+to 2000 1/s, in equilibrium. At the faces the waves are then (compression positive)
+
+    eps_R = -rate L_s / (2 c0),   eps_T = sigma(eps) A_s / (E A_b),   eps_I = eps_T - eps_R,
+
+and the gauges record them shifted by their distances over c0. The analysis must give back
+the rate, the strain and the law.
+
+* Gauges at a whole number of samples from the faces: every wave is read at a sample
+  (no interpolation), the rate is piecewise smooth and the strain its trapezoid integral:
+  the 1- and 3-wave stresses against the law at the 1- and 3-wave strains to the trapezoid
+  rule's error, bounded by T dt^2 max|rate''| / 12 times the law's largest slope, plus
+  round-off;
+* gauges at fractions of a sample: each wave by linear interpolation, within
+  dt^2 / 8 max|f''| of the exact wave (f'' from the closed forms);
+* in equilibrium the 1- and 3-wave rates agree and the ratio R is zero, to round-off;
+  out of equilibrium R is 2 |F_front - F_back| / (F_front + F_back) by hand;
+* a pulse longer than the incident gauge's window, or a record too short, is refused.
+
+Pure numpy: the same on every rank.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from impact_fenics.errors import InputError
+from impact_fenics.shpb.waves import Bars, Gauges, Specimen, analyse, separate
+from roundoff import rounding
+
+BARS = Bars(E=200e9, density=7850.0, area=math.pi * 0.01 ** 2)
+SPECIMEN = Specimen(length=5e-3, area=math.pi * 0.005 ** 2)
+E_S, SIGMA_Y, H = 100e9, 300e6, 1e9   # the specimen's law (Pa)
+RATE, RISE = 2000.0, 10e-6            # plateau strain rate (1/s), its smooth rise (s)
+PULSE = 100e-6                        # s
+DT = 1e-7                             # s, the records' sampling
+
+
+def _rate(tau):
+    tau = np.asarray(tau, dtype=float)
+    rising = 0.5 * RATE * (1.0 - np.cos(math.pi * tau / RISE))
+    return np.where(tau < RISE, rising, RATE) * ((tau >= 0.0) & (tau <= PULSE))
+
+
+def _strain(tau):
+    tau = np.clip(np.asarray(tau, dtype=float), 0.0, PULSE)
+    rising = 0.5 * RATE * (tau - RISE / math.pi * np.sin(math.pi * tau / RISE))
+    return np.where(tau < RISE, rising, 0.5 * RATE * RISE + RATE * (tau - RISE))
+
+
+def _law(eps):
+    return SIGMA_Y * np.tanh(E_S * eps / SIGMA_Y) + H * eps
+
+
+def _face_waves(tau):
+    """(incident, reflected, transmitted) at the faces at times tau after the incident
+    wave's arrival there (0 outside the pulse)."""
+    inside = (tau >= 0.0) & (tau <= PULSE)
+    reflected = -_rate(tau) * SPECIMEN.length / (2.0 * BARS.c0)
+    transmitted = np.where(inside, _law(_strain(tau)) * SPECIMEN.area / (BARS.E * BARS.area), 0.0)
+    return transmitted - reflected, reflected, transmitted
+
+
+def _records(d_i, d_t, arrival, t_end=600e-6):
+    t = DT * np.arange(int(round(t_end / DT)) + 1)
+    c0 = BARS.c0
+    inc, _, _ = _face_waves(t - arrival)
+    _, ref, _ = _face_waves(t - arrival - 2.0 * d_i / c0)
+    _, _, tra = _face_waves(t - arrival - (d_i + d_t) / c0)
+    return t, inc + ref, tra
+
+
+def _run(samples_i, samples_t, arrival_samples=500):
+    c0 = BARS.c0
+    d_i, d_t = samples_i * DT * c0, samples_t * DT * c0
+    gauges = Gauges(incident=d_i, transmitter=d_t, arrival=arrival_samples * DT)
+    t, gi, gt = _records(d_i, d_t, gauges.arrival)
+    waves = separate(t, gi, gt, BARS, gauges, PULSE)
+    return waves, analyse(waves, BARS, SPECIMEN)
+
+
+def _second_derivative_bound(f, tau):
+    """max |f''| over tau from second differences on a grid 100 times finer than the
+    records' (the closed forms are smooth between their few kinks, where the bound is
+    taken from the jump of f' instead: see the callers)."""
+    h = DT / 100.0
+    fine = np.arange(tau[0], tau[-1], h)
+    return float(np.max(np.abs(np.diff(f(fine), 2)))) / h ** 2
+
+
+def test_the_law_comes_back_at_whole_samples():
+    waves, a = _run(samples_i=2000, samples_t=1500)
+    tau = waves.t - waves.t[0]
+    inc, ref, tra = _face_waves(tau)
+    scale = float(np.max(np.abs(inc)))
+    # a sample read at its own time: the face time start + k dt and the record's k' dt
+    # differ by a few roundings of t (<= 600 us), and the records' slope is at most a
+    # wave's jump over one sample (at the pulse's ends), scale / DT
+    wave_err = rounding(8, 600e-6) * scale / DT + rounding(64, scale)
+    for got, want in ((waves.incident, inc), (waves.reflected, ref), (waves.transmitted, tra)):
+        assert np.max(np.abs(got - want)) <= wave_err
+    c0_l = BARS.c0 / SPECIMEN.length
+    rate_err = 3.0 * c0_l * wave_err + rounding(16, RATE)   # a rate is three waves' sum
+    stress_err = 3.0 * BARS.E * BARS.area / SPECIMEN.area * wave_err + rounding(16, SIGMA_Y)
+    # the trapezoid rule on the rate: T dt^2 max|rate''| / 12 (rate'' = RATE (pi/RISE)^2 / 2
+    # on the rise), the rates' errors over the pulse, the summed roundings of N terms
+    n = waves.t.size
+    trapezoid = PULSE * DT ** 2 * RATE * (math.pi / RISE) ** 2 / 2.0 / 12.0
+    strain_err = trapezoid + PULSE * rate_err + rounding(4 * n, float(_strain(PULSE)))
+    for strain, stress in ((a.strain_1, a.stress_1), (a.strain_3, a.stress_3)):
+        assert np.max(np.abs(strain - _strain(tau))) <= strain_err
+        # sigma at the recovered strain: the law's slope at most E_S + H
+        assert np.max(np.abs(stress - _law(strain))) <= (E_S + H) * strain_err + stress_err
+    # in equilibrium: the 3-wave rate is the 1-wave's, the three stresses agree, and R is
+    # zero up to the forces' errors over the force
+    assert np.max(np.abs(a.rate_3 - a.rate_1)) <= rate_err
+    for stress in (a.stress_2, a.stress_3):
+        assert np.max(np.abs(stress - a.stress_1)) <= stress_err
+    loaded = a.force_back > 0.01 * np.max(a.force_back)
+    force_err = stress_err * SPECIMEN.area
+    assert np.max(a.equilibrium[loaded]) <= 4.0 * force_err / np.min(a.force_back[loaded])
+    # the plateau: equilibrium everywhere, the rate within 10 % of 2000 after the rise
+    mask = a.plateau()
+    assert mask.sum() > 0.8 * mask.size
+    assert np.all(np.abs(a.rate_3[mask] - RATE) <= 0.1 * RATE)
+    # true values: constant volume
+    eps = a.strain_3[-1]
+    assert a.true_strain(a.strain_3)[-1] == pytest.approx(-math.log(1.0 - eps), rel=rounding(4))
+    cols = a.columns()
+    assert set(cols) >= {"time", "stress_1", "stress_2", "stress_3", "true_stress_3",
+                         "equilibrium_ratio", "strain_rate_1", "strain_rate_3"}
+    assert all(v.shape == a.t.shape for v in cols.values())
+
+
+def test_fractional_gauge_positions_interpolate_within_their_bound():
+    waves, _ = _run(samples_i=2000.37, samples_t=1500.71)
+    tau = waves.t - waves.t[0]
+    for k, got in enumerate((waves.incident, waves.reflected, waves.transmitted)):
+        def exact(x, k=k):
+            return _face_waves(x)[k]
+        # linear interpolation between samples errs by at most dt^2 / 8 max|f''| where f is
+        # smooth; the waves' kinks (the pulse's ends, where f jumps or f' jumps) are
+        # excluded: one sample either side of 0 and PULSE
+        smooth = (tau > 2 * DT) & (tau < PULSE - 2 * DT)
+        bound = DT ** 2 / 8.0 * _second_derivative_bound(exact, (2 * DT, PULSE - 2 * DT))
+        scale = float(np.max(np.abs(exact(tau))))
+        assert np.max(np.abs(got - exact(tau))[smooth]) <= 1.01 * bound + rounding(64, scale)
+
+
+def test_out_of_equilibrium_ratio_by_hand():
+    waves, _ = _run(samples_i=2000, samples_t=1500)
+    waves.incident = waves.incident * 1.1  # the front face pushed 10 % of eps_I harder
+    a = analyse(waves, BARS, SPECIMEN)
+    k = int(np.argmax(a.force_back))
+    stiffness = BARS.E * BARS.area
+    front = stiffness * (waves.incident[k] + waves.reflected[k])
+    back = stiffness * waves.transmitted[k]
+    assert a.equilibrium[k] == pytest.approx(2.0 * abs(front - back) / (front + back),
+                                             rel=rounding(16))
+    assert a.equilibrium[k] > 0.05
+
+
+def test_overlapping_or_short_records_are_refused():
+    c0 = BARS.c0
+    t, gi, gt = _records(0.1, 0.1, 1e-4)
+    with pytest.raises(InputError, match="overlap at the gauge"):
+        separate(t, gi, gt, BARS, Gauges(0.2, 0.2, 1e-4), 2.0 * 0.2 / c0 + 1e-6)
+    with pytest.raises(InputError, match="run longer"):
+        separate(t[:3000], gi[:3000], gt[:3000], BARS, Gauges(0.4, 0.4, 1e-4), PULSE)
+    with pytest.raises(InputError, match="away from the specimen"):
+        separate(t, gi, gt, BARS, Gauges(0.0, 0.2, 1e-4), PULSE)

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import contact, finite, matrix_format, nts, peers, plastic, scaling, step, whole_run
+from . import (contact, finite, gain, matrix_format, nts, peers, plastic, scaling, step,
+               whole_run)
 from ..output import json_ready
 from .common import MODES, Context
 from .machine import machine_info
@@ -23,7 +24,7 @@ PART_FUNCTIONS = {
     "scaling": scaling.part_scaling, "stream": scaling.part_stream, "ranks": scaling.part_ranks,
     "format": matrix_format.part_format, "matfree": peers.part_matfree, "akantu": peers.part_akantu,
     "j2": plastic.part_j2, "finite": finite.part_finite, "taylor": finite.part_taylor,
-    "gain": scaling.part_gain,
+    "gain": gain.part_gain,
     "whole": whole_run.part_whole_run,
 }
 PARTS = tuple(PART_FUNCTIONS)

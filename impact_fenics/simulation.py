@@ -308,7 +308,7 @@ class Simulation:
         accumulate = load_work.accumulate if self.loads else None
         complete = load_work.complete
         predict, advance = integ.predictor(), integ.advance
-        history_row, linear = self._history_row, not integ.nonlinear
+        history_row = self._history_row
         rows = times.rows if times is not None else None
         rows_end = times.rows_end if times is not None else 0
         pos, n_phases = 0, len(PHASES)  # offset of this step's phase times in rows

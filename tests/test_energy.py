@@ -222,6 +222,9 @@ def test_new_columns_are_the_old_ledger_plus_its_boundary_terms(scene, method):
     n_dofs, n_slots = summary["n_dofs"], sum(c.n_slots for c in sim.contacts)
     n = np.arange(1, len(E_old) + 1)
     bound = rounding(10 * (6 * n_dofs + 2 * n * (n_slots + 1)), scale)
+    print(scene, method, "E:", np.abs(new_E - (E_old + boundary)).max(), "W:",
+          np.abs(new_W - (W_old + boundary + first)).max(), "bound", bound.min(), "-",
+          bound.max(), "1/2 h v0.F0", first, "scale", scale)
     assert np.all(np.abs(new_E - (E_old + boundary)) <= bound)
     assert np.all(np.abs(new_W - (W_old + boundary + first)) <= bound)
     assert abs(sim.ledger.E0 - (E_old[0] - first)) <= bound[0]

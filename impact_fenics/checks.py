@@ -102,8 +102,10 @@ class Divergence:
             raise UnstableRunError(self.diagnosis(n, "the energy is not finite"))
         if verdict == GREW:
             budget = max(abs(E0), abs(ext), 1e-300)
+            what = "kinetic energy" if row["kinetic"] > row["total"] else "energy"
+            grown = max(row["kinetic"], row["total"])
             raise UnstableRunError(self.diagnosis(
-                n, f"the energy {row['total']:.4g} J grew beyond {limit:g} x the energy put in "
+                n, f"the {what} {grown:.4g} J grew beyond {limit:g} x the energy put in "
                    f"({budget:.4g} J)"))
 
     def diagnosis(self, n: int, what: str) -> str:

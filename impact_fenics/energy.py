@@ -1,24 +1,35 @@
-"""The energy ledger in the discrete form the scheme conserves (J).
+"""The energy ledger: the kinetic identity of the half-step scheme (J).
 
-With v^{n+1} = v^n + dt M^-1 (F^n - K u^n) and u^{n+1} = u^n + dt v^{n+1},
+With v^{n+1/2} = v^{n-1/2} + h M^-1 (F^n - f_int(u^n)) and u^{n+1} = u^n + h v^{n+1/2}
+(the modified Euler scheme at a constant step h; v^0 is read as v^{-1/2}), every step
+satisfies
 
-    E_n = 1/2 (v^n)' M v^{n+1} + 1/2 (u^n)' K u^n
+    1/2 |v^{n+1/2}|^2_M - 1/2 |v^{n-1/2}|^2_M = sum over forces 1/2 (v^{n-1/2} + v^{n+1/2}) . h f^n
 
-changes by exactly  E_{m} - E_{m-1} = 1/2 dt (v^m)' (F^{m-1} + F^m)  where F is
-every applied force (surface loads, contact, forces on rigid bodies). So the
-work of a force, W_n = sum over m = 1..n of 1/2 dt (v^m)' (F^{m-1} + F^m),
-closes the balance  E_n - E_0 - W_n = 0  to round-off. A position set apart
-from the velocity (a jump j^m = u^m - u^{m-1} - dt v^m, as in DME) adds
-1/2 (j^m)' K (u^{m-1} + u^m); contact methods that jump report it as work.
+for any force f. So the work of an applied or contact force through step n,
+W_n = sum over m = 0..n of 1/2 (v^{m-1/2} + v^{m+1/2}) . h F^m, is booked step by step
+(:class:`LoadWork`, the contact sets). The internal forces' work telescopes at a constant
+h, since 1/2 h (v^{m-1/2} + v^{m+1/2}) = 1/2 (u^{m+1} - u^{m-1}): for the linear bodies to
+-(Phi_n - Phi_-1) with Phi_n = 1/2 (u^{n+1})' K u^n = 1/2 (u^n + h v^{n+1/2})' K u^n, the
+form booked, and for the path-dependent bodies to their trapezoid deformation work
+sum 1/2 (f_int^{m-1} + f_int^m) . (u^m - u^{m-1}) plus the same boundary term
+1/2 h v^{n+1/2} . f_int^n. The row of output step n (the state after step n) therefore
+holds
 
-A path-dependent body (internal force f_int(u, state), :mod:`.internal_force`)
-enters the same identity as a force: its deformation work, booked each step as
-1/2 (f_int^{m-1} + f_int^m) . (u^m - u^{m-1}), takes the place of the change
-of 1/2 u'Ku, and at its quadrature points it splits exactly into the change of
-the stored elastic energy psi_e = sum 1/2 sigma : C^-1 : sigma w and the
-plastic work W_p = sum 1/2 (sigma^{m-1} + sigma^m) : (eps_p^m - eps_p^{m-1}) w.
-The ledger's energy is then  1/2 (v^n)' M v^{n+1} + 1/2 (u^n)' K u^n + psi_e + W_p
-(K over the linear bodies), balanced by the same work terms to round-off.
+    E_n = 1/2 |v^{n+1/2}|^2_M + 1/2 (u^n)' K u^n + psi_e^n + W_p^n + 1/2 h v^{n+1/2} . f_int^n
+
+(K over the linear bodies, psi_e the stored elastic energy sum 1/2 sigma : C^-1 : sigma w at the path-dependent
+bodies' points, W_p their plastic work, f_int^n the internal force of every body, read
+from the step's prediction), and E_n - E_ref - W_n = 0 to round-off, where E_ref is the
+initial state, 1/2 |v^0|^2_M (a run starts with u^0 = 0 and unstressed points). A
+position set apart from the velocity (a jump j^m = u^m - u^{m-1} - h v^{m-1/2}, as in
+DME) adds 1/2 (j^m)' K (u^{m-1} + u^m); contact methods that jump report it as work.
+
+Against the form it replaced (E_n^old = 1/2 (v^{n-1/2})' M v^{n+1/2} + 1/2 (u^n)' K u^n
+with trapezoid works 1/2 h v^{m-1/2} . (F^{m-1} + F^m) from m = 1), the columns differ
+by exact boundary terms: E_n = E_n^old + 1/2 h v^{n+1/2} . F^n, W_n = W_n^old +
+1/2 h v^{n+1/2} . F^n + 1/2 h v^0 . F^0 (F the applied and contact forces), so the
+first row now includes the first step's contact.
 """
 from __future__ import annotations
 
@@ -42,7 +53,9 @@ def _load_power(force, v, dofs) -> float:
 
 
 class LoadWork:
-    """Work (J) of the surface loads, accumulated every step on their few dofs."""
+    """Work (J) of the surface loads by the kinetic identity, accumulated every step on
+    their few dofs: step n adds 1/2 h (v^{n-1/2} + v^{n+1/2}) . F^n, in two passes, one
+    before the step (:meth:`accumulate`) and one after it (:meth:`complete`)."""
 
     def __init__(self, loads: list[SurfaceLoad], dt: float, comm: MPI.Comm,
                  v: np.ndarray | None = None):
@@ -56,18 +69,23 @@ class LoadWork:
         self._power = (direct(_load_power, loads[0].force, v if v is not None else np.zeros(1),
                               self._dofs[0]) if loads else None)
 
-    def accumulate(self, integrator) -> None:
-        """Add 1/2 dt (v^n)' (F^{n-1} + F^n) for step n (call before predict, n >= 1)."""
-        n = integrator.n
-        if n == 0:
-            return
-        t_now, t_prev = n * self.dt, (n - 1) * self.dt
-        v, power = integrator.v_owned, self._power
+    def _add(self, v: np.ndarray, n: int) -> None:
+        """Add 1/2 h v . F^n (F^n the loads at t^n = n h)."""
+        t, power = n * self.dt, self._power
         for ld, dofs in zip(self.loads, self._dofs):
-            s = ld.history(t_prev) + ld.history(t_now)
+            s = ld.history(t)
             if s == 0.0:
                 continue
             self._local += 0.5 * self.dt * s * power(ld.force, v, dofs)
+
+    def accumulate(self, integrator) -> None:
+        """Step n's first half, 1/2 h v^{n-1/2} . F^n (call before predict)."""
+        self._add(integrator.v_owned, integrator.n)
+
+    def complete(self, integrator) -> None:
+        """Step n's second half, 1/2 h v^{n+1/2} . F^n (call after advance: the step
+        just taken is integrator.n - 1)."""
+        self._add(integrator.v_owned, integrator.n - 1)
 
     @property
     def local(self) -> float:
@@ -80,12 +98,13 @@ class LoadWork:
 
 
 class Ledger:
-    """E_n, the work terms and the balance error, evaluated at output steps."""
+    """E_n, the work terms and the balance error, evaluated at output steps, against the
+    initial state's energy ``E0`` (J, summed over ranks)."""
 
-    def __init__(self, comm: MPI.Comm):
+    def __init__(self, comm: MPI.Comm, E0: float):
         self.comm = comm
-        self.E0: float | None = None
-        self.scale = 0.0  # largest |term| seen, the reference for the relative error
+        self.E0 = E0
+        self.scale = abs(E0)  # largest |term| seen, the reference for the relative error
 
     def record(self, kinetic: float, strain: float, external_work: float,
                contact_work: float, plastic_work: float = 0.0) -> tuple[float, float, float]:
@@ -93,18 +112,16 @@ class Ledger:
         already summed over ranks; the relative error is |E_n - E_0 - W_n| over the largest
         |term| seen so far (0 while every term is 0).
 
-        ``strain`` is the stored elastic energy of every body (1/2 u'Ku of the linear
-        ones, psi_e of the path-dependent ones), ``plastic_work`` the work dissipated
-        at their points, so E_n = kinetic + strain + plastic_work; W_n = external_work +
-        contact_work. (The path-dependent bodies' deformation work, sum 1/2 (f_int^{n-1}
-        + f_int^n) . du, is reported beside the balance: it equals d psi_e + W_p.)"""
+        ``strain`` is the stored energy of every body with its step's boundary term
+        (1/2 (u^n)' K u^n of the linear ones, psi_e of the path-dependent ones, plus
+        1/2 h v^{n+1/2} . f_int^n of all), ``plastic_work`` the work dissipated at their points, so E_n = kinetic +
+        strain + plastic_work; W_n = external_work + contact_work. (The path-dependent
+        bodies' deformation work, sum 1/2 (f_int^{n-1} + f_int^n) . du, is reported beside
+        the balance: it equals d psi_e + W_p.)"""
         E = kinetic + strain + plastic_work
         E0 = self.E0
-        if E0 is None:
-            self.E0 = E0 = E
         balance = E - E0 - external_work - contact_work
-        self.scale = scale = max(self.scale, abs(E), abs(E0), abs(external_work),
-                                 abs(contact_work))
+        self.scale = scale = max(self.scale, abs(E), abs(external_work), abs(contact_work))
         rel = abs(balance) / scale if scale > 0 else 0.0
         return E, balance, rel
 
@@ -117,36 +134,42 @@ STABLE, NOT_FINITE, GREW = 0, 1, 2
 def energy_verdict(kinetic: float, strain: float, external_work: float, contact_work: float,
                    total: float, E0: float, limit: float) -> int:
     """Is the energy of an output step sound? NOT_FINITE if kinetic, strain, external or
-    contact work (J) is not finite; GREW if E_n (``total``, J) exceeds ``limit`` x the
-    energy put in, max(|E_0|, |W_ext|) (when either is nonzero); else STABLE. (The
-    loop's stability check, in Python and in the compiled steps.)"""
+    contact work (J) is not finite; GREW if E_n (``total``, J) or the kinetic energy
+    exceeds ``limit`` x the energy put in, max(|E_0|, |W_ext|) (when either is nonzero);
+    else STABLE. (The loop's stability check, in Python and in the compiled steps.)
+
+    E_n is conserved by the scheme even above its stable step, where the form is
+    indefinite (its kinetic and stored parts grow with opposite signs): it grows only by
+    the work of a force that gains energy (a chattering penalty). The kinetic energy
+    1/2 |v^{n+1/2}|^2_M is positive, at most E_n while the step is stable, and grows
+    with the unstable mode."""
     if not (math.isfinite(kinetic) and math.isfinite(strain) and math.isfinite(external_work)
             and math.isfinite(contact_work)):
         return NOT_FINITE
     budget = max(abs(E0), abs(external_work), 1e-300)
-    if total > limit * budget and (E0 != 0.0 or external_work != 0.0):
+    if max(total, kinetic) > limit * budget and (E0 != 0.0 or external_work != 0.0):
         return GREW
     return STABLE
 
 
 @njit(cache=True)
-def _output_sums(mass, v_now, v_next, body_dofs, body_start, out) -> None:
-    """out[0] = 1/2 v_now' M v_next (J), out[2] = sum of m v_next over the z dofs (odd
+def _output_sums(mass, v_next, body_dofs, body_start, out) -> None:
+    """out[0] = 1/2 v_next' M v_next (J), out[2] = sum of m v_next over the z dofs (odd
     entries; kg m/s), out[3 + b] = sum of m v_next over body_dofs[body_start[b]:
     body_start[b + 1]]: one pass over the owned dofs (2 per node, r then z), two nodes at
     a time into separate partial sums (independent additions pipeline). out[1] is left
-    to the caller (the strain energy, :func:`half_dot`)."""
+    to the caller (the stored energy, :func:`strain_from_prediction`, :func:`half_dot`)."""
     k0 = k1 = p0 = p1 = 0.0
     n = mass.size
     i = 0
     while i + 3 < n:
-        k0 += mass[i] * v_now[i] * v_next[i] + mass[i + 1] * v_now[i + 1] * v_next[i + 1]
-        k1 += mass[i + 2] * v_now[i + 2] * v_next[i + 2] + mass[i + 3] * v_now[i + 3] * v_next[i + 3]
+        k0 += mass[i] * v_next[i] * v_next[i] + mass[i + 1] * v_next[i + 1] * v_next[i + 1]
+        k1 += mass[i + 2] * v_next[i + 2] * v_next[i + 2] + mass[i + 3] * v_next[i + 3] * v_next[i + 3]
         p0 += mass[i + 1] * v_next[i + 1]
         p1 += mass[i + 3] * v_next[i + 3]
         i += 4
     while i < n:
-        k0 += mass[i] * v_now[i] * v_next[i]
+        k0 += mass[i] * v_next[i] * v_next[i]
         if i % 2 == 1:
             p0 += mass[i] * v_next[i]
         i += 1
@@ -191,31 +214,37 @@ def copy_state(u, v, u_out, v_out) -> None:
 
 
 @njit(cache=True)
-def strain_from_prediction(u, v_pred, v_now, minus_m_over_dt) -> float:
-    """1/2 u' K u (J) with K u = -m / dt (v~ - v^n) (N), where v~ = v^n + dt M^-1 (f^n -
-    K u^n) is the predicted velocity (m/s) and no force f acts: :func:`half_dot` of u and
-    that K u, the same sums in the same order, in one pass that stores no K u."""
+def strain_from_prediction(u, v_pred, v_now, minus_m_over_dt, f_int) -> float:
+    """f_int = -m / h (v~ - v^{n-1/2}) (N), the internal force f_int(u^n) where no
+    applied force acts, with v~ = v^{n-1/2} + h M^-1 (F^n - f_int(u^n)) the predicted
+    velocity (m/s); returns 1/2 u . f_int (J; 1/2 u'K u for linear bodies): :func:`half_dot`
+    of u and f_int, the same sums in the same order, in the one pass that fills f_int."""
     s0 = s1 = 0.0
     n = u.size
     i = 0
     while i + 3 < n:
-        s0 += (u[i] * ((v_pred[i] - v_now[i]) * minus_m_over_dt[i])
-               + u[i + 1] * ((v_pred[i + 1] - v_now[i + 1]) * minus_m_over_dt[i + 1]))
-        s1 += (u[i + 2] * ((v_pred[i + 2] - v_now[i + 2]) * minus_m_over_dt[i + 2])
-               + u[i + 3] * ((v_pred[i + 3] - v_now[i + 3]) * minus_m_over_dt[i + 3]))
+        f0 = (v_pred[i] - v_now[i]) * minus_m_over_dt[i]
+        f1 = (v_pred[i + 1] - v_now[i + 1]) * minus_m_over_dt[i + 1]
+        f2 = (v_pred[i + 2] - v_now[i + 2]) * minus_m_over_dt[i + 2]
+        f3 = (v_pred[i + 3] - v_now[i + 3]) * minus_m_over_dt[i + 3]
+        f_int[i], f_int[i + 1], f_int[i + 2], f_int[i + 3] = f0, f1, f2, f3
+        s0 += u[i] * f0 + u[i + 1] * f1
+        s1 += u[i + 2] * f2 + u[i + 3] * f3
         i += 4
     while i < n:
-        s0 += u[i] * ((v_pred[i] - v_now[i]) * minus_m_over_dt[i])
+        f0 = (v_pred[i] - v_now[i]) * minus_m_over_dt[i]
+        f_int[i] = f0
+        s0 += u[i] * f0
         i += 1
     return 0.5 * (s0 + s1)
 
 
 class OutputSums:
     """The sums of an output step over the owned dofs, in one compiled pass and one
-    reduction over the ranks: kinetic 1/2 (v^n)' M v^{n+1} (J), the z momentum of v^{n+1}
-    in total and per body (kg m/s), with the strain energy 1/2 (u^n)' K u^n (J, this
-    rank's part: :func:`strain_from_prediction` or :func:`half_dot`) and any further local
-    numbers handed in (summed with them).
+    reduction over the ranks: kinetic 1/2 |v^{n+1/2}|^2_M (J), the z momentum of v^{n+1/2}
+    in total and per body (kg m/s), with the stored energy and its boundary term
+    (J, this rank's part: :func:`strain_from_prediction`, :func:`half_dot`) and
+    any further local numbers handed in (summed with them).
 
     ``mass`` the lumped masses (kg) of the owned dofs; ``body_z`` per body the indices of
     its owned z dofs."""
@@ -234,21 +263,19 @@ class OutputSums:
         self._result = memoryview(self._local if comm.size == 1 else self._total)
         # its kernel's compiled entry, for velocities of the type of ``mass`` (float64,
         # contiguous: the loop's arrays), taken now, not at the first output
-        self._sums = direct(_output_sums, mass, mass, mass, self._dofs, self._start,
-                            self._local)
+        self._sums = direct(_output_sums, mass, mass, self._dofs, self._start, self._local)
 
     @property
     def size(self) -> int:
         """The number of sums (3 + bodies + the extra numbers)."""
         return self._local.size
 
-    def reduce(self, v_now: np.ndarray, v_next: np.ndarray, strain: float,
-               extra=()) -> memoryview:
+    def reduce(self, v_next: np.ndarray, strain: float, extra=()) -> memoryview:
         """(kinetic, strain, p_z, p_z per body..., extra...) summed over the ranks, as floats
-        (a view, valid until the next call); ``strain`` this rank's 1/2 (u^n)' K u^n (J).
-        ``v_now`` and ``v_next``: contiguous float64 arrays like ``mass``."""
+        (a view, valid until the next call); ``strain`` this rank's stored energy (J).
+        ``v_next``: v^{n+1/2}, a contiguous float64 array like ``mass``."""
         local = self._local_view
-        self._sums(self.mass, v_now, v_next, self._dofs, self._start, self._local)
+        self._sums(self.mass, v_next, self._dofs, self._start, self._local)
         local[1] = strain
         k = 3 + self.n_bodies
         for x in extra:

@@ -196,8 +196,14 @@ def energy_curves(e: dict[str, np.ndarray]) -> list[tuple[str, str, np.ndarray]]
               if name in present and drawn(name)]
     work = sum(e[k] for k in ("external_work", "contact_work") if k in present and drawn(k))
     if "total" in present and np.any(work != 0.0):
+        # the initial energy E_0 (the state before the first step, which the first row
+        # follows): from the first row's balance, E_0 = total - error - work of the row
+        initial = e["total"][0]
+        if "balance_error" in e:
+            initial = (initial - e["balance_error"][0]
+                       - sum(e[k][0] for k in ("external_work", "contact_work") if k in e))
         curves.append(("balance", "initial + work of loads and contact",
-                       _finite(e["total"][0] + work)))
+                       _finite(initial + work)))
     return curves
 
 

@@ -157,7 +157,8 @@ class Simulation:
         mass = self.integrator.mass  # the other kernels of an output step, for arrays like it:
         # their compiled entries (the arrays an event passes are contiguous float64 ones)
         self._copy_state = direct(copy_state, mass, mass, mass, mass)
-        self._strain_from_prediction = direct(strain_from_prediction, mass, mass, mass, mass)
+        self._strain_from_prediction = direct(strain_from_prediction, mass, mass, mass, mass,
+                                              mass)
         load(half_dot, mass, mass)
         load(energy_verdict, *[0.0] * 7)  # (the stability check of every output step)
         self._event_buf = None  # the run's output buffers, once _bind_output has seen them
@@ -258,10 +259,12 @@ class Simulation:
         gc.collect()
         gc.freeze()
         self.probes = probes
-        self.ledger = ledger = Ledger(comm)  # (its E_0 goes into the summary)
+        # E_0, the initial state's energy (goes into the summary)
+        self.ledger = ledger = Ledger(comm, self._initial_energy())
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         times = PhaseTimers(PHASES) if s.timers else None
-        buf = {k: np.empty(model.n_owned) for k in ("u", "v")}
+        # an output step's u^n, v^{n-1/2} and internal force f_int(u^n)
+        buf = {k: np.empty(model.n_owned) for k in ("u", "v", "f")}
         self._minus_m_over_dt = -integ.mass / s.dt
         Ku = integ.u_vec.duplicate()
         last_energy, max_bal = None, 0.0
@@ -303,8 +306,9 @@ class Simulation:
         one_contact = contact_times[0] if len(contact_times) == 1 else None
         track_step = track.step if self.contacts else None
         accumulate = load_work.accumulate if self.loads else None
+        complete = load_work.complete
         predict, advance = integ.predictor(), integ.advance
-        history_row, linear = self._history_row, not integ.nonlinear
+        history_row = self._history_row
         rows = times.rows if times is not None else None
         rows_end = times.rows_end if times is not None else 0
         pos, n_phases = 0, len(PHASES)  # offset of this step's phase times in rows
@@ -331,7 +335,8 @@ class Simulation:
         block = (StepBlock.for_run(self, tables["history"], times, probes,
                                    (output_at, check_at, pairs_at), self._pair_tables, runaway,
                                    last, track.state,
-                                   (buf["u"], buf["v"], self._minus_m_over_dt), writer,
+                                   (buf["u"], buf["v"], self._minus_m_over_dt, buf["f"]),
+                                   writer,
                                    fields_at)
                  if s.compiled_steps else None)
         # the blocks write the frames (else a fields step ends its block, the frame after it)
@@ -411,7 +416,7 @@ class Simulation:
                 if accumulate is not None:
                     accumulate(integ)
                 predict()
-                if is_output and linear:
+                if is_output:
                     self._internal_force_from_prediction(buf)
                 t1 = clock()
                 for step in step_contacts:
@@ -419,6 +424,8 @@ class Simulation:
                 if track_step is not None:
                     track_step(n)
                 advance()
+                if accumulate is not None:
+                    complete(integ)
                 t3 = clock()
                 if is_history:
                     history_row()
@@ -533,7 +540,8 @@ class Simulation:
         the loads, and the energy columns, a dict updated in place (J)."""
         integ = self.integrator
         # the arrays the compiled entries of an event are bound for (their type unchecked there)
-        for a in (buf["u"], buf["v"], self._minus_m_over_dt, integ.u_owned, integ.v_owned):
+        for a in (buf["u"], buf["v"], buf["f"], self._minus_m_over_dt, integ.u_owned,
+                  integ.v_owned):
             if not (contiguous_float64(a, 1) and a.size == integ.mass.size):
                 raise TypeError("an output buffer is not a contiguous float64 array over the "
                                 "owned dofs")
@@ -563,8 +571,10 @@ class Simulation:
         if integ.nonlinear:  # 1/2 u'Ku of the linear bodies (the others book psi_e, W_p)
             if integ.K is not None:
                 integ.K.mult(integ.u_vec, Ku)
-                self._strain_local = half_dot(buf["u"], Ku.array)
+                self._ku_linear = Ku.array  # (K u^n: the linear bodies' share of f_int)
+                self._strain_local = half_dot(buf["u"], self._ku_linear)
             else:
+                self._ku_linear = None
                 self._strain_local = 0.0
         v_now = self._rigid_v_now
         if v_now:
@@ -573,23 +583,39 @@ class Simulation:
         return v_now
 
     def _internal_force_from_prediction(self, buf) -> None:
-        """The strain energy 1/2 u^n.K u^n (J, this rank's part) from the step just
-        predicted, without a MatMult: v~ = v^n + dt M^-1 (f^n - K u^n), so
-        K u^n = f^n - M (v~ - v^n) / dt (one compiled pass, no K u stored). On fixed
-        dofs K u reads 0, where u^n = 0: the strain energy is exact (to round-off;
-        the difference loses eps |v| m / dt, less than K u's own eps |K| |u| once
-        the motion has lasted a few steps)."""
-        u = buf["u"]
+        """The internal force f_int(u^n) (N, into buf["f"]) from the step just predicted,
+        without a MatMult: v~ = v^{n-1/2} + dt M^-1 (F^n - f_int(u^n)), so
+        f_int(u^n) = F^n - M (v~ - v^{n-1/2}) / dt (one compiled pass; F^n the loads). With
+        linear bodies only, f_int = K u^n and the strain energy 1/2 u^n.K u^n (J, this
+        rank's part) comes from the same pass. On fixed dofs f_int reads 0, where u^n = 0
+        and v = 0: the energy is exact (to round-off; the difference loses eps |v| m / dt,
+        less than K u's own eps |K| |u| once the motion has lasted a few steps)."""
+        u, f = buf["u"], buf["f"]
         strain = self._strain_from_prediction(u, self.integrator.v_owned, buf["v"],
-                                              self._minus_m_over_dt)
+                                              self._minus_m_over_dt, f)
         if self._load_terms:
             t = self.integrator.t
             for ld, dofs, coef in self._load_terms:
                 value = ld.history(t)
                 if value != 0.0:  # f on the free loaded dofs: m coef / dt per unit of the pulse
-                    strain -= 0.5 * value * float(np.dot(u[dofs],
-                                                         self._minus_m_over_dt[dofs] * coef))
-        self._strain_local = strain
+                    load = self._minus_m_over_dt[dofs] * coef
+                    strain -= 0.5 * value * float(np.dot(u[dofs], load))
+                    np.subtract.at(f, dofs, value * load)
+        if not self.integrator.nonlinear:  # (else _pre_output's 1/2 u'Ku and psi_e)
+            self._strain_local = strain
+
+    def _initial_energy(self) -> float:
+        """E_0 (J, summed over the ranks): the kinetic energy 1/2 |v^0|^2_M of the initial
+        state and its rigid bodies' 1/2 m v^2 (a run starts from u^0 = 0 with its points
+        unstressed, so nothing is stored)."""
+        integ = self.integrator
+        v = integ.v_owned
+        local = 0.5 * float(np.dot(integ.mass * v, v))
+        total = self.comm.allreduce(local)
+        for c in self.contacts:
+            if c.moving_rigid is not None:
+                total += c.kinetic_energy_rigid(c.rigid.v)
+        return total
 
     def event_record_size(self) -> int:
         """Floats in an output step's record: the OutputSums (kinetic, strain, p_z, p_z per
@@ -607,13 +633,22 @@ class Simulation:
         integ = self.integrator
         nonlinear = integ.nonlinear
         sums = self._output_sums
+        # the stored energy's boundary term 1/2 dt v^{n+1/2} . f_int(u^n)
+        dt, v_next = self.settings.dt, integ.v_owned
+        boundary = dt * half_dot(v_next, buf["f"])
+        strain = self._strain_local + boundary
         if nonlinear:  # stored elastic energy, plastic and deformation work (J)
-            total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, (
+            # the deformation work by the kinetic identity: the trapezoid sum and the
+            # path-dependent bodies' boundary term, 1/2 dt v^{n+1/2} . (f_int - K u^n)
+            # (their 1/2 dt v^0 . f^0 is 0: a run starts unstressed)
+            if self._ku_linear is not None:
+                boundary -= dt * half_dot(v_next, self._ku_linear)
+            total = sums.reduce(v_next, strain, (
                 load_work.local, sum(f.elastic_energy_local() for f in nonlinear),
                 sum(f.plastic_work_local for f in nonlinear),
-                sum(f.deformation_work_local for f in nonlinear)))
+                sum(f.deformation_work_local for f in nonlinear) + boundary))
         else:
-            total = sums.reduce(buf["v"], integ.v_owned, self._strain_local, (load_work.local,))
+            total = sums.reduce(v_next, strain, (load_work.local,))
         rec = self._record_view
         j = sums.size
         rec[:j] = total
@@ -641,7 +676,7 @@ class Simulation:
         rigid = self._rigid_sets
         first_rigid = j = sums.size + 2 * len(self.contacts)  # (v^n, v^{n+1}, work) each
         for c in rigid:
-            kinetic += c.kinetic_energy_rigid(rec[j], rec[j + 1])
+            kinetic += c.kinetic_energy_rigid(rec[j + 1])
             ext += rec[j + 2]
             j += 3
         work_c = 0.0

@@ -52,7 +52,7 @@ from numba import njit
 from . import native
 from .contact.fused import contact_step
 from .cell_fields import STRESS_NAMES, isotropic_stress_range, track_peaks
-from .energy import (STABLE, _output_sums, copy_state, energy_verdict,
+from .energy import (STABLE, _output_sums, copy_state, energy_verdict, half_dot,
                      strain_from_prediction)
 from .jit_watch import drop_stale_cache
 from .contact.interface import ContactSet
@@ -92,7 +92,7 @@ I_DONE, I_ERROR, I_RUNAWAY, I_DIVERGED, I_HELD, I_EVENTS, I_UNSOUND = range(31, 
 I_FRAMES, I_NEXT_FIELDS, I_FIELDS_EVERY, I_STRESS_FIRST, I_FRAME_ROW, I_N_FRAMES = range(38, 44)
 I_FRAME_END = 44
 N_INTS = 45
-# energy (floats): E_0 of the ledger (J; NaN before the first output), the growth limit
+# energy (floats): E_0 of the ledger (J, the initial state's), the growth limit
 E_0, E_LIMIT = 0, 1
 # the contact track (floats): lowest gap, first and last step in contact (-1: none),
 # steps in contact, reversals, the penalty's last number active and last nonzero change
@@ -118,7 +118,7 @@ def _next(k, every, last):
 def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext, f_in, track,
               history, probe_index, pair_clock, pair_state, gap, current, totals, sample, state,
               timespec, mpi, local, send, counts, displs, reduce, u_n, v_n, minus_m_over_dt,
-              mass, body_dofs, body_start, sums_local, sums_total, events, event_steps,
+              f_n, mass, body_dofs, body_start, sums_local, sums_total, events, event_steps,
               energy, frame_points, frame_cells, nodes, s_dofs, s_g, lame, no_plastic,
               s_peaks, peak_state, frame_t, frame_step) -> None:
     """Steps ints[I_N] .. ints[I_STOP] - 1 of the loop (integrator step ints[I_STEP] for the
@@ -137,11 +137,12 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     through mpi4py; every rank calls them at the same steps.
 
     An output step (ints[I_NEXT_OUTPUT], then every ints[I_OUTPUT_EVERY]) keeps u^n, v^n
-    (``u_n``, ``v_n``), has a history row whether or not one is due, and after it its
+    (``u_n``, ``v_n``; the internal force f_int(u^n) from the prediction into ``f_n``),
+    has a history row whether or not one is due, and after it its
     record (simulation.event_record_size's layout) goes to the next row of ``events``
     (its loop step to ``event_steps``; ints[I_EVENTS] rows in all): the output sums
-    (energy._output_sums of M = ``mass``, the strain energy 1/2 u'Ku from the
-    prediction, summed over the ranks into ``sums_total`` by MPI_SUM under MPI), the
+    (energy._output_sums of M = ``mass``, the stored energy 1/2 (u^n + dt v^{n+1/2})' K u^n
+    from the prediction, summed over the ranks into ``sums_total`` by MPI_SUM under MPI), the
     contact set's work and activation loss, the rigid body's v^n, v^{n+1} and external
     work, and whether contact was made and nothing is active. The loop makes the energy
     rows from them after the block. If the step's energy fails energy_verdict (E_0 and the
@@ -202,7 +203,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
             ints[I_ERROR] = err
             break
         if output:
-            strain = strain_from_prediction(u_n, src_v, v_n, minus_m_over_dt)
+            strain = strain_from_prediction(u_n, src_v, v_n, minus_m_over_dt, f_n)
         t1 = native.now(clock, timespec)
         t2 = t1
         u_r = v_r = 0.0
@@ -213,7 +214,7 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                 if err != 0:
                     ints[I_ERROR] = err
                     break
-            u_r, v_r = contact_step(src_u, src_v, recv, F, c_ints, flags, misc, step == 0,
+            u_r, v_r = contact_step(src_u, src_v, recv, F, c_ints, flags, misc,
                                     f_ext[k - n0], f_in[k - n0])
             t2 = native.now(clock, timespec)
             # the track (checks.ContactTrack.step) of this step k
@@ -280,8 +281,8 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
         unsound = False
         if output:  # its record (simulation._post_output), the energy's verdict
             next_output = _next(k - 1, output_every, last)
-            _output_sums(mass, v_n, src_v, body_dofs, body_start, sums_local)
-            sums_local[1] = strain
+            _output_sums(mass, src_v, body_dofs, body_start, sums_local)
+            sums_local[1] = strain + dt * half_dot(src_v, f_n)
             sums_local[3 + body_start.size - 1:] = 0.0  # (no loads: their work is 0)
             if parallel:
                 err = native.allreduce(mpi, sums_local, sums_total, native.M_SUM)
@@ -304,12 +305,10 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
                     rec[m + 1] = F[V, body]
                     rec[m + 2] = misc[RIGID_WORK]
                     m += 3
-                    kinetic += 0.5 * misc[RIGID_MASS] * v_rigid * F[V, body]
+                    kinetic += 0.5 * misc[RIGID_MASS] * F[V, body] * F[V, body]
                     ext += misc[RIGID_WORK]
             rec[m] = 1.0 if track[T_FIRST] >= 0.0 and misc[STATS] <= 0.0 else 0.0
             total = kinetic + sums[1] + 0.0  # (energy.Ledger.record's E_n)
-            if math.isnan(energy[E_0]):
-                energy[E_0] = total
             unsound = energy_verdict(kinetic, sums[1], ext, work, total, energy[E_0],
                                      energy[E_LIMIT]) != STABLE
         if frames and k - 1 == next_fields and not unsound:  # the frame of the state after it
@@ -465,7 +464,8 @@ class StepBlock:
                 last: int, track: np.ndarray, state_n: tuple, writer=None,
                 fields_at=None) -> "StepBlock | None":
         """The block of ``sim``'s run, or None where the Python step must run. ``state_n``:
-        (u^n, v^n buffers of an output step, -M/dt) as simulation.run keeps them;
+        (u^n, v^n buffers of an output step, -M/dt, the f_int(u^n) buffer) as
+        simulation.run keeps them;
         ``writer``: the run's FieldWriter (or None), ``fields_at`` its schedule: the
         blocks write the frames on one rank when the cell fields are the stresses of one
         isotropic kernel (else the loop writes them)."""
@@ -493,7 +493,7 @@ class StepBlock:
                    sim.event_record_size(), sim.settings.energy_growth_limit, frames)
 
     def run(self, n: int, stop: int, next_history: int, hold: bool = False,
-            E0: float | None = None) -> tuple[int, int]:
+            E0: float = 0.0) -> tuple[int, int]:
         """Run the loop's steps n .. stop - 1 (or fewer: see :func:`run_steps`); returns (the
         loop's next step, the next history step). Raises RuntimeError on a PETSc or MPI
         error; a runaway is left for the caller in :attr:`runaway` and :attr:`diverged`
@@ -501,12 +501,12 @@ class StepBlock:
         its phase times are not booked: :meth:`book_held` books them with the time of
         what the caller does after it (:attr:`held`). The output steps' records are then
         :meth:`event` 0 .. :attr:`n_events` - 1, for the energy rows; ``E0``: the
-        ledger's E_0 (J) so far (None before the first output)."""
+        ledger's E_0 (J), the initial state's energy."""
         ints, integ, rigid = self.ints, self.integ, self.rigid
         if stop > n + self.max_steps:
             stop, hold = n + self.max_steps, False
         ints[I_HOLD] = hold
-        self.energy[E_0] = math.nan if E0 is None else E0
+        self.energy[E_0] = E0
         if rigid is not None:  # its force functions at each step's t^n, in Python
             dt, step0 = integ.dt, integ.n
             f_ext, f_in, incident = self._f_ext, self._f_in, rigid.incident

@@ -85,15 +85,17 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
     if last_energy is not None:
         last = last_energy
         summary["energy"] = {k: last[k] for k in ENERGY_COLUMNS}  # the last row's
-        summary["energy_initial"] = sim.ledger.E0  # E_0 (J), the first row's total
+        summary["energy_initial"] = sim.ledger.E0  # E_0 (J), the initial state's
         summary["energy_balance_error_rel"] = max_bal
         if sim.integrator.nonlinear:
             summary["plastic_dissipation"] = last["plastic_work"]
         summary["energy_balance_definition"] = (
             "largest over the output steps of |E_n - E_0 - W_n| / (largest |term| so far), "
-            "E_n = 1/2 v^n M v^(n+1) + 1/2 u^n K u^n (the linear bodies) + the stored "
-            "elastic energy and the plastic work of the path-dependent ones, W_n the work "
-            "of loads and contact")
+            "E_0 = 1/2 v^0 M v^0 the initial state, E_n (after step n) = 1/2 v^(n+1/2) M "
+            "v^(n+1/2) + 1/2 u^n K u^n (the linear bodies) + the stored elastic energy and "
+            "the plastic work of the path-dependent ones + 1/2 dt v^(n+1/2) f_int(u^n), W_n "
+            "the work of loads and contact through step n, each step's "
+            "1/2 dt (v^(n-1/2) + v^(n+1/2)) F^n (the half-step scheme's kinetic identity)")
     if sim.integrator.nonlinear:
         summary["eps_p_max"] = eps_p_max(sim.integrator.nonlinear, sim.status == "diverged", comm)
     if sim.contacts:

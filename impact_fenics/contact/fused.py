@@ -58,7 +58,7 @@ def _make_face_step(code: int):
     constant of the closure: no branch on the method inside the loops)."""
 
     @njit(cache=True)
-    def _face_step(first, src_u, src_v, recv, F, ints, flags, misc):
+    def _face_step(src_u, src_v, recv, F, ints, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
         penalty, FILM fast and DME's cluster in two passes over the nodes: A takes the
         prediction, forms the gaps and the method's sums; B corrects each node, writes it
@@ -199,8 +199,7 @@ def _make_face_step(code: int):
                 src_u[k] = ui
                 src_v[k] = vi
             fb = F[M_OVER_DT, i] * (vi - vt)
-            if not first:
-                inc += 0.5 * dt * F[V_NOW, i] * (F[F_PREV, i] + fb)
+            inc += 0.5 * dt * (F[V_NOW, i] + vi) * fb
             F[F_PREV, i] = fb
             if jumps:
                 ku = -F[M_OVER_DT, i] * (vt - F[V_NOW, i])
@@ -223,8 +222,7 @@ def _make_face_step(code: int):
         F[U, body] = u_b
         F[V, body] = v_b
         fb = F[M_OVER_DT, body] * (v_b - vt_b)
-        if not first:
-            inc += 0.5 * dt * F[V_NOW, body] * (F[F_PREV, body] + fb)
+        inc += 0.5 * dt * (F[V_NOW, body] + v_b) * fb
         F[F_PREV, body] = fb
         F[U_NOW, body] = u_b
         F[V_NOW, body] = v_b
@@ -242,7 +240,7 @@ _face_penalty, _face_film, _face_cluster = _FACE_STEP[PENALTY], _FACE_STEP[FILM_
 
 
 @njit(cache=True)
-def _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc):
+def _general_step(code, src_u, src_v, recv, F, ints, flags, misc):
     """Detection, the method's kernel and the commit on row views of the packed arrays:
     node pairs, and a rigid face's rare sorted cases. Returns (work increment (J),
     jumped, grew)."""
@@ -272,26 +270,26 @@ def _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc):
         _cluster(gap, b, up, lo[0], -1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
     else:
         _cluster(gap, b, lo, up[0], 1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
-    return _commit(local, pos, src_u, src_v, dt, first, int(misc[N_DEFORMABLE]), m_over_dt, u,
+    return _commit(local, pos, src_u, src_v, dt, int(misc[N_DEFORMABLE]), m_over_dt, u,
                    v, u_pred, v_pred, u_now, v_now, F[F_PREV], F[KU_PREV], F[JUMP],
                    misc[JUMPS] != 0.0, misc[LEDGER + 2] != 0.0, active, was_active, b, lo, up,
                    force, misc[STATS:STATS + 3])
 
 
 @njit(cache=True)
-def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
+def contact_step(src_u, src_v, recv, F, ints, flags, misc, f_ext, f_in):
     """Step n -> n+1 of a contact set: predict the rigid body, detect, correct with the
     method ``misc[CODE]``, write back, book, commit the rigid body.
 
     ``src_u``, ``src_v``: the owned displacement (m) and velocity (m/s), read at the
     contact dofs (serial) and written back there; under MPI (``recv`` not empty) the
-    prediction comes from the Allgatherv buffer ``recv``. ``first``: the step n = 0.
+    prediction comes from the Allgatherv buffer ``recv``.
     ``f_ext``: the rigid body's external force f(t^n) (N, z), ``f_in`` its rod's
     incident wave F_i(t^n) (N, compressive > 0; 0 without). Returns the rigid body's
     (u^{n+1}, v^{n+1}) (m, m/s; zeros without one). Positions move by the step
     h_{n+1/2} (misc[DT]), velocities by h_n (misc[H_AVG] and the slots' h_n / m), equal
-    under a constant step; the contact and rigid-body work here are booked with
-    misc[DT], the constant-step ledger's form."""
+    under a constant step; the contact and rigid-body work here are booked by the
+    kinetic identity with misc[DT], the constant-step ledger's form."""
     code = int(misc[CODE])
     dt = misc[DT]
     rigid = misc[RIGID] != 0.0
@@ -313,15 +311,15 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
     done = False
     if rigid:  # a rigid face: two passes (its rare sorted cases go on below)
         if code == PENALTY:
-            inc, jumped, grew, done = _face_penalty(first, src_u, src_v, recv, F, ints, flags,
+            inc, jumped, grew, done = _face_penalty(src_u, src_v, recv, F, ints, flags,
                                                     misc)
         elif code == FILM_FAST:
-            inc, jumped, grew, done = _face_film(first, src_u, src_v, recv, F, ints, flags, misc)
+            inc, jumped, grew, done = _face_film(src_u, src_v, recv, F, ints, flags, misc)
         else:
-            inc, jumped, grew, done = _face_cluster(first, src_u, src_v, recv, F, ints, flags,
+            inc, jumped, grew, done = _face_cluster(src_u, src_v, recv, F, ints, flags,
                                                     misc)
     if not done:
-        inc, jumped, grew = _general_step(code, first, src_u, src_v, recv, F, ints, flags, misc)
+        inc, jumped, grew = _general_step(code, src_u, src_v, recv, F, ints, flags, misc)
     misc[LEDGER] += inc
     if grew or misc[LEDGER + 3] != 0.0:
         misc[LEDGER + 1] -= inc
@@ -341,8 +339,7 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, first, f_ext, f_in):
         misc[WAVES + 1] += dt * f_r * f_r / z
         misc[WAVES + 2] += dt * rod * w
         f = f_ext - rod
-    if not first:
-        misc[RIGID_WORK] += 0.5 * dt * v_n * (misc[RIGID_F_PREV] + f)
+    misc[RIGID_WORK] += 0.5 * dt * (v_n + v_next) * f
     misc[RIGID_F_PREV] = f
     return F[U, body], v_next
 

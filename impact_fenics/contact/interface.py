@@ -549,14 +549,14 @@ class ContactSet:
         if self._fused is not None:
             # the step calls the compiled entry point itself (the arguments' types are
             # fixed for the run)
-            self._contact_step = direct(fused.contact_step, *self._fused_call, True, 0.0, 0.0)
+            self._contact_step = direct(fused.contact_step, *self._fused_call, 0.0, 0.0)
             return
         slots = (self.u_pred, self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
                  self.active, self.was_active)
         load(_detect_local, integ.u_owned, integ.v_owned, self._local, self._pos, *slots)
         load(_detect_gathered, self._recv, self._recv_u, self._recv_v, self._all_pos, *slots)
         w = self._ledger
-        load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt, True,
+        load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt,
              self.n_deformable, self.m_over_dt, self.u, self.v, self.u_pred, self.v_pred,
              self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump, self.jumps,
              w.jumped, self.active, self.was_active, self.b, self.lo, self.up, self.force,
@@ -576,7 +576,7 @@ class ContactSet:
         calls = [(_detect_segments, (self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs,
                                      self.cc, self.gap, self.active, self.was_active)),
                  (_commit_segments, (self._local, self._pos, integ.u_owned, integ.v_owned,
-                                     self.dt, True, self.m_over_dt, self.u, self.v, self.v_pred,
+                                     self.dt, self.m_over_dt, self.u, self.v, self.v_pred,
                                      self.u_now, self.v_now, self.f_prev, self.ku_prev,
                                      self.jump, self.jumps, False, self.active, self.was_active,
                                      self.g0, self.cs, self.cc, self._gap_out))]
@@ -644,7 +644,7 @@ class ContactSet:
             _pack(integ.u_owned, integ.v_owned, self._local, self._send)
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
         t1 = clock()
-        u_r, v_r = self._contact_step(*self._fused_call, integ.n == 0, f_ext, f_in)
+        u_r, v_r = self._contact_step(*self._fused_call, f_ext, f_in)
         t2 = clock()
         if rigid is not None:
             rigid.u, rigid.v = u_r, v_r
@@ -679,7 +679,7 @@ class ContactSet:
         if self.rigid is not None:  # commit the rigid body first: the booking needs its F^n
             v_n = self.rigid.v
             rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
-            self._ledger.book_rigid(integ.n, v_n, rigid_f)
+            self._ledger.book_rigid(v_n, self.rigid.v, rigid_f)
         self._ledger.book(integ.n)
         t3 = clock()
         times = self.times
@@ -739,9 +739,9 @@ class ContactSet:
         run's), None without one or for a fixed part (a wall: it never moves)."""
         return self.rigid if self.rigid is not None and not self.rigid.fixed else None
 
-    def kinetic_energy_rigid(self, v_now: float, v_next: float) -> float:
-        """1/2 m_p v^n v^{n+1} (J) of the rigid body."""
-        return 0.0 if self.rigid is None else 0.5 * self.rigid.mass * v_now * v_next
+    def kinetic_energy_rigid(self, v_next: float) -> float:
+        """1/2 m_p (v^{n+1/2})^2 (J) of the rigid body."""
+        return 0.0 if self.rigid is None else 0.5 * self.rigid.mass * v_next * v_next
 
     def committed_gap(self) -> np.ndarray:
         """Gap (m) of the committed state, in global constraint order (a reused buffer)."""
@@ -762,10 +762,10 @@ class ContactSet:
 
 
 class _ContactWork:
-    """Work of the contact forces in the ledger's discrete form (impact_fenics.energy).
+    """Work of the contact forces by the kinetic identity (impact_fenics.energy).
 
     The contact force on a slot is its momentum change over the step,
-    F^n = m (v^{n+1} - v~^{n+1}) / dt; step n adds 1/2 dt v^n . (F^{n-1} + F^n).
+    F^n = m (v^{n+1/2} - v~^{n+1/2}) / dt; step n adds 1/2 dt (v^{n-1/2} + v^{n+1/2}) . F^n.
     A position set apart from u^n + dt v^{n+1} (a jump j, DME) adds
     1/2 j . K (u^n + u^{n+1}) one step later, when K u^{n+1} on the contact dofs
     is known from the free prediction: K u^n = -m (v~^{n+1} - v^n) / dt there.
@@ -794,11 +794,11 @@ class _ContactWork:
     def rigid_external_work(self) -> float:
         return float(self._misc[RIGID_WORK])
 
-    def book_rigid(self, n_step: int, v_n: float, f: float) -> None:
-        """Work (J) of the external force on the rigid body in step n: 1/2 dt v^n (F^{n-1} + F^n)."""
+    def book_rigid(self, v_n: float, v_next: float, f: float) -> None:
+        """Work (J) of the external force F^n on the rigid body in step n by the kinetic
+        identity, 1/2 dt (v^{n-1/2} + v^{n+1/2}) F^n (``v_n``, ``v_next``)."""
         misc = self._misc
-        if n_step > 0:
-            misc[RIGID_WORK] += 0.5 * self.c.dt * v_n * (misc[RIGID_F_PREV] + f)
+        misc[RIGID_WORK] += 0.5 * self.c.dt * (v_n + v_next) * f
         misc[RIGID_F_PREV] = f
 
     def book(self, n_step: int) -> None:
@@ -806,7 +806,7 @@ class _ContactWork:
         integ = c.integrator
         self.add(*_commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
-            c.dt, n_step == 0, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
+            c.dt, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
             c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped, c.active,
             c.was_active, c.b, c.lo, c.up, c.force, c.stats))
 
@@ -826,7 +826,7 @@ class _ContactWork:
         c = self.c
         integ = c.integrator
         inc, jumped, grew, min_gap = _commit_segments(
-            c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, n_step == 0, c.m_over_dt, c.u,
+            c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, c.m_over_dt, c.u,
             c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped,
             c.active, c.was_active, c.g0, c.cs, c.cc, c._gap_out)
         self.add(inc, jumped, grew)

@@ -43,6 +43,8 @@ def test_long_wave_limit_and_love_slope(nu):
     (|b₈/b₆| x² ≈ |b₆/b₄| x² < 0.04 here), so twice the next term bounds it."""
     b2, b4, b6 = love_series(nu)
     assert dispersion.first_mode(0.0, nu) == 1.0
+    # below a/Λ ≈ 1e-8 the Love term ν²π²x² is under one ulp of 1: the root is c₀
+    assert abs(dispersion.first_mode(1e-9, nu) - 1.0) <= 2 * EPS
     for x in (0.005, 0.01, 0.02, 0.04, 0.08):
         c = float(dispersion.first_mode(x, nu))
         love = 1.0 + b2 * x ** 2

@@ -96,7 +96,7 @@ def rayleigh_speed(nu: float) -> float:
     def rayleigh(y: float) -> float:
         return (2.0 - y) ** 2 - 4.0 * math.sqrt(1.0 - kappa * y) * math.sqrt(1.0 - y)
 
-    # y = 0 is the trivial root; the function is negative just above it and 1 at y = 1
+    # y = 0 is the trivial root; the function is negative at y = 1/2 for every ν and 1 at 1
     y = optimize.brentq(rayleigh, 0.5, 1.0, xtol=1e-300, rtol=4.0 * np.finfo(float).eps,
                         maxiter=200)
     return math.sqrt(y / beta_t)
@@ -112,7 +112,8 @@ def first_mode(a_over_lambda, nu: float) -> np.ndarray:
     if np.any(~np.isfinite(x)) or np.any(x < 0.0):
         raise InputError("a/Λ must be finite and non-negative")
     c_low = 0.9 * rayleigh_speed(nu)
-    grid = np.linspace(c_low, 1.0, _SCAN_POINTS)
+    # a little above c₀, so that a root within round-off of c₀ (a/Λ → 0) is bracketed
+    grid = np.linspace(c_low, 1.001, _SCAN_POINTS)
     values = frequency_function(grid[None, :], x[:, None], nu)
     change = np.signbit(values[:, :-1]) != np.signbit(values[:, 1:])
     has_root = change.any(axis=1)
@@ -130,7 +131,7 @@ def first_mode(a_over_lambda, nu: float) -> np.ndarray:
     root = 0.5 * (lo + hi)
     root = np.where(x == 0.0, 1.0, root)
     if np.any(~has_root & (x > 0.0)):
-        raise RuntimeError("no first-mode root bracketed between 0.9 c_R and c0")
+        raise RuntimeError("no first-mode root bracketed between 0.9 c_R and 1.001 c0")
     return root.reshape(np.shape(a_over_lambda))
 
 
@@ -143,8 +144,8 @@ def _table(nu: float):
 
     A spline, not a monotone (PCHIP) cubic: c_p is not monotone (it dips below c_R before
     rising to it), and a PCHIP's curvature jumps at every node; in a correction those jumps
-    ring as slowly decaying tails before and after the pulse (about 1e-8 of its peak over
-    1 m of bar), which a twice continuously differentiable spline keeps near round-off."""
+    ring as slowly decaying tails before and after the pulse, which a twice continuously
+    differentiable spline keeps far smaller."""
     c = first_mode(_TABLE_GRID, nu)
     frequency = _TABLE_GRID * c
     return (interpolate.CubicSpline(_TABLE_GRID ** 2, c, extrapolate=False),

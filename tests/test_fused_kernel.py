@@ -4,13 +4,15 @@ replaces, kept here while the new one lands.
 Oracle: exact equivalence. The new kernel reads the same arrays through flat views,
 hoists the rule's shape values and calls the materials' updates on scalars (J2's and
 Drucker-Prager's ``point``; the latter skips a square root where a state is clearly
-elastic), but performs the same floating-point operations in the same order on every
-value it returns; so the run must be the previous one (previous kernel, previous updates,
+elastic, and the kernel runs that test, Drucker-Prager's ``screen``, inlined before it
+calls ``point``), but performs the same floating-point operations in the same order on
+every value it returns; so the run must be the previous one (previous kernel, previous updates,
 kept verbatim here) bit for bit (array_equal / ==, no tolerance): the displacement,
 velocity, force, stresses, plastic strains and state variables after every step, and the
 booked plastic work, on a J2 bar whose points yield and unload, and on a Drucker-Prager
 bar whose points return to the cone and to the tension cut-off; by the scalar ``point``
-and by the array ``update`` (the seam of a material that gives no ``point``). Under MPI each rank runs both kernels on its own
+(behind the ``screen``, and alone) and by the array ``update`` (the seam of a material
+that gives no ``point``). Under MPI each rank runs both kernels on its own
 cells and ghosts, so the comparison holds on every rank.
 """
 import math
@@ -219,6 +221,8 @@ def _run_both(material, strain: float, tension: float, previous_update, seam: st
     old._fused = previous_kernel(previous_update)
     if seam == "array":
         new._fused = kernels(material.update, material.n_state)[0]
+    elif seam == "unscreened":
+        new._fused = kernels(material.update, material.n_state, material.point)[0]
     assert new._fused is not old._fused
     for _ in range(N_STEPS):
         for integ in runs:
@@ -245,7 +249,7 @@ def test_j2_bar_bit_for_bit(seam):
     assert COMM.allreduce(wp) > 0.0
 
 
-@pytest.mark.parametrize("seam", ["point", "array"])
+@pytest.mark.parametrize("seam", ["point", "unscreened", "array"])
 def test_drucker_prager_bar_bit_for_bit(seam):
     rock = DruckerPrager(hardening=-5e9, viscosity=0.0)
     # the dilatation: a mean stress 3 K 1e-3 = 120 MPa above p_t = 10 MPa, a small deviator
@@ -260,7 +264,8 @@ def test_drucker_prager_bar_bit_for_bit(seam):
 def test_drucker_prager_update_near_its_surfaces():
     """The update (its elastic test without the square root) against the previous one, bit
     for bit, at trial states on the cone and on the cut-off moved by relative amounts from
-    one ulp to 1e-6 either way, and at random states."""
+    one ulp to 1e-6 either way, and at random states; and the screen the cell kernel
+    runs in front of it: where it says elastic, the previous update gave the trial stress."""
     rock = DruckerPrager(hardening=1e9)
     prm = rock.params()
     rng = np.random.default_rng(11)
@@ -268,7 +273,7 @@ def test_drucker_prager_update_near_its_surfaces():
     deltas = [0.0] + [sg * d for d in (1e-16, 1e-15, 1e-13, 1e-12, 1e-11, 1e-9, 1e-6)
                       for sg in (-1.0, 1.0)]
     young, nu = rock.E, rock.nu
-    cases = 0
+    cases = screened = 0
     for _ in range(200):
         kappa = abs(rng.standard_normal()) * 1e-3 * (rng.random() < 0.5)
         k = max(k0 + prm[dp.H] * kappa, prm[dp.K_RES])
@@ -296,8 +301,23 @@ def test_drucker_prager_update_near_its_surfaces():
                     out.append((ep, st, s))
                 for a, b in zip(*out):
                     assert np.array_equal(a, b), (which, d)
+                # the screen the cell kernel runs: elastic only where the previous update
+                # returned the trial stress, which it gives (bit for bit)
+                elastic, *trial = dp.screen(*eps, *eps_p, np.array([0.0, kappa]), 0, prm)
+                if elastic:
+                    ep, st, s = out[0]
+                    assert np.array_equal(ep, eps_p) and st[0] == 0.0 and st[1] == kappa
+                    assert np.array_equal(np.array(trial), s), (which, d)
+                screened += elastic
                 cases += 1
     assert cases == 200 * len(deltas) * 3
+    assert 0 < screened < cases  # the screen decided some states, not all
+
+
+def test_screen_without_point_is_refused():
+    """A screen only stands in front of the scalar point it screens for."""
+    with pytest.raises(ValueError, match="screen"):
+        kernels(dp.update, dp.N_STATE, None, dp.screen)
 
 
 def test_state_of_another_size_is_refused():

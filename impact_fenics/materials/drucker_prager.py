@@ -167,6 +167,33 @@ def _try(mode, params, kappa_n, q_tr, p_tr, dt):
 
 
 @njit(cache=True)
+def screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
+    """The trial stress C : (eps - eps_p,n) (Pa) and whether it is clearly elastic, on
+    scalars: (elastic, s0, s1, s2, s3). Arguments as :func:`point`'s; no square root.
+
+    Clearly inside both surfaces: the cut-off holds exactly (t_tr = sigma_m - p_t <= 0 <=
+    tol in :func:`point`), the cone with a margin 1e-12 (k + |alpha_f p|) far above the
+    few roundings of f_tr (each <= EPS (q + |alpha_f p| + k), q <= k + |alpha_f p|
+    here), so f_tr <= 0 <= tol there: :func:`point`'s exact test would give elastic too,
+    and the trial stress is the result either way. Small and without calls, so that a
+    cell loop inlines it; :func:`point` begins with it."""
+    lmbda, mu = params[LMBDA], params[MU]
+    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
+    lt = lmbda * (x0 + x1 + x2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
+    m_tr = (s0 + s1 + s2) / 3.0
+    elastic = False
+    if m_tr <= params[P_T]:
+        d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
+        q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
+        af, p_tr = params[ALPHA_F], -m_tr
+        k_n = max(params[K0] + params[H] * state[k + KAPPA], params[K_RES])
+        bound = k_n + af * p_tr - 1e-12 * (k_n + abs(af * p_tr))
+        elastic = bound > 0.0 and q2_tr <= bound * bound
+    return elastic, s0, s1, s2, s3
+
+
+@njit(cache=True)
 def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     """Drucker-Prager point update on scalars (the scalar seam of :mod:`.axisym`).
 
@@ -174,27 +201,16 @@ def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     state[k + 0] the equivalent plastic strain, state[k + 1] kappa, updated in place;
     dt (s). Returns the stress (Pa) and the plastic strain at t_{n+1}, eight floats.
     """
-    lmbda, mu = params[LMBDA], params[MU]
-    af, p_t = params[ALPHA_F], params[P_T]
-    # the trial stress C : (eps - eps_p,n)
-    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
-    lt = lmbda * (x0 + x1 + x2)
-    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
+    elastic, s0, s1, s2, s3 = screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params)
+    if elastic:  # clearly inside both surfaces (:func:`screen`)
+        return s0, s1, s2, s3, p0, p1, p2, p3
+    mu, af, p_t = params[MU], params[ALPHA_F], params[P_T]
     m_tr = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
     q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
     p_tr = -m_tr
     kappa_n = state[k + KAPPA]
     k_n = _cohesion(params, kappa_n)
-    # clearly inside both surfaces: elastic, without the square root. The cut-off holds
-    # exactly (t_tr = sigma_m - p_t <= 0 <= tol below); the cone with a margin
-    # 1e-12 (k + |alpha_f p|) far above the few roundings of f_tr (each <= EPS (q + |alpha_f
-    # p| + k), q <= k + |alpha_f p| here), so f_tr <= 0 <= tol below: the test below would
-    # give elastic too, and the trial stress is the result either way.
-    if m_tr <= p_t:
-        bound = k_n + af * p_tr - 1e-12 * (k_n + abs(af * p_tr))
-        if bound > 0.0 and q2_tr <= bound * bound:
-            return s0, s1, s2, s3, p0, p1, p2, p3
     q_tr = math.sqrt(q2_tr)
     f_tr = q_tr - af * p_tr - k_n
     t_tr = -p_tr - p_t
@@ -284,6 +300,7 @@ class DruckerPrager(IsotropicConstants):
     )
     update = staticmethod(update)  # the compiled point update (numba), signature of axisym
     point = staticmethod(point)    # the same on scalars (the scalar seam of axisym)
+    screen = staticmethod(screen)  # its elastic test, on scalars, for a cell loop to inline
 
     def __post_init__(self) -> None:
         self.check_elastic()

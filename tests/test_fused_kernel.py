@@ -6,7 +6,9 @@ hoists the rule's shape values and calls the materials' updates on scalars (J2's
 Drucker-Prager's ``point``; the latter skips a square root where a state is clearly
 elastic, and the kernel runs that test, Drucker-Prager's ``screen``, inlined before it
 calls ``point``), but performs the same floating-point operations in the same order on
-every value it returns; so the run must be the previous one (previous kernel, previous updates,
+every value it returns (J2's and Drucker-Prager's point functions are compiled with
+numpy's error model, which removes the zero tests of their divisions, none of which is
+by zero, and changes no operation); so the run must be the previous one (previous kernel, previous updates,
 kept verbatim here) bit for bit (array_equal / ==, no tolerance): the displacement,
 velocity, force, stresses, plastic strains and state variables after every step, and the
 booked plastic work, on a J2 bar whose points yield and unload, and on a Drucker-Prager
@@ -29,8 +31,8 @@ from impact_fenics.internal_force.quadrature import kernels
 from impact_fenics.materials import drucker_prager as dp
 from impact_fenics.materials import j2
 from impact_fenics.materials.axisym import SQRT_2_3, elastic_stress
-from impact_fenics.materials.drucker_prager import (ALPHA_F, ALPHA_G, EPS_BAR_P, K0, KAPPA, LMBDA,
-                                                    MU, P_T, DruckerPrager, _cohesion, _try)
+from impact_fenics.materials.drucker_prager import (ALPHA_F, ALPHA_G, BULK, EPS_BAR_P, ETA, K0,
+                                                    K_RES, KAPPA, LMBDA, MU, P_T, DruckerPrager)
 from impact_fenics.materials.j2 import J2
 
 COMM = MPI.COMM_WORLD
@@ -140,6 +142,59 @@ def previous_j2_update(eps, eps_p, state, params, dt, sigma) -> None:
     sigma[3] = s3 - c * s3
 
 
+# the Drucker-Prager return's helpers as they were before (verbatim, renamed)
+@njit
+def previous_cohesion(params, kappa) -> float:
+    """k(kappa) = max(k_0 + h kappa, k_res) (Pa)."""
+    return max(params[K0] + params[dp.H] * kappa, params[K_RES])
+
+
+@njit
+def previous_multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
+    """(d gamma, d lambda) of the active set ``mode`` (1 cone, 2 cut-off, 3 both)."""
+    if mode == 1:
+        return f_tr / (a + vis), 0.0
+    if mode == 2:
+        return 0.0, t_tr / (d + vis)
+    aa, dd = a + vis, d + vis
+    det = aa * dd - b * c
+    return (f_tr * dd - b * t_tr) / det, (aa * t_tr - c * f_tr) / det
+
+
+@njit
+def previous_try(mode, params, kappa_n, q_tr, p_tr, dt):
+    """Multipliers of an active set, with the softening floor; returns
+    (d gamma, d lambda, q, p, admissible)."""
+    bulk, mu = params[BULK], params[MU]
+    af, ag, p_t = params[ALPHA_F], params[ALPHA_G], params[P_T]
+    vis = params[ETA] / dt if params[ETA] > 0.0 else 0.0
+    k_n = previous_cohesion(params, kappa_n)
+    h = params[dp.H] if params[K0] + params[dp.H] * kappa_n > params[K_RES] else 0.0
+    for _ in range(2):
+        f_tr = q_tr - af * p_tr - k_n
+        t_tr = -p_tr - p_t
+        a = 3.0 * mu + bulk * af * ag + h
+        dg, dl = previous_multipliers(mode, f_tr, t_tr, a, bulk * af, bulk * ag, bulk, vis)
+        if h < 0.0 and params[K0] + params[dp.H] * (kappa_n + dg) < params[K_RES]:
+            # softening passes the residual within the step: the intercept at the end is
+            # k_res whatever the path, so the branch k = k_res, h = 0 is the solution
+            k_n = params[K_RES]
+            h = 0.0
+            continue
+        break
+    q = q_tr - 3.0 * mu * dg
+    p = p_tr + bulk * (ag * dg + dl)
+    k_new = previous_cohesion(params, kappa_n + dg)
+    tol = 1e-12 * (abs(q_tr) + abs(p_tr) + params[K0])
+    ok = dg >= -tol and dl >= -tol and q >= -tol
+    # the other condition must hold at the result (for Perzyna: no overstress there)
+    if mode == 1:
+        ok = ok and -p - p_t <= tol
+    elif mode == 2:
+        ok = ok and q - af * p - k_new <= tol
+    return dg, dl, q, p, ok
+
+
 @njit
 def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     """The Drucker-Prager point update as it was before (verbatim)."""
@@ -155,18 +210,18 @@ def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
     p_tr = -m_tr
     kappa_n = state[KAPPA]
-    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    f_tr = q_tr - af * p_tr - previous_cohesion(params, kappa_n)
     t_tr = -p_tr - p_t
     scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
     if f_tr <= scale_tol and t_tr <= scale_tol:
         return  # elastic
     dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
     if f_tr > scale_tol:
-        dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
+        dg, dl, q, p, ok = previous_try(1, params, kappa_n, q_tr, p_tr, dt)
     if not ok and t_tr > scale_tol:
-        dg, dl, q, p, ok = _try(2, params, kappa_n, q_tr, p_tr, dt)
+        dg, dl, q, p, ok = previous_try(2, params, kappa_n, q_tr, p_tr, dt)
     if not ok:
-        dg, dl, q, p, ok = _try(3, params, kappa_n, q_tr, p_tr, dt)
+        dg, dl, q, p, ok = previous_try(3, params, kappa_n, q_tr, p_tr, dt)
     dg = max(dg, 0.0)
     dl = max(dl, 0.0)
     q = max(q, 0.0)

@@ -8,14 +8,14 @@ elastic, and the kernel runs that test, Drucker-Prager's ``screen``, inlined bef
 calls ``point``), but performs the same floating-point operations in the same order on
 every value it returns (J2's and Drucker-Prager's point functions are compiled with
 numpy's error model, which removes the zero tests of their divisions, none of which is
-by zero, and changes no operation); so the run must be the previous one (previous kernel, previous updates,
-kept verbatim here) bit for bit (array_equal / ==, no tolerance): the displacement,
-velocity, force, stresses, plastic strains and state variables after every step, and the
-booked plastic work, on a J2 bar whose points yield and unload, and on a Drucker-Prager
-bar whose points return to the cone and to the tension cut-off; by the scalar ``point``
-(behind the ``screen``, and alone) and by the array ``update`` (the seam of a material
-that gives no ``point``). Under MPI each rank runs both kernels on its own
-cells and ghosts, so the comparison holds on every rank.
+by zero, and changes no operation); so the run must be the previous one (previous
+kernel, previous updates, kept verbatim here) bit for bit (array_equal / ==, no
+tolerance): the displacement, velocity, force, stresses, plastic strains and state
+variables after every step, and the booked plastic work, on a J2 bar whose points yield
+and unload, and on a Drucker-Prager bar whose points return to the cone and to the
+tension cut-off; by the scalar ``point`` (behind the ``screen``, and alone) and by the
+array ``update`` (the seam of a material that gives no ``point``). Under MPI each rank
+runs both kernels on its own cells and ghosts, so the comparison holds on every rank.
 """
 import math
 

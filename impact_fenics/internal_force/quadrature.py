@@ -382,10 +382,10 @@ class QuadratureForce:
         self.deformation_work_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
-        self._fused, self._points = ((bbar.kernel(self.material.update), None) if quad
-                                     else kernels(self.material.update, self.material.n_state,
-                                                  getattr(self.material, "point", None),
-                                                  getattr(self.material, "screen", None)))
+        point, screen = (getattr(self.material, name, None) for name in ("point", "screen"))
+        self._fused, self._points = ((bbar.kernel(self.material.update, point, screen), None)
+                                     if quad else kernels(self.material.update,
+                                                          self.material.n_state, point, screen))
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()

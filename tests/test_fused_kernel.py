@@ -4,14 +4,20 @@ replaces, kept here while the new one lands.
 Oracle: exact equivalence. The new kernel reads the same arrays through flat views,
 hoists the rule's shape values and calls the materials' updates on scalars (J2's and
 Drucker-Prager's ``point``; the latter skips a square root where a state is clearly
-elastic), but performs the same floating-point operations in the same order on every
-value it returns; so the run must be the previous one (previous kernel, previous updates,
-kept verbatim here) bit for bit (array_equal / ==, no tolerance): the displacement,
-velocity, force, stresses, plastic strains and state variables after every step, and the
-booked plastic work, on a J2 bar whose points yield and unload, and on a Drucker-Prager
-bar whose points return to the cone and to the tension cut-off; by the scalar ``point``
-and by the array ``update`` (the seam of a material that gives no ``point``). Under MPI each rank runs both kernels on its own
-cells and ghosts, so the comparison holds on every rank.
+elastic, and the kernel runs that test, Drucker-Prager's ``screen``, inlined before it
+calls ``point``), but performs the same floating-point operations in the same order on
+every value it returns (J2's and Drucker-Prager's point functions are compiled with
+numpy's error model, which removes the zero tests of their divisions, none of which is
+by zero, and changes no operation); so the run must be the previous one (previous
+kernel, previous updates, kept verbatim here) bit for bit (array_equal / ==, no
+tolerance): the displacement, velocity, force, stresses, plastic strains and state
+variables after every step, and the booked plastic work, on a J2 bar whose points yield
+and unload, and on a Drucker-Prager bar whose points return to the cone and to the
+tension cut-off; by the scalar ``point`` (behind the ``screen``, and alone) and by the
+array ``update`` (the seam of a material that gives no ``point``); on triangles and, for
+the B-bar kernel, which now calls ``screen`` and ``point`` the same way, on
+quadrilaterals (the previous B-bar kernel kept verbatim here too). Under MPI each rank
+runs both kernels on its own cells and ghosts, so the comparison holds on every rank.
 """
 import math
 
@@ -23,13 +29,15 @@ from numba import njit
 from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.integrator import Integrator
+from impact_fenics.internal_force import bbar
 from impact_fenics.internal_force.quadrature import kernels
 from impact_fenics.materials import drucker_prager as dp
 from impact_fenics.materials import j2
 from impact_fenics.materials.axisym import SQRT_2_3, elastic_stress
-from impact_fenics.materials.drucker_prager import (ALPHA_F, ALPHA_G, EPS_BAR_P, K0, KAPPA, LMBDA,
-                                                    MU, P_T, DruckerPrager, _cohesion, _try)
+from impact_fenics.materials.drucker_prager import (ALPHA_F, ALPHA_G, BULK, EPS_BAR_P, ETA, K0,
+                                                    K_RES, KAPPA, LMBDA, MU, P_T, DruckerPrager)
 from impact_fenics.materials.j2 import J2
+from impact_fenics.quad_meshes import quad_rectangle
 
 COMM = MPI.COMM_WORLD
 H = 0.05          # element size (m) of the bar r in [0, 0.25], z in [0, 0.5]
@@ -106,6 +114,78 @@ def previous_kernel(update):
     return fused
 
 
+def previous_bbar_kernel(update):
+    """The fused B-bar cell kernel as it was before (verbatim), specialised on ``update``."""
+    @njit
+    def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
+        """f += f_e over the cells (N); returns the plastic work increment
+        sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J).
+        ``work`` has WORK_ROWS rows."""
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :state.shape[2]]
+        ns = state.shape[2]
+        wp = 0.0
+        for c in range(dofs.shape[0]):
+            # the strains at the four points (rows 4..7 of work), their traces' weighted mean
+            theta_bar = vol = 0.0
+            for q in range(4):
+                rr = tt = zz = rz = 0.0
+                for a in range(4):
+                    k = 2 * dofs[c, a]
+                    gr, gz = dNdr[c, q, a], dNdz[c, q, a]
+                    ur, uz = u[k], u[k + 1]
+                    rr += gr * ur
+                    tt += N[q, a] * ur
+                    zz += gz * uz
+                    rz += gz * ur + gr * uz
+                e = work[4 + q]
+                e[0], e[1], e[2], e[3] = rr, tt * inv_r[c, q], zz, 0.5 * rz
+                wq = w[c, q]
+                theta_bar += wq * (e[0] + e[1] + e[2])
+                vol += wq
+            theta_bar /= vol
+            # the point updates at eps_bar_q; the weighted mean pressure
+            p_bar = 0.0
+            for q in range(4):
+                e = work[4 + q]
+                d = (theta_bar - (e[0] + e[1] + e[2])) / 3.0
+                eps[0], eps[1], eps[2], eps[3] = e[0] + d, e[1] + d, e[2] + d, e[3]
+                p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
+                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                for k in range(ns):
+                    st[k] = state[c, q, k]
+                update(eps, ep, st, params, dt, s)
+                for k in range(ns):
+                    state[c, q, k] = st[k]
+                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                wq = w[c, q]
+                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
+                    o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                    wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                      + 2.0 * (o3 + s3) * d3)
+                    eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = \
+                        ep[0], ep[1], ep[2], ep[3]
+                sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
+                p_bar += wq * (s0 + s1 + s2)
+            p_bar /= 3.0 * vol
+            # f_a += w_q B_q' G (dev sigma_q + p_bar (1, 1, 1, 0))
+            for q in range(4):
+                s0, s1, s2, s3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
+                shift = p_bar - (s0 + s1 + s2) / 3.0
+                wq = w[c, q]
+                t_rr, t_tt, t_zz, t_rz = (wq * (s0 + shift), wq * (s1 + shift) * inv_r[c, q],
+                                          wq * (s2 + shift), wq * s3)
+                for a in range(4):
+                    k = 2 * dofs[c, a]
+                    gr, gz = dNdr[c, q, a], dNdz[c, q, a]
+                    f[k] += gr * t_rr + N[q, a] * t_tt + gz * t_rz
+                    f[k + 1] += gz * t_zz + gr * t_rz
+        return wp
+
+    return fused
+
+
 @njit
 def previous_j2_update(eps, eps_p, state, params, dt, sigma) -> None:
     """The J2 radial return as it was before (verbatim)."""
@@ -138,6 +218,59 @@ def previous_j2_update(eps, eps_p, state, params, dt, sigma) -> None:
     sigma[3] = s3 - c * s3
 
 
+# the Drucker-Prager return's helpers as they were before (verbatim, renamed)
+@njit
+def previous_cohesion(params, kappa) -> float:
+    """k(kappa) = max(k_0 + h kappa, k_res) (Pa)."""
+    return max(params[K0] + params[dp.H] * kappa, params[K_RES])
+
+
+@njit
+def previous_multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
+    """(d gamma, d lambda) of the active set ``mode`` (1 cone, 2 cut-off, 3 both)."""
+    if mode == 1:
+        return f_tr / (a + vis), 0.0
+    if mode == 2:
+        return 0.0, t_tr / (d + vis)
+    aa, dd = a + vis, d + vis
+    det = aa * dd - b * c
+    return (f_tr * dd - b * t_tr) / det, (aa * t_tr - c * f_tr) / det
+
+
+@njit
+def previous_try(mode, params, kappa_n, q_tr, p_tr, dt):
+    """Multipliers of an active set, with the softening floor; returns
+    (d gamma, d lambda, q, p, admissible)."""
+    bulk, mu = params[BULK], params[MU]
+    af, ag, p_t = params[ALPHA_F], params[ALPHA_G], params[P_T]
+    vis = params[ETA] / dt if params[ETA] > 0.0 else 0.0
+    k_n = previous_cohesion(params, kappa_n)
+    h = params[dp.H] if params[K0] + params[dp.H] * kappa_n > params[K_RES] else 0.0
+    for _ in range(2):
+        f_tr = q_tr - af * p_tr - k_n
+        t_tr = -p_tr - p_t
+        a = 3.0 * mu + bulk * af * ag + h
+        dg, dl = previous_multipliers(mode, f_tr, t_tr, a, bulk * af, bulk * ag, bulk, vis)
+        if h < 0.0 and params[K0] + params[dp.H] * (kappa_n + dg) < params[K_RES]:
+            # softening passes the residual within the step: the intercept at the end is
+            # k_res whatever the path, so the branch k = k_res, h = 0 is the solution
+            k_n = params[K_RES]
+            h = 0.0
+            continue
+        break
+    q = q_tr - 3.0 * mu * dg
+    p = p_tr + bulk * (ag * dg + dl)
+    k_new = previous_cohesion(params, kappa_n + dg)
+    tol = 1e-12 * (abs(q_tr) + abs(p_tr) + params[K0])
+    ok = dg >= -tol and dl >= -tol and q >= -tol
+    # the other condition must hold at the result (for Perzyna: no overstress there)
+    if mode == 1:
+        ok = ok and -p - p_t <= tol
+    elif mode == 2:
+        ok = ok and q - af * p - k_new <= tol
+    return dg, dl, q, p, ok
+
+
 @njit
 def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     """The Drucker-Prager point update as it was before (verbatim)."""
@@ -153,18 +286,18 @@ def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
     p_tr = -m_tr
     kappa_n = state[KAPPA]
-    f_tr = q_tr - af * p_tr - _cohesion(params, kappa_n)
+    f_tr = q_tr - af * p_tr - previous_cohesion(params, kappa_n)
     t_tr = -p_tr - p_t
     scale_tol = 1e-14 * (q_tr + abs(p_tr) + params[K0])
     if f_tr <= scale_tol and t_tr <= scale_tol:
         return  # elastic
     dg, dl, q, p, ok = 0.0, 0.0, q_tr, p_tr, False
     if f_tr > scale_tol:
-        dg, dl, q, p, ok = _try(1, params, kappa_n, q_tr, p_tr, dt)
+        dg, dl, q, p, ok = previous_try(1, params, kappa_n, q_tr, p_tr, dt)
     if not ok and t_tr > scale_tol:
-        dg, dl, q, p, ok = _try(2, params, kappa_n, q_tr, p_tr, dt)
+        dg, dl, q, p, ok = previous_try(2, params, kappa_n, q_tr, p_tr, dt)
     if not ok:
-        dg, dl, q, p, ok = _try(3, params, kappa_n, q_tr, p_tr, dt)
+        dg, dl, q, p, ok = previous_try(3, params, kappa_n, q_tr, p_tr, dt)
     dg = max(dg, 0.0)
     dl = max(dl, 0.0)
     q = max(q, 0.0)
@@ -191,12 +324,15 @@ def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     state[KAPPA] = kappa_n + dg
 
 
-def _bar(material, strain: float, seed: int, tension: float = 0.0) -> Integrator:
+def _bar(material, strain: float, seed: int, tension: float = 0.0, quad: bool = False
+         ) -> Integrator:
     """The bar of ``material``, axis fixed, in a random state of strains ~ ``strain``
     (displacements strain x H) below z = 1/4 and velocities that change them by about as
     much over the run: points load, yield and unload; plus the uniform dilatation
-    eps = ``tension`` I (u = tension x (r, z)) everywhere."""
-    tm = meshing.bar(radius=0.25, length=0.5, h=H, structured=True, comm=COMM)
+    eps = ``tension`` I (u = tension x (r, z)) everywhere. Triangles, or with ``quad``
+    quadrilaterals of side H (the B-bar kernel)."""
+    tm = (quad_rectangle(COMM, 0.0, 0.0, 0.25, 0.5, round(0.25 / H), round(0.5 / H), "bar")
+          if quad else meshing.bar(radius=0.25, length=0.5, h=H, structured=True, comm=COMM))
     model = DeformableModel(tm, [Body("bar", material)])
     c = math.sqrt((material.lmbda + 2.0 * material.mu) / material.density)
     dt = 0.2 * H / c  # below the element bound (about 0.5 h / c on these cells)
@@ -211,14 +347,20 @@ def _bar(material, strain: float, seed: int, tension: float = 0.0) -> Integrator
     return integ
 
 
-def _run_both(material, strain: float, tension: float, previous_update, seam: str) -> list:
+def _run_both(material, strain: float, tension: float, previous_update, seam: str,
+              quad: bool = False) -> list:
     """Run the bar twice, with the previous kernel and update and with the new kernel on
-    the material's ``seam`` ('point' or 'array'); compare every step."""
-    runs = [_bar(material, strain, seed=3, tension=tension) for _ in range(2)]
+    the material's ``seam`` ('point' behind its screen if it has one, 'unscreened' or
+    'array'); compare every step. ``quad``: on quadrilaterals, the B-bar kernels."""
+    runs = [_bar(material, strain, seed=3, tension=tension, quad=quad) for _ in range(2)]
     old, new = runs[0].nonlinear[0], runs[1].nonlinear[0]
-    old._fused = previous_kernel(previous_update)
+    old._fused = (previous_bbar_kernel if quad else previous_kernel)(previous_update)
     if seam == "array":
-        new._fused = kernels(material.update, material.n_state)[0]
+        new._fused = (bbar.kernel(material.update) if quad
+                      else kernels(material.update, material.n_state)[0])
+    elif seam == "unscreened":
+        new._fused = (bbar.kernel(material.update, material.point) if quad
+                      else kernels(material.update, material.n_state, material.point)[0])
     assert new._fused is not old._fused
     for _ in range(N_STEPS):
         for integ in runs:
@@ -235,21 +377,23 @@ def _run_both(material, strain: float, tension: float, previous_update, seam: st
     return [new.qs, new.plastic_work_local]
 
 
+@pytest.mark.parametrize("quad", [False, True], ids=["triangles", "quadrilaterals"])
 @pytest.mark.parametrize("seam", ["point", "array"])
-def test_j2_bar_bit_for_bit(seam):
+def test_j2_bar_bit_for_bit(seam, quad):
     qs, wp = _run_both(J2(E=200e9, nu=0.3, density=7850.0, yield_stress=250e6,
-                          hardening=2e9), 3e-3, 0.0, previous_j2_update, seam)
+                          hardening=2e9), 3e-3, 0.0, previous_j2_update, seam, quad)
     yielded = COMM.allreduce(int((qs.state[..., 0] > 0.0).sum()))
     points = COMM.allreduce(int(qs.state[..., 0].size))
     assert yielded > points // 4  # the return mapping ran, not only the elastic branch
     assert COMM.allreduce(wp) > 0.0
 
 
-@pytest.mark.parametrize("seam", ["point", "array"])
-def test_drucker_prager_bar_bit_for_bit(seam):
+@pytest.mark.parametrize("quad", [False, True], ids=["triangles", "quadrilaterals"])
+@pytest.mark.parametrize("seam", ["point", "unscreened", "array"])
+def test_drucker_prager_bar_bit_for_bit(seam, quad):
     rock = DruckerPrager(hardening=-5e9, viscosity=0.0)
     # the dilatation: a mean stress 3 K 1e-3 = 120 MPa above p_t = 10 MPa, a small deviator
-    qs, wp = _run_both(rock, 4e-3, 1e-3, previous_dp_update, seam)
+    qs, wp = _run_both(rock, 4e-3, 1e-3, previous_dp_update, seam, quad)
     eps_bar, kappa = qs.state[..., 0], qs.state[..., 1]
     cone = COMM.allreduce(int((kappa > 0.0).sum()))                           # d gamma > 0
     cut_off = COMM.allreduce(int(((eps_bar > 0.0) & (kappa == 0.0)).sum()))   # d lambda only
@@ -260,7 +404,8 @@ def test_drucker_prager_bar_bit_for_bit(seam):
 def test_drucker_prager_update_near_its_surfaces():
     """The update (its elastic test without the square root) against the previous one, bit
     for bit, at trial states on the cone and on the cut-off moved by relative amounts from
-    one ulp to 1e-6 either way, and at random states."""
+    one ulp to 1e-6 either way, and at random states; and the screen the cell kernel
+    runs in front of it: where it says elastic, the previous update gave the trial stress."""
     rock = DruckerPrager(hardening=1e9)
     prm = rock.params()
     rng = np.random.default_rng(11)
@@ -268,7 +413,7 @@ def test_drucker_prager_update_near_its_surfaces():
     deltas = [0.0] + [sg * d for d in (1e-16, 1e-15, 1e-13, 1e-12, 1e-11, 1e-9, 1e-6)
                       for sg in (-1.0, 1.0)]
     young, nu = rock.E, rock.nu
-    cases = 0
+    cases = screened = 0
     for _ in range(200):
         kappa = abs(rng.standard_normal()) * 1e-3 * (rng.random() < 0.5)
         k = max(k0 + prm[dp.H] * kappa, prm[dp.K_RES])
@@ -296,8 +441,25 @@ def test_drucker_prager_update_near_its_surfaces():
                     out.append((ep, st, s))
                 for a, b in zip(*out):
                     assert np.array_equal(a, b), (which, d)
+                # the screen the cell kernel runs: elastic only where the previous update
+                # returned the trial stress, which it gives (bit for bit)
+                elastic, *trial = dp.screen(*eps, *eps_p, np.array([0.0, kappa]), 0, prm)
+                if elastic:
+                    ep, st, s = out[0]
+                    assert np.array_equal(ep, eps_p) and st[0] == 0.0 and st[1] == kappa
+                    assert np.array_equal(np.array(trial), s), (which, d)
+                screened += elastic
                 cases += 1
     assert cases == 200 * len(deltas) * 3
+    assert 0 < screened < cases  # the screen decided some states, not all
+
+
+def test_screen_without_point_is_refused():
+    """A screen only stands in front of the scalar point it screens for."""
+    with pytest.raises(ValueError, match="screen"):
+        kernels(dp.update, dp.N_STATE, None, dp.screen)
+    with pytest.raises(ValueError, match="screen"):
+        bbar.kernel(dp.update, None, dp.screen)
 
 
 def test_state_of_another_size_is_refused():

@@ -16,8 +16,9 @@ elastic update this force is K u with the B-bar K of the linear bodies
 
 The kernel has the signature of the triangles' fused kernel
 (:func:`.quadrature.kernels`), so :class:`.quadrature.QuadratureForce` runs either;
-it is specialised on the material's compiled ``update`` and built once per process
-and material.
+it is specialised on the material's compiled ``update`` (or its ``point`` on scalars,
+behind its ``screen``, as the triangles' kernel) and built once per process and
+material.
 """
 from __future__ import annotations
 
@@ -30,10 +31,30 @@ WORK_ROWS = 4 + N_POINTS  # the point's scratch (eps, eps_p, state, sigma) + the
 _KERNELS: dict = {}
 
 
-def kernel(update):
-    """The fused B-bar cell kernel for the point update ``update``."""
-    if update in _KERNELS:
-        return _KERNELS[update]
+@njit(cache=True)
+def _no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
+    """The stand-in of a material without a scalar ``point``: never called."""
+    return e0, e1, e2, e3, p0, p1, p2, p3
+
+
+@njit(cache=True)
+def _no_screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
+    """The stand-in of a material without a ``screen``: never called."""
+    return False, e0, e1, e2, e3
+
+
+def kernel(update, point=None, screen=None):
+    """The fused B-bar cell kernel for the point update ``update``; with ``point`` (and
+    ``screen``) the same update on scalars, called as the triangles' kernel calls them
+    (:func:`.quadrature.kernels`)."""
+    if screen is not None and point is None:
+        raise ValueError("a screen needs the scalar point it screens for")
+    key = (update, point, screen)
+    if key in _KERNELS:
+        return _KERNELS[key]
+    scalar, screened = point is not None, screen is not None  # constants of the kernel
+    point = _no_point if point is None else point
+    screen = _no_screen if screen is None else screen
 
     @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
@@ -43,6 +64,7 @@ def kernel(update):
         eps, ep, s = work[0], work[1], work[2]
         st = work[3, :state.shape[2]]
         ns = state.shape[2]
+        st_q = state.reshape(-1)  # the scalar seam's view: point (c, q) at ns (4 c + q)
         wp = 0.0
         for c in range(dofs.shape[0]):
             # the strains at the four points (rows 4..7 of work), their traces' weighted mean
@@ -68,23 +90,37 @@ def kernel(update):
             for q in range(4):
                 e = work[4 + q]
                 d = (theta_bar - (e[0] + e[1] + e[2])) / 3.0
-                eps[0], eps[1], eps[2], eps[3] = e[0] + d, e[1] + d, e[2] + d, e[3]
+                b0, b1, b2, b3 = e[0] + d, e[1] + d, e[2] + d, e[3]  # eps_bar_q
                 p0, p1, p2, p3 = eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3]
-                ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
-                for k in range(ns):
-                    st[k] = state[c, q, k]
-                update(eps, ep, st, params, dt, s)
-                for k in range(ns):
-                    state[c, q, k] = st[k]
-                s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                k0 = ns * (4 * c + q)  # the point's first state variable in st_q
+                elastic = False
+                if screened:  # the material's elastic test: the trial stress, no call
+                    elastic, s0, s1, s2, s3 = screen(b0, b1, b2, b3, p0, p1, p2, p3, st_q, k0,
+                                                     params)
+                    q0, q1, q2, q3 = p0, p1, p2, p3
+                if elastic:
+                    pass
+                elif scalar:
+                    s0, s1, s2, s3, q0, q1, q2, q3 = point(b0, b1, b2, b3, p0, p1, p2, p3, st_q,
+                                                           k0, params, dt)
+                else:
+                    eps[0], eps[1], eps[2], eps[3] = b0, b1, b2, b3
+                    ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                    for k in range(ns):
+                        st[k] = state[c, q, k]
+                    update(eps, ep, st, params, dt, s)
+                    for k in range(ns):
+                        state[c, q, k] = st[k]
+                    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                    q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
                 wq = w[c, q]
-                d0, d1, d2, d3 = ep[0] - p0, ep[1] - p1, ep[2] - p2, ep[3] - p3
+                d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
                 if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
                     o0, o1, o2, o3 = sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3]
                     wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
                                       + 2.0 * (o3 + s3) * d3)
                     eps_p[c, q, 0], eps_p[c, q, 1], eps_p[c, q, 2], eps_p[c, q, 3] = \
-                        ep[0], ep[1], ep[2], ep[3]
+                        q0, q1, q2, q3
                 sigma[c, q, 0], sigma[c, q, 1], sigma[c, q, 2], sigma[c, q, 3] = s0, s1, s2, s3
                 p_bar += wq * (s0 + s1 + s2)
             p_bar /= 3.0 * vol
@@ -102,5 +138,5 @@ def kernel(update):
                     f[k + 1] += gz * t_zz + gr * t_rz
         return wp
 
-    _KERNELS[update] = fused
+    _KERNELS[key] = fused
     return fused

@@ -138,17 +138,30 @@ def _no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     return e0, e1, e2, e3, p0, p1, p2, p3
 
 
-def kernels(update, n_state: int = 1, point=None):
+@njit(cache=True)
+def _no_screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
+    """The stand-in of a material without a ``screen``: never called."""
+    return False, e0, e1, e2, e3
+
+
+def kernels(update, n_state: int = 1, point=None, screen=None):
     """The fused cell kernel and the point loop of the generic path for ``update``, whose
     points carry ``n_state`` variables (the last axis of the state array, at least 1).
     With ``point``, the same update on scalars (:mod:`..materials.axisym`), the fused
-    kernel calls that instead, on the point's values where they are."""
-    key = (update, max(int(n_state), 1), point)
+    kernel calls that instead, on the point's values where they are. With ``screen``
+    too (a material whose ``point`` is too large to be inlined in the cell loop), the
+    kernel runs that test first, inlined: where it finds the trial stress clearly
+    elastic the trial stress is the result and ``point`` is not called."""
+    if screen is not None and point is None:
+        raise ValueError("a screen needs the scalar point it screens for")
+    key = (update, max(int(n_state), 1), point, screen)
     if key in _KERNELS:
         return _KERNELS[key]
     ns = key[1]
     scalar = point is not None  # a constant of the compiled kernel: one branch is compiled
+    screened = screen is not None
     point = _no_point if point is None else point
+    screen = _no_screen if screen is None else screen
 
     @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
@@ -162,7 +175,9 @@ def kernels(update, n_state: int = 1, point=None):
         ``point`` takes the strain and plastic strain as numbers and its state where it
         lies; otherwise its ``update`` sees them through small scratch arrays (a view
         into the big arrays per point would cost two reference-count updates each),
-        copied in and out (unrolled: ``ns`` is fixed when the kernel is built)."""
+        copied in and out (unrolled: ``ns`` is fixed when the kernel is built). A
+        material's ``screen`` runs before its ``point``, which only the points it leaves
+        undecided call."""
         # (The generic path's loop below repeats the point block: a compiled helper for
         # it, called or inlined by numba, made this kernel 2-5x slower.)
         if state.shape[2] != ns:
@@ -203,7 +218,14 @@ def kernels(update, n_state: int = 1, point=None):
                 ir = ir_q[i]
                 e_tt = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
                 p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
-                if scalar:
+                elastic = False
+                if screened:  # the material's elastic test: the trial stress, no call
+                    elastic, s0, s1, s2, s3 = screen(e_rr, e_tt, e_zz, e_rz, p0, p1, p2, p3,
+                                                     st_q, k0, params)
+                    q0, q1, q2, q3 = p0, p1, p2, p3
+                if elastic:
+                    pass
+                elif scalar:
                     s0, s1, s2, s3, q0, q1, q2, q3 = point(e_rr, e_tt, e_zz, e_rz, p0, p1, p2,
                                                            p3, st_q, k0, params, dt)
                 else:
@@ -360,9 +382,10 @@ class QuadratureForce:
         self.deformation_work_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
-        self._fused, self._points = ((bbar.kernel(self.material.update), None) if quad
-                                     else kernels(self.material.update, self.material.n_state,
-                                             getattr(self.material, "point", None)))
+        point, screen = (getattr(self.material, name, None) for name in ("point", "screen"))
+        self._fused, self._points = ((bbar.kernel(self.material.update, point, screen), None)
+                                     if quad else kernels(self.material.update,
+                                                          self.material.n_state, point, screen))
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()

@@ -114,13 +114,13 @@ def alpha_of_angle(angle_deg: float) -> float:
 
 # ----------------------------------------------------------------------------- the update
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cohesion(params, kappa) -> float:
     """k(kappa) = max(k_0 + h kappa, k_res) (Pa)."""
     return max(params[K0] + params[H] * kappa, params[K_RES])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
     """(d gamma, d lambda) of the active set ``mode`` (1 cone, 2 cut-off, 3 both)."""
     if mode == 1:
@@ -132,7 +132,7 @@ def _multipliers(mode, f_tr, t_tr, a, b, c, d, vis):
     return (f_tr * dd - b * t_tr) / det, (aa * t_tr - c * f_tr) / det
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _try(mode, params, kappa_n, q_tr, p_tr, dt):
     """Multipliers of an active set, with the softening floor; returns
     (d gamma, d lambda, q, p, admissible)."""
@@ -166,35 +166,58 @@ def _try(mode, params, kappa_n, q_tr, p_tr, dt):
     return dg, dl, q, p, ok
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
+    """The trial stress C : (eps - eps_p,n) (Pa) and whether it is clearly elastic, on
+    scalars: (elastic, s0, s1, s2, s3). Arguments as :func:`point`'s; no square root.
+
+    Clearly inside both surfaces: the cut-off holds exactly (t_tr = sigma_m - p_t <= 0 <=
+    tol in :func:`point`), the cone with a margin 1e-12 (k + |alpha_f p|) far above the
+    few roundings of f_tr (each <= EPS (q + |alpha_f p| + k), q <= k + |alpha_f p|
+    here), so f_tr <= 0 <= tol there: :func:`point`'s exact test would give elastic too,
+    and the trial stress is the result either way. Small and without calls, so that a
+    cell loop inlines it; :func:`point` begins with it. (The arrays are read before any
+    branch: numba then drops their reference counting, which would keep it from being
+    inlined.)"""
+    lmbda, mu, af, p_t = params[LMBDA], params[MU], params[ALPHA_F], params[P_T]
+    k_n = max(params[K0] + params[H] * state[k + KAPPA], params[K_RES])
+    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
+    lt = lmbda * (x0 + x1 + x2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
+    m_tr = (s0 + s1 + s2) / 3.0
+    elastic = False
+    if m_tr <= p_t:
+        d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
+        q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
+        p_tr = -m_tr
+        bound = k_n + af * p_tr - 1e-12 * (k_n + abs(af * p_tr))
+        elastic = bound > 0.0 and q2_tr <= bound * bound
+    return elastic, s0, s1, s2, s3
+
+
+@njit(cache=True, error_model="numpy")
 def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     """Drucker-Prager point update on scalars (the scalar seam of :mod:`.axisym`).
 
     (e0..e3) the total strain at t_{n+1}, (p0..p3) the plastic strain at t_n;
     state[k + 0] the equivalent plastic strain, state[k + 1] kappa, updated in place;
     dt (s). Returns the stress (Pa) and the plastic strain at t_{n+1}, eight floats.
+
+    The update's functions are compiled with numpy's error model: no division in them
+    is by zero for admissible parameters (dt > 0, h > -3 mu makes the multipliers'
+    denominators positive, q* > 0 where it divides by it), and without a zero test and
+    an exception path at each division numba drops the arrays' reference counts.
     """
-    lmbda, mu = params[LMBDA], params[MU]
-    af, p_t = params[ALPHA_F], params[P_T]
-    # the trial stress C : (eps - eps_p,n)
-    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
-    lt = lmbda * (x0 + x1 + x2)
-    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
+    elastic, s0, s1, s2, s3 = screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params)
+    if elastic:  # clearly inside both surfaces (:func:`screen`)
+        return s0, s1, s2, s3, p0, p1, p2, p3
+    mu, af, p_t = params[MU], params[ALPHA_F], params[P_T]
     m_tr = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m_tr, s1 - m_tr, s2 - m_tr
     q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)
     p_tr = -m_tr
     kappa_n = state[k + KAPPA]
     k_n = _cohesion(params, kappa_n)
-    # clearly inside both surfaces: elastic, without the square root. The cut-off holds
-    # exactly (t_tr = sigma_m - p_t <= 0 <= tol below); the cone with a margin
-    # 1e-12 (k + |alpha_f p|) far above the few roundings of f_tr (each <= EPS (q + |alpha_f
-    # p| + k), q <= k + |alpha_f p| here), so f_tr <= 0 <= tol below: the test below would
-    # give elastic too, and the trial stress is the result either way.
-    if m_tr <= p_t:
-        bound = k_n + af * p_tr - 1e-12 * (k_n + abs(af * p_tr))
-        if bound > 0.0 and q2_tr <= bound * bound:
-            return s0, s1, s2, s3, p0, p1, p2, p3
     q_tr = math.sqrt(q2_tr)
     f_tr = q_tr - af * p_tr - k_n
     t_tr = -p_tr - p_t
@@ -229,7 +252,7 @@ def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
             p0 + de0, p1 + de1, p2 + de2, p3 + de3)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update(eps, eps_p, state, params, dt, sigma) -> None:
     """Drucker-Prager point update (the array seam of :mod:`.axisym`): :func:`point`.
 
@@ -284,6 +307,7 @@ class DruckerPrager(IsotropicConstants):
     )
     update = staticmethod(update)  # the compiled point update (numba), signature of axisym
     point = staticmethod(point)    # the same on scalars (the scalar seam of axisym)
+    screen = staticmethod(screen)  # its elastic test, on scalars, for a cell loop to inline
 
     def __post_init__(self) -> None:
         self.check_elastic()

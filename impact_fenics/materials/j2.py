@@ -45,13 +45,18 @@ LINEAR_HARDENING = non_negative("hardening", "Pa", "hardening modulus H = d sigm
 LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     """Radial return for J2 at one point, on scalars (the scalar seam of :mod:`.axisym`).
 
     (e0..e3) the strain at t_{n+1}, (p0..p3) the plastic strain at t_n; ``state[k]`` the
     equivalent plastic strain eps_bar_p, updated in place. Returns the stress (Pa) and
-    the plastic strain at t_{n+1}, eight floats. Units: Pa, Pa s, s."""
+    the plastic strain at t_{n+1}, eight floats. Units: Pa, Pa s, s.
+
+    Compiled with numpy's error model: no division here is by zero (dt > 0, and
+    sigma_eq,tr > sigma_y > 0 where it divides by it), and without a zero test and an
+    exception path at each division numba drops the reference counts of the arrays, so
+    that a cell loop inlines this function instead of calling it."""
     lmbda, mu = params[LAMBDA], params[MU]
     # trial stress sigma_tr = C : (eps - eps_p,n), its deviator and sigma_eq
     x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
@@ -74,7 +79,7 @@ def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
             p0 + kp * d0, p1 + kp * d1, p2 + kp * d2, p3 + kp * s3)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update(eps, eps_p, state, params, dt, sigma) -> None:
     """Radial return for J2 at one point (the array seam of :mod:`.axisym`): :func:`point`.
 

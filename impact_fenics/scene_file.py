@@ -102,6 +102,7 @@ class ProbeSpec:
     name: str
     point: tuple[float, float]  # (r, z) in m
     quantity: str
+    length: float = 0.002  # a strain gauge's length (m)
 
 
 @dataclass
@@ -394,7 +395,11 @@ def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
     if point[0] < 0:
         raise t.error("point", "r must be >= 0 (m)")
     name = t.value("name", f"{quantity}_{k}")
-    return ProbeSpec(where, name, point, quantity)
+    length = t.value("length")
+    if "length" in t and quantity != "strain_gauge":
+        raise t.error("length", f'only a quantity = "strain_gauge" has a gauge length, not '
+                      f"{toml_text(quantity)}")
+    return ProbeSpec(where, name, point, quantity, length)
 
 
 # ----------------------------------------------------------------------------- output directory
@@ -620,9 +625,23 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
     for p in scene.probes:
         with within(p.where):
-            locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()
-            _one_body_at(tmesh, p.point, comm)
-        sim.add_probe(p.name, p.point, p.quantity)
+            # a point outside the mesh fails here, not in run(); a gauge's two ends
+            ends = ([(p.point[0], p.point[1] + s * 0.5 * p.length) for s in (-1, 1)]
+                    if p.quantity == "strain_gauge" else [p.point])
+            held = []
+            for point in ends:
+                try:
+                    locate_cell(model.mesh, point)
+                except InputError:
+                    if len(ends) == 1:
+                        raise
+                    raise InputError(f"the gauge's end (r={point[0]!r}, z={point[1]!r}) m lies "
+                                     "outside the mesh") from None
+                held.append(_one_body_at(tmesh, point, comm))
+            if len(set(held)) > 1:
+                raise InputError(f"the gauge's ends lie in two bodies ({' and '.join(held)}): "
+                                 "put it within one")
+        sim.add_probe(p.name, p.point, p.quantity, p.length)
     plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
                                               **plausibility.mesh_sizes(scene, size)), scene.warned, comm)
     return sim
@@ -642,9 +661,9 @@ def _warn_ignored_keys(c: ContactSpec, comm: MPI.Comm) -> None:
                               comm)
 
 
-def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> None:
-    """Refuse a probe point on the interface of two bodies (its value would depend on
-    which body's cell is chosen)."""
+def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> str:
+    """The body that holds a probe point; refuse one on the interface of two bodies (its
+    value would depend on which body's cell is chosen)."""
     import numpy as np
 
     from .compat import colliding_cells
@@ -658,6 +677,7 @@ def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> None:
         raise InputError(f"point = [{point[0]!r}, {point[1]!r}] lies on the interface of the "
                          f"bodies {' and '.join(sorted(names))}: its value depends on the body; "
                          "move it into one of them")
+    return names.pop()
 
 
 def _force(terms: list[tuple[float, Any]]):

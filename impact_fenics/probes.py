@@ -31,7 +31,8 @@ the point among the nodes of the body whose cell holds it (a tie goes to the sma
 dofs; X is known on every rank from set-up.
 
 A ``strain_gauge`` reads the axial strain over a gauge length l (m) centred at its point
-(r, z), as a bonded gauge on a bar's surface does (give r = the bar's radius R):
+(r, z), as a bonded gauge on a bar's surface does (r = the bar's radius R,
+:func:`outer_radius`):
 
     eps = (u_z(r, z + l/2) - u_z(r, z - l/2)) / l        (-; compression negative)
 
@@ -114,6 +115,27 @@ def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
         raise InputError(f"probe point (r={point[0]}, z={point[1]}) m lies outside the mesh")
     mine = cells.size > 0 and best == winner
     return (cell if mine else -1), mine
+
+
+def outer_radius(mesh, z: float) -> float:
+    """The mesh's outer radius (m) at the height ``z`` (m): the largest r at which a cell
+    meets the line z = const, where a surface gauge sits (collective; -inf if no cell
+    does). A cell meets it on the segments between its nodes that cross it."""
+    x = mesh.geometry.x[geometry_dofs(mesh)]  # (cells, nodes, 3)
+    best = -np.inf
+    n = x.shape[1]
+    for a in range(n):
+        for b in range(a + 1, n):
+            ra, za, rb, zb = x[:, a, 0], x[:, a, 1], x[:, b, 0], x[:, b, 1]
+            crossing = (za - z) * (zb - z) <= 0.0
+            level = crossing & (za == zb)  # a segment along the line: its outer end
+            if np.any(level):
+                best = max(best, float(np.max(np.maximum(ra[level], rb[level]))))
+            slant = crossing & (za != zb)
+            if np.any(slant):
+                r = ra[slant] + (z - za[slant]) * (rb[slant] - ra[slant]) / (zb[slant] - za[slant])
+                best = max(best, float(np.max(r)))
+    return mesh.comm.allreduce(best, op=MPI.MAX)
 
 
 def _midpoints(mesh, cells: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ from mpi4py import MPI
 
 from . import plausibility, resources, rundir
 from .errors import InputError
-from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED_PARAMS
+from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED, REQUIRED_PARAMS
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
 
@@ -100,7 +100,7 @@ class FixedSpec:
 class ProbeSpec:
     where: str
     name: str
-    point: tuple[float, float]  # (r, z) in m
+    point: tuple[float | None, float]  # (r, z) in m; r None: a gauge on the outer surface
     quantity: str
     length: float = 0.002  # a strain gauge's length (m)
 
@@ -391,9 +391,17 @@ def _read_output(data: Any) -> dict[str, Any]:
 def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
     t = Table(data, where, "probes")
     quantity = t.value("quantity")
-    point = t.value("point")
-    if point[0] < 0:
-        raise t.error("point", "r must be >= 0 (m)")
+    if "z" in t:  # a surface gauge: r is the mesh's outer radius at z (build)
+        if quantity != "strain_gauge":
+            raise t.error("z", f'only a quantity = "strain_gauge" is placed by z alone, not '
+                          f"{toml_text(quantity)}: give point = [r, z]")
+        if "point" in t:
+            raise t.error("z", "give point or z, not both")
+        point = (None, t.value("z"))
+    else:
+        point = t.value("point", REQUIRED)
+        if point[0] < 0:
+            raise t.error("point", "r must be >= 0 (m)")
     name = t.value("name", f"{quantity}_{k}")
     length = t.value("length")
     if "length" in t and quantity != "strain_gauge":
@@ -539,7 +547,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
     from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
-    from .probes import locate_cell
+    from .probes import locate_cell, outer_radius
     from .scenes import make_method
     from .simulation import Settings, Simulation
 
@@ -625,6 +633,11 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
     for p in scene.probes:
         with within(p.where):
+            if p.point[0] is None:  # a gauge on the surface
+                r = outer_radius(model.mesh, p.point[1])
+                if not math.isfinite(r):
+                    raise InputError(f"z = {p.point[1]!r}: no cell of the mesh is at that height")
+                p.point = (r, p.point[1])
             # a point outside the mesh fails here, not in run(); a gauge's two ends
             ends = ([(p.point[0], p.point[1] + s * 0.5 * p.length) for s in (-1, 1)]
                     if p.quantity == "strain_gauge" else [p.point])

@@ -333,10 +333,14 @@ _OUTPUT = Section("output", "[output]", (
 
 _PROBES = Section("probes", "[[probes]]", (
     "A history column: a quantity in the cell that holds a point (not on the interface "
-    "of two bodies), or the current position of a node near it."), (
+    "of two bodies), the current position of a node near it, or the axial strain a "
+    "strain gauge centred at the point reads (both ends in one body)."), (
     Key("name", "text", "", None, "the column's name (unique; not step, time or dt)",
         default_text="<quantity>_<k>"),
-    Key("point", "pair", "m", REQUIRED, "the point [r, z], r >= 0"),
+    Key("point", "pair", "m", None, "the point [r, z], r >= 0",
+        default_text="required (a strain_gauge: or z)"),
+    Key("z", "number", "m", None, "a strain_gauge on the surface: its centre's height, at r = "
+        "the mesh's outer radius there (the largest r of a cell at that z); instead of point"),
     Key("quantity", "text", "", REQUIRED, "stresses in Pa, displacements in m; eps_p_eq and "
         "yielded with a j2 body; r and z (m): the current position X + u of the node "
         "nearest the point, among the nodes of the body whose cell holds it; strain_gauge (-): "

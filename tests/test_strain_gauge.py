@@ -18,6 +18,7 @@ Oracles:
   bad gauges are refused in one line, exit 2, nothing written.
 """
 import os
+import re
 import subprocess
 import sys
 
@@ -31,8 +32,9 @@ from scene_texts import ROOT, PAIR, launch, replace
 
 from impact_fenics import cli, meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.errors import InputError
 from impact_fenics.materials import LinearElastic
-from impact_fenics.probes import Probes, arrival_time
+from impact_fenics.probes import Probes, arrival_time, outer_radius
 from impact_fenics.quad_meshes import quad_rectangle
 from impact_fenics.simulation import Settings, Simulation
 
@@ -83,6 +85,30 @@ def test_gauge_reads_a_linear_field_exactly(kind):
         print(f"{kind} linear field: gauge - a = {np.abs(got - A).tolist()} of a = {A}; "
               f"bounds {bound}")
     assert np.all(np.abs(got - A) <= bound)
+
+
+def test_probes_refuse_bad_gauges():
+    """The Python path (Simulation.add_probe -> Probes): l <= 0, an end outside the mesh,
+    ends in two bodies; each an InputError naming the gauge."""
+    tm = meshing.coaxial_bars(radius=0.02, striker_length=0.04, target_length=0.04, h=0.01,
+                              comm=COMM)
+    steel = LinearElastic(E=E, nu=0.3, density=RHO)
+    model = DeformableModel(tm, [Body("striker", steel), Body("target", steel)])
+    for spec, words in ((("g", (0.02, 0.02), "strain_gauge", 0.0), "gauge length must be > 0"),
+                        (("g", (0.02, 0.039), "strain_gauge", 0.004), "end (r=0.02, z=0.041"),
+                        (("g", (0.02, 0.0), "strain_gauge", 0.01),
+                         "ends lie in two bodies (striker and target)")):
+        with pytest.raises(InputError, match="probe 'g': .*" + re.escape(words)):
+            Probes(model, [spec])
+
+
+def test_outer_radius_is_the_surface():
+    """The largest r of the cells at a height: the bar's radius (its outer nodes lie on
+    r = 0.05 m exactly), at a node's height and between; -inf above the mesh."""
+    tm = meshing.bar(radius=0.05, length=0.3, h=0.01, structured=False, comm=COMM)
+    for z in (0.0, 0.1234, 0.2, 0.3):
+        assert outer_radius(tm.mesh, z) == 0.05
+    assert outer_radius(tm.mesh, 0.31) == -np.inf
 
 
 # ------------------------------------------------------------------ the nu = 0 wave
@@ -162,6 +188,11 @@ name = "gauge_inside"
 point = [0.0213, 0.45]
 quantity = "strain_gauge"
 length = 0.01
+
+[[probes]]
+name = "gauge_by_z"
+z = 0.3
+quantity = "strain_gauge"
 """
 
 
@@ -190,6 +221,8 @@ def test_scene_gauge_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
     assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
     h1 = _history(out)
     assert "gauge_surface" in h1 and "gauge_inside" in h1
+    # placed by z alone it sits on the surface r = 0.05 m: the same gauge, the same column
+    assert np.array_equal(h1["gauge_by_z"], h1["gauge_surface"])
     exact = -P0 / E
     assert np.min(h1["gauge_surface"]) < 0.5 * exact  # the pulse passed it, compressive
     if COMM.size > 1:
@@ -222,11 +255,17 @@ BAD = [
     ("length = 0.01", "length = -0.002", "error: [probes #6] length = -0.002: must be > 0"),
     ('quantity = "u_z"        # m', 'quantity = "u_z"\nlength = 0.002',
      "error: [probes #2] length = 0.002: only a quantity = \"strain_gauge\""),
+    ("z = 0.3\n", "z = 1.5\n", "error: [probes #7] z = 1.5: no cell of the mesh is at that height"),
+    ("z = 0.3\n", "z = 0.3\npoint = [0.05, 0.3]\n",
+     "error: [probes #7] z = 0.3: give point or z, not both"),
+    ('quantity = "u_z"        # m', 'quantity = "u_z"\nz = 0.3',
+     "error: [probes #2] z = 0.3: only a quantity = \"strain_gauge\" is placed by z alone"),
 ]
 
 
 @serial_only
-@pytest.mark.parametrize("edit", BAD, ids=["outside", "zero", "negative", "not_a_gauge"])
+@pytest.mark.parametrize("edit", BAD, ids=["outside", "zero", "negative", "not_a_gauge",
+                                          "z_outside", "z_and_point", "z_not_a_gauge"])
 def test_bad_gauges_are_refused_in_one_line(tmp_path, edit):
     scene = tmp_path / "scene.toml"
     scene.write_text(replace(SCENE, edit[0], edit[1]))

@@ -249,7 +249,8 @@ def test_scene_gauge_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
 
 
 BAD = [
-    ('name = "gauge_inside"\npoint = [0.0213, 0.45]', 'name = "gauge_inside"\npoint = [0.0213, 0.9995]',
+    ('name = "gauge_inside"\npoint = [0.0213, 0.45]',
+     'name = "gauge_inside"\npoint = [0.0213, 0.9995]',
      "error: [probes #6] the gauge's end (r=0.0213, z=1.004"),
     ("length = 0.01", "length = 0.0", "error: [probes #6] length = 0.0: must be > 0"),
     ("length = 0.01", "length = -0.002", "error: [probes #6] length = -0.002: must be > 0"),

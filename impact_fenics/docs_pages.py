@@ -147,7 +147,8 @@ Besides each key above, these are refused before any output exists (exit 2, one 
 a name that does not exist (a material, a rigid body, a cell or facet group of the
 mesh), a mesh cell group that is not a body, contact surfaces that do not pair, a
 facet group in two `[[contact]]` tables, a rigid body in no or several contacts, a
-probe outside the mesh or on the interface of two bodies, a `.msh` file the reader
+probe outside the mesh or on the interface of two bodies, a strain gauge with an end
+outside the mesh or its ends in two bodies, a `.msh` file the reader
 cannot take (not 2D, not in one plane of gmsh's z, no 2D physical group, cells outside
 every 2D physical group, a group of an unmeshed entity, a surface in two 2D groups or
 a curve in two 1D groups, cells of two types (triangles and quadrilaterals: one cell

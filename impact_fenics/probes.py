@@ -29,6 +29,17 @@ strain of the points and 1 if one has yielded.
 the point among the nodes of the body whose cell holds it (a tie goes to the smaller
 (r, z), the same on every partition). The rank that owns the node records its two
 dofs; X is known on every rank from set-up.
+
+A ``strain_gauge`` reads the axial strain over a gauge length l (m) centred at its point
+(r, z), as a bonded gauge on a bar's surface does (r = the bar's radius R,
+:func:`outer_radius`):
+
+    eps = (u_z(r, z + l/2) - u_z(r, z - l/2)) / l        (-; compression negative)
+
+each u_z the interpolation at the gauge's end, sum_a w_a u_z,a over the nodes of the
+cell that holds it (barycentric weights on a triangle, N_a(xi) on a quadrilateral,
+fixed at set-up): the row holds the u_z dofs of the lower end's cell, then the upper's.
+Both ends lie in one body.
 """
 from __future__ import annotations
 
@@ -47,14 +58,18 @@ from .jit_watch import direct, load
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
 POSITION_QUANTITIES = ("r", "z")  # a node's current position X + u (m)
-QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES + POSITION_QUANTITIES
+GAUGE = "strain_gauge"  # the axial strain over a gauge length (-)
+GAUGE_LENGTH = 2e-3  # the default gauge length (m)
+QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES + POSITION_QUANTITIES + (GAUGE,)
 # raw history entries per probe: u_r, u_z of the cell's three nodes (four on a mesh of
-# quadrilaterals: RAW_Q1), of its one node first for r and z; a probe in a cell of a
+# quadrilaterals: RAW_Q1), of its one node first for r and z, u_z of the three (four)
+# nodes of each end's cell for a gauge; a probe in a cell of a
 # path-dependent body has its points' state after all of them (CellPoints.size)
 RAW = 6
 RAW_Q1 = 8
 _U_R, _U_Z = QUANTITIES.index("u_r"), QUANTITIES.index("u_z")
 _R = QUANTITIES.index("r")  # r, z: codes _R, _R + 1
+_GAUGE = QUANTITIES.index(GAUGE)
 
 
 def nearest_node(model, body: str, point: tuple[float, float]) -> tuple[int, np.ndarray | None]:
@@ -100,6 +115,27 @@ def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
         raise InputError(f"probe point (r={point[0]}, z={point[1]}) m lies outside the mesh")
     mine = cells.size > 0 and best == winner
     return (cell if mine else -1), mine
+
+
+def outer_radius(mesh, z: float) -> float:
+    """The mesh's outer radius (m) at the height ``z`` (m): the largest r at which a cell
+    meets the line z = const, where a surface gauge sits (collective; -inf if no cell
+    does). A cell meets it on the segments between its nodes that cross it."""
+    x = mesh.geometry.x[geometry_dofs(mesh)]  # (cells, nodes, 3)
+    best = -np.inf
+    n = x.shape[1]
+    for a in range(n):
+        for b in range(a + 1, n):
+            ra, za, rb, zb = x[:, a, 0], x[:, a, 1], x[:, b, 0], x[:, b, 1]
+            crossing = (za - z) * (zb - z) <= 0.0
+            level = crossing & (za == zb)  # a segment along the line: its outer end
+            if np.any(level):
+                best = max(best, float(np.max(np.maximum(ra[level], rb[level]))))
+            slant = crossing & (za != zb)
+            if np.any(slant):
+                r = ra[slant] + (z - za[slant]) * (rb[slant] - ra[slant]) / (zb[slant] - za[slant])
+                best = max(best, float(np.max(r)))
+    return mesh.comm.allreduce(best, op=MPI.MAX)
 
 
 def _midpoints(mesh, cells: np.ndarray) -> np.ndarray:
@@ -178,17 +214,34 @@ def _point_value(sigma, state, w, code, cells, mean) -> float:
 
 
 @njit(cache=True)
-def _values(raw, xy, D, code, pointwise, X, out) -> None:
+def _gauge_strain(q, w, length) -> float:
+    """A gauge's strain (u_z(upper end) - u_z(lower end)) / length (-): the row ``q`` holds
+    the u_z of the lower end's cell nodes then the upper's (m), ``w`` their interpolation
+    weights at the ends, ``length`` the gauge length (m)."""
+    half = w.size // 2
+    lower = 0.0
+    upper = 0.0
+    for a in range(half):
+        lower += w[a] * q[a]
+        upper += w[half + a] * q[half + a]
+    return (upper - lower) / length
+
+
+@njit(cache=True)
+def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out) -> None:
     """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
     the cell means of the nodal values (m); in the cell of a linear body a stress D eps
-    (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); the other values of a
-    probe in a path-dependent body's cell (``pointwise`` true) are left to
+    (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); a gauge's strain from
+    its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); the other values
+    of a probe in a path-dependent body's cell (``pointwise`` true) are left to
     :class:`CellPoints`."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW * p: RAW * p + RAW]
             c = code[p]
-            if c >= _R:
+            if c == _GAUGE:
+                out[i, p] = _gauge_strain(q, gauge_w[p], gauge_l[p])
+            elif c >= _R:
                 out[i, p] = X[p, c - _R] + q[c - _R]
             elif c == _U_R or c == _U_Z:
                 k = c - _U_R
@@ -205,16 +258,19 @@ def _values(raw, xy, D, code, pointwise, X, out) -> None:
 
 @njit(cache=True)
 def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, dofs, eps, D, code, pointwise, X,
-                 out) -> None:
+                 gauge_w, gauge_l, out) -> None:
     """:func:`_values` in Q1 cells (RAW_Q1 per probe first): u_r and u_z the Q1
     interpolation sum_a weights[p, a] u_a at the point (m); a linear body's stress D times
     the cell's mean strain (Pa; the one-cell geometry of probe p: dNdR[p], ... of
-    :class:`.q1.QuadGeometry`); r and z the node's X[p] + u (m)."""
+    :class:`.q1.QuadGeometry`); r and z the node's X[p] + u (m); a gauge's strain from
+    its ends' weights N_a(xi) gauge_w[p] and length gauge_l[p] (m)."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW_Q1 * p: RAW_Q1 * p + RAW_Q1]
             c = code[p]
-            if c >= _R:
+            if c == _GAUGE:
+                out[i, p] = _gauge_strain(q, gauge_w[p], gauge_l[p])
+            elif c >= _R:
                 out[i, p] = X[p, c - _R] + q[c - _R]
             elif c == _U_R or c == _U_Z:
                 k = c - _U_R
@@ -228,6 +284,17 @@ def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, dofs, eps, D, code, poin
                 q1.mean_strain(dofs, dNdR[p: p + 1], dNdZ[p: p + 1], N, inv_R[p: p + 1],
                                w[p: p + 1], q, eps)
                 out[i, p] = stress_outputs(D[p], eps[0, 0], eps[0, 1], eps[0, 2], eps[0, 3])[c]
+
+
+def interpolation_weights(X: np.ndarray, point) -> np.ndarray:
+    """The weights w_a of the nodes X (3 or 4, 2) (m) of a triangle (barycentric
+    coordinates) or a quadrilateral (N_a(xi), xi the point's reference coordinates) at
+    ``point`` (r, z) (m): u(point) = sum_a w_a u_a, exact for a linear field."""
+    x = np.asarray(point, dtype=float)
+    if X.shape[0] == 4:
+        return q1.shape_functions(q1.reference_point(X, x)[None, :])[0][0]
+    lam = np.linalg.solve(np.column_stack([X[1] - X[0], X[2] - X[0]]), x - X[0])
+    return np.array([1.0 - lam[0] - lam[1], lam[0], lam[1]])
 
 
 class _QuadCells:
@@ -247,8 +314,7 @@ class _QuadCells:
     def fill(self, k: int, cell_nodes: np.ndarray, node_xy: np.ndarray, cell: int, point) -> None:
         """Probe k's entries from its cell (local index) on the owning rank."""
         g = q1.QuadGeometry(cell_nodes, node_xy, np.array([cell], dtype=np.int32))
-        xi = q1.reference_point(node_xy[g.dofs[0]], np.asarray(point, dtype=float))
-        self.weights[k] = q1.shape_functions(xi[None, :])[0][0]
+        self.weights[k] = interpolation_weights(node_xy[g.dofs[0]], point)
         self.dNdR[k], self.dNdZ[k] = g.dNdR[0], g.dNdZ[0]
         self.inv_R[k], self.w[k] = g.inv_R[0], g.w[0]
 
@@ -304,10 +370,13 @@ class CellPoints:
 class Probes:
     """Cell values at points: ``quantity`` in QUANTITIES (stresses in Pa, u_r, u_z in m)
     of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point);
-    r and z (m) the current position of the node nearest the point."""
+    r and z (m) the current position of the node nearest the point; a strain_gauge's axial
+    strain (-) over its length centred at the point."""
 
-    def __init__(self, model, probes: list[tuple[str, tuple[float, float], str]],
-                 plastic_forces=()):
+    def __init__(self, model, specs: list[tuple], plastic_forces=()):
+        """``specs``: (name, point (r, z) in m, quantity) per probe, a gauge's with its
+        length (m) fourth (GAUGE_LENGTH if absent)."""
+        probes = [tuple(spec[:3]) for spec in specs]
         self.names = [name for name, _, _ in probes]
         self.points = [pt for _, pt, _ in probes]
         self.comm: MPI.Comm = model.comm
@@ -322,6 +391,8 @@ class Probes:
         self.code = np.zeros(n, dtype=np.int64)
         self.midpoints = np.zeros((n, 2))  # (r, z) in m of each probe's cell
         self.X = np.zeros((n, 2))  # (r, z) in m of the node of an r or z probe
+        self.gauge_w = np.zeros((n, width))  # a gauge's weights: lower end, upper end
+        self.gauge_l = np.ones(n)  # a gauge's length (m)
         dofs = np.zeros(width * n, dtype=np.int64)  # global unrolled dofs
         scene = model.dofs.local_to_scene()  # local unrolled dof -> its global index
         cell_nodes = model.cell_dofs
@@ -334,6 +405,10 @@ class Probes:
                 raise InputError(f"probe '{name}': unknown quantity '{quantity}' "
                                  f"(use {', '.join(QUANTITIES)})")
             self.code[k] = QUANTITIES.index(quantity)
+            if quantity == GAUGE:  # (collective)
+                length = float(specs[k][3]) if len(specs[k]) > 3 else GAUGE_LENGTH
+                which[k] = self._gauge(k, name, point, length, model, dofs, scene, bodies)
+                continue
             cell, mine = locate_cell(mesh, point)
             if mine:
                 nodes = cell_nodes[cell].astype(np.int32)
@@ -359,7 +434,7 @@ class Probes:
                 if X is not None:
                     dofs[width * k: width * k + 2] = scene[2 * node: 2 * node + 2]
                     self.X[k] = X
-        for arr in ((dofs, self.xy, self.midpoints, self.X)
+        for arr in ((dofs, self.xy, self.midpoints, self.X, self.gauge_w)
                     + (self._quad.arrays() if quad else ())):
             self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
         # probes of a stress or a plastic quantity in the cell of a path-dependent body:
@@ -374,7 +449,7 @@ class Probes:
             if quantity in PLASTIC_QUANTITIES and not plastic_forces:
                 raise InputError(f"probe '{name}': {quantity} needs a path-dependent body in "
                                  "the run (it reads 0 in the cells of linear bodies)")
-            if self.code[k] in (_U_R, _U_Z) or quantity in POSITION_QUANTITIES:
+            if self.code[k] in (_U_R, _U_Z, _GAUGE) or quantity in POSITION_QUANTITIES:
                 continue
             if force is not None:
                 pos = owned_pos.get(k, -1)
@@ -401,13 +476,47 @@ class Probes:
         for out in (np.zeros((1, n)), np.zeros((2, n + 2))[:, 1: n + 1]):
             self._load_values(np.zeros((1, self.n_raw)), out)
 
+    def _gauge(self, k: int, name: str, point: tuple[float, float], length: float, model,
+               dofs: np.ndarray, scene: np.ndarray, bodies: list) -> int:
+        """Gauge k centred at ``point`` (r, z) (m) of ``length`` (m): the u_z dofs of its
+        ends' cells into dofs[width k:] and their weights into gauge_w[k] on the rank
+        that owns each cell; the index of the body that holds both ends (collective)."""
+        if not length > 0.0:
+            raise InputError(f"probe '{name}': the gauge length must be > 0 m (it is {length!r})")
+        self.gauge_l[k] = length
+        half = self.width // 2
+        held = []
+        for j, z in enumerate((point[1] - 0.5 * length, point[1] + 0.5 * length)):
+            try:
+                cell, mine = locate_cell(model.mesh, (point[0], z))
+            except InputError:
+                raise InputError(f"probe '{name}': the gauge's end (r={point[0]!r}, z={z!r}) m "
+                                 "lies outside the mesh") from None
+            body = -1
+            if mine:
+                nodes = model.cell_dofs[cell].astype(np.int32)
+                start = self.width * k + half * j
+                dofs[start: start + half] = scene[2 * nodes + 1]
+                self.gauge_w[k, half * j: half * (j + 1)] = interpolation_weights(
+                    model.node_xy[nodes], (point[0], z))
+                body = next(b for b, bd in enumerate(bodies)
+                            if cell in model.tmesh.cells(bd.name))
+            held.append(self.comm.allreduce(body, op=MPI.MAX))
+        if held[0] != held[1]:
+            raise InputError(f"probe '{name}': the gauge's ends lie in two bodies "
+                             f"({bodies[held[0]].name} and {bodies[held[1]].name}); "
+                             "put it within one")
+        return held[0]
+
     def _load_values(self, raw: np.ndarray, out: np.ndarray) -> None:
         if self._quad is None:
-            load(_values, raw, self.xy, self.D, self.code, self.pointwise, self.X, out)
+            load(_values, raw, self.xy, self.D, self.code, self.pointwise, self.X,
+                 self.gauge_w, self.gauge_l, out)
         else:
             qc = self._quad
             load(_quad_values, raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w,
-                 qc.dofs, qc.eps, self.D, self.code, self.pointwise, self.X, out)
+                 qc.dofs, qc.eps, self.D, self.code, self.pointwise, self.X, self.gauge_w,
+                 self.gauge_l, out)
 
     def recorder(self, u_owned: np.ndarray, block: np.ndarray):
         """``record(offset)``: the probe dofs this rank owns (m), and the points' state of
@@ -432,11 +541,13 @@ class Probes:
             out = np.empty((raw.shape[0], self.code.size))
         raw = np.ascontiguousarray(raw)
         if self._quad is None:
-            _values(raw, self.xy, self.D, self.code, self.pointwise, self.X, out)
+            _values(raw, self.xy, self.D, self.code, self.pointwise, self.X, self.gauge_w,
+                    self.gauge_l, out)
         else:
             qc = self._quad
             _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, qc.dofs,
-                         qc.eps, self.D, self.code, self.pointwise, self.X, out)
+                         qc.eps, self.D, self.code, self.pointwise, self.X, self.gauge_w,
+                         self.gauge_l, out)
         for k, cell_points, start in self._points:
             code = int(self.code[k])
             for i in range(raw.shape[0]):

@@ -26,7 +26,7 @@ from mpi4py import MPI
 
 from . import plausibility, resources, rundir
 from .errors import InputError
-from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED_PARAMS
+from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED, REQUIRED_PARAMS
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
 
@@ -100,8 +100,9 @@ class FixedSpec:
 class ProbeSpec:
     where: str
     name: str
-    point: tuple[float, float]  # (r, z) in m
+    point: tuple[float | None, float]  # (r, z) in m; r None: a gauge on the outer surface
     quantity: str
+    length: float = 0.002  # a strain gauge's length (m)
 
 
 @dataclass
@@ -390,11 +391,23 @@ def _read_output(data: Any) -> dict[str, Any]:
 def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
     t = Table(data, where, "probes")
     quantity = t.value("quantity")
-    point = t.value("point")
-    if point[0] < 0:
-        raise t.error("point", "r must be >= 0 (m)")
+    if "z" in t:  # a surface gauge: r is the mesh's outer radius at z (build)
+        if quantity != "strain_gauge":
+            raise t.error("z", f'only a quantity = "strain_gauge" is placed by z alone, not '
+                          f"{toml_text(quantity)}: give point = [r, z]")
+        if "point" in t:
+            raise t.error("z", "give point or z, not both")
+        point = (None, t.value("z"))
+    else:
+        point = t.value("point", REQUIRED)
+        if point[0] < 0:
+            raise t.error("point", "r must be >= 0 (m)")
     name = t.value("name", f"{quantity}_{k}")
-    return ProbeSpec(where, name, point, quantity)
+    length = t.value("length")
+    if "length" in t and quantity != "strain_gauge":
+        raise t.error("length", f'only a quantity = "strain_gauge" has a gauge length, not '
+                      f"{toml_text(quantity)}")
+    return ProbeSpec(where, name, point, quantity, length)
 
 
 # ----------------------------------------------------------------------------- output directory
@@ -534,7 +547,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
     from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
-    from .probes import locate_cell
+    from .probes import locate_cell, outer_radius
     from .scenes import make_method
     from .simulation import Settings, Simulation
 
@@ -620,9 +633,28 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
     for p in scene.probes:
         with within(p.where):
-            locate_cell(model.mesh, p.point)  # a point outside the mesh fails here, not in run()
-            _one_body_at(tmesh, p.point, comm)
-        sim.add_probe(p.name, p.point, p.quantity)
+            if p.point[0] is None:  # a gauge on the surface
+                r = outer_radius(model.mesh, p.point[1])
+                if not math.isfinite(r):
+                    raise InputError(f"z = {p.point[1]!r}: no cell of the mesh is at that height")
+                p.point = (r, p.point[1])
+            # a point outside the mesh fails here, not in run(); a gauge's two ends
+            ends = ([(p.point[0], p.point[1] + s * 0.5 * p.length) for s in (-1, 1)]
+                    if p.quantity == "strain_gauge" else [p.point])
+            held = []
+            for point in ends:
+                try:
+                    locate_cell(model.mesh, point)
+                except InputError:
+                    if len(ends) == 1:
+                        raise
+                    raise InputError(f"the gauge's end (r={point[0]!r}, z={point[1]!r}) m lies "
+                                     "outside the mesh") from None
+                held.append(_one_body_at(tmesh, point, comm))
+            if len(set(held)) > 1:
+                raise InputError(f"the gauge's ends lie in two bodies ({' and '.join(held)}): "
+                                 "put it within one")
+        sim.add_probe(p.name, p.point, p.quantity, p.length)
     plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
                                               **plausibility.mesh_sizes(scene, size)), scene.warned, comm)
     return sim
@@ -642,9 +674,9 @@ def _warn_ignored_keys(c: ContactSpec, comm: MPI.Comm) -> None:
                               comm)
 
 
-def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> None:
-    """Refuse a probe point on the interface of two bodies (its value would depend on
-    which body's cell is chosen)."""
+def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> str:
+    """The body that holds a probe point; refuse one on the interface of two bodies (its
+    value would depend on which body's cell is chosen)."""
     import numpy as np
 
     from .compat import colliding_cells
@@ -658,6 +690,7 @@ def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> None:
         raise InputError(f"point = [{point[0]!r}, {point[1]!r}] lies on the interface of the "
                          f"bodies {' and '.join(sorted(names))}: its value depends on the body; "
                          "move it into one of them")
+    return names.pop()
 
 
 def _force(terms: list[tuple[float, Any]]):

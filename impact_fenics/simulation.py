@@ -34,7 +34,7 @@ from .loads import SurfaceLoad
 from .materials import is_finite
 from .operators import assemble_stiffness
 from .outputs import ENERGY_COLUMNS, momentum_columns, open_tables, record_pairs
-from .probes import Probes
+from .probes import GAUGE_LENGTH, Probes
 from .xdmf import FieldWriter
 from .schedule import Progress, Schedule, StopFlag
 from .step_block import StepBlock
@@ -163,7 +163,7 @@ class Simulation:
         load(energy_verdict, *[0.0] * 7)  # (the stability check of every output step)
         self._event_buf = None  # the run's output buffers, once _bind_output has seen them
         self.contacts: list[ContactSet] = []
-        self._probe_specs: list[tuple[str, tuple[float, float], str]] = []
+        self._probe_specs: list[tuple[str, tuple[float, float], str, float]] = []
         self._cell_field_providers: list = []
         if self.plastic_fields is not None:  # eps_p_eq and yielded of the frame's stresses
             self.add_cell_fields(self.plastic_fields.frame_arrays)
@@ -204,9 +204,11 @@ class Simulation:
         self.setup_time["contact"] = self.setup_time.get("contact", 0.0) + time.perf_counter() - t0
         return c
 
-    def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz") -> None:
-        """Record ``quantity`` (a stress component name, or u_r, u_z) at ``point`` (r, z) in m."""
-        self._probe_specs.append((name, point, quantity))
+    def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz",
+                  length: float = GAUGE_LENGTH) -> None:
+        """Record ``quantity`` (a stress component name, or u_r, u_z, ...) at ``point`` (r, z)
+        in m; a strain_gauge's ``length`` (m) is centred at the point."""
+        self._probe_specs.append((name, point, quantity, length))
 
     # ------------------------------------------------------------ the run
     def run(self, extra=None) -> dict:
@@ -516,7 +518,7 @@ class Simulation:
                 # after an interrupt the data files are complete: skip the plots, finish fast
                 if s.plots and comm.rank == 0 and not stop.signum:
                     plotting.write_history_plots(staging, self.history.data(), self.energy.data(),
-                                                 [(name, q) for name, _, q in self._probe_specs],
+                                                 [(name, q) for name, _, q, _ in self._probe_specs],
                                                  s.title)
                 if not self.status.startswith("interrupted") and stop.collective(comm):
                     summary["interrupted"] = (f"{stop.name} after the last step, while the "

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from impact_fenics.materials.johnson_cook import (BRACKET_TOL, CHI, CP, RESIDUAL_TOL, JohnsonCook,
+from impact_fenics.materials.johnson_cook import (BRACKET_TOL, CHI, CP, POWER, RESIDUAL_TOL, JohnsonCook,
                                                   RHO, flow_stress, return_increment,
                                                   strain_hardening, thermal_factor)
 from roundoff import LIBM, rounding
@@ -56,8 +56,9 @@ def root_tolerance(q: float, mu: float) -> float:
 
 def new_return(m, q, eps_bar, dt, temperature):
     p = m.params()
-    return return_increment(p, m.mu, q, eps_bar, dt, strain_hardening(p, eps_bar),
-                            thermal_factor(p, temperature))
+    x, hard, visc, _ = return_increment(m.A, m.B, m.n, m.C, m.rate0, m.mu, q, eps_bar, dt,
+                                        strain_hardening(p, eps_bar), thermal_factor(p, temperature))
+    return x, hard, visc
 
 
 MATERIALS = {
@@ -129,3 +130,22 @@ def test_update_books_the_trapezoid_of_flow_stress():
     sy_x = flow_stress(p, x, x / dt, 400.0)
     assert wp == 0.5 * x * (sy_n + sy_x)
     assert state[5] == 400.0 + p[CHI] * wp / (p[RHO] * p[CP])
+
+
+def test_the_state_keeps_the_power_of_its_plastic_strain():
+    """Along a straining path with heating (the update's own returns, elastic and plastic
+    steps), the state's B eps_bar_p^n is the power of its eps_bar_p bit for bit: the return
+    computes it at eps_bar_p + x rounded as the state's sum is, with the same expression."""
+    m = JohnsonCook(n=0.2)
+    p = m.params()
+    state = m.initial_state().copy()
+    tau, work = np.zeros(4), np.zeros(16)
+    flowed = 0
+    for k in range(1, 200):
+        e = 0.004 * math.sin(0.05 * k) + 1e-4 * k  # loading, unloading, reloading
+        before = state[0]
+        m.update(np.array([math.exp(-e / 2), 0.0, 0.0, math.exp(e), math.exp(-e / 2)]), state, p,
+                 1e-8, tau, work)
+        flowed += state[0] > before
+        assert state[POWER] == strain_hardening(p, state[0])
+    assert 20 < flowed < 199 and state[5] > m.t_room

@@ -24,7 +24,9 @@ The plastic work (J/m^3) is booked as Delta W_p = x (sigma_y(eps_bar_p,n) +
 sigma_y(eps_bar_p,n+1)) / 2 at the step's rate and T_n (the trapezoid of sigma_y over the
 increment, exact for linear hardening), and the heating uses the same sigma_y:
 T_{n+1} = T_n + chi Delta W_p / (rho_0 c_p), so the heat in the body is chi times the
-plastic work in the ledger, to round-off. State: [eps_bar_p, a_rr, a_zz, a_rz, a_tt, T (K)].
+plastic work in the ledger, to round-off. State: [eps_bar_p, a_rr, a_zz, a_rz, a_tt, T (K),
+B eps_bar_p^n (Pa)]: the last is the hardening of eps_bar_p, kept from the return that made
+it (bit for bit the power of the stored eps_bar_p) so that an elastic point computes no power.
 """
 from __future__ import annotations
 
@@ -42,6 +44,7 @@ from . import hencky
 
 (LAMBDA, MU, A_, B_, N_, C_, RATE0, M_, T_ROOM, T_MELT, CHI, RHO, CP) = range(13)
 TEMPERATURE = 5  # index of T in the state
+POWER = 6  # index of B eps_bar_p^n in the state
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -80,11 +83,16 @@ LINEAR_STEP = 1e-2    # |ln x step| below which exp(t) is taken as 1 + t (the la
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def return_increment(params, mu, q, eps_bar, dt, power_n, thermal) -> tuple[float, float, float]:
+def return_increment(a, b, n, c, rate0, mu, q, eps_bar, dt, power_n, thermal
+                     ) -> tuple[float, float, float, float]:
     """The root x = Delta eps_bar_p of g(x) = q - 3 mu x - sigma_y(eps_bar + x, x / dt, T_n)
-    for a yielding point (g(0) > 0); ``power_n`` = B eps_bar^n (Pa) and ``thermal`` = 1 - T*^m
-    (-), constant over the return. Returns the last x at which g was evaluated, with its
-    A + B (eps_bar + x)^n (Pa) and rate factor (-), which give its sigma_y.
+    for a yielding point (g(0) > 0), with the parameters A, B (Pa), n, C (-), rate0 (1/s) and
+    mu (Pa); ``power_n`` = B eps_bar^n (Pa) and ``thermal`` = 1 - T*^m (-), constant over the
+    return. Scalars only: an array read in the branch that holds this loop keeps numba
+    from pruning the reference counts of the kernel's array views (an atomic pair per
+    view and point, elastic points too). Returns the last x at which g was evaluated, with its
+    A + B e^n (Pa), rate factor (-) (they give its sigma_y) and B e^n (Pa), e = eps_bar + x
+    rounded as the state's eps_bar_p + x is.
 
     Newton's iteration on ln x: as a function of y = ln x, g is decreasing and concave
     (-3 mu e^y is; A + B (eps_bar + e^y)^n is convex and increasing in y for every n > 0, the
@@ -99,13 +107,12 @@ def return_increment(params, mu, q, eps_bar, dt, power_n, thermal) -> tuple[floa
     |g| <= RESIDUAL_TOL q or a bracket narrower than BRACKET_TOL q / 3 mu (the regula falsi
     this replaced stopped by the same rule: the two roots are within 2 RESIDUAL_TOL q / 3 mu
     of each other, as |g'| >= 3 mu)."""
-    a, b, n, c = params[A_], params[B_], params[N_], params[C_]
     three_mu = 3.0 * mu
     hard_n = a + power_n
     f = q - hard_n * thermal
     lo, hi = 0.0, f / three_mu
     x = hi
-    rate_scale = dt * params[RATE0]  # x / rate_scale = eps_dot_p / rate0
+    rate_scale = dt * rate0  # x / rate_scale = eps_dot_p / rate0
     viscous = thermal * hard_n * c
     if viscous > 0.0:
         x = min(x, rate_scale * math.exp(f / viscous))
@@ -113,13 +120,13 @@ def return_increment(params, mu, q, eps_bar, dt, power_n, thermal) -> tuple[floa
         x = min(x, (power_n / b + f / (thermal * b)) ** (1.0 / n) - eps_bar)
     g_tol, x_tol = RESIDUAL_TOL * q, BRACKET_TOL * (q / three_mu)
     x_done = x
-    hard = visc = 0.0
+    hard = visc = power = 0.0
     for _ in range(MAX_ITERATIONS):
         x_done = x
         e = eps_bar + x
         power = b * e ** n
         hard = a + power
-        ratio = x / dt / params[RATE0]  # the rate of flow_stress, eps_dot_p / rate0
+        ratio = x / dt / rate0  # the rate of flow_stress, eps_dot_p / rate0
         if ratio > 1.0:
             visc = 1.0 + c * math.log(ratio)
             dvisc = c / x
@@ -136,35 +143,36 @@ def return_increment(params, mu, q, eps_bar, dt, power_n, thermal) -> tuple[floa
         t = g / (x * slope)  # the Newton step in ln x
         x_next = x + x * t if abs(t) < LINEAR_STEP else x * math.exp(t)
         x = x_next if lo < x_next < hi else 0.5 * (lo + hi)
-    return x_done, hard, visc
+    return x_done, hard, visc, power
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def update(F, state, params, dt, tau, work) -> float:
     """Johnson-Cook return at one point; returns the plastic work increment (J/m^3)."""
-    lmbda, mu = params[LAMBDA], params[MU]
-    principal = work[8:11]
+    # every array read before the branch of the return (see return_increment)
+    lmbda, mu, a = params[LAMBDA], params[MU], params[A_]
+    b, n, c, rate0 = params[B_], params[N_], params[C_], params[RATE0]
+    chi, rho_cp = params[CHI], params[RHO] * params[CP]
+    eps_bar, power_n, temperature = state[0], state[POWER], state[TEMPERATURE]
     hencky.trial_log_strains(F, state, work)
-    q = hencky.principal_kirchhoff(lmbda, mu, work, principal)
-    temperature = state[TEMPERATURE]
+    q = hencky.principal_kirchhoff(lmbda, mu, work)
     thermal = thermal_factor(params, temperature)
     wp = 0.0
-    # sigma_y at the rate 0 is (A + B eps_bar^n) Theta >= A Theta (both rounded alike): below
-    # A Theta the point is elastic without the power
-    if q > params[A_] * thermal:
-        power_n = strain_hardening(params, state[0])
-        hard_n = params[A_] + power_n
-        if q > hard_n * thermal:
-            x, hard, visc = return_increment(params, mu, q, state[0], dt, power_n, thermal)
-            if x > 0.0:
-                hencky.radial_return(mu, x, q, principal, work)
-                # the trapezoid of sigma_y over the increment at the step's rate and T_n
-                wp = 0.5 * x * (hard_n * visc * thermal + hard * visc * thermal)
-                state[0] += x
-                state[TEMPERATURE] = temperature + params[CHI] * wp / (params[RHO] * params[CP])
-                hencky.finish(F, principal, work, state, tau)
-                return wp
-    hencky.kirchhoff(principal, work, tau)
+    hard_n = a + power_n  # A + B eps_bar_p^n
+    x = hard = visc = power = 0.0
+    if q > hard_n * thermal:  # sigma_y at the rate 0 (rate factor 1); no array in this branch
+        x, hard, visc, power = return_increment(a, b, n, c, rate0, mu, q, eps_bar, dt, power_n,
+                                                thermal)
+    if x > 0.0:
+        hencky.radial_return(mu, x, q, work)
+        # the trapezoid of sigma_y over the increment at the step's rate and T_n
+        wp = 0.5 * x * (hard_n * visc * thermal + hard * visc * thermal)
+        state[0] = eps_bar + x
+        state[POWER] = power
+        state[TEMPERATURE] = temperature + chi * wp / rho_cp
+        hencky.finish(F, work, state, tau)
+    else:
+        hencky.kirchhoff(work, tau)
     return wp
 
 
@@ -188,8 +196,11 @@ class JohnsonCook(IsotropicConstants):
     c_p: float = 383.0
     linear: bool = False
     finite: bool = True
-    n_state: int = 6
+    n_state: int = 7
     temperature_index: int = TEMPERATURE
+    # the force kernel runs the update on a copy of the point's state and stress: around
+    # the return's loop numba keeps the reference counts of array views (internal_force.finite)
+    point_copy: ClassVar[bool] = True
     strain: ClassVar[str] = "finite"
     parameters: ClassVar[tuple[Parameter, ...]] = (
         positive("A", "Pa", "yield stress at zero plastic strain"),
@@ -216,8 +227,8 @@ class JohnsonCook(IsotropicConstants):
                          self.t_room, self.t_melt, self.chi, self.density, self.c_p])
 
     def initial_state(self) -> np.ndarray:
-        """[eps_bar_p, C_p^-1 = I, T = t_room]."""
-        return np.array([0.0, 1.0, 1.0, 0.0, 1.0, self.t_room])
+        """[eps_bar_p, C_p^-1 = I, T = t_room, B eps_bar_p^n = 0]."""
+        return np.array([0.0, 1.0, 1.0, 0.0, 1.0, self.t_room, 0.0])
 
     update = staticmethod(update)
     energy = staticmethod(hencky.stored_energy)

@@ -117,7 +117,9 @@ def return_increment(a, b, n, c, rate0, mu, q, eps_bar, dt, power_n, thermal
     if viscous > 0.0:
         x = min(x, rate_scale * math.exp(f / viscous))
     if b > 0.0 and thermal > 0.0:
-        x = min(x, (power_n / b + f / (thermal * b)) ** (1.0 / n) - eps_bar)
+        x_hard = (power_n / b + f / (thermal * b)) ** (1.0 / n) - eps_bar
+        if 0.0 < x_hard < x:  # (not where f / Theta B is lost in the rounding of the sum)
+            x = x_hard
     g_tol, x_tol = RESIDUAL_TOL * q, BRACKET_TOL * (q / three_mu)
     x_done = x
     hard = visc = power = 0.0

@@ -157,22 +157,21 @@ class VoceJ2(IsotropicConstants):
 @njit
 def voce_finite_update(F, state, params, dt, tau, work):
     lmbda, mu, s0, s_inf, delta = params[0], params[1], params[2], params[3], params[4]
-    principal = work[8:11]
     hencky.trial_log_strains(F, state, work)
-    q = hencky.principal_kirchhoff(lmbda, mu, work, principal)
+    q = hencky.principal_kirchhoff(lmbda, mu, work)
     e_n = state[0]
     x = voce_return(q, mu, e_n, s0, s_inf, delta)
     if x == 0.0:
-        hencky.kirchhoff(principal, work, tau)
+        hencky.kirchhoff(work, tau)
         return 0.0
-    hencky.radial_return(mu, x, q, principal, work)
+    hencky.radial_return(mu, x, q, work)
     if delta > 0.0:
         wp = s_inf * x - (s_inf - s0) * (math.exp(-delta * e_n)
                                         - math.exp(-delta * (e_n + x))) / delta
     else:
         wp = s0 * x
     state[0] = e_n + x
-    hencky.finish(F, principal, work, state, tau)
+    hencky.finish(F, work, state, tau)
     return wp
 
 

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from impact_fenics.materials.finite_j2 import FiniteJ2
-from impact_fenics.materials.johnson_cook import JohnsonCook, flow_stress, return_increment
+from impact_fenics.materials.johnson_cook import JohnsonCook, flow_stress
 from roundoff import LIBM, rounding
+from test_johnson_cook_return import previous_return_increment, root_tolerance
 
 SQRT_3_2 = math.sqrt(1.5)
 
@@ -102,7 +103,7 @@ def previous_johnson_cook(F, state, params, dt, tau):
     _trial(F, state, work)
     q = _principal(lmbda, mu, work, principal)
     if q > flow_stress(params, state[0], 0.0, state[5]):
-        x = return_increment(params, mu, q, state[0], dt, state[5])
+        x = previous_return_increment(params, mu, q, state[0], dt, state[5])
         if x > 0.0:
             _return(mu, x, q, principal, work)
             state[0] += x
@@ -204,14 +205,23 @@ def test_finite_j2_split_matches_the_previous_one(name, F, a):
 
 @pytest.mark.parametrize("name, F, a", CASES[:8] + CASES[-4:], ids=[c[0] for c in CASES[:8] + CASES[-4:]])
 def test_johnson_cook_split_matches_the_previous_one(name, F, a):
-    """Johnson-Cook: the same comparison through its own return (the root is found from
-    the same trial stress in both paths, so it is the same to the bracket's tolerance)."""
+    """Johnson-Cook: the same comparison through its own return, against the previous split
+    with the previous return (regula falsi). The two returns stop by the same rule on the
+    same trial stress q, so their increments differ by dx <= root_tolerance(q, mu) (see
+    tests/test_johnson_cook_return.py); that moves the principal deviatoric stresses by
+    3 mu dx |dev_i| / q <= 3 mu dx, and the returned b_e's principal values by the factor
+    exp(3 dx |dev_i| / q) - 1 <= 3 dx (|dev_i| <= q), relative: both added to the bounds."""
     material = JohnsonCook()
     state0, new, old, tau_new, tau_old = run_both(
         material, F, a, lambda F, s, p, t: previous_johnson_cook(F, s, p, 1e-7, t))
     tau_bound, b_bound = bounds(material, F, state0)
-    assert np.abs(tau_new - tau_old).max() <= tau_bound, name
-    assert np.abs(b_e(F, new) - b_e(F, old)).max() <= b_bound, name
+    work, principal = np.zeros(5), np.zeros(3)
+    _trial(F, state0, work)
+    dx = root_tolerance(_principal(material.lmbda, material.mu, work, principal), material.mu)
+    assert new[0] == pytest.approx(old[0], rel=0, abs=dx), name
+    b_scale = max(np.abs(b_e(F, new)).max(), np.abs(b_e(F, old)).max())
+    assert np.abs(tau_new - tau_old).max() <= tau_bound + 3.0 * material.mu * dx, name
+    assert np.abs(b_e(F, new) - b_e(F, old)).max() <= b_bound + 3.0 * dx * b_scale, name
 
 
 def test_the_cases_yield_and_include_equal_eigenvalues():

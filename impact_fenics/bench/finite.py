@@ -118,12 +118,13 @@ def _finite_split(ctx, run, dt: float) -> dict:
     f = force.f.x.array
     fo = force.f_owned
     comm = run.comm
-    bare, _ = kernels(_copy_update, _no_energy)
+    bare, _ = kernels(_copy_update, _no_energy, force.state.shape[-1])
     state, tau = force.state.copy(), force.tau.copy()
 
     def kernel(fn, state, tau):
         return lambda: fn(force.params, dt, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume,
-                          run.u, f, state, tau, force._Fq, force._Jq, force._fbar, force._work)
+                          run.u, f, state, tau, force._Fq, force._Jq, force._fbar, force._work,
+                          force._point_state, force._point_tau)
     return {
         "ghost_forward": ctx.median(lambda: run.u_fn.x.scatter_forward()),
         "zero_f": ctx.median(lambda: f.fill(0.0)),

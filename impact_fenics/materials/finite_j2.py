@@ -39,19 +39,18 @@ LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
 def update(F, state, params, dt, tau, work) -> float:
     """Exponential-map radial return at one point; returns the plastic work increment (J/m^3)."""
     lmbda, mu, sy0, h = params[LAMBDA], params[MU], params[YIELD_STRESS], params[HARDENING]
-    principal = work[8:11]
     hencky.trial_log_strains(F, state, work)
-    q = hencky.principal_kirchhoff(lmbda, mu, work, principal)
+    q = hencky.principal_kirchhoff(lmbda, mu, work)
     f = q - (sy0 + h * state[0])
     wp = 0.0
     if f > 0.0:
         dg = f / (3.0 * mu + h)
-        hencky.radial_return(mu, dg, q, principal, work)
+        hencky.radial_return(mu, dg, q, work)
         wp = dg * (sy0 + h * state[0] + 0.5 * h * dg)
         state[0] += dg
-        hencky.finish(F, principal, work, state, tau)
+        hencky.finish(F, work, state, tau)
     else:
-        hencky.kirchhoff(principal, work, tau)
+        hencky.kirchhoff(work, tau)
     return wp
 
 

@@ -95,33 +95,35 @@ def trial_log_strains(F, state, work) -> None:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def principal_kirchhoff(lmbda, mu, work, out) -> float:
-    """Trial Kirchhoff principal stresses tau_i = lambda tr eps + 2 mu eps_i into out[0:3]
+def principal_kirchhoff(lmbda, mu, work) -> float:
+    """Trial Kirchhoff principal stresses tau_i = lambda tr eps + 2 mu eps_i into work[8:11]
     (Pa) from the log strains in work[0:3]; returns the von Mises value sqrt(3/2 s:s)."""
     tr = work[0] + work[1] + work[2]
-    for i in range(3):
-        out[i] = lmbda * tr + 2.0 * mu * work[i]
-    m = (out[0] + out[1] + out[2]) / 3.0
-    d0, d1, d2 = out[0] - m, out[1] - m, out[2] - m
+    t0 = work[8] = lmbda * tr + 2.0 * mu * work[0]
+    t1 = work[9] = lmbda * tr + 2.0 * mu * work[1]
+    t2 = work[10] = lmbda * tr + 2.0 * mu * work[2]
+    m = (t0 + t1 + t2) / 3.0
+    d0, d1, d2 = t0 - m, t1 - m, t2 - m
     return SQRT_3_2 * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def radial_return(mu, dgamma, q_trial, principal, work) -> None:
-    """Scale the deviator of the principal stresses by 1 - 3 mu dgamma / q_trial, take
+def radial_return(mu, dgamma, q_trial, work) -> None:
+    """Scale the deviator of the principal stresses (work[8:11]) by 1 - 3 mu dgamma / q_trial, take
     dgamma 3/2 dev tau / q_trial off the log strains (the exponential-map return) and
     multiply the principal values of b_e by x_i = exp(-3 dgamma dev tau_i / q_trial)
     (x_3 = 1 / (x_1 x_2): the deviator's principal values sum to zero)."""
-    m = (principal[0] + principal[1] + principal[2]) / 3.0
+    t0, t1, t2 = work[8], work[9], work[10]
+    m = (t0 + t1 + t2) / 3.0
     k = 1.0 - 3.0 * mu * dgamma / q_trial
     r = 1.5 * dgamma / q_trial
-    dev0, dev1, dev2 = principal[0] - m, principal[1] - m, principal[2] - m
+    dev0, dev1, dev2 = t0 - m, t1 - m, t2 - m
     work[0] -= r * dev0
     work[1] -= r * dev1
     work[2] -= r * dev2
-    principal[0] = m + k * dev0
-    principal[1] = m + k * dev1
-    principal[2] = m + k * dev2
+    work[8] = m + k * dev0
+    work[9] = m + k * dev1
+    work[10] = m + k * dev2
     x0 = math.exp(-2.0 * r * dev0)
     x1 = math.exp(-2.0 * r * dev1)
     work[5] *= x0
@@ -130,23 +132,24 @@ def radial_return(mu, dgamma, q_trial, principal, work) -> None:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kirchhoff(principal, work, tau) -> None:
-    """tau (rr, tt, zz, rz) (Pa) from the principal stresses and the directions in work[3:5]."""
+def kirchhoff(work, tau) -> None:
+    """tau (rr, tt, zz, rz) (Pa) from the principal stresses in work[8:11] and the directions
+    in work[3:5]."""
     c2, s2 = work[3], work[4]
-    mean = 0.5 * (principal[0] + principal[1])
-    half = 0.5 * (principal[0] - principal[1])
+    mean = 0.5 * (work[8] + work[9])
+    half = 0.5 * (work[8] - work[9])
     tau[0] = mean + half * c2
     tau[2] = mean - half * c2
     tau[3] = half * s2
-    tau[1] = principal[2]
+    tau[1] = work[10]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def finish(F, principal, work, state, tau) -> None:
+def finish(F, work, state, tau) -> None:
     """tau as :func:`kirchhoff`, and a = C_p^-1 = F^-1 b_e F^-T from the returned principal
     values of b_e in work[5:8] (after plastic flow only: an elastic step leaves a
     unchanged)."""
-    kirchhoff(principal, work, tau)
+    kirchhoff(work, tau)
     c2, s2 = work[3], work[4]
     mean = 0.5 * (work[5] + work[6])
     half = 0.5 * (work[5] - work[6])

@@ -32,13 +32,14 @@ _KERNELS: dict = {}
 
 
 @njit(cache=True)
-def _no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
-    """The stand-in of a material without a scalar ``point``: never called."""
+def no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
+    """The stand-in of a material without a scalar ``point`` (here and in the triangles'
+    kernel, :mod:`.quadrature`): never called."""
     return e0, e1, e2, e3, p0, p1, p2, p3
 
 
 @njit(cache=True)
-def _no_screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
+def no_screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
     """The stand-in of a material without a ``screen``: never called."""
     return False, e0, e1, e2, e3
 
@@ -53,8 +54,8 @@ def kernel(update, point=None, screen=None):
     if key in _KERNELS:
         return _KERNELS[key]
     scalar, screened = point is not None, screen is not None  # constants of the kernel
-    point = _no_point if point is None else point
-    screen = _no_screen if screen is None else screen
+    point = no_point if point is None else point
+    screen = no_screen if screen is None else screen
 
     @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):

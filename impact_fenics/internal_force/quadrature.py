@@ -132,18 +132,6 @@ class QuadratureState:
 _KERNELS: dict = {}
 
 
-@njit(cache=True)
-def _no_point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
-    """The stand-in of a material without a scalar ``point``: never called."""
-    return e0, e1, e2, e3, p0, p1, p2, p3
-
-
-@njit(cache=True)
-def _no_screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
-    """The stand-in of a material without a ``screen``: never called."""
-    return False, e0, e1, e2, e3
-
-
 def kernels(update, n_state: int = 1, point=None, screen=None):
     """The fused cell kernel and the point loop of the generic path for ``update``, whose
     points carry ``n_state`` variables (the last axis of the state array, at least 1).
@@ -160,8 +148,8 @@ def kernels(update, n_state: int = 1, point=None, screen=None):
     ns = key[1]
     scalar = point is not None  # a constant of the compiled kernel: one branch is compiled
     screened = screen is not None
-    point = _no_point if point is None else point
-    screen = _no_screen if screen is None else screen
+    point = bbar.no_point if point is None else point
+    screen = bbar.no_screen if screen is None else screen
 
     @njit
     def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):

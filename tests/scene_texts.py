@@ -152,6 +152,26 @@ def launch(args, timeout=120, **kwargs) -> subprocess.CompletedProcess:
                           env=clean_mpi_env(), cwd=ROOT, **kwargs)
 
 
+def run_on_ranks(scene, outs: dict, timeout: float = 300.0) -> None:
+    """Run ``impact-fenics run SCENE --out OUT --quiet`` under ``scripts/mpirun.sh -n N``
+    for every (N, OUT) of ``outs``, all launched at once (their start-up overlaps), each
+    expected to succeed (its stderr's tail in the failure); ``timeout`` (s) only keeps a
+    broken run from hanging the suite."""
+    procs = {n: subprocess.Popen([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(n),
+                                  sys.executable, "-m", "impact_fenics", "run", str(scene),
+                                  "--out", str(out), "--quiet"],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=clean_mpi_env(), cwd=ROOT) for n, out in outs.items()}
+    for n, proc in procs.items():
+        try:
+            _, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            for p in procs.values():
+                p.kill()
+            raise
+        assert proc.returncode == 0, f"{n} ranks: {err[-2000:]}"
+
+
 def wait_for_loop(proc, out, timeout=300.0) -> None:
     """Wait until the run is in its loop: the first output row is in the staging directory
     (a state the run reports, checked again and again; ``timeout`` (s) only keeps a broken

@@ -23,20 +23,16 @@ serial pass only (under mpirun it is skipped).
 """
 import json
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-from conftest import clean_mpi_env
 from impact_fenics import cli
 from roundoff import assert_within_spread, one_ulp
 from test_finite_scene import TAYLOR, V0
-from scene_texts import replace
+from scene_texts import replace, run_on_ranks
 
-ROOT = os.path.join(os.path.dirname(__file__), "..")
 serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches processes: serial only")
 SCENE = replace(replace(replace(TAYLOR, "t_end = 8e-6", "t_end = 10e-6"), "history_every = 3",
                         "history_every = 1"), "output_every = 25", "output_every = 1000000\n"
@@ -69,19 +65,8 @@ def test_taylor_bar_on_1_2_and_3_ranks(tmp_path):
     assert s1["eps_p_max"] > 1.0 and s1["wall"]["method"] == "film"
     n_act = h1[:, head.index("n_active")]
     assert n_act.max() >= 2 and np.count_nonzero(np.diff(n_act)) >= 10  # the active set moves
-    procs = {n: subprocess.Popen([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(n),
-                                  sys.executable, "-m", "impact_fenics", "run", str(scene),
-                                  "--out", str(tmp_path / f"n{n}"), "--quiet"],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=clean_mpi_env(), cwd=ROOT) for n in (2, 3)}
-    for n, proc in procs.items():  # both launched at once: their start-up overlaps
-        try:
-            _, err = proc.communicate(timeout=300)
-        except subprocess.TimeoutExpired:
-            for p in procs.values():
-                p.kill()
-            raise
-        assert proc.returncode == 0, err[-2000:]
+    run_on_ranks(scene, {n: tmp_path / f"n{n}" for n in (2, 3)})
+    for n in (2, 3):
         s, head_n, h = _read(tmp_path / f"n{n}")
         assert s["n_ranks"] == n and head_n == head
         steps = s1["n_steps"]

@@ -19,16 +19,14 @@ Oracles:
 """
 import os
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-from conftest import clean_mpi_env
 from roundoff import rounding
-from scene_texts import ROOT, PAIR, launch, replace
+from scene_texts import ROOT, PAIR, launch, replace, run_on_ranks
+from test_q1_probes import read_probes
 
 from impact_fenics import cli, meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
@@ -41,15 +39,6 @@ from impact_fenics.simulation import Settings, Simulation
 COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="launches processes: serial only")
 E, RHO = 200e9, 7850.0
-
-
-def read_probes(probes: Probes, u_owned: np.ndarray) -> np.ndarray:
-    """The probes' values at the owned displacement ``u_owned`` (m): one raw row recorded,
-    summed over the ranks, evaluated."""
-    block = np.zeros(probes.n_raw)
-    probes.recorder(u_owned, block)(0)
-    COMM.Allreduce(MPI.IN_PLACE, block, op=MPI.SUM)
-    return probes.values(block[None, :])[0]
 
 
 # ------------------------------------------------------------------ a linear field
@@ -227,19 +216,8 @@ def test_scene_gauge_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
     assert np.min(h1["gauge_surface"]) < 0.5 * exact  # the pulse passed it, compressive
     if COMM.size > 1:
         return
-    procs = {n: subprocess.Popen([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(n),
-                                  sys.executable, "-m", "impact_fenics", "run", scene,
-                                  "--out", os.path.join(base, f"n{n}"), "--quiet"],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=clean_mpi_env(), cwd=ROOT) for n in (2, 3)}
-    for n, proc in procs.items():
-        try:
-            _, err = proc.communicate(timeout=300)
-        except subprocess.TimeoutExpired:
-            for p in procs.values():
-                p.kill()
-            raise
-        assert proc.returncode == 0, err[-2000:]
+    run_on_ranks(scene, {n: os.path.join(base, f"n{n}") for n in (2, 3)})
+    for n in (2, 3):
         hn = _history(os.path.join(base, f"n{n}"))
         for col in ("gauge_surface", "gauge_inside"):
             scale = float(np.max(np.abs(h1[col])))

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from .dispersion import correct
 
 
 @dataclass(frozen=True)
@@ -83,8 +84,18 @@ def _shifted(t: np.ndarray, signal: np.ndarray, at: np.ndarray) -> np.ndarray:
     return np.interp(at, t, signal, left=0.0, right=0.0)
 
 
+@dataclass(frozen=True)
+class Dispersion:
+    """The bars' ``radius`` (m) and Poisson's ratio ``nu``, for the dispersion correction
+    (:func:`.dispersion.correct`) of :func:`separate`."""
+
+    radius: float
+    nu: float
+
+
 def separate(t: np.ndarray, incident_gauge: np.ndarray, transmitter_gauge: np.ndarray,
-             bars: Bars, gauges: Gauges, pulse: float) -> Waves:
+             bars: Bars, gauges: Gauges, pulse: float,
+             dispersion: Dispersion | None = None) -> Waves:
     """The waves at the specimen's faces from the two gauges' records (strains, compression
     positive, sampled at the increasing times ``t``, s), the incident pulse lasting
     ``pulse`` (s; 2 L_striker / c0).
@@ -95,7 +106,13 @@ def separate(t: np.ndarray, incident_gauge: np.ndarray, transmitter_gauge: np.nd
     (else refused). The face sees the incident wave d_I / c0 after the gauge and the
     reflected one d_I / c0 before; the transmitted wave reaches the transmitter gauge
     d_T / c0 after the back face. The face time axis starts at the incident front's
-    arrival at the front face, steps like ``t`` and lasts the pulse."""
+    arrival at the front face, steps like ``t`` and lasts the pulse.
+
+    With ``dispersion`` each wave is first moved between its gauge and its face with the
+    first mode's phase velocity of every frequency (the Pochhammer–Chree correction,
+    :func:`.dispersion.correct`: the incident wave forward over d_I, the reflected and the
+    transmitted back over d_I and d_T), then shifted by the bar speed as without it. The
+    records must then be uniformly sampled and at rest at both ends."""
     t = np.asarray(t, dtype=float)
     c0 = bars.c0
     d_i, d_t = gauges.incident, gauges.transmitter
@@ -118,9 +135,15 @@ def separate(t: np.ndarray, incident_gauge: np.ndarray, transmitter_gauge: np.nd
     switch = gauges.arrival + 2.0 * d_i / c0  # the reflection's first arrival at the gauge
     before = np.where(t < switch, incident_gauge, 0.0)
     after = np.where(t >= switch, incident_gauge, 0.0)
+    transmitted = np.asarray(transmitter_gauge, dtype=float)
+    if dispersion is not None:
+        a, nu = dispersion.radius, dispersion.nu
+        before = correct(t, before, d_i, a, nu, c0)
+        after = correct(t, after, -d_i, a, nu, c0)
+        transmitted = correct(t, transmitted, -d_t, a, nu, c0)
     return Waves(t=face, incident=_shifted(t, before, face - d_i / c0),
                  reflected=_shifted(t, after, face + d_i / c0),
-                 transmitted=_shifted(t, transmitter_gauge, face + d_t / c0))
+                 transmitted=_shifted(t, transmitted, face + d_t / c0))
 
 
 @dataclass

@@ -6,6 +6,12 @@ is kept until the buffer is full, then every second sample is dropped and
 only every second later step is kept (the stride doubles), so the sample
 always spans the whole run. A run of 10^9 steps costs the same memory as one
 of 10^3.
+
+The sample keeps the steps n with (n + 1) a multiple of the stride, the last step of
+each stride, not its first: the loop's periodic events fall on multiples of a power of
+two (a history block of 256 rows is written out at the step after its last row), and a
+sample of the multiples of a stride >= that period would hold nothing but those events'
+steps, so its median would be the events' cost, not a step's.
 """
 from __future__ import annotations
 
@@ -23,16 +29,16 @@ def _book(current, totals, sample, state) -> None:
     for i in range(current.size):
         totals[i] += current[i]
     n, stride = state[0], state[2]
-    if n % stride == 0:
+    if (n + 1) % stride == 0:
         m = state[1]
         if m == sample.shape[0]:  # full: keep every second sample, double the stride
-            half = m // 2
+            half = m // 2  # (the kept ones, n + 1 a multiple of 2 stride, are the odd ones)
             for j in range(half):
-                sample[j, :] = sample[2 * j, :]
+                sample[j, :] = sample[2 * j + 1, :]
             m = half
             stride *= 2
             state[1], state[2] = m, stride
-        if n % stride == 0:
+        if (n + 1) % stride == 0:
             sample[m, :] = current
             state[1] = m + 1
     state[0] = n + 1

@@ -28,8 +28,22 @@ def test_sample_is_evenly_spaced_over_the_run():
     stride = t._stride
     assert stride <= 2 * n / cap
     kept = t._sample[: t._n_sample, 0]
-    assert np.array_equal(kept, np.arange(0, n, stride, dtype=float))
+    assert np.array_equal(kept, np.arange(stride - 1, n, stride, dtype=float))
     assert abs(t.medians()["x"] - np.median(np.arange(n))) <= stride
+
+
+def test_periodic_events_do_not_take_over_the_sample():
+    # every 256th step (n a multiple of 256: a history block written out) costs 100 times a
+    # step: they are 1/256 of the steps, so the median of the run is a plain step's, and
+    # the sample's must be too, however long the run (the stride passes 256 here)
+    cap, n = 128, 200_000
+    t = PhaseTimers(("x",), capacity=cap)
+    for k in range(n):
+        t.current[0] = 100.0 if k % 256 == 0 else 1.0
+        t.record()
+    assert t._stride > 256
+    assert t.medians()["x"] == 1.0
+    assert t.total()["x"] == n + 99.0 * len(range(0, n, 256))
 
 
 def test_block_booking_equals_booking_each_step():

@@ -94,8 +94,9 @@ def test_section_carries_a_uniform_stress_exactly(kind):
 
 
 def test_probes_refuse_bad_sections():
-    """The Python path: a plane between node rows, outside the body, at its end, through
-    two bodies, through a path-dependent body; each an InputError naming the section."""
+    """The Python path: a plane between node rows, outside the body, at its end (or at
+    the interface of two bodies), through a path-dependent or a finite-strain body; each
+    an InputError naming the section."""
     from impact_fenics.materials import J2
 
     tm = meshing.coaxial_bars(radius=0.02, striker_length=0.04, target_length=0.04, h=0.01,
@@ -110,6 +111,13 @@ def test_probes_refuse_bad_sections():
     model = DeformableModel(tm, [Body("striker", steel), Body("target", j2)])
     with pytest.raises(InputError, match="probe 's': body 'target' is not linear elastic"):
         Probes(model, [("s", (0.0, 0.02), "section")])
+    # a finite-strain body (a Q1 mesh): refused the same way
+    from impact_fenics.materials import NeoHookean
+
+    model = DeformableModel(quad_rectangle(COMM, 0.0, 0.1, 0.04, 0.25, 4, 5, "body"),
+                            [Body("body", NeoHookean(E=E, nu=0.3, density=RHO))])
+    with pytest.raises(InputError, match="probe 's': body 'body' is not linear elastic"):
+        Probes(model, [("s", (0.0, 0.16), "section")])
 
 
 # ------------------------------------------------------------------ momentum, struck bars

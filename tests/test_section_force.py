@@ -134,15 +134,17 @@ def part_momentum(sim, z: float) -> float:
 
 
 def momentum_bound(sim, n_steps: int, v_max: float) -> float:
-    """Round-off of the momentum identity over ``n_steps`` steps (kg m/s). Each step rounds
-    each dof's update v += A u (a row of 18 terms, A = -h M^-1 K with its own roundings,
-    24 in all) on |A| |u| <= (2 / h)^2 h |u| per unit mass, |u| <= v_max n h: 96 v_max n
-    per unit mass, and the rows of K above the plane cancel their sum only to C_ROUNDINGS
-    of the same terms; the step's F_s adds as many. Summed over the steps: (24 + 2 x 64) x
-    4 x n_steps^2 / 2 of M v_max, M the body's mass; the two momentum sums add a rounding a
-    dof of M v_max."""
+    """Round-off of the momentum identity over ``n_steps`` steps (kg m/s). Step n rounds
+    each dof's update v += A u (a row of 18 terms, A = -h M^-1 K with its own roundings:
+    24 in all) on sum_j |A_ij u_j|, which is h |K|_i |u| / m_i with |u| <= v_max n h: the
+    stable step's h^2 omega^2 <= 4 makes h |K|_i / m_i of order 4 / h (the absolute row
+    sum exceeds omega^2 by the few cells at a node: a factor 4 kept), so 16 v_max n per
+    unit mass; the rows of K above the plane cancel their sum only to C_ROUNDINGS of the
+    same terms, and the step's F_s = c . u rounds as many (c a row of K's size). Summed
+    over n = 1 .. N: (24 + 2 x 64) x 16 N^2 / 2 of M v_max, M the body's mass; the two
+    momentum sums a rounding a dof of M v_max."""
     mass = sum(sim.body_mass.values())
-    n = (24 + 2 * C_ROUNDINGS) * 2 * n_steps ** 2 + 2 * sim.model.n_global
+    n = (24 + 2 * C_ROUNDINGS) * 8 * n_steps ** 2 + 2 * sim.model.n_global
     return rounding(n, mass * v_max)
 
 
@@ -249,8 +251,10 @@ def test_section_impulse_under_a_load_below(waves, h):
     (the bar starts at rest: that momentum itself)."""
     sim = waves[h]
     hist = sim.history.data()
+    # the particle speed p / (rho c0), doubled where the front meets the free end, and
+    # the discrete front's overshoot below another factor 2
     v_max = P0 / (RHO * sim.model.bodies["bar"].material.bar_wave_speed())
-    bound = momentum_bound(sim, sim.n_steps, 2 * v_max)
+    bound = momentum_bound(sim, sim.n_steps, 4 * v_max)
     for k, z in enumerate(STATIONS):
         impulse = sim.settings.dt * float(np.sum(hist[f"section_{k}"][:-1]))
         change = part_momentum(sim, z)

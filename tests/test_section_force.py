@@ -18,16 +18,13 @@ Oracles:
   exit 2, nothing written.
 """
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-from conftest import clean_mpi_env
-from roundoff import EPS, rounding
-from scene_texts import ROOT, PAIR, launch, replace
+from roundoff import rounding
+from scene_texts import ROOT, PAIR, launch, replace, run_on_ranks
 
 from impact_fenics import cli, meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
@@ -308,19 +305,8 @@ def test_scene_section_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
     assert np.max(h1["section_0"]) > 0.9 * P0 * np.pi * RADIUS ** 2  # the pulse passed it
     if COMM.size > 1:
         return
-    procs = {n: subprocess.Popen([os.path.join(ROOT, "scripts", "mpirun.sh"), "-n", str(n),
-                                  sys.executable, "-m", "impact_fenics", "run", scene,
-                                  "--out", os.path.join(base, f"n{n}"), "--quiet"],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=clean_mpi_env(), cwd=ROOT) for n in (2, 3)}
-    for n, proc in procs.items():
-        try:
-            _, err = proc.communicate(timeout=300)
-        except subprocess.TimeoutExpired:
-            for p in procs.values():
-                p.kill()
-            raise
-        assert proc.returncode == 0, err[-2000:]
+    run_on_ranks(scene, {n: os.path.join(base, f"n{n}") for n in (2, 3)})
+    for n in (2, 3):
         hn = _history(os.path.join(base, f"n{n}"))
         for col in ("section_0", "section_1"):
             scale = float(np.max(np.abs(h1[col])))

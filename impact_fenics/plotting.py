@@ -113,7 +113,8 @@ PROBE_PANELS = ((STRESSES, "probe stress (MPa)", 1e-6),
                 (DISPLACEMENTS, "probe displacement (mm)", 1e3),
                 (("eps_p_eq",), "probe eps_p_eq (-)", 1.0),
                 (("yielded",), "probe yielded (0 / 1)", 1.0),
-                (("strain_gauge",), "gauge strain (-)", 1.0))
+                (("strain_gauge",), "gauge strain (-)", 1.0),
+                (("section",), "section force (kN)", 1e-3))
 
 
 def probe_panels(h: dict[str, np.ndarray], probes: list[tuple[str, str]]) -> list:

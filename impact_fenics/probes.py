@@ -40,6 +40,13 @@ each u_z the interpolation at the gauge's end, sum_a w_a u_z,a over the nodes of
 cell that holds it (barycentric weights on a triangle, N_a(xi) on a quadrilateral,
 fixed at set-up): the row holds the u_z dofs of the lower end's cell, then the upper's.
 Both ends lie in one body.
+
+A ``section`` is the axial force (N, compression positive) through the plane z = const
+of a row of a linear body's nodes, F_s = c . u (:mod:`.section`: the z force the cells
+below exert on the plane's nodes, whose impulse with the other forces on the nodes at and
+above the plane is their change of z momentum). The row holds the u of the dofs of c,
+after the probes' cell dofs; the value is its dot product with c, in the same order on
+every partition.
 """
 from __future__ import annotations
 
@@ -55,12 +62,15 @@ from .cell_fields import (STRESS_NAMES, point_mean_stress, stiffness_matrix, str
 from .compat import colliding_cells, geometry_dofs
 from .errors import InputError
 from .jit_watch import direct, load
+from .section import section_body, section_row
 
 PLASTIC_QUANTITIES = ("eps_p_eq", "yielded")
 POSITION_QUANTITIES = ("r", "z")  # a node's current position X + u (m)
 GAUGE = "strain_gauge"  # the axial strain over a gauge length (-)
 GAUGE_LENGTH = 2e-3  # the default gauge length (m)
-QUANTITIES = STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES + POSITION_QUANTITIES + (GAUGE,)
+SECTION = "section"  # the axial force through a plane of nodes (N, compression positive)
+QUANTITIES = (STRESS_NAMES + ("u_r", "u_z") + PLASTIC_QUANTITIES + POSITION_QUANTITIES
+              + (GAUGE, SECTION))
 # raw history entries per probe: u_r, u_z of the cell's three nodes (four on a mesh of
 # quadrilaterals: RAW_Q1), of its one node first for r and z, u_z of the three (four)
 # nodes of each end's cell for a gauge; a probe in a cell of a
@@ -70,6 +80,7 @@ RAW_Q1 = 8
 _U_R, _U_Z = QUANTITIES.index("u_r"), QUANTITIES.index("u_z")
 _R = QUANTITIES.index("r")  # r, z: codes _R, _R + 1
 _GAUGE = QUANTITIES.index(GAUGE)
+_SECTION = QUANTITIES.index(SECTION)
 
 
 def nearest_node(model, body: str, point: tuple[float, float]) -> tuple[int, np.ndarray | None]:
@@ -228,17 +239,31 @@ def _gauge_strain(q, w, length) -> float:
 
 
 @njit(cache=True)
+def _section_force(raw, start, c, p, out) -> None:
+    """out[i, p] = sum_j c[j] raw[i, start + j]: a section's force (N) from the u (m) of
+    its dofs in each row and its coefficients c (N/m), summed in c's order."""
+    for i in range(raw.shape[0]):
+        f = 0.0
+        for j in range(c.size):
+            f += c[j] * raw[i, start + j]
+        out[i, p] = f
+
+
+@njit(cache=True)
 def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out) -> None:
     """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
     the cell means of the nodal values (m); in the cell of a linear body a stress D eps
     (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); a gauge's strain from
-    its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); the other values
+    its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); a section is left
+    to :func:`_section_force`; the other values
     of a probe in a path-dependent body's cell (``pointwise`` true) are left to
     :class:`CellPoints`."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW * p: RAW * p + RAW]
             c = code[p]
+            if c == _SECTION:  # (Probes.values)
+                continue
             if c == _GAUGE:
                 out[i, p] = _gauge_strain(q, gauge_w[p], gauge_l[p])
             elif c >= _R:
@@ -268,6 +293,8 @@ def _quad_values(raw, weights, dNdR, dNdZ, N, inv_R, w, dofs, eps, D, code, poin
         for p in range(code.size):
             q = raw[i, RAW_Q1 * p: RAW_Q1 * p + RAW_Q1]
             c = code[p]
+            if c == _SECTION:  # (Probes.values)
+                continue
             if c == _GAUGE:
                 out[i, p] = _gauge_strain(q, gauge_w[p], gauge_l[p])
             elif c >= _R:
@@ -371,7 +398,8 @@ class Probes:
     """Cell values at points: ``quantity`` in QUANTITIES (stresses in Pa, u_r, u_z in m)
     of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point);
     r and z (m) the current position of the node nearest the point; a strain_gauge's axial
-    strain (-) over its length centred at the point."""
+    strain (-) over its length centred at the point; a section's force (N, compression
+    positive) through the plane z of the point (its r is not read)."""
 
     def __init__(self, model, specs: list[tuple], plastic_forces=()):
         """``specs``: (name, point (r, z) in m, quantity) per probe, a gauge's with its
@@ -400,6 +428,8 @@ class Probes:
         owned_pos = {}  # probe -> position of its cell in its force's cells (owning rank)
         bodies = list(model.bodies.values())
         which = np.full(n, -1, dtype=np.int64)  # body of each probe cell
+        unused = np.zeros(width * n, dtype=np.bool_)  # raw entries no rank records
+        sections = []  # (probe, the scene dofs of its c, c)
         for k, (name, point, quantity) in enumerate(probes):
             if quantity not in QUANTITIES:
                 raise InputError(f"probe '{name}': unknown quantity '{quantity}' "
@@ -408,6 +438,15 @@ class Probes:
             if quantity == GAUGE:  # (collective)
                 length = float(specs[k][3]) if len(specs[k]) > 3 else GAUGE_LENGTH
                 which[k] = self._gauge(k, name, point, length, model, dofs, scene, bodies)
+                continue
+            if quantity == SECTION:  # (collective)
+                try:
+                    body = section_body(model, float(point[1]))
+                except InputError as exc:
+                    raise InputError(f"probe '{name}': {exc}") from None
+                which[k] = [b.name for b in bodies].index(body)
+                sections.append((k, *section_row(model, body, float(point[1]))))
+                unused[width * k: width * (k + 1)] = True
                 continue
             cell, mine = locate_cell(mesh, point)
             if mine:
@@ -426,7 +465,6 @@ class Probes:
                 if force is not None:
                     owned_pos[k] = int(np.searchsorted(force.cells, cell))
         self.comm.Allreduce(MPI.IN_PLACE, which, op=MPI.MAX)
-        unused = np.zeros(width * n, dtype=np.bool_)  # raw entries no rank records
         for k, (_, point, quantity) in enumerate(probes):
             if quantity in POSITION_QUANTITIES:  # the node's u_r, u_z, its X
                 unused[width * k + 2: width * (k + 1)] = True
@@ -449,7 +487,8 @@ class Probes:
             if quantity in PLASTIC_QUANTITIES and not plastic_forces:
                 raise InputError(f"probe '{name}': {quantity} needs a path-dependent body in "
                                  "the run (it reads 0 in the cells of linear bodies)")
-            if self.code[k] in (_U_R, _U_Z, _GAUGE) or quantity in POSITION_QUANTITIES:
+            if (self.code[k] in (_U_R, _U_Z, _GAUGE, _SECTION)
+                    or quantity in POSITION_QUANTITIES):
                 continue
             if force is not None:
                 pos = owned_pos.get(k, -1)
@@ -465,9 +504,19 @@ class Probes:
                     raise InputError(f"probe '{name}': {quantity} of body '{bodies[which[k]].name}' "
                                      "needs a material with a constant (elastic) stiffness")
                 self.D[k] = D
+        # the sections' dofs after the points' states: (probe, start in a raw row, c)
+        self._sections: list[tuple[int, int, np.ndarray]] = []
+        section_dofs = []
+        for k, global_dofs, c in sections:
+            self._sections.append((k, self.n_raw, c))
+            section_dofs.append(global_dofs)
+            self.n_raw += c.size
         owned = (dofs >= model.offset) & (dofs < model.offset + model.n_owned) & ~unused
         index = np.full(self.n_raw, -1, dtype=np.int64)
         index[: width * n] = np.where(owned, dofs - model.offset, -1)
+        for (_, start, c), g in zip(self._sections, section_dofs):
+            mine = (g >= model.offset) & (g < model.offset + model.n_owned)
+            index[start: start + c.size] = np.where(mine, g - model.offset, -1)
         self._index = index
         # load the compiled calls now, not in the first timed step: the recorder, and the
         # values with ``out`` of its own and a column slice of a wider block, as a history
@@ -509,6 +558,8 @@ class Probes:
         return held[0]
 
     def _load_values(self, raw: np.ndarray, out: np.ndarray) -> None:
+        for _, start, c in self._sections[:1]:
+            load(_section_force, raw, start, c, 0, out)
         if self._quad is None:
             load(_values, raw, self.xy, self.D, self.code, self.pointwise, self.X,
                  self.gauge_w, self.gauge_l, out)
@@ -548,6 +599,8 @@ class Probes:
             _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, qc.dofs,
                          qc.eps, self.D, self.code, self.pointwise, self.X, self.gauge_w,
                          self.gauge_l, out)
+        for k, start, c in self._sections:
+            _section_force(raw, start, c, k, out)
         for k, cell_points, start in self._points:
             code = int(self.code[k])
             for i in range(raw.shape[0]):

@@ -391,13 +391,17 @@ def _read_output(data: Any) -> dict[str, Any]:
 def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
     t = Table(data, where, "probes")
     quantity = t.value("quantity")
-    if "z" in t:  # a surface gauge: r is the mesh's outer radius at z (build)
-        if quantity != "strain_gauge":
-            raise t.error("z", f'only a quantity = "strain_gauge" is placed by z alone, not '
-                          f"{toml_text(quantity)}: give point = [r, z]")
+    if quantity == "section" and "point" in t:
+        raise t.error("point", 'a quantity = "section" is the plane z = const: give z, not point')
+    if "z" in t:  # a surface gauge: r is the mesh's outer radius at z (build); a section
+        if quantity not in ("strain_gauge", "section"):
+            raise t.error("z", f'only a quantity = "strain_gauge" or "section" is placed by z '
+                          f"alone, not {toml_text(quantity)}: give point = [r, z]")
         if "point" in t:
             raise t.error("z", "give point or z, not both")
         point = (None, t.value("z"))
+    elif quantity == "section":
+        raise t.error("quantity", 'a quantity = "section" needs z, the height of its plane (m)')
     else:
         point = t.value("point", REQUIRED)
         if point[0] < 0:
@@ -633,6 +637,12 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
     for p in scene.probes:
         with within(p.where):
+            if p.quantity == "section":  # its plane checked now (Probes builds it in run)
+                from .section import section_body
+
+                section_body(model, p.point[1])
+                sim.add_probe(p.name, (0.0, p.point[1]), p.quantity)
+                continue
             if p.point[0] is None:  # a gauge on the surface
                 r = outer_radius(model.mesh, p.point[1])
                 if not math.isfinite(r):

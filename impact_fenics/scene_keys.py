@@ -74,7 +74,7 @@ class Section:
 
 METHODS = ("penalty", "film", "dme")
 QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
-              "eps_p_eq", "yielded", "r", "z", "strain_gauge")
+              "eps_p_eq", "yielded", "r", "z", "strain_gauge", "section")
 MODELS = tuple(MATERIAL_MODELS)  # the materials by name (impact_fenics.materials.MODELS)
 STRAIN_WORDS = {"small": "small strain", "finite": "finite strain"}
 PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
@@ -333,23 +333,30 @@ _OUTPUT = Section("output", "[output]", (
 
 _PROBES = Section("probes", "[[probes]]", (
     "A history column: a quantity in the cell that holds a point (not on the interface "
-    "of two bodies), the current position of a node near it, or the axial strain a "
-    "strain gauge centred at the point reads (both ends in one body)."), (
+    "of two bodies), the current position of a node near it, the axial strain a "
+    "strain gauge centred at the point reads (both ends in one body), or the axial force "
+    "through a plane of a linear body's nodes (a section)."), (
     Key("name", "text", "", None, "the column's name (unique; not step, time or dt)",
         default_text="<quantity>_<k>"),
     Key("point", "pair", "m", None, "the point [r, z], r >= 0",
-        default_text="required (a strain_gauge: or z)"),
+        default_text="required (a strain_gauge: or z; a section: z)"),
     Key("z", "number", "m", None, "a strain_gauge on the surface: its centre's height, at r = "
-        "the mesh's outer radius there (the largest r of a cell at that z); instead of point"),
+        "the mesh's outer radius there (the largest r of a cell at that z), instead of point; "
+        "a section: the height of its plane (required)"),
     Key("quantity", "text", "", REQUIRED, "stresses in Pa, displacements in m; eps_p_eq and "
         "yielded with a j2 body; r and z (m): the current position X + u of the node "
         "nearest the point, among the nodes of the body whose cell holds it; strain_gauge (-): "
         "the axial strain (u_z(r, z + l/2) - u_z(r, z - l/2)) / l over the gauge length l "
-        "centred at the point, compression negative",
+        "centred at the point, compression negative; section (N): the axial force through "
+        "the plane z, compression positive",
         choices=QUANTITIES,
         note="A gauge bonded on a bar's surface has r = the bar's radius; u_z is interpolated "
         "at each end (linear on a triangle, bilinear on a quadrilateral), so a linear field "
-        "reads exactly. Both ends must lie in one body."),
+        "reads exactly. Both ends must lie in one body. A section's plane is a row of nodes "
+        "of one linear elastic body with cells of it on both sides; its force is the z "
+        "force the cells below exert on the plane's nodes (LS-DYNA's cross-section), whose "
+        "impulse with the other forces on the nodes at and above the plane is their change "
+        "of momentum."),
     Key("length", "positive", "m", 0.002, "the gauge length l of a strain_gauge (no other "
         "quantity takes it)"),
 ))

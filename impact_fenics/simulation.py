@@ -207,7 +207,8 @@ class Simulation:
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz",
                   length: float = GAUGE_LENGTH) -> None:
         """Record ``quantity`` (a stress component name, or u_r, u_z, ...) at ``point`` (r, z)
-        in m; a strain_gauge's ``length`` (m) is centred at the point."""
+        in m; a strain_gauge's ``length`` (m) is centred at the point; a section is the
+        plane z of ``point`` (its r is not read)."""
         self._probe_specs.append((name, point, quantity, length))
 
     # ------------------------------------------------------------ the run

@@ -238,7 +238,8 @@ BAD = [
     ("z = 0.3\n", "z = 0.3\npoint = [0.05, 0.3]\n",
      "error: [probes #7] z = 0.3: give point or z, not both"),
     ('quantity = "u_z"        # m', 'quantity = "u_z"\nz = 0.3',
-     "error: [probes #2] z = 0.3: only a quantity = \"strain_gauge\" is placed by z alone"),
+     "error: [probes #2] z = 0.3: only a quantity = \"strain_gauge\" or \"section\" is placed "
+     "by z alone"),
 ]
 
 

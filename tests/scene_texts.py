@@ -172,6 +172,46 @@ def run_on_ranks(scene, outs: dict, timeout: float = 300.0) -> None:
         assert proc.returncode == 0, f"{n} ranks: {err[-2000:]}"
 
 
+def scene_on_every_rank(tmp_path_factory, name: str, text: str) -> tuple[str, str]:
+    """(a directory every rank shares, the scene ``text`` written there as NAME.toml by
+    rank 0), for a test that runs it in-process and under mpirun."""
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    base = comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None, root=0)
+    scene = os.path.join(base, f"{name}.toml")
+    if comm.rank == 0:
+        with open(scene, "w") as f:
+            f.write(text)
+    comm.barrier()
+    return base, scene
+
+
+def read_history(out) -> dict:
+    """A run's history.csv as {column: values}."""
+    import numpy as np
+
+    h = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
+    return {k: h[k] for k in h.dtype.names}
+
+
+def assert_ranks_agree(scene, base: str, serial: dict, columns, unit: str = "") -> None:
+    """The scene run on 2 and 3 ranks (launched, into BASE/n2 and BASE/n3) gives each of
+    ``columns`` within 1e-10 of its largest value in ``serial`` (the serial run's history):
+    the partitions reorder the sums of each step, round-off that an undamped wave does not
+    amplify beyond it."""
+    import numpy as np
+
+    run_on_ranks(scene, {n: os.path.join(base, f"n{n}") for n in (2, 3)})
+    for n in (2, 3):
+        hn = read_history(os.path.join(base, f"n{n}"))
+        for col in columns:
+            scale = float(np.max(np.abs(serial[col])))
+            diff = float(np.max(np.abs(hn[col] - serial[col])))
+            print(f"{n} ranks, {col}: largest difference {diff:.3g} of {scale:.3g} {unit}")
+            assert diff <= 1e-10 * scale
+
+
 def wait_for_loop(proc, out, timeout=300.0) -> None:
     """Wait until the run is in its loop: the first output row is in the staging directory
     (a state the run reports, checked again and again; ``timeout`` (s) only keeps a broken

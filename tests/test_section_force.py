@@ -24,7 +24,8 @@ import pytest
 from mpi4py import MPI
 
 from roundoff import rounding
-from scene_texts import ROOT, PAIR, launch, replace, run_on_ranks
+from scene_texts import (PAIR, ROOT, assert_ranks_agree, launch, read_history, replace,
+                         scene_on_every_rank)
 
 from impact_fenics import cli, meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
@@ -278,41 +279,19 @@ quantity = "section"
 """
 
 
-def _history(out) -> dict:
-    h = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
-    return {k: h[k] for k in h.dtype.names}
-
-
-def _scratch(tmp_path_factory, name) -> str:
-    path = str(tmp_path_factory.mktemp(name)) if COMM.rank == 0 else None
-    return COMM.bcast(path, root=0)
-
-
 def test_scene_section_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
     """The scene through the CLI in this process (its history holds the section columns,
     near p A behind the front); in the serial pass also on 2 and 3 ranks, launched: every
     value within 1e-10 of the column's largest (the partitions reorder the sums that make
     c and each step: round-off, which the undamped wave does not amplify beyond it)."""
-    base = _scratch(tmp_path_factory, "section_scene")
-    scene = os.path.join(base, "section.toml")
-    if COMM.rank == 0:
-        with open(scene, "w") as f:
-            f.write(SCENE)
-    COMM.barrier()
+    base, scene = scene_on_every_rank(tmp_path_factory, "section_scene", SCENE)
     out = os.path.join(base, "n1")
     assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
-    h1 = _history(out)
+    h1 = read_history(out)
     assert np.max(h1["section_0"]) > 0.9 * P0 * np.pi * RADIUS ** 2  # the pulse passed it
     if COMM.size > 1:
         return
-    run_on_ranks(scene, {n: os.path.join(base, f"n{n}") for n in (2, 3)})
-    for n in (2, 3):
-        hn = _history(os.path.join(base, f"n{n}"))
-        for col in ("section_0", "section_1"):
-            scale = float(np.max(np.abs(h1[col])))
-            diff = float(np.max(np.abs(hn[col] - h1[col])))
-            print(f"{n} ranks, {col}: largest difference {diff:.3g} of {scale:.3g} N")
-            assert diff <= 1e-10 * scale
+    assert_ranks_agree(scene, base, h1, ("section_0", "section_1"), "N")
 
 
 BAD = [

@@ -25,7 +25,8 @@ import pytest
 from mpi4py import MPI
 
 from roundoff import rounding
-from scene_texts import ROOT, PAIR, launch, replace, run_on_ranks
+from scene_texts import (PAIR, ROOT, assert_ranks_agree, launch, read_history, replace,
+                         scene_on_every_rank)
 from test_q1_probes import read_probes
 
 from impact_fenics import cli, meshing, scenes
@@ -185,30 +186,15 @@ quantity = "strain_gauge"
 """
 
 
-def _history(out) -> dict:
-    h = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)
-    return {k: h[k] for k in h.dtype.names}
-
-
-def _scratch(tmp_path_factory, name) -> str:
-    path = str(tmp_path_factory.mktemp(name)) if COMM.rank == 0 else None
-    return COMM.bcast(path, root=0)
-
-
 def test_scene_gauge_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
     """The scene through the CLI in this process (its history holds the gauge columns, the
     surface gauge the wave's plateau); in the serial pass also on 2 and 3 ranks, launched:
     every gauge value within 1e-10 of the column's largest (the partitions reorder the
     sums of each step: round-off, which the undamped wave does not amplify beyond it)."""
-    base = _scratch(tmp_path_factory, "gauge_scene")
-    scene = os.path.join(base, "gauge.toml")
-    if COMM.rank == 0:
-        with open(scene, "w") as f:
-            f.write(SCENE)
-    COMM.barrier()
+    base, scene = scene_on_every_rank(tmp_path_factory, "gauge_scene", SCENE)
     out = os.path.join(base, "n1")
     assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
-    h1 = _history(out)
+    h1 = read_history(out)
     assert "gauge_surface" in h1 and "gauge_inside" in h1
     # placed by z alone it sits on the surface r = 0.05 m: the same gauge, the same column
     assert np.array_equal(h1["gauge_by_z"], h1["gauge_surface"])
@@ -216,14 +202,7 @@ def test_scene_gauge_runs_and_reads_the_same_on_1_2_3_ranks(tmp_path_factory):
     assert np.min(h1["gauge_surface"]) < 0.5 * exact  # the pulse passed it, compressive
     if COMM.size > 1:
         return
-    run_on_ranks(scene, {n: os.path.join(base, f"n{n}") for n in (2, 3)})
-    for n in (2, 3):
-        hn = _history(os.path.join(base, f"n{n}"))
-        for col in ("gauge_surface", "gauge_inside"):
-            scale = float(np.max(np.abs(h1[col])))
-            diff = float(np.max(np.abs(hn[col] - h1[col])))
-            print(f"{n} ranks, {col}: largest difference {diff:.3g} of {scale:.3g}")
-            assert diff <= 1e-10 * scale
+    assert_ranks_agree(scene, base, h1, ("gauge_surface", "gauge_inside"))
 
 
 BAD = [

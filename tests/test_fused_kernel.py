@@ -324,15 +324,21 @@ def previous_dp_update(eps, eps_p, state, params, dt, sigma) -> None:
     state[KAPPA] = kappa_n + dg
 
 
-def _bar(material, strain: float, seed: int, tension: float = 0.0, quad: bool = False
-         ) -> Integrator:
+def _bar_mesh(quad: bool = False):
+    """The bar's mesh: triangles, or with ``quad`` quadrilaterals of side H."""
+    return (quad_rectangle(COMM, 0.0, 0.0, 0.25, 0.5, round(0.25 / H), round(0.5 / H), "bar")
+            if quad else meshing.bar(radius=0.25, length=0.5, h=H, structured=True, comm=COMM))
+
+
+def _bar(material, strain: float, seed: int, tension: float = 0.0, quad: bool = False,
+         tm=None) -> Integrator:
     """The bar of ``material``, axis fixed, in a random state of strains ~ ``strain``
     (displacements strain x H) below z = 1/4 and velocities that change them by about as
     much over the run: points load, yield and unload; plus the uniform dilatation
     eps = ``tension`` I (u = tension x (r, z)) everywhere. Triangles, or with ``quad``
-    quadrilaterals of side H (the B-bar kernel)."""
-    tm = (quad_rectangle(COMM, 0.0, 0.0, 0.25, 0.5, round(0.25 / H), round(0.5 / H), "bar")
-          if quad else meshing.bar(radius=0.25, length=0.5, h=H, structured=True, comm=COMM))
+    quadrilaterals of side H (the B-bar kernel); on the mesh ``tm`` if given (two runs
+    compared dof by dof share one: two partitions of the same mesh need not be equal)."""
+    tm = _bar_mesh(quad) if tm is None else tm
     model = DeformableModel(tm, [Body("bar", material)])
     c = math.sqrt((material.lmbda + 2.0 * material.mu) / material.density)
     dt = 0.2 * H / c  # below the element bound (about 0.5 h / c on these cells)
@@ -352,7 +358,8 @@ def _run_both(material, strain: float, tension: float, previous_update, seam: st
     """Run the bar twice, with the previous kernel and update and with the new kernel on
     the material's ``seam`` ('point' behind its screen if it has one, 'unscreened' or
     'array'); compare every step. ``quad``: on quadrilaterals, the B-bar kernels."""
-    runs = [_bar(material, strain, seed=3, tension=tension, quad=quad) for _ in range(2)]
+    tm = _bar_mesh(quad)
+    runs = [_bar(material, strain, seed=3, tension=tension, quad=quad, tm=tm) for _ in range(2)]
     old, new = runs[0].nonlinear[0], runs[1].nonlinear[0]
     old._fused = (previous_bbar_kernel if quad else previous_kernel)(previous_update)
     if seam == "array":

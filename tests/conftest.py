@@ -69,3 +69,44 @@ def clean_mpi_env() -> dict:
     from impact_fenics.compat import clean_launcher_env
 
     return clean_launcher_env()
+
+
+# ------------------------------------------------- the nu = 0 bar under an end pressure
+# shared by the strain-gauge and the section tests: one run per mesh size for both
+WAVE_PEAK, WAVE_RISE, WAVE_END = 100e6, 2e-5, 2.1e-4  # Pa, s, s: the far end's reflection later
+WAVE_RADIUS, WAVE_STATIONS, WAVE_GAUGE = 0.05, (0.3, 0.6), 2e-3  # m
+
+
+@pytest.fixture(scope="session")
+def wave_bars():
+    """{h: the run}: scenes.elastic_bar (nu = 0, radius WAVE_RADIUS) under the end pressure
+    WAVE_PEAK rising over WAVE_RISE, at h = 0.01 and 0.005 m, with a strain gauge of length
+    WAVE_GAUGE on the surface (``gauge_k``) and a section (``section_k``) at each of
+    WAVE_STATIONS."""
+    from impact_fenics import scenes
+    from impact_fenics.simulation import Settings
+
+    runs = {}
+    for h in (0.01, 0.005):
+        settings = Settings(cfl=0.9, t_end=WAVE_END, out=None, quiet=True)
+        sim = scenes.elastic_bar(settings, h=h, nu=0.0, peak=WAVE_PEAK, t_rise=WAVE_RISE,
+                                 radius=WAVE_RADIUS, comm=MPI.COMM_WORLD)
+        for k, z in enumerate(WAVE_STATIONS):
+            sim.add_probe(f"gauge_{k}", (WAVE_RADIUS, z), "strain_gauge", WAVE_GAUGE)
+            sim.add_probe(f"section_{k}", (0.0, z), "section")
+        sim.run()
+        runs[h] = sim
+    return runs
+
+
+def wave_plateau(t, values, exact: float) -> tuple[float, float]:
+    """(the plateau, the arrival time (s)) of a probe's history ``values`` at times ``t``
+    under the pulse of :func:`wave_bars` whose held value is ``exact``: the arrival where
+    half of it is reached, the plateau the mean from 30 to 70 us after (the held part)."""
+    import numpy as np
+
+    from impact_fenics.probes import arrival_time
+
+    arrival = arrival_time(t, values / exact, 0.5)
+    window = (t > arrival + 3e-5) & (t < arrival + 7e-5)
+    return float(np.mean(values[window])), arrival

@@ -212,6 +212,18 @@ def assert_ranks_agree(scene, base: str, serial: dict, columns, unit: str = "") 
             assert diff <= 1e-10 * scale
 
 
+def assert_refused(args, expected: str, out) -> None:
+    """``impact-fenics ARGS`` run as a user runs it is refused as bad input: exit 2, one line
+    on stderr beginning with ``expected``, no traceback, nothing written at ``out`` (nor its
+    staging directory)."""
+    proc = launch(args)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith(expected), proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert not os.path.exists(str(out)) and not os.path.exists(f"{out}.partial")
+
+
 def wait_for_loop(proc, out, timeout=300.0) -> None:
     """Wait until the run is in its loop: the first output row is in the staging directory
     (a state the run reports, checked again and again; ``timeout`` (s) only keeps a broken

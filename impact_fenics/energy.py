@@ -22,8 +22,8 @@ holds
 bodies' points, W_p their plastic work, f_int^n the internal force of every body, read
 from the step's prediction), and E_n - E_ref - W_n = 0 to round-off, where E_ref is the
 initial state, 1/2 |v^0|^2_M (a run starts with u^0 = 0 and unstressed points; an
-integrator given a displaced state adds its linear bodies' first telescoped term,
--Phi_-1, as Simulation._initial_energy does). A
+integrator given a displaced state adds its linear bodies' Phi_-1 = 1/2 (u^0)' K u^{-1},
+u^{-1} = u^0 - h v^0, as Simulation._initial_energy does). A
 position set apart from the velocity (a jump j^m = u^m - u^{m-1} - h v^{m-1/2}, as in
 DME) adds 1/2 (j^m)' K (u^{m-1} + u^m); contact methods that jump report it as work.
 

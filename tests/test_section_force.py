@@ -147,13 +147,22 @@ def momentum_bound(sim, n_steps: int, v_max: float) -> float:
     return rounding(n, mass * v_max)
 
 
-def struck_bar(kind: str, out, compiled: bool, heights) -> Simulation:
+def struck_mesh(kind: str):
+    """The struck bar's mesh: triangles (``p1``) or quadrilaterals (``q1``), h = 1.25 cm."""
     from impact_fenics.finite_run import quad_bar
     from impact_fenics.quad_meshes import tag_rectangle
+
+    return (meshing.bar(radius=0.05, length=LENGTH, h=0.0125, structured=True, comm=COMM)
+            if kind == "p1" else tag_rectangle(quad_bar(COMM, 0.05, LENGTH, 4, 32), "bar"))
+
+
+def struck_bar(kind: str, out, compiled: bool, heights, tm=None) -> Simulation:
+    """The bar, its lower half moving up at V0, with a section at each of ``heights``; on
+    the mesh ``tm`` if given (runs compared bit for bit share one: two partitions of the
+    same mesh need not be equal)."""
     from test_step_block import _settings
 
-    tm = (meshing.bar(radius=0.05, length=LENGTH, h=0.0125, structured=True, comm=COMM)
-          if kind == "p1" else tag_rectangle(quad_bar(COMM, 0.05, LENGTH, 4, 32), "bar"))
+    tm = struck_mesh(kind) if tm is None else tm
     model = DeformableModel(tm, [Body("bar", LinearElastic(E=E, nu=0.3, density=RHO))])
     sim = Simulation(model, _settings(out, compiled, n_steps=160, output_every=40))
     zn = model.node_xy[: model.n_owned // 2, 1]
@@ -175,9 +184,10 @@ def test_section_impulse_is_the_momentum_beyond_it(kind, tmp_path_factory):
     from test_step_block import _same
 
     sims = {}
+    tm = struck_mesh(kind)
 
     def make(out, compiled):
-        sims[compiled] = struck_bar(kind, out, compiled, HEIGHTS)
+        sims[compiled] = struck_bar(kind, out, compiled, HEIGHTS, tm)
         sims[compiled]._p0 = [part_momentum(sims[compiled], z) for z in HEIGHTS]
         return sims[compiled]
     got = _same(make, tmp_path_factory, f"section_{kind}", expect_contact=False)

@@ -147,7 +147,7 @@ _MESH = Section("mesh", "[mesh]", (
     Key("h_specimen", "positive", "m", _GEN, "shpb: element size of the specimen",
         groups=("shpb",)),
     Key("bar_yield_stress", "positive", "Pa", None, "shpb: the bars' yield stress: a warning "
-        "when the incident stress rho c0 v / 2 exceeds BAR_YIELD_FRACTION of it",
+        "when the incident stress rho c0 v / 2 exceeds 0.8 of it (BAR_YIELD_FRACTION, impact_fenics/shpb/run_analysis.py)",
         groups=("shpb",), default_text="no check"),
 ), variants="`generator` chooses the parameters the table may hold; `file` takes none.")
 

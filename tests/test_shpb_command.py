@@ -163,3 +163,20 @@ def test_bar_stress_warning():
     line = bar_stress_warning(scene(0.99 * sigma / BAR_YIELD_FRACTION))
     assert line.startswith("warning: the incident stress") and "\n" not in line
     assert bar_stress_warning(scene(None)) is None
+
+
+def test_a_run_whose_analysis_fails_is_complete_with_a_warning(tmp_path_factory, capsys):
+    """An SHPB scene without the transmitter's gauge: the run completes (exit 0) and says
+    in one warning line that its analysis was not made; it wrote no shpb.csv."""
+    from impact_fenics import cli
+
+    text = replace(_short_scene(), 'name = "transmitter_gauge"', 'name = "gauge_2"')
+    base, scene = scene_on_every_rank(tmp_path_factory, "shpb_no_gauge", text)
+    out = os.path.join(base, "run")
+    assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
+    MPI.COMM_WORLD.barrier()
+    assert os.path.isfile(os.path.join(out, "history.csv"))
+    assert not os.path.exists(os.path.join(out, "shpb.csv"))
+    if MPI.COMM_WORLD.rank == 0:
+        lines = [ln for ln in capsys.readouterr().err.splitlines() if "SHPB" in ln]
+        assert len(lines) == 1 and lines[0].startswith("warning: the run is complete")

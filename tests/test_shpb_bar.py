@@ -7,16 +7,17 @@ Oracles:
 * the 1D theory of the impact of two bars of one impedance: the bar carries the strain
   v / (2 c0) (the stress rho c0 v / 2) for 2 L_s / c0. The gauge's mean over the middle
   half of the pulse within 1 % of it, and its duration at half amplitude within 2 % of
-  2 L_s / c0 (the bounds of the issue: what the Pochhammer-Chree ringing of a 10 mm
-  radius, nu = 0.29 bar leaves of the 1D wave over a 40 us pulse; the rise and ringing
-  themselves are physical);
+  2 L_s / c0 (the bounds docs/shpb.md sets the bar: what the Pochhammer-Chree ringing of a 10 mm
+  radius, nu = 0.29 bar may leave of the 1D wave over a 40 us pulse, 20 cells across the
+  radius; the rise and ringing themselves are physical, the 3D pulse at the gauge about
+  1 % longer than the 1D one);
 * momentum, exact: the section's impulse h sum F_s equals the change of z momentum of
   the bar's nodes at and above its plane (nothing else acts on them), to the round-off
   bound of tests/test_section_force.py; and the striker's loss m_s (v0 - v_end) is the
   bar's whole gain (the contact's impulse), to the round-off of the momentum sums. The
   bar's part below the plane keeps the rest: the ringing that trails the pulse. The
   section's impulse equals m_s (v0 - v_end) only up to that part's momentum (printed;
-  it is not round-off: the brief's "to round-off" needs the part below at rest).
+  it is not round-off: equality to round-off would need the part below at rest).
 """
 import json
 import math

@@ -68,11 +68,11 @@ def test_matched_specimen_passes_the_incident_wave(matched_run):
     m = _middle(c["time"])
     incident = float(np.mean(c["incident"][m]))
     # the incident strain of a striker of the bars' impedance: v / (2 c0); within 1 % as
-    # the issue's bar-alone plateau (the ringing's residual mean over the window)
+    # the bar-alone test's bound (tests/test_shpb_bar.py)
     assert abs(incident / (V / (2.0 * C0)) - 1.0) <= 0.01
     # impedance matched: the transmitted wave equals the incident one and nothing is
-    # reflected; 2 % of the incident wave, the bound the issue sets the recovered 1-wave
-    # stress (the two node-to-segment faces on a mesh half the bars' size)
+    # reflected; 2 % of the incident wave, the bound docs/shpb.md sets the recovered
+    # 1-wave stress (the two node-to-segment faces on a mesh half the bars' size)
     assert abs(float(np.mean(c["transmitted"][m])) / incident - 1.0) <= 0.02
     assert abs(float(np.mean(c["reflected"][m]))) <= 0.02 * incident
     # the truth from the faces' contact forces: the stress rho c0 v / 2 of the wave

@@ -3,6 +3,7 @@
     impact-fenics run scenes/bar_impact.toml [--method film] [--out DIR] [--quiet]
     impact-fenics check scenes/bar_impact.toml [--method film] [--out DIR]
     impact-fenics plot results/bar_impact [--times 1e-4 2e-4] [--field sigma_zz] [--scale 50]
+    impact-fenics shpb results/shpb [--dispersion]
     impact-fenics --version
 
 (or ``python -m impact_fenics ...``). ``run`` works under mpirun; ``check`` reads and
@@ -36,7 +37,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="impact-fenics",
                      description="Explicit axisymmetric dynamics with node-to-node contact.")
     parser.add_argument("--version", action="version", version=f"impact-fenics {version()}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,check,plot}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,check,plot,shpb}")
     run = sub.add_parser("run", help="run a scene file (TOML)",
                          description="Run a scene file; results go to one directory.")
     check = sub.add_parser("check", help="check a scene file without running it",
@@ -73,6 +74,14 @@ def _parser() -> argparse.ArgumentParser:
                            "default: frame where the field is; --whole shows the whole model "
                            "(r to the right, z up in every picture)")
     plot.add_argument("--whole", action="store_true", help="show the whole model")
+    shpb = sub.add_parser("shpb", help="the Hopkinson bar analysis of a finished SHPB run",
+                          description="Separate the waves of a finished SHPB run's gauges, "
+                                      "run the 1-, 2- and 3-wave analyses; shpb.csv and "
+                                      "the pictures go to RUN_DIR (docs/shpb.md).")
+    shpb.add_argument("run_dir", help="a run directory of an SHPB scene (scene.toml, "
+                                      "history.csv)")
+    shpb.add_argument("--dispersion", action="store_true",
+                      help="correct each wave for the bars' Pochhammer-Chree dispersion")
     return parser
 
 
@@ -85,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
                          force=args.force)
     if args.command == "check":
         return check_scene(args.scene, method=args.method, out=args.out, force=args.force)
+    if args.command == "shpb":
+        from .shpb.run_analysis import run_command
+
+        return run_command(args.run_dir, dispersion=args.dispersion)
     region = None if args.whole else (tuple(args.region) if args.region else "auto")
     return plot_run(args.run_dir, field=args.field, times=args.times, scale=args.scale,
                     region=region)
@@ -127,6 +140,12 @@ def _checked(path: str, method: str | None, out: str | None, force: bool, quiet:
              "the default output directory (results/<scene file's name>)")
     scene_file.check_output_dir(out_dir, where, comm)
     plausibility.warn_implausible(scene, comm)
+    if scene.mesh.generator == "shpb":
+        from .shpb.run_analysis import bar_stress_warning
+
+        warning = bar_stress_warning(scene)
+        if warning and comm.rank == 0:
+            print(warning, file=sys.stderr, flush=True)
     scene_file.check_resources(scene, comm, quiet, out_dir, running)
     return scene, out_dir
 
@@ -162,6 +181,15 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
         raise UnstableRunError(f"{exc}; the output so far is in {_where(sim, out_dir)}") from None
     if comm.rank == 0 and not quiet:
         _report(scene.title, summary, _shown(sim, out_dir))
+    if scene.mesh.generator == "shpb" and sim.status.startswith("completed"):
+        from .shpb.run_analysis import run_command
+
+        try:  # the run is complete: an analysis it cannot make costs it nothing
+            run_command(_shown(sim, out_dir), quiet=quiet)
+        except InputError as exc:
+            if comm.rank == 0:
+                print(f"warning: the run is complete, its SHPB analysis was not made: "
+                      f"{exc}", file=sys.stderr, flush=True)
     if comm.rank == 0 and sim.status.startswith("completed ("):
         print(f"warning: {sim.status}", file=sys.stderr, flush=True)
     return _exit_code(sim, f"step {summary['stopped_at_step']} of {summary['n_steps']}",

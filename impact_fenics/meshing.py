@@ -595,6 +595,63 @@ def nosed_striker_on_block(nose_radius: float = 0.02, shank_length: float = 0.03
                                      "h_block": h_block})
 
 
+def shpb(bar_diameter: float = 0.02, striker_length: float = 0.2, incident_length: float = 1.0,
+         transmitter_length: float = 0.6, specimen_diameter: float = 0.01,
+         specimen_length: float = 0.005, h_bar: float = 0.001, h_specimen: float = 0.00025,
+         structured: bool = True, bar_yield_stress: float | None = None,
+         comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """A split Hopkinson pressure bar on the axis (m): the striker z in [-striker_length, 0],
+    the incident bar [0, L_i], the specimen [L_i, L_i + L_s] and the transmitter bar
+    [L_i + L_s, L_i + L_s + L_t], L_i = incident_length, L_s = specimen_length,
+    L_t = transmitter_length. The striker and the bars have the diameter ``bar_diameter``
+    and the element size ``h_bar``, the specimen ``specimen_diameter`` (at most the bars')
+    and ``h_specimen``; each face has round(radius / h) equal intervals, so the striker and
+    the incident bar pair node to node and the specimen's faces (finer) take node-to-segment
+    contact on the bars' ends.
+
+    Groups: cells "striker", "incident", "specimen", "transmitter"; facets "striker_end",
+    "striker_face", "incident_struck", "incident_face", "specimen_front", "specimen_back",
+    "transmitter_face", "transmitter_end", "lateral" (every body's), "axis".
+
+    ``bar_yield_stress`` (Pa) shapes nothing: the scene's check of the bars' stress
+    (:func:`impact_fenics.shpb.run_analysis.bar_stress_warning`) reads it from the same table.
+    """
+    require(min(bar_diameter, striker_length, incident_length, transmitter_length,
+                specimen_diameter, specimen_length, h_bar, h_specimen) > 0,
+            "shpb: diameters, lengths and sizes must be > 0 (m)")
+    require(specimen_diameter <= bar_diameter, f"shpb: specimen_diameter = {specimen_diameter} m "
+            f"is larger than bar_diameter = {bar_diameter} m: the specimen must sit on the bars' ends")
+    a, b = 0.5 * bar_diameter, 0.5 * specimen_diameter
+    z = (-striker_length, 0.0, incident_length, incident_length + specimen_length,
+         incident_length + specimen_length + transmitter_length)
+
+    def build(gmsh):
+        curves = []
+        for k, (name, radius, h) in enumerate((("striker", a, h_bar), ("incident", a, h_bar),
+                                               ("specimen", b, h_specimen),
+                                               ("transmitter", a, h_bar))):
+            s, c = _rectangle(gmsh, 0.0, z[k], radius, z[k + 1], h,
+                              n_r=max(1, int(round(radius / h))), structured=structured)
+            _group(gmsh, 2, [s], name, k + 1)
+            curves.append(c)
+        (s_, i_, p_, t_) = curves
+        for tag, (name, lines) in enumerate((
+                ("striker_end", [s_[0]]), ("striker_face", [s_[2]]),
+                ("incident_struck", [i_[0]]), ("incident_face", [i_[2]]),
+                ("specimen_front", [p_[0]]), ("specimen_back", [p_[2]]),
+                ("transmitter_face", [t_[0]]), ("transmitter_end", [t_[2]]),
+                ("lateral", [c[1] for c in curves]), ("axis", [c[3] for c in curves])), 11):
+            _group(gmsh, 1, lines, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "shpb", "bar_radius": a, "specimen_radius": b,
+                                     "h_bar": h_bar, "h_specimen": h_specimen,
+                                     "striker_length": striker_length,
+                                     "incident_length": incident_length,
+                                     "specimen_length": specimen_length,
+                                     "transmitter_length": transmitter_length})
+
+
 # Surface intervals of the punch block: breaks at r = 1, 3, 6 m with 106, 201 and
 # 302 intervals give 107, 308 and 610 surface nodes with r <= 1, 3 and 6 m.
 PUNCH_SURFACE_BREAKS = ((1.0, 106), (3.0, 201), (6.0, 302))

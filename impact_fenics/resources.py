@@ -153,6 +153,14 @@ def generator_regions(generator: str, p: dict) -> list[Region]:
         return [Region("", float(n_r * n_z), (n_r + 1.0) * (n_z + 1.0), p["radius"] / n_r, "quad")]
     if generator == "punch_block":
         return [_graded_block(p)]
+    if generator == "shpb":
+        bar, spec = 0.5 * p["bar_diameter"], 0.5 * p["specimen_diameter"]
+        return [_rectangle("striker", bar, p["striker_length"], p["h_bar"], p["structured"]),
+                _rectangle("incident", bar, p["incident_length"], p["h_bar"], p["structured"]),
+                _rectangle("specimen", spec, p["specimen_length"], p["h_specimen"],
+                           p["structured"]),
+                _rectangle("transmitter", bar, p["transmitter_length"], p["h_bar"],
+                           p["structured"])]
     raise ValueError(generator)
 
 
@@ -166,6 +174,9 @@ def generator_size(generator: str, p: dict) -> float:
         return max(p["block_width"], p["block_depth"] + p["nose_radius"] + p["shank_length"])
     if generator == "punch_block":
         return max(p["width"], p["depth"])
+    if generator == "shpb":
+        return (p["striker_length"] + p["incident_length"] + p["specimen_length"]
+                + p["transmitter_length"])
     raise ValueError(generator)
 
 
@@ -175,6 +186,8 @@ def contact_radius(generator: str | None, p: dict) -> float | None:
         return p["radius"]
     if generator == "nosed_striker_on_block":
         return p["nose_radius"]
+    if generator == "shpb":
+        return 0.5 * p["bar_diameter"]
     return None
 
 

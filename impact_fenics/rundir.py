@@ -44,7 +44,7 @@ LOCK = ".impact_fenics_lock"
 # every name a run (or ``impact-fenics plot``) writes into its directory: the files a
 # dead run may have left in its staging directory, and those of a run directory written
 # by a version without the manifest
-RUN_FILE = re.compile(r"^(summary\.json|fields\.xdmf|fields(_p\d+)?\.h5|history\.csv|energy\.csv|"
+RUN_FILE = re.compile(r"^(summary\.json|shpb\.csv|shpb_\w+\.png|fields\.xdmf|fields(_p\d+)?\.h5|history\.csv|energy\.csv|"
                       r"contact_pairs(_\d+)?\.h5|history\.png|energy\.png|scene\.\w+|"
                       r"\w+_t\d\.\d{6}e[-+]\d+\.png|\.impact_fenics_run(\.tmp)?|\.impact_fenics_lock)$")
 # where a run that did not complete goes when DIR holds a completed run

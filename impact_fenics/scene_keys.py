@@ -86,7 +86,7 @@ ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 # the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
 # (impact_fenics.finite_run: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
-              "nosed_striker_on_block")
+              "nosed_striker_on_block", "shpb")
 # parameters a generator has no default for (quad_bar: impact_fenics.finite_run.quad_bar)
 REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
 _BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
@@ -105,7 +105,7 @@ _MESH = Section("mesh", "[mesh]", (
     Key("radius", "positive", "m", _GEN, "radius of the bar (both bars)", groups=_BARS),
     Key("length", "positive", "m", _GEN, "length of the bar", groups=("bar", "quad_bar")),
     Key("striker_length", "positive", "m", _GEN, "striker length (z in [-striker_length, 0])",
-        groups=_TWO_BARS),
+        groups=_TWO_BARS + ("shpb",)),
     Key("target_length", "positive", "m", _GEN, "target length (z in [0, target_length])",
         groups=_TWO_BARS),
     Key("h", "positive", "m", _GEN, "element size", groups=("bar", "coaxial_bars")),
@@ -114,7 +114,7 @@ _MESH = Section("mesh", "[mesh]", (
     Key("h_target", "positive", "m", _GEN, "element size of the target",
         groups=("coaxial_bars_sized",)),
     Key("structured", "flag", "", _GEN, "a structured grid of alternating diagonals",
-        groups=("bar", "coaxial_bars", "coaxial_bars_sized")),
+        groups=("bar", "coaxial_bars", "coaxial_bars_sized", "shpb")),
     Key("width", "positive", "m", _GEN, "block radius", groups=("punch_block",)),
     Key("depth", "positive", "m", _GEN, "block depth (z in [-depth, 0])", groups=("punch_block",)),
     Key("h_surface", "positive", "m", _GEN, "element size at the surface", groups=("punch_block",)),
@@ -133,6 +133,22 @@ _MESH = Section("mesh", "[mesh]", (
     Key("block_depth", "positive", "m", _GEN, "block depth", groups=("nosed_striker_on_block",)),
     Key("h_block", "positive", "m", _GEN, "element size of the block",
         groups=("nosed_striker_on_block",)),
+    Key("bar_diameter", "positive", "m", _GEN, "shpb: diameter of the striker and the bars",
+        groups=("shpb",)),
+    Key("incident_length", "positive", "m", _GEN, "shpb: incident bar length (z in [0, "
+        "incident_length])", groups=("shpb",)),
+    Key("transmitter_length", "positive", "m", _GEN, "shpb: transmitter bar length",
+        groups=("shpb",)),
+    Key("specimen_diameter", "positive", "m", _GEN, "shpb: specimen diameter (at most the "
+        "bars')", groups=("shpb",)),
+    Key("specimen_length", "positive", "m", _GEN, "shpb: specimen length", groups=("shpb",)),
+    Key("h_bar", "positive", "m", _GEN, "shpb: element size of the striker and the bars",
+        groups=("shpb",)),
+    Key("h_specimen", "positive", "m", _GEN, "shpb: element size of the specimen",
+        groups=("shpb",)),
+    Key("bar_yield_stress", "positive", "Pa", None, "shpb: the bars' yield stress: a warning "
+        "when the incident stress rho c0 v / 2 exceeds 0.8 of it (BAR_YIELD_FRACTION, impact_fenics/shpb/run_analysis.py)",
+        groups=("shpb",), default_text="no check"),
 ), variants="`generator` chooses the parameters the table may hold; `file` takes none.")
 
 def _kinematics_text(model: str) -> str:

@@ -129,10 +129,11 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
     return history_row
 
 
-def record_pairs(pair_tables: list, n: int, dt: float) -> None:
+def record_pairs(pair_tables: list, n: int, dt: float, t: float | None = None) -> None:
     """One per-pair row of every contact set of ``pair_tables`` (:func:`open_tables`'; rank 0)
-    for the state of step n (time n dt, s): the committed gaps (m), forces (N) and active
-    flags."""
-    t = n * dt
+    for the state of step n (time n dt, s, or ``t`` under a varying step): the committed
+    gaps (m), forces (N) and active flags."""
+    if t is None:
+        t = n * dt
     for c, pairs in pair_tables:
         pairs.record(n, t, c.committed_gap(), c.force, c.active)

@@ -462,7 +462,7 @@ class Simulation:
                 if is_history:
                     history_row()
                 if is_pairs:
-                    record_pairs(self._pair_tables, integ.n, s.dt)
+                    record_pairs(self._pair_tables, integ.n, s.dt, integ.t if varying else None)
                 t4 = clock()
                 for body in rigid:
                     if not math.isfinite(body.v):

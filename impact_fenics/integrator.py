@@ -213,11 +213,13 @@ class Integrator:
             touched[np.asarray(extra, dtype=np.intp)] = True
         touched &= self.free
         D = np.flatnonzero(touched).astype(np.intp)
-        self._tracked = D
-        self._kept = np.zeros((len(self.forces) + 1, D.size))
         # (index, force, its force array) of the forces that book in their pass
         self._booking = [(k, f, a) for k, f in enumerate(self.forces)
                          if (a := _pass_force(f)) is not None]
+        if not self._booking:  # (small-strain forces only: nothing to correct)
+            return D
+        self._tracked = D
+        self._kept = np.zeros((len(self.forces) + 1, D.size))
         load(keep_velocities, self.v_owned, D, self._kept[0])
         load(share_correction, self.v_owned, D, self._kept[0], self._kept[0], self._kept[1],
              self.v_owned, 1.0)
@@ -226,6 +228,8 @@ class Integrator:
     def after_contact(self) -> None:
         """After the step's contact (v is v^{n+1/2}): each booking force's correction on D
         added to its work (J, this rank)."""
+        if self._tracked is None:
+            return
         D, kept, v, h_avg = self._tracked, self._kept, self.v_owned, self.step.h_avg
         for k, force, f in self._booking:
             force.work_local += share_correction(v, D, kept[0], kept[k], kept[k + 1], f, h_avg)
@@ -294,7 +298,12 @@ class Integrator:
             keep_velocities(v, D, kept[0])
             k = 1
             for force in self.forces:
-                force.velocity_increment(u, v, h_avg)
+                if clock is None:
+                    force.velocity_increment(u, v, h_avg)
+                else:
+                    start = clock()
+                    force.velocity_increment(u, v, h_avg)
+                    self.force_seconds[k - 1] += clock() - start
                 keep_velocities(v, D, kept[k])
                 k += 1
         elif clock is None:

@@ -285,7 +285,7 @@ class Simulation:
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         varying = self._varying = not integ.step.constant
         if varying:  # the multiply-touched dofs D (contact slots too) and the step's terms
-            slots = [c._local for c in self.contacts]
+            slots = [c._local for c in self.contacts]  # (each set's owned slot dofs)
             integ.track_increments(np.concatenate(slots) if slots else None)
             self._gap_local = 0.0  # the small-strain bodies' 1/4 dh terms (J, this rank)
             self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms

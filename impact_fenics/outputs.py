@@ -86,9 +86,9 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
 def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
                    contacts: list) -> Callable[[], None]:
     """``history_row()``: one history row of the state after the step (step integ.n, time
-    n dt in s, or under a varying step the sum of the steps) into ``table``'s block through its memoryview: no communication, no
-    allocation, what it reads bound as locals (about 1 us a row with a probe and a
-    contact set)."""
+    n dt in s, or under a varying step the sum of the steps) into ``table``'s block
+    through its memoryview: no communication, no allocation, what it reads bound as
+    locals (about 1 us a row with a probe and a contact set)."""
     next_row, cells = table.next_row, table.cells
     record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
     # per contact: its stats (number active, total force, smallest gap; updated in place

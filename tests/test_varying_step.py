@@ -102,7 +102,8 @@ class _Record:
             dh = 0.0 if r["h_prev"] is None else r["h"] - r["h_prev"]
             f = r["ku"] + r["f_small"]
             dv = r["v"] - r["v_next"]
-            local = np.array([0.25 * dh * np.dot(dv, f), abs(0.25 * dh) * np.dot(np.abs(dv), np.abs(f))])
+            local = np.array([0.25 * dh * np.dot(dv, f),
+                              abs(0.25 * dh) * np.dot(np.abs(dv), np.abs(f))])
             t = COMM.allreduce(local)
             terms.append(t[0])
             sizes.append(t[1])

@@ -290,6 +290,7 @@ class Simulation:
             self._gap_local = 0.0  # the small-strain bodies' 1/4 dh terms (J, this rank)
             self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms
             self._neg_mass = -integ.mass
+            load(gap_dot, integ.mass, integ.mass, integ.mass)  # (its entry loaded now)
         times = PhaseTimers(PHASES) if s.timers else None
         # an output step's u^n, v^{n-1/2} and internal force f_int(u^n)
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "f")}

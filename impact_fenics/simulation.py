@@ -208,10 +208,17 @@ class Simulation:
                              "facet group (the contact bookkeeping assumes no load there)")
         if rigid is not None:
             refuse_shared_rigid(rigid, constraints.names, self.contacts)
+        varying = not isinstance(self.step_policy, ConstantStep)
+        if varying and isinstance(constraints, SegmentConstraints):
+            raise InputError(f"node-to-segment contact '{constraints.names[0]}'/"
+                             f"'{constraints.names[1]}' needs a constant step (this run's "
+                             "step changes)")
         t0 = time.perf_counter()
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
         beta = getattr(method, "info", {}).get("beta_max") if method.name == "penalty" else None
+        if beta is not None and varying:  # beta at every (h_{n+1/2}, h_n) the run will take
+            beta = max(beta, self._penalty_beta_over_steps(c))
         if beta is not None and beta > PENALTY_BOUND and not self.settings.force:
             raise InputError(f"penalty: beta_max = {beta:.4g} is above the stable bound 4/3 of "
                              f"persistent contact (p from {method.info['p_min']:.4g} to "
@@ -221,6 +228,19 @@ class Simulation:
         self.contacts.append(c)
         self.setup_time["contact"] = self.setup_time.get("contact", 0.0) + time.perf_counter() - t0
         return c
+
+    def _penalty_beta_over_steps(self, c: ContactSet) -> float:
+        """The largest beta_max (-) of the penalty set ``c`` over the pairs (h_{n+1/2}, h_n)
+        of this run's steps (a policy that lists them), the set left at the first."""
+        steps = self.step_policy.steps
+        pairs = {(steps[0], steps[0])}
+        pairs.update((steps[k], 0.5 * (steps[k - 1] + steps[k])) for k in range(1, len(steps)))
+        beta = 0.0
+        for h, h_avg in sorted(pairs):
+            c.set_step(h, h_avg)
+            beta = max(beta, c.penalty_beta())
+        c.set_step(steps[0], steps[0])
+        return beta
 
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz",
                   length: float = GAUGE_LENGTH) -> None:

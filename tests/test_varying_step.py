@@ -250,3 +250,43 @@ def test_the_linear_split_closes_beside_a_finite_body():
     residual = _kinetic(integ) + COMM.allreduce(integ.linear.work_local
                                                 + integ.finite[0].work_local) - k0
     assert abs(residual) <= ledger(n, n_dofs) * k0
+
+
+def _bars_with(method, steps) -> Simulation:
+    tm = meshing.coaxial_bars(radius=0.1, striker_length=0.4, target_length=0.4, h=0.04)
+    steel = LinearElastic(nu=0.3)
+    model = DeformableModel(tm, [Body("striker", steel), Body("target", steel)])
+    limit = _limit(model)
+    sim = Simulation(model, Settings(quiet=True), initial_velocity={"striker": (0.0, 5.0)},
+                     policy=StepSequence([f * limit for f in steps]))
+    sim.add_contact(pair_surfaces(model, "striker_contact", "target_contact"), method)
+    return sim
+
+
+def test_a_penalty_is_checked_at_every_step_the_run_takes():
+    """beta = lambda_max of p h h_n S-scaled grows with the step: a fixed p that is stable at
+    the first step (beta about 1 < 4/3) but not at a later, larger one is refused at set-up
+    in one line; the same p under the small step alone is accepted."""
+    from impact_fenics.contact import Penalty
+
+    probe = _bars_with(Penalty(1e9), [0.4] * 20)
+    beta_1 = probe.contacts[0].method.info["beta_max"]  # beta of p = 1e9 N/m at 0.4 x limit
+    p = 1e9 / beta_1  # beta = 1 at 0.4 x the limit, about 5 at 0.9 x
+    ok = _bars_with(Penalty(p), [0.4] * 20)
+    assert ok.contacts[0].method.info["beta_max"] <= 4.0 / 3.0
+    with pytest.raises(InputError, match="beta_max = .* is above the stable bound"):
+        _bars_with(Penalty(p), [0.4] * 10 + [0.9] * 10)
+
+
+def test_node_to_segment_contact_under_a_varying_step_is_refused_at_set_up():
+    from impact_fenics.contact.segments import node_to_segment
+
+    tm = meshing.coaxial_bars_sized(radius=0.05, striker_length=0.2, target_length=0.2,
+                                    h_striker=0.05 / 6, h_target=0.05 / 9, structured=True)
+    steel = LinearElastic(nu=0.0)
+    model = DeformableModel(tm, [Body("striker", steel), Body("target", steel)])
+    limit = _limit(model)
+    sim = Simulation(model, Settings(quiet=True), policy=StepSequence([0.5 * limit, 0.4 * limit]))
+    with pytest.raises(InputError, match="node-to-segment contact .* needs a constant step"):
+        sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"),
+                        scenes.make_method("film"))

@@ -71,6 +71,9 @@ class LoadWork:
         self._power = (direct(_load_power, loads[0].force, v if v is not None else np.zeros(1),
                               self._dofs[0]) if loads else None)
 
+        self._half = [0.0] * len(loads)  # a varying step: 1/2 s v^{n-1/2} . F per load
+        self._t = 0.0  # and t^n (s)
+
     def _add(self, v: np.ndarray, n: int) -> None:
         """Add 1/2 h v . F^n (F^n the loads at t^n = n h)."""
         t, power = n * self.dt, self._power
@@ -81,13 +84,30 @@ class LoadWork:
             self._local += 0.5 * self.dt * s * power(ld.force, v, dofs)
 
     def accumulate(self, integrator) -> None:
-        """Step n's first half, 1/2 h v^{n-1/2} . F^n (call before predict)."""
-        self._add(integrator.v_owned, integrator.n)
+        """Step n's first half, 1/2 h v^{n-1/2} . F^n (call before predict). Under a varying
+        step h_n is known after predict: 1/2 s(t^n) v^{n-1/2} . F is kept per load."""
+        if integrator.step.constant:
+            self._add(integrator.v_owned, integrator.n)
+            return
+        self._t = t = integrator.t
+        power, v = self._power, integrator.v_owned
+        for i, (ld, dofs) in enumerate(zip(self.loads, self._dofs)):
+            s = ld.history(t)
+            self._half[i] = 0.0 if s == 0.0 else 0.5 * s * power(ld.force, v, dofs)
 
     def complete(self, integrator) -> None:
         """Step n's second half, 1/2 h v^{n+1/2} . F^n (call after advance: the step
-        just taken is integrator.n - 1)."""
-        self._add(integrator.v_owned, integrator.n - 1)
+        just taken is integrator.n - 1); under a varying step the whole step's
+        h_n 1/2 s (v^{n-1/2} + v^{n+1/2}) . F."""
+        if integrator.step.constant:
+            self._add(integrator.v_owned, integrator.n - 1)
+            return
+        t, h_avg = self._t, integrator.step.h_avg
+        power, v = self._power, integrator.v_owned
+        for i, (ld, dofs) in enumerate(zip(self.loads, self._dofs)):
+            s = ld.history(t)
+            if s != 0.0:
+                self._local += h_avg * (self._half[i] + 0.5 * s * power(ld.force, v, dofs))
 
     @property
     def local(self) -> float:
@@ -109,7 +129,8 @@ class Ledger:
         self.scale = abs(E0)  # largest |term| seen, the reference for the relative error
 
     def record(self, kinetic: float, strain: float, external_work: float,
-               contact_work: float, plastic_work: float = 0.0) -> tuple[float, float, float]:
+               contact_work: float, plastic_work: float = 0.0,
+               work_gap: float = 0.0) -> tuple[float, float, float]:
         """(E_n, E_n - E_0 - W_n, its relative error) at one output step: all energies in J,
         already summed over ranks; the relative error is |E_n - E_0 - W_n| over the largest
         |term| seen so far (0 while every term is 0).
@@ -119,8 +140,11 @@ class Ledger:
         1/2 h v^{n+1/2} . f_int^n of all), ``plastic_work`` the work dissipated at their points, so E_n = kinetic +
         strain + plastic_work; W_n = external_work + contact_work. (The path-dependent
         bodies' deformation work, sum 1/2 (f_int^{n-1} + f_int^n) . du, is reported beside
-        the balance: it equals d psi_e + W_p.)"""
-        E = kinetic + strain + plastic_work
+        the balance: it equals d psi_e + W_p.) ``work_gap``: under a varying step, the
+        internal forces' work that the split into stored energy, its boundary term and
+        dissipation leaves out, sum 1/4 (h_{n+1/2} - h_{n-1/2}) (v^{n-1/2} - v^{n+1/2}) .
+        f_int^n (0 at a constant step), part of E_n."""
+        E = kinetic + strain + plastic_work + work_gap
         E0 = self.E0
         balance = E - E0 - external_work - contact_work
         self.scale = scale = max(self.scale, abs(E), abs(external_work), abs(contact_work))
@@ -188,6 +212,16 @@ def _output_sums(mass, v_next, body_dofs, body_start, out) -> None:
         if j < end:
             q0 += mass[body_dofs[j]] * v_next[body_dofs[j]]
         out[3 + b] = q0 + q1
+
+
+@njit(cache=True)
+def gap_dot(v_prev, v, f) -> float:
+    """sum (v_prev - v) . f (W s: m/s times N): a step's 1/4 (h_{n+1/2} - h_{n-1/2})
+    (v^{n-1/2} - v^{n+1/2}) . f_int^n without its factor."""
+    s = 0.0
+    for i in range(v.size):
+        s += (v_prev[i] - v[i]) * f[i]
+    return s
 
 
 @njit(cache=True)

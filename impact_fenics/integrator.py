@@ -36,7 +36,7 @@ from .bodies import DeformableModel
 from .errors import InputError, require
 from .internal_force import LinearForce, QuadratureForce
 from .internal_force.finite import FiniteStrainForce
-from .jit_watch import direct
+from .jit_watch import direct, load
 from .loads import SurfaceLoad
 from .loop import HalfStep
 from .materials import is_finite
@@ -53,6 +53,28 @@ def _add_load(v, dofs, coef, value) -> None:
         v[dofs[i]] += coef[i] * value
 
 
+@njit(cache=True)
+def keep_velocities(v, dofs, out) -> None:
+    """out[i] = v[dofs[i]] (m/s): the velocities of the multiply-touched dofs between two
+    increments."""
+    for i in range(dofs.size):
+        out[i] = v[dofs[i]]
+
+
+@njit(cache=True)
+def share_correction(v, dofs, first, before, after, f, h_avg) -> float:
+    """The correction (J) that makes a pass's booking h_n 1/2 (v_before + v_after) . f on
+    ``dofs`` the kinetic identity's share h_n 1/2 (v^{n-1/2} + v^{n+1/2}) . f:
+    sum 1/2 h_n [(v^{n+1/2} - v_after) - (v_before - v^{n-1/2})] . f, with ``v`` the final
+    v^{n+1/2}, ``first`` v^{n-1/2}, ``before``/``after`` the velocities around the pass
+    (m/s, on ``dofs``) and ``f`` the force of the pass (N, owned dofs)."""
+    s = 0.0
+    for i in range(dofs.size):
+        d = dofs[i]
+        s += ((v[d] - after[i]) - (before[i] - first[i])) * f[d]
+    return 0.5 * h_avg * s
+
+
 class Integrator:
     """State (u^n, v^n) of the deformable dofs and the step without contact.
 
@@ -61,12 +83,18 @@ class Integrator:
     is the first step h_{1/2}, the one the operators are built for. A following policy
     (:class:`~.stepping.FollowingStep`) not yet bound is bound here to the finite-strain
     forces' limit (min over their current cells), and its first step is ``dt`` (give
-    None, or the same value).
+    None, or the same value). ``per_step_linear``: the linear force's per-step pass (no A,
+    its work booked; the default with a finite-strain body, whose step varies).
+
+    A driver whose steps vary calls :meth:`track_increments` once (the dofs that take more
+    than one increment, D) and :meth:`after_contact` after every step's contact: the
+    forces that book their work in their pass (the linear one's per-step pass, the finite
+    ones) then book the kinetic identity's share exactly on D too (one_loop.md 4.7).
     """
 
     def __init__(self, model: DeformableModel, dt: float | None, fixed_dofs: np.ndarray,
                  loads: list[SurfaceLoad] | None = None, matrix_type: str = "aij",
-                 f_int_path: str = "fast", policy=None):
+                 f_int_path: str = "fast", policy=None, per_step_linear: bool | None = None):
         if policy is None:  # (the limit is the caller's to check; the count the run's)
             if dt is None or not dt > 0.0:
                 raise InputError(f"dt = {dt} s: the time step must be > 0")
@@ -120,8 +148,9 @@ class Integrator:
         self.K = None
         if linear_parts:
             # a finite-strain body makes the step vary: the per-step pass, not A
+            per_step = bool(self.finite) if per_step_linear is None else per_step_linear
             self.linear = LinearForce(model, linear_parts, self.dt, self.mass, self.fixed,
-                                      matrix_type, scaled=not self.finite)
+                                      matrix_type, scaled=not per_step)
             self.K = self.linear.K
         self.nonlinear: list[QuadratureForce] = []
         if nonlinear:
@@ -162,6 +191,56 @@ class Integrator:
         self._scatter = (self._u_fn is not None and model.comm.size > 1)
         # the half steps: the forces and the loads rescaled when (h, h_n) changes
         self.step = HalfStep(policy, self.dt, self.forces + [_LoadSteps(self)])
+        self._tracked: np.ndarray | None = None  # D (owned local dofs), once tracked
+
+    def track_increments(self, extra: np.ndarray | None = None) -> np.ndarray:
+        """Make D, the free owned dofs that take more than one increment a step: a node of
+        two forces' cells, a loaded dof, and ``extra`` (owned local dofs: the contact
+        slots). Each step's passes then keep the velocities on D around every increment
+        (one compiled gather a force), and :meth:`after_contact` corrects the bookings.
+        A dof of D that turns out to take one increment gets a correction of 0. Returns D."""
+        model = self.model
+        # per body, the owned dofs its cells touch on any rank: 1 on the dofs of its owned
+        # cells (ghosts included), summed into the owners (a node whose cells of a body are
+        # all another rank's still takes that body's increment)
+        seen = np.zeros(model.n_owned, dtype=np.int32)
+        mark = model.dofs.create_vec()
+        for name in model.bodies:
+            blocks = model.cell_dofs[model.owned_cells(name)].ravel()
+            with mark.localForm() as local:
+                local.set(0.0)
+                local.array[2 * blocks] = 1.0
+                local.array[2 * blocks + 1] = 1.0
+            mark.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            seen += mark.array_r > 0.0
+        mark.destroy()
+        touched = seen > 1  # shared by two bodies (of one force or two: a superset)
+        for dofs in self._load_dofs:
+            touched[dofs] = True
+        if extra is not None and extra.size:
+            touched[np.asarray(extra, dtype=np.intp)] = True
+        touched &= self.free
+        D = np.flatnonzero(touched).astype(np.intp)
+        # (index, force, its force array) of the forces that book in their pass
+        self._booking = [(k, f, a) for k, f in enumerate(self.forces)
+                         if (a := _pass_force(f)) is not None]
+        if not self._booking:  # (small-strain forces only: nothing to correct)
+            return D
+        self._tracked = D
+        self._kept = np.zeros((len(self.forces) + 1, D.size))
+        load(keep_velocities, self.v_owned, D, self._kept[0])
+        load(share_correction, self.v_owned, D, self._kept[0], self._kept[0], self._kept[1],
+             self.v_owned, 1.0)
+        return D
+
+    def after_contact(self) -> None:
+        """After the step's contact (v is v^{n+1/2}): each booking force's correction on D
+        added to its work (J, this rank)."""
+        if self._tracked is None:
+            return
+        D, kept, v, h_avg = self._tracked, self._kept, self.v_owned, self.step.h_avg
+        for k, force, f in self._booking:
+            force.work_local += share_correction(v, D, kept[0], kept[k], kept[k + 1], f, h_avg)
 
     def finite_limit(self) -> float:
         """The finite-strain forces' stable step now (s): min over their current cells of
@@ -222,7 +301,20 @@ class Integrator:
             self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         h, h_avg = self.step.begin(self.n)
         clock = self._clock
-        if clock is None:
+        if self._tracked is not None:  # v on D before every increment and after the last
+            D, kept = self._tracked, self._kept
+            keep_velocities(v, D, kept[0])
+            k = 1
+            for force in self.forces:
+                if clock is None:
+                    force.velocity_increment(u, v, h_avg)
+                else:
+                    start = clock()
+                    force.velocity_increment(u, v, h_avg)
+                    self.force_seconds[k - 1] += clock() - start
+                keep_velocities(v, D, kept[k])
+                k += 1
+        elif clock is None:
             for force in self.forces:
                 force.velocity_increment(u, v, h_avg)
         else:  # each force timed apart (two clock reads a force, no array made)
@@ -263,6 +355,17 @@ class Integrator:
         """Accept the step: the corrected state becomes (u^{n+1}, v^{n+1})."""
         self.step.end()
         self.n += 1
+
+
+def _pass_force(force) -> np.ndarray | None:
+    """The owned force array (N) a force books its pass's work with, None for a force whose
+    work is booked otherwise (the scaled linear force: telescoped; the small-strain
+    force: the trapezoid)."""
+    if isinstance(force, LinearForce):
+        return None if force.scaled else force.pass_force
+    if isinstance(force, FiniteStrainForce):
+        return force.f_owned
+    return None
 
 
 class _LoadSteps:

@@ -19,7 +19,7 @@ from .worker import spare_core
 # z momenta (momentum_columns)
 ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
                   "activation_loss", "plastic_work", "deformation_work", "balance_error",
-                  "balance_error_rel")
+                  "balance_error_rel", "work_gap")
 
 
 def momentum_columns(bodies: Iterable[str], contacts: list) -> list[str]:
@@ -86,9 +86,9 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
 def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
                    contacts: list) -> Callable[[], None]:
     """``history_row()``: one history row of the state after the step (step integ.n, time
-    n dt in s) into ``table``'s block through its memoryview: no communication, no
-    allocation, what it reads bound as locals (about 1 us a row with a probe and a
-    contact set)."""
+    n dt in s, or under a varying step the sum of the steps) into ``table``'s block
+    through its memoryview: no communication, no allocation, what it reads bound as
+    locals (about 1 us a row with a probe and a contact set)."""
     next_row, cells = table.next_row, table.cells
     record = probes.recorder(integ.u_owned, table.flat) if probes is not None else None
     # per contact: its stats (number active, total force, smallest gap; updated in place
@@ -98,6 +98,9 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
         layout.append((memoryview(c.stats), c.times, c.moving_rigid, k))
         k += 6 + (2 if c.moving_rigid is not None else 0)
 
+    step = integ.step
+    constant = step.constant
+
     def history_row() -> None:
         j = next_row()
         if record is not None:
@@ -105,8 +108,12 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
         n = integ.n
         k = j + offset
         cells[k] = float(n)
-        cells[k + 1] = n * dt
-        cells[k + 2] = dt  # the step that led to this state (constant)
+        if constant:
+            cells[k + 1] = n * dt
+            cells[k + 2] = dt  # the step that led to this state (constant)
+        else:  # t^n, the sum of the steps, and h_{n-1/2}, the step that led to it
+            cells[k + 1] = step.time(n)
+            cells[k + 2] = step.h
         for stats, times, rigid, k in layout:
             k += j
             cells[k] = stats[0]
@@ -122,10 +129,11 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
     return history_row
 
 
-def record_pairs(pair_tables: list, n: int, dt: float) -> None:
+def record_pairs(pair_tables: list, n: int, dt: float, t: float | None = None) -> None:
     """One per-pair row of every contact set of ``pair_tables`` (:func:`open_tables`'; rank 0)
-    for the state of step n (time n dt, s): the committed gaps (m), forces (N) and active
-    flags."""
-    t = n * dt
+    for the state of step n (time n dt, s, or ``t`` under a varying step): the committed
+    gaps (m), forces (N) and active flags."""
+    if t is None:
+        t = n * dt
     for c, pairs in pair_tables:
         pairs.record(n, t, c.committed_gap(), c.force, c.active)

@@ -24,7 +24,7 @@ from .contact.interface import refuse_shared_rigid
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
 from .energy import (Ledger, LoadWork, OutputSums, copy_state,
-                     energy_verdict, half_dot, strain_from_prediction)
+                     energy_verdict, gap_dot, half_dot, strain_from_prediction)
 from .errors import (InputError, OutputError, UnstableRunError, file_system_failure,
                      output_failed, require)
 from .integrator import Integrator
@@ -90,7 +90,14 @@ class Simulation:
 
     def __init__(self, model: DeformableModel, settings: Settings,
                  fixed: list[np.ndarray] | None = None, loads: list[SurfaceLoad] | None = None,
-                 initial_velocity: dict[str, tuple[float, float]] | None = None):
+                 initial_velocity: dict[str, tuple[float, float]] | None = None,
+                 policy=None):
+        """``policy``: the step policy (:mod:`.stepping`); by default the constant step of
+        ``settings`` (dt or cfl). Another policy gives every step itself (its ``n_steps``
+        known at the start, :class:`~.stepping.StepSequence`); its steps are checked
+        against the stable limit unless ``force_dt``. Under a varying step the linear
+        bodies take the per-step pass and the ledger books by the kinetic identity with
+        the step's terms (one_loop.md 4.7: the multiply-touched dofs, ``work_gap``)."""
         self.model = model
         self.comm: MPI.Comm = model.comm
         self.settings = settings
@@ -99,7 +106,8 @@ class Simulation:
         # converged dt, contact (pairing, methods), outputs (files, probes, first frame)
         self.setup_time: dict[str, float] = {}
         t0 = clock()
-        require((settings.dt is None) != (settings.cfl is None), "give either dt or cfl")
+        require(policy is not None or (settings.dt is None) != (settings.cfl is None),
+                "give either dt or cfl")
         for name, body in model.bodies.items():  # (its ledger and events: the next step)
             if is_finite(body.material):
                 raise InputError(f"body '{name}': {type(body.material).__name__} is a "
@@ -123,15 +131,24 @@ class Simulation:
         self.stable_dt = {name: critical_dt(w) for name, w in omega.items()}
         self.stable_dt_limiting = min(self.stable_dt, key=self.stable_dt.__getitem__)
         self.dt_critical = critical_dt(max(omega.values()))
-        self.step_policy = ConstantStep(settings.dt, settings.cfl, self.dt_critical,
-                                        settings.n_steps, settings.t_end, settings.force_dt,
-                                        self.stable_dt_limiting)
-        settings.dt, self.n_steps = self.step_policy.h, self.step_policy.n_steps
+        if policy is None:
+            policy = ConstantStep(settings.dt, settings.cfl, self.dt_critical,
+                                  settings.n_steps, settings.t_end, settings.force_dt,
+                                  self.stable_dt_limiting)
+        elif not isinstance(policy, ConstantStep):
+            require(getattr(policy, "n_steps", None) is not None,
+                    f"{type(policy).__name__}: a step policy that ends at t_end does not run "
+                    "in this driver yet; give its steps (stepping.StepSequence)")
+            if hasattr(policy, "check"):
+                policy.check(self.dt_critical, settings.force_dt, self.stable_dt_limiting)
+        self.step_policy = policy
+        settings.dt, self.n_steps = float(policy.first()), int(policy.n_steps)
         t1 = clock()
         self.setup_time["stability"] = t1 - t0
         self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
                                      settings.matrix_type, settings.f_int_path,
-                                     policy=self.step_policy)
+                                     policy=self.step_policy,
+                                     per_step_linear=not isinstance(policy, ConstantStep))
         t2 = clock()
         self.setup_time["operators"] = t2 - t1
         self.dt_converged = None
@@ -168,6 +185,7 @@ class Simulation:
         if self.plastic_fields is not None:  # eps_p_eq and yielded of the frame's stresses
             self.add_cell_fields(self.plastic_fields.frame_arrays)
         self._peaks = np.zeros(len(PEAK_NAMES) + 1)  # cell_fields.track_peaks' state
+        self._varying = False  # a varying step (set by run)
         self.status = "not started"
 
     def _local_fixed(self, owned: np.ndarray) -> np.ndarray:
@@ -190,10 +208,17 @@ class Simulation:
                              "facet group (the contact bookkeeping assumes no load there)")
         if rigid is not None:
             refuse_shared_rigid(rigid, constraints.names, self.contacts)
+        varying = not isinstance(self.step_policy, ConstantStep)
+        if varying and isinstance(constraints, SegmentConstraints):
+            raise InputError(f"node-to-segment contact '{constraints.names[0]}'/"
+                             f"'{constraints.names[1]}' needs a constant step (this run's "
+                             "step changes)")
         t0 = time.perf_counter()
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
         beta = getattr(method, "info", {}).get("beta_max") if method.name == "penalty" else None
+        if beta is not None and varying:  # beta at every (h_{n+1/2}, h_n) the run will take
+            beta = max(beta, self._penalty_beta_over_steps(c))
         if beta is not None and beta > PENALTY_BOUND and not self.settings.force:
             raise InputError(f"penalty: beta_max = {beta:.4g} is above the stable bound 4/3 of "
                              f"persistent contact (p from {method.info['p_min']:.4g} to "
@@ -203,6 +228,19 @@ class Simulation:
         self.contacts.append(c)
         self.setup_time["contact"] = self.setup_time.get("contact", 0.0) + time.perf_counter() - t0
         return c
+
+    def _penalty_beta_over_steps(self, c: ContactSet) -> float:
+        """The largest beta_max (-) of the penalty set ``c`` over the pairs (h_{n+1/2}, h_n)
+        of this run's steps (a policy that lists them), the set left at the first."""
+        steps = self.step_policy.steps
+        pairs = {(steps[0], steps[0])}
+        pairs.update((steps[k], 0.5 * (steps[k - 1] + steps[k])) for k in range(1, len(steps)))
+        beta = 0.0
+        for h, h_avg in sorted(pairs):
+            c.set_step(h, h_avg)
+            beta = max(beta, c.penalty_beta())
+        c.set_step(steps[0], steps[0])
+        return beta
 
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz",
                   length: float = GAUGE_LENGTH) -> None:
@@ -265,6 +303,14 @@ class Simulation:
         # E_0, the initial state's energy (goes into the summary)
         self.ledger = ledger = Ledger(comm, self._initial_energy())
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
+        varying = self._varying = not integ.step.constant
+        if varying:  # the multiply-touched dofs D (contact slots too) and the step's terms
+            slots = [c._local for c in self.contacts]  # (each set's owned slot dofs)
+            integ.track_increments(np.concatenate(slots) if slots else None)
+            self._gap_local = 0.0  # the small-strain bodies' 1/4 dh terms (J, this rank)
+            self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms
+            self._neg_mass = -integ.mass
+            load(gap_dot, integ.mass, integ.mass, integ.mass)  # (its entry loaded now)
         times = PhaseTimers(PHASES) if s.timers else None
         # an output step's u^n, v^{n-1/2} and internal force f_int(u^n)
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "f")}
@@ -418,6 +464,8 @@ class Simulation:
                     pre = self._pre_output(buf, Ku)
                 if accumulate is not None:
                     accumulate(integ)
+                if varying and integ.nonlinear:
+                    np.copyto(self._v_before, integ.v_owned)
                 predict()
                 if is_output:
                     self._internal_force_from_prediction(buf)
@@ -426,6 +474,8 @@ class Simulation:
                     step()
                 if track_step is not None:
                     track_step(n)
+                if varying:
+                    self._after_contact()
                 advance()
                 if accumulate is not None:
                     complete(integ)
@@ -433,7 +483,7 @@ class Simulation:
                 if is_history:
                     history_row()
                 if is_pairs:
-                    record_pairs(self._pair_tables, integ.n, s.dt)
+                    record_pairs(self._pair_tables, integ.n, s.dt, integ.t if varying else None)
                 t4 = clock()
                 for body in rigid:
                     if not math.isfinite(body.v):
@@ -537,6 +587,22 @@ class Simulation:
         return summary
 
     # ------------------------------------------------------------ pieces of the loop
+    def _after_contact(self) -> None:
+        """A varying step's bookings after contact (v = v^{n+1/2}): the booking forces'
+        shares on the multiply-touched dofs, and at a change of step the small-strain
+        bodies' term of work_gap, 1/4 (h_{n+1/2} - h_{n-1/2}) (v^{n-1/2} - v^{n+1/2}) .
+        f_int^n (J, this rank; the linear bodies' is their booked work less the split,
+        at an output step)."""
+        integ = self.integrator
+        integ.after_contact()
+        h, h_prev = integ.step.h, integ.step.h_prev
+        if integ.nonlinear and h_prev is not None and h != h_prev:
+            v_before, v = self._v_before, integ.v_owned
+            dot = 0.0
+            for force in integ.nonlinear:
+                dot += gap_dot(v_before, v, force.f_owned)
+            self._gap_local += 0.25 * (h - h_prev) * dot
+
     def _bind_output(self, buf) -> None:
         """What every output event of this run reads and writes, bound at its first one
         (``buf``: the run's buffers of u^n and v^n): the rigid bodies and their speeds v^n,
@@ -594,6 +660,8 @@ class Simulation:
         and v = 0: the energy is exact (to round-off; the difference loses eps |v| m / dt,
         less than K u's own eps |K| |u| once the motion has lasted a few steps)."""
         u, f = buf["u"], buf["f"]
+        if self._varying:  # -m / h_n of this step (the constant step's arithmetic)
+            np.divide(self._neg_mass, self.integrator.step.h_avg, out=self._minus_m_over_dt)
         strain = self._strain_from_prediction(u, self.integrator.v_owned, buf["v"],
                                               self._minus_m_over_dt, f)
         if self._load_terms:
@@ -618,11 +686,14 @@ class Simulation:
         v = integ.v_owned
         local = 0.5 * float(np.dot(integ.mass * v, v))
         u = integ.u_owned
+        self._phi_initial = 0.0  # Phi_-1 (J, summed), the linear bodies' initial term
         if integ.K is not None and self.comm.allreduce(bool(np.any(u != 0.0)), op=MPI.LOR):
             Ku = integ.u_vec.duplicate()
             integ.K.mult(integ.u_vec, Ku)
             ku = Ku.array
-            local += 0.5 * float(np.dot(u, ku)) - 0.5 * integ.dt * float(np.dot(v, ku))
+            phi = 0.5 * float(np.dot(u, ku)) - 0.5 * integ.dt * float(np.dot(v, ku))
+            local += phi
+            self._phi_initial = self.comm.allreduce(phi)
             Ku.destroy()
         total = self.comm.allreduce(local)
         for c in self.contacts:
@@ -646,8 +717,8 @@ class Simulation:
         integ = self.integrator
         nonlinear = integ.nonlinear
         sums = self._output_sums
-        # the stored energy's boundary term 1/2 dt v^{n+1/2} . f_int(u^n)
-        dt, v_next = self.settings.dt, integ.v_owned
+        # the stored energy's boundary term 1/2 dt v^{n+1/2} . f_int(u^n) (dt = h_{n+1/2})
+        dt, v_next = integ.step.h, integ.v_owned
         boundary = dt * half_dot(v_next, buf["f"])
         strain = self._strain_local + boundary
         if nonlinear:  # stored elastic energy, plastic and deformation work (J)
@@ -676,7 +747,23 @@ class Simulation:
             j += 3
         rec[j] = float(self.track.first is not None
                        and not any(c.any_active for c in self.contacts))
+        if self._varying:
+            self._row_time = integ.t - integ.step.h  # t^n (s)
+            self._work_gap = self._work_gap_now(buf, dt)
         return self._row_from_record(rec, integ.n - 1, ledger)
+
+    def _work_gap_now(self, buf, h: float) -> float:
+        """work_gap after step n under a varying step (J, summed over the ranks): the
+        small-strain bodies' 1/4 dh terms, and the linear bodies' booked work (their
+        per-step pass, exact on D) plus Phi_-1 less its split 1/2 (u^n)' K u^n + 1/2
+        h_{n+1/2} v^{n+1/2} . K u^n (``h`` = h_{n+1/2}, s), which the same terms make up."""
+        integ = self.integrator
+        local = self._gap_local
+        if integ.linear is not None:
+            ku = integ.linear.pass_force  # K u^n of this step's pass
+            local += integ.linear.work_local - (half_dot(buf["u"], ku)
+                                                + h * half_dot(integ.v_owned, ku))
+        return self.comm.allreduce(local) + self._phi_initial
 
     def _row_from_record(self, rec: memoryview, n: int, ledger) -> dict:
         """The energy row of output step ``n`` from its record ``rec`` (see
@@ -699,17 +786,19 @@ class Simulation:
             work_c += rec[j]
             activation += rec[j + 1]
             j += 2
-        plastic = deformation = 0.0
+        plastic = deformation = gap = 0.0
         if self.integrator.nonlinear:
             strain += rec[k + 1]
             plastic, deformation = rec[k + 2], rec[k + 3]
-        energy, balance, rel = ledger.record(kinetic, strain, ext, work_c, plastic)
+        if self._varying:
+            gap = self._work_gap
+        energy, balance, rel = ledger.record(kinetic, strain, ext, work_c, plastic, gap)
         # the table's row through its memoryview (layout checked by _bind_output)
         table = self.energy
         j = table.next_row()
         cells = table.cells
         cells[j] = n
-        cells[j + 1] = n * self.settings.dt
+        cells[j + 1] = self._row_time if self._varying else n * self.settings.dt
         row = self._energy_row
         row["kinetic"] = cells[j + 2] = kinetic
         row["strain"] = cells[j + 3] = strain
@@ -721,10 +810,11 @@ class Simulation:
         row["deformation_work"] = cells[j + 9] = deformation
         row["balance_error"] = cells[j + 10] = balance
         row["balance_error_rel"] = cells[j + 11] = rel
+        row["work_gap"] = cells[j + 12] = gap
         # z momentum (kg m/s) of v^{n+1}: in total (every node once) and per body
         # (a node that two bonded bodies share counts in both)
         p_total = rec[2]
-        m = j + 13
+        m = j + 14
         for b in range(3, k):
             cells[m] = rec[b]
             m += 1
@@ -735,7 +825,7 @@ class Simulation:
             m += 1
             p_total += p
             v_next += 3
-        cells[j + 12] = p_total
+        cells[j + 13] = p_total
         return row
 
     # ------------------------------------------------------------ outputs
@@ -775,7 +865,7 @@ class Simulation:
         u = writer.ghosted(integ.u_owned, 0)
         v = writer.ghosted(integ.v_owned, 1)
         self._cell_stress.evaluate(u, out=self._stress_block)
-        t = integ.n * self.settings.dt
+        t = integ.t if not integ.step.constant else integ.n * self.settings.dt
         self._track_peaks(t)
         cells = writer.cell_values
         if self._cell_field_providers:

@@ -6,6 +6,8 @@ Every body shares the step (no subcycling). Two rules:
   ``cfl`` x the smallest body's stable limit (the element bound on 2 / omega_max),
   refused above that limit unless forced; t^n = n h; ``n_steps``, or t_end by
   ceil(t_end / h) steps.
+* :class:`StepSequence`, steps given one by one (a run whose step changes where one
+  chooses: the varying-step ledger's scenes), each at most the stable limit unless forced.
 * :class:`FollowingStep`, a finite-strain body (its cells flatten, so its limit falls):
   every ``interval`` steps the limit is re-estimated from the current cells and
   h = ``safety`` x limit; or ``dt`` is fixed and the run stops (UnstableRunError, exit
@@ -64,6 +66,38 @@ class ConstantStep:
     def next(self, n: int, t: float) -> float:
         """h_{n+1/2} (s): the one step."""
         return self.h
+
+
+class StepSequence:
+    """h_{n+1/2} = ``steps[n]`` (s), n = 0 .. len(steps) - 1: ``n_steps`` steps; a step above
+    ``limit`` (s, the smallest body's element bound, its body ``limiting``) is bad input
+    unless ``force``. t^n is the sum of the steps taken."""
+
+    def __init__(self, steps, limit: float = math.inf, force: bool = False,
+                 limiting: str = ""):
+        self.steps = [float(h) for h in steps]
+        require(len(self.steps) > 0, "a step sequence needs at least one step")
+        bad = [h for h in self.steps if not h > 0.0]
+        require(not bad, f"dt = {bad[0] if bad else 0} s in the step sequence: must be > 0")
+        self.limit = limit
+        self.check(limit, force, limiting)
+        self.n_steps = len(self.steps)
+
+    def check(self, limit: float, force: bool = False, limiting: str = "") -> None:
+        """Refuse a step above ``limit`` (s) unless ``force`` (bad input, one line)."""
+        largest = max(self.steps)
+        if largest > limit and not force:
+            raise InputError(f"dt = {largest:.4g} s in the step sequence is above the stable "
+                             f"limit {limit:.4g} s (element bound on 2/omega_max, body "
+                             f"'{limiting}'); lower it or force it")
+
+    def first(self) -> float:
+        """h_{1/2} (s)."""
+        return self.steps[0]
+
+    def next(self, n: int, t: float) -> float:
+        """h_{n+1/2} (s)."""
+        return self.steps[n]
 
 
 class FollowingStep:

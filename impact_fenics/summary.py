@@ -40,6 +40,10 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         "t_end": sim.n_steps * s.dt,
         "wall_time": wall,
     }
+    steps = getattr(sim.step_policy, "steps", None)
+    if not sim.integrator.step.constant and steps is not None:  # a varying step: s.dt the first
+        summary["t_end"] = float(sum(steps))
+        summary["dt_range"] = [min(steps), max(steps)]
     if s.title is not None:
         summary["title"] = s.title
     summary.update(provenance())
@@ -96,6 +100,12 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
             "the plastic work of the path-dependent ones + 1/2 dt v^(n+1/2) f_int(u^n), W_n "
             "the work of loads and contact through step n, each step's "
             "1/2 dt (v^(n-1/2) + v^(n+1/2)) F^n (the half-step scheme's kinetic identity)")
+        if not sim.integrator.step.constant:
+            summary["energy_balance_definition"] += (
+                "; under a varying step dt is h_n in the work and h_(n+1/2) in the boundary "
+                "term, and E_n adds work_gap, the sum over the changes of step of 1/4 "
+                "(h_(n+1/2) - h_(n-1/2)) (v^(n-1/2) - v^(n+1/2)) f_int(u^n), the internal "
+                "work the split into stored energy and dissipation leaves out")
     if sim.integrator.nonlinear:
         summary["eps_p_max"] = eps_p_max(sim.integrator.nonlinear, sim.status == "diverged", comm)
     if sim.contacts:

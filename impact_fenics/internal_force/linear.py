@@ -53,6 +53,11 @@ class LinearForce:
             self.coef[self.fixed] = 0.0
             load(velocity_update, self.coef, self._w.array, self.coef, 1.0)
 
+    @property
+    def pass_force(self) -> np.ndarray:
+        """K u^n (N, owned dofs) of the last per-step pass: the force its work is booked with."""
+        return self._w.array
+
     def bind(self, u: PETSc.Vec, v: PETSc.Vec) -> None:
         """The displacement (m) and velocity (m/s) Vecs the loop steps."""
         self._u, self._v = u, v

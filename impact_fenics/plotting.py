@@ -23,8 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
-DISPLACEMENTS = ("u_r", "u_z")
+# (a plane-strain run names the same slots sigma_xx, sigma_yy, sigma_out, sigma_xy, u_x, u_y)
+STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises",
+            "sigma_xx", "sigma_yy", "sigma_out", "sigma_xy")
+DISPLACEMENTS = ("u_r", "u_z", "u_x", "u_y")
 
 
 # ----------------------------------------------------------------------------- histories
@@ -381,6 +383,10 @@ def plan_pictures(run_dir: str, field: str = "sigma_zz", times: list[float] | No
     from .errors import InputError
 
     data = read_xdmf(os.path.join(run_dir, "fields.xdmf"))
+    if field not in data.fields and "sigma_yy" in data.fields:  # a plane-strain run
+        from .geometry import PLANE_STRAIN, Geometry
+
+        field = Geometry(PLANE_STRAIN).public(field)  # (the default sigma_zz: sigma_yy)
     if field not in data.fields:
         raise InputError(f"--field {field}: not in fields.xdmf (it has: "
                          f"{', '.join(sorted(data.fields))})")

@@ -73,6 +73,10 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
                           "compiled_steps: the steps ran as compiled blocks with their "
                           "output steps' sums (linear bodies: step_block.py); "
                           "compiled_frames: the blocks wrote the frames too (one rank)"}
+    geometry = getattr(model, "geometry", None)
+    if geometry is not None and geometry.plane:  # every figure is the slab's (kg, N, J)
+        summary["geometry"] = {"kind": geometry.kind, "thickness": geometry.thickness,
+                               "symmetry": geometry.symmetry}
     summary["bodies"] = body_figures(model, sim.integrator, sim.body_mass, sim._v_start,
                                       _velocities(sim), comm)
     element_cycle_figures(summary, {name: model.owned_cells(name).size for name in model.bodies},

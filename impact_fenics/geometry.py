@@ -15,7 +15,10 @@ Pure data: no dolfinx.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+
+from .errors import InputError
 
 AXISYMMETRIC = "axisymmetric"
 PLANE_STRAIN = "plane_strain"
@@ -39,14 +42,14 @@ class Geometry:
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
-            raise ValueError(f"geometry = {self.kind!r}: use one of {', '.join(KINDS)}")
-        if not self.thickness > 0.0:
-            raise ValueError(f"thickness = {self.thickness!r}: must be > 0 (m)")
+            raise InputError(f"geometry = {self.kind!r}: use one of {', '.join(KINDS)}")
+        if not (self.thickness > 0.0 and math.isfinite(self.thickness)):
+            raise InputError(f"thickness = {self.thickness!r}: must be finite and > 0 (m)")
         if self.kind == AXISYMMETRIC and (self.thickness != 1.0 or self.symmetry is not None):
-            raise ValueError("an axisymmetric geometry has no thickness and no symmetry "
+            raise InputError("an axisymmetric geometry has no thickness and no symmetry "
                              "plane (its axis r = 0 is one)")
         if self.symmetry is not None and self.symmetry not in SYMMETRY_PLANES:
-            raise ValueError(f"symmetry = {self.symmetry!r}: use one of "
+            raise InputError(f"symmetry = {self.symmetry!r}: use one of "
                              f"{', '.join(SYMMETRY_PLANES)}")
 
     @property

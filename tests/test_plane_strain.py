@@ -273,3 +273,15 @@ def test_path_dependent_body_refused(block):
     j2 = J2()
     with pytest.raises(InputError, match="plane strain runs linear elastic bodies only"):
         DeformableModel(block, [Body("block", j2)], geometry=plane())
+
+
+@pytest.mark.parametrize("args, expected", [
+    ((PLANE_STRAIN, 0.0), "thickness = 0.0: must be finite and > 0"),
+    ((PLANE_STRAIN, math.inf), "thickness = inf: must be finite and > 0"),
+    (("axisymmetric", 0.5), "an axisymmetric geometry has no thickness"),
+    (("plane_stress",), "geometry = 'plane_stress': use one of"),
+    ((PLANE_STRAIN, 1.0, "y=0"), "symmetry = 'y=0': use one of x=0"),
+])
+def test_geometry_refuses(args, expected):
+    with pytest.raises(InputError, match=expected.replace("(", r"\(")):
+        Geometry(*args)

@@ -122,7 +122,7 @@ def console_lines(s: dict) -> list[str]:
     if peaks:
         lines.append(f"peak stresses (at field outputs): von Mises {peaks['von_mises'] / 1e6:.4g} MPa "
                      f"at {peaks['von_mises_time'] * 1e6:.2f} us, {axial} in "
-                     f"[{peaks['sigma_zz_min'] / 1e6:.4g}, {peaks['sigma_zz_max'] / 1e6:.4g}] MPa")
+                     f"[{peaks[axial + '_min'] / 1e6:.4g}, {peaks[axial + '_max'] / 1e6:.4g}] MPa")
     timing = s.get("timing")
     if timing:
         wall = s["wall_time"]

@@ -85,7 +85,9 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         summary["impact"] = impact_figures(sim.history.data(), sim.contacts, sim._v_start,
                                            _velocities(sim), s.dt, model, comm)
     if sim._peaks[-1]:
-        summary["peak_stress"] = dict(zip(PEAK_NAMES, sim._peaks.tolist()))
+        names = PEAK_NAMES if geometry is None or not geometry.plane else tuple(  # sigma_yy
+            n.replace("sigma_zz", geometry.public("sigma_zz")) for n in PEAK_NAMES)
+        summary["peak_stress"] = dict(zip(names, sim._peaks.tolist()))
     if last_energy is not None:
         last = last_energy
         summary["energy"] = {k: last[k] for k in ENERGY_COLUMNS}  # the last row's

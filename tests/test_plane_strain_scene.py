@@ -37,6 +37,7 @@ def test_runs_and_names_its_outputs(serial):
     with open(os.path.join(out, "summary.json")) as f:
         summary = json.load(f)
     assert summary["geometry"] == {"kind": "plane_strain", "thickness": 0.01, "symmetry": None}
+    assert {"sigma_yy_min", "sigma_yy_max"} <= set(summary["peak_stress"])
     # the slab's mass rho t A (kg), to the round-off of its sum over the 2,000 cells
     mass = summary["bodies"]["block"]["mass"]
     assert abs(mass - 7850.0 * 0.01 * 0.02 * 0.2) <= 2000 * 2.3e-16 * mass

@@ -257,7 +257,8 @@ def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out, plane) -> Non
     its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); a section is left
     to :func:`_section_force`; the other values
     of a probe in a path-dependent body's cell (``pointwise`` true) are left to
-    :class:`CellPoints`."""
+    :class:`CellPoints`. ``plane``: plane strain, the strain out of the plane 0 (no hoop
+    term u_r / r)."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW * p: RAW * p + RAW]

@@ -18,6 +18,7 @@ from .compat import vector_space
 from .dofs import SceneDofs
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, require
 from .forms import STIFFNESS_DEGREE, Material, Part, cell_measure
+from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
 from .materials import INTERFACE, interface_of, is_finite, missing_attributes
 from .meshing import TaggedMesh
 
@@ -61,12 +62,29 @@ def check_quadrilateral_material(body: Body) -> None:
                          "needs (its B-bar stiffness is built from that map)")
 
 
+def check_plane_strain_material(body: Body) -> None:
+    """Refuse, in one line, a body plane strain does not run yet: path-dependent and
+    finite-strain materials (their kernels carry the ring weights and the hoop term)."""
+    m = body.material
+    if is_finite(m) or not m.linear:
+        kind = "finite-strain" if is_finite(m) else "path-dependent"
+        raise InputError(f"body '{body.name}': plane strain runs linear elastic bodies only "
+                         f"so far ({type(m).__name__} is {kind}): use geometry = "
+                         "\"axisymmetric\" or a linear material")
+
+
 class DeformableModel:
     """The space, the parts and the dof maps of the deformable bodies of a scene, on a
-    mesh of triangles or of quadrilaterals (:attr:`quadrilateral`)."""
+    mesh of triangles or of quadrilaterals (:attr:`quadrilateral`), in the section's
+    :attr:`geometry` (axisymmetric, or plane strain of a thickness t: :mod:`.geometry`)."""
 
-    def __init__(self, tmesh: TaggedMesh, bodies: list[Body], degree: int = STIFFNESS_DEGREE):
+    def __init__(self, tmesh: TaggedMesh, bodies: list[Body], degree: int = STIFFNESS_DEGREE,
+                 geometry: Geometry = AXISYMMETRIC_GEOMETRY):
         require(len(bodies) > 0, "a scene needs at least one deformable body")
+        self.geometry = geometry
+        if geometry.plane:
+            for b in bodies:
+                check_plane_strain_material(b)
         cell_type = tmesh.mesh.topology.cell_type
         if cell_type not in (dmesh.CellType.triangle, dmesh.CellType.quadrilateral):
             raise InputError(f"the mesh's cells are {cell_type.name}s: small strain runs on "
@@ -136,7 +154,10 @@ class DeformableModel:
         return self._unrolled(blocks, component, owned=True)
 
     def axis_dofs(self, owned: bool = True) -> np.ndarray:
-        """Radial dofs of the nodes on the axis r = 0 (u_r = 0 there)."""
+        """Radial dofs of the nodes on the axis r = 0 (u_r = 0 there); in plane strain the
+        x dofs of the nodes on a declared symmetry plane x = 0, and none without one."""
+        if not self.geometry.held_first:
+            return np.zeros(0, dtype=np.int32)
         tol = 1e-10 * max(self.length_scale, 1e-300)
         return self._unrolled(np.flatnonzero(np.abs(self.node_xy[:, R]) <= tol), R, owned)
 

@@ -16,6 +16,13 @@ evaluated with a compiled UFL Expression per body instead (slower, the same valu
 Output components (Pa): sigma_rr, sigma_zz, sigma_tt, sigma_rz and von Mises,
 sqrt(3/2 dev(sigma) : dev(sigma)).
 
+**Plane strain** (:mod:`.geometry`) keeps the slots (xx, out, yy, xy) and their kernels:
+the out-of-plane strain is 0, so the factor g4 of :func:`gradient_factors` is 0 (the
+product (u_1 + u_2 + u_3) g4 is an exact 0) and a Q1 cell's geometry has inv_R = 0; the
+cell's stress is then D eps with eps_out = 0 (sigma_out = lambda (eps_xx + eps_yy) for
+isotropic elasticity), and the rule's weights are t |J| W_q, equal on a triangle, so the
+centroid's value is again their weighted mean.
+
 **What a cell's stress is.** For every body it is the mean of the stresses at the
 points of the stiffness rule, weighted as the rule weights them (w_q |J| 2 pi r_q):
 sum_q w_q sigma_q / sum_q w_q. A path-dependent body outputs exactly that, from the
@@ -88,9 +95,10 @@ def isotropic_stiffness(lmbda: float, mu: float) -> np.ndarray:
 
 
 @njit(cache=True)
-def triangle_strain(r1, z1, r2, z2, r3, z3, ur1, uz1, ur2, uz2, ur3, uz3):
+def triangle_strain(r1, z1, r2, z2, r3, z3, ur1, uz1, ur2, uz2, ur3, uz3, plane=False):
     """Strain (rr, tt, zz, rz; tensor shear) at the centroid of a P1 triangle with nodes
-    (r_k, z_k) in m and displacements (ur_k, uz_k) in m."""
+    (r_k, z_k) in m and displacements (ur_k, uz_k) in m; ``plane``: plane strain, the
+    second component (out of the plane) 0."""
     r21, z21, r31, z31 = r2 - r1, z2 - z1, r3 - r1, z3 - z1
     det = r21 * z31 - r31 * z21
     dur2, duz2, dur3, duz3 = ur2 - ur1, uz2 - uz1, ur3 - ur1, uz3 - uz1
@@ -99,7 +107,7 @@ def triangle_strain(r1, z1, r2, z2, r3, z3, ur1, uz1, ur2, uz2, ur3, uz3):
     dur_dz = (dur3 * r21 - dur2 * r31) / det
     duz_dr = (duz2 * z31 - duz3 * z21) / det
     duz_dz = (duz3 * r21 - duz2 * r31) / det
-    hoop = ((ur1 + ur2 + ur3) / 3.0) / ((r1 + r2 + r3) / 3.0)
+    hoop = 0.0 if plane else ((ur1 + ur2 + ur3) / 3.0) / ((r1 + r2 + r3) / 3.0)
     return dur_dr, hoop, duz_dz, 0.5 * (dur_dz + duz_dr)
 
 
@@ -130,11 +138,12 @@ def stress_outputs(D, e0, e1, e2, e3):
 
 
 @njit(cache=True)
-def gradient_factors(nodes, xy, g) -> None:
+def gradient_factors(nodes, xy, g, plane=False) -> None:
     """Per P1 triangle with node (block) indices ``nodes`` (n, 3) and nodes at ``xy`` (r, z
     in m): g (n, 5) such that, with d_k = u_k - u_1 the nodal differences,
     du/dr = d_2 g0 + d_3 g1, du/dz = d_2 g2 + d_3 g3 (the inverse Jacobian of
-    :func:`triangle_strain`, 1/m) and u_r / r at the centroid = (u_r1 + u_r2 + u_r3) g4."""
+    :func:`triangle_strain`, 1/m) and u_r / r at the centroid = (u_r1 + u_r2 + u_r3) g4;
+    ``plane``: plane strain, g4 = 0 (eps_out = 0; x may be 0 or negative)."""
     for k in range(nodes.shape[0]):
         a, b, d = nodes[k, 0], nodes[k, 1], nodes[k, 2]
         r21, z21 = xy[b, 0] - xy[a, 0], xy[b, 1] - xy[a, 1]
@@ -144,7 +153,7 @@ def gradient_factors(nodes, xy, g) -> None:
         g[k, 1] = -z21 / det
         g[k, 2] = -r31 / det
         g[k, 3] = r21 / det
-        g[k, 4] = 1.0 / (xy[a, 0] + xy[b, 0] + xy[d, 0])
+        g[k, 4] = 0.0 if plane else 1.0 / (xy[a, 0] + xy[b, 0] + xy[d, 0])
 
 
 @njit(cache=True)
@@ -351,6 +360,7 @@ class CellStress:
         V = model.V
         mesh = model.mesh
         self.model = model
+        self.geometry = model.geometry
         self.n_cells = mesh.topology.index_map(2).size_local
         dofs = model.cell_dofs
         self.xy = np.ascontiguousarray(model.node_xy)
@@ -377,7 +387,7 @@ class CellStress:
 
                 cells = np.sort(model.tmesh.cells(body.name))
                 cells = cells[cells < self.n_cells].astype(np.int64)
-                self._quads.append((cells, QuadGeometry(dofs, self.xy, cells),
+                self._quads.append((cells, QuadGeometry(dofs, self.xy, cells, self.geometry),
                                     stiffness_matrix(body.material), np.zeros((cells.size, 4))))
                 continue
             cells = model.tmesh.cells(body.name)
@@ -410,7 +420,7 @@ class CellStress:
         (n, 3)."""
         nodes = np.ascontiguousarray(nodes)
         g = np.empty((nodes.shape[0], 5))
-        gradient_factors(nodes, self.xy, g)
+        gradient_factors(nodes, self.xy, g, self.geometry.plane)
         return np.ascontiguousarray(2 * nodes.astype(np.int64), dtype=np.uint32), g
 
     def _expressions(self, material):
@@ -420,7 +430,7 @@ class CellStress:
 
         if self._u_fn is None:
             self._u_fn = fem.Function(self.model.V)
-        comps = stress_components(self._u_fn, material)
+        comps = stress_components(self._u_fn, material, self.geometry)
         points = np.array([[1.0 / 3.0, 1.0 / 3.0]])
         return [fem.Expression(comps[name], points) for name in STRESS_NAMES]
 

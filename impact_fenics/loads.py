@@ -64,7 +64,8 @@ class SurfaceLoad:
     def __init__(self, model: DeformableModel, facet_name: str, history: TimeFunction,
                  traction: tuple[float, float] | None = None):
         tag = model.tmesh.facet_tag(facet_name)
-        unit = assemble_owned(model, traction_form(model.V, model.tmesh.facet_tags, tag, traction))
+        unit = assemble_owned(model, traction_form(model.V, model.tmesh.facet_tags, tag, model.geometry,
+                                                   traction))
         self.dofs = np.flatnonzero(unit != 0.0).astype(np.int32)
         self.force = unit[self.dofs].copy()
         self.history = history

@@ -481,6 +481,34 @@ def bar(radius: float = 0.05, length: float = 1.0, h: float = 0.01, structured: 
     return _to_dolfinx(comm, build, {"scene": "bar", "radius": radius, "length": length, "h": h})
 
 
+def block(width: float = 0.1, height: float = 1.0, h: float = 0.01,
+          quadrilaterals: bool = False, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """A block x in [0, width], y in [0, height] (m), element size h (m), for a plane-strain
+    scene (its section; an axisymmetric one reads it as a bar r in [0, width]): a
+    structured grid of round(width / h) x round(height / h) squares, each two triangles of
+    alternating diagonals, or one quadrilateral (Q1) with ``quadrilaterals``.
+
+    Groups: cells "block"; facets "bottom" (y = 0), "right" (x = width), "top"
+    (y = height), "left" (x = 0).
+    """
+    require(width > 0 and height > 0 and h > 0, "block: width, height and h must be > 0 (m)")
+
+    def build(gmsh):
+        n_x = max(1, int(round(width / h)))
+        s, c = _rectangle(gmsh, 0.0, 0.0, width, height, h, n_r=n_x, structured=True)
+        if quadrilaterals:
+            gmsh.model.geo.mesh.setRecombine(2, s)
+            gmsh.model.geo.synchronize()
+        _group(gmsh, 2, [s], "block", 1)
+        for name, curve, tag in (("bottom", c[0], 11), ("right", c[1], 12),
+                                 ("top", c[2], 13), ("left", c[3], 14)):
+            _group(gmsh, 1, [curve], name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "block", "width": width, "height": height,
+                                     "h": h})
+
+
 def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length: float = 0.85,
                  h: float = 0.02, structured: bool = False,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:

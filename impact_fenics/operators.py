@@ -34,7 +34,8 @@ def assemble_stiffness(model: DeformableModel, matrix_type: str = "aij",
         raise InputError(f"matrix_type = '{matrix_type}': use 'aij' or 'baij'")
     if model.quadrilateral:
         return assemble_bbar_stiffness(model, matrix_type, parts)
-    form = compile_form(stiffness_form(model.V, model.parts if parts is None else parts))
+    form = compile_form(stiffness_form(model.V, model.parts if parts is None else parts,
+                                       model.geometry))
     K = fem.petsc.create_matrix(form, matrix_type)
     K.zeroEntries()
     fem.petsc.assemble_matrix(K, form)
@@ -55,7 +56,8 @@ def bbar_element_matrices(model: DeformableModel, part: Part
                           ) -> tuple[q1.QuadGeometry, np.ndarray]:
     """The Q1 geometry of the owned cells of ``part`` and their B-bar element matrices
     (n, 8, 8) (N/m, dof order 2 a + component; :func:`.q1.bbar_element_matrices`)."""
-    g = q1.QuadGeometry(model.cell_dofs, model.node_xy, model.owned_cells(model.part_body(part)))
+    g = q1.QuadGeometry(model.cell_dofs, model.node_xy, model.owned_cells(model.part_body(part)),
+                       model.geometry)
     Ke = np.empty((g.dofs.shape[0], 8, 8))
     q1.bbar_element_matrices(g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, elastic_stiffness(part[0]), Ke)
     return g, Ke
@@ -111,7 +113,7 @@ def lumped_mass(model: DeformableModel) -> np.ndarray:
     if model.quadrilateral:
         m = quadrilateral_lumped_mass(model)
     else:
-        m = assemble_owned(model, lumped_mass_form(model.V, model.parts))
+        m = assemble_owned(model, lumped_mass_form(model.V, model.parts, model.geometry))
     bad = int(np.sum(m <= 0.0))
     if model.comm.allreduce(bad):
         raise InputError(f"{model.comm.allreduce(bad)} dofs have no positive lumped mass: "
@@ -126,7 +128,8 @@ def quadrilateral_lumped_mass(model: DeformableModel) -> np.ndarray:
     n_nodes = model.node_xy.shape[0]
     nodal = np.zeros(n_nodes)
     for name, (material, _) in zip(model.part_names, model.parts):
-        g = q1.QuadGeometry(model.cell_dofs, model.node_xy, model.owned_cells(name))
+        g = q1.QuadGeometry(model.cell_dofs, model.node_xy, model.owned_cells(name),
+                            model.geometry)
         nodal += g.lumped_mass(material.density, n_nodes)
     m_fn.x.array[0::2] = nodal
     m_fn.x.array[1::2] = nodal

@@ -23,8 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
-DISPLACEMENTS = ("u_r", "u_z")
+# (a plane-strain run names the same slots sigma_xx, sigma_yy, sigma_out, sigma_xy, u_x, u_y)
+STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises",
+            "sigma_xx", "sigma_yy", "sigma_out", "sigma_xy")
+DISPLACEMENTS = ("u_r", "u_z", "u_x", "u_y")
 
 
 # ----------------------------------------------------------------------------- histories
@@ -255,10 +257,12 @@ class Series:
 
 
 class XdmfRun:
-    """The mesh and the field series of a fields.xdmf (pieces joined; r = x, z = y, in m)."""
+    """The mesh and the field series of a fields.xdmf (pieces joined; r = x, z = y, in m;
+    :attr:`plane`: a plane-strain run's, its coordinates x and y)."""
 
     def __init__(self, series):
         self._series = series
+        self.plane = getattr(series, "geometry", "axisymmetric") == "plane_strain"
         self.points = series.points  # (n_nodes, 2)
         self.cells = series.cells  # (n_cells, 3) triangles or (n_cells, 4) quadrilaterals
         self.fields = {name: Series(name, center, series.times)
@@ -381,6 +385,10 @@ def plan_pictures(run_dir: str, field: str = "sigma_zz", times: list[float] | No
     from .errors import InputError
 
     data = read_xdmf(os.path.join(run_dir, "fields.xdmf"))
+    if field not in data.fields and data.plane:  # a plane-strain run
+        from .geometry import PLANE_STRAIN, Geometry
+
+        field = Geometry(PLANE_STRAIN).public(field)  # (the default sigma_zz: sigma_yy)
     if field not in data.fields:
         raise InputError(f"--field {field}: not in fields.xdmf (it has: "
                          f"{', '.join(sorted(data.fields))})")
@@ -442,22 +450,26 @@ def plan_pictures(run_dir: str, field: str = "sigma_zz", times: list[float] | No
         lo_xy, hi_xy = xy[framed_nodes].min(axis=0), xy[framed_nodes].max(axis=0)
         frame = (float(lo_xy[0]), float(hi_xy[0]), float(lo_xy[1]), float(hi_xy[1]))
         pictures.append(Picture(os.path.join(run_dir, f"{field}_t{t:.6e}.png"), title,
-                                _caption(frame, "deformed" if scale else "undeformed"), xy,
+                                _caption(frame, "deformed" if scale else "undeformed",
+                                         ("x", "y") if data.plane else ("r", "z")), xy,
                                 data.cells, values[k], series.center, label, (lo, hi),
                                 "coolwarm" if diverging else "viridis", frame))
     return pictures
 
 
-def _caption(frame: tuple[float, float, float, float], shape: str) -> str:
+def _caption(frame: tuple[float, float, float, float], shape: str,
+             axes: tuple[str, str] = ("r", "z")) -> str:
     """The extent shown, (r0, r1, z0, z1) in m, in mm below a metre (a node on the axis
-    at r = -4e-19, mesh round-off, printed as 0), and the orientation."""
+    at r = -4e-19, mesh round-off, printed as 0), and the orientation; ``axes`` the
+    coordinates' names ((x, y) in plane strain)."""
     lo, hi = np.array(frame[::2]), np.array(frame[1::2])
     size = float(max(hi - lo))
     lo = np.where(np.abs(lo) < 1e-12 * size, 0.0, lo)
     hi = np.where(np.abs(hi) < 1e-12 * size, 0.0, hi)
     f, unit = (1e3, "mm") if size < 1.0 else (1.0, "m")
-    return (f"shown: r {lo[0] * f:.4g} to {hi[0] * f:.4g} {unit}, z {lo[1] * f:.4g} to "
-            f"{hi[1] * f:.4g} {unit} ({shape}); r to the right, z up")
+    a, b = axes
+    return (f"shown: {a} {lo[0] * f:.4g} to {hi[0] * f:.4g} {unit}, {b} {lo[1] * f:.4g} to "
+            f"{hi[1] * f:.4g} {unit} ({shape}); {a} to the right, {b} up")
 
 
 def render_fields(run_dir: str, field: str = "sigma_zz", times: list[float] | None = None,

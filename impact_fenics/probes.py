@@ -250,14 +250,15 @@ def _section_force(raw, start, c, p, out) -> None:
 
 
 @njit(cache=True)
-def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out) -> None:
+def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out, plane) -> None:
     """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
     the cell means of the nodal values (m); in the cell of a linear body a stress D eps
     (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); a gauge's strain from
     its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); a section is left
     to :func:`_section_force`; the other values
     of a probe in a path-dependent body's cell (``pointwise`` true) are left to
-    :class:`CellPoints`."""
+    :class:`CellPoints`. ``plane``: plane strain, the strain out of the plane 0 (no hoop
+    term u_r / r)."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW * p: RAW * p + RAW]
@@ -277,7 +278,8 @@ def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out) -> None:
                 out[i, p] = 0.0
             else:
                 e = triangle_strain(xy[p, 0, 0], xy[p, 0, 1], xy[p, 1, 0], xy[p, 1, 1],
-                                    xy[p, 2, 0], xy[p, 2, 1], q[0], q[1], q[2], q[3], q[4], q[5])
+                                    xy[p, 2, 0], xy[p, 2, 1], q[0], q[1], q[2], q[3], q[4], q[5],
+                                    plane)
                 out[i, p] = stress_outputs(D[p], e[0], e[1], e[2], e[3])[c]
 
 
@@ -338,9 +340,10 @@ class _QuadCells:
         self.dofs = np.arange(4).reshape(1, 4)  # one cell's nodes, numbered 0..3
         self.eps = np.zeros((1, 4))  # its mean strain (scratch)
 
-    def fill(self, k: int, cell_nodes: np.ndarray, node_xy: np.ndarray, cell: int, point) -> None:
+    def fill(self, k: int, cell_nodes: np.ndarray, node_xy: np.ndarray, cell: int, point,
+             geometry) -> None:
         """Probe k's entries from its cell (local index) on the owning rank."""
-        g = q1.QuadGeometry(cell_nodes, node_xy, np.array([cell], dtype=np.int32))
+        g = q1.QuadGeometry(cell_nodes, node_xy, np.array([cell], dtype=np.int32), geometry)
         self.weights[k] = interpolation_weights(node_xy[g.dofs[0]], point)
         self.dNdR[k], self.dNdZ[k] = g.dNdR[0], g.dNdZ[0]
         self.inv_R[k], self.w[k] = g.inv_R[0], g.w[0]
@@ -404,7 +407,14 @@ class Probes:
     def __init__(self, model, specs: list[tuple], plastic_forces=()):
         """``specs``: (name, point (r, z) in m, quantity) per probe, a gauge's with its
         length (m) fourth (GAUGE_LENGTH if absent)."""
-        probes = [tuple(spec[:3]) for spec in specs]
+        geometry = model.geometry
+        self.plane = geometry.plane  # plane strain: eps_out = 0 in a P1 cell's stress
+        for name, _, quantity in (tuple(spec[:3]) for spec in specs):
+            if quantity not in self.quantities(geometry):
+                raise InputError(f"probe '{name}': unknown quantity '{quantity}' "
+                                 f"(use {', '.join(self.quantities(geometry))})")
+        # the internal names of the quantities (plane strain names its slots x, out, y)
+        probes = [(spec[0], spec[1], geometry.internal(spec[2])) for spec in specs]
         self.names = [name for name, _, _ in probes]
         self.points = [pt for _, pt, _ in probes]
         self.comm: MPI.Comm = model.comm
@@ -457,7 +467,8 @@ class Probes:
                                                                           2 * nodes + 1]).ravel()]
                 self.xy[k] = model.node_xy[nodes]
                 if quad:
-                    self._quad.fill(k, model.cell_dofs, model.node_xy, cell, point)
+                    self._quad.fill(k, model.cell_dofs, model.node_xy, cell, point,
+                                    model.geometry)
             if mine:
                 which[k] = next(b for b, body in enumerate(bodies)
                                 if cell in model.tmesh.cells(body.name))
@@ -525,6 +536,12 @@ class Probes:
         for out in (np.zeros((1, n)), np.zeros((2, n + 2))[:, 1: n + 1]):
             self._load_values(np.zeros((1, self.n_raw)), out)
 
+    @staticmethod
+    def quantities(geometry) -> tuple[str, ...]:
+        """The quantities a probe of a scene of ``geometry`` may record, by their names
+        there (plane strain: sigma_xx, sigma_yy, sigma_out, sigma_xy, u_x, u_y, x, y)."""
+        return tuple(geometry.public(q) for q in QUANTITIES)
+
     def _gauge(self, k: int, name: str, point: tuple[float, float], length: float, model,
                dofs: np.ndarray, scene: np.ndarray, bodies: list) -> int:
         """Gauge k centred at ``point`` (r, z) (m) of ``length`` (m): the u_z dofs of its
@@ -562,7 +579,7 @@ class Probes:
             load(_section_force, raw, start, c, 0, out)
         if self._quad is None:
             load(_values, raw, self.xy, self.D, self.code, self.pointwise, self.X,
-                 self.gauge_w, self.gauge_l, out)
+                 self.gauge_w, self.gauge_l, out, self.plane)
         else:
             qc = self._quad
             load(_quad_values, raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w,
@@ -593,7 +610,7 @@ class Probes:
         raw = np.ascontiguousarray(raw)
         if self._quad is None:
             _values(raw, self.xy, self.D, self.code, self.pointwise, self.X, self.gauge_w,
-                    self.gauge_l, out)
+                    self.gauge_l, out, self.plane)
         else:
             qc = self._quad
             _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, qc.dofs,

@@ -1,5 +1,5 @@
-"""Bilinear quadrilaterals (Q1) in axisymmetry: the 2x2 Gauss geometry, the lumped mass
-and the mean-dilatation (B-bar) elastic element.
+"""Bilinear quadrilaterals (Q1) in axisymmetry and plane strain: the 2x2 Gauss geometry,
+the lumped mass and the mean-dilatation (B-bar) elastic element.
 
 One geometry serves every Q1 force: the finite-strain one (F-bar, total Lagrangian,
 :mod:`.internal_force.finite`) reads it in the reference coordinates (R, Z), the
@@ -13,6 +13,9 @@ coordinates, which small strain does not tell apart from the current ones.
 dN_a/dx = J^-T dN_a/dxi with J = dx/dxi (1/m), r_q = sum_a N_a(xi_q) r_a (m, > 0
 at every Gauss point, also in a cell that touches the axis) and the weight
 w_q = 1/4 |det J| 2 pi r_q (m^3), so that sum_q w_q g(x_q) is the ring integral of g.
+In plane strain (:mod:`.geometry`) w_q = 1/4 |det J| t (m^3, t the slab's thickness) and
+the factor of the out-of-plane row, inv_R, is 0 (eps_out = 0): every kernel below serves
+both geometries unchanged.
 
 **Lumped mass.** m_a = rho sum_q w_q N_a(x_q) (kg), the row sums of the consistent
 mass: positive at every node (N_a >= 0), axis nodes included. 2x2 Gauss integrates
@@ -42,6 +45,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
 
 
 N_POINTS = 4
@@ -95,10 +100,14 @@ class QuadGeometry:
     ``dofs`` (n, 4) node (block) indices; ``dNdR``, ``dNdZ`` (n, 4 points, 4 nodes)
     (1/m); ``N`` (4 points, 4 nodes); ``R`` (n, 4) point radii (m) and ``inv_R`` their
     inverses (1/m); ``w`` (n, 4) weights 1/4 |det J| 2 pi R_q (m^3); ``volume`` (n,) the
-    cells' ring volumes V (m^3)."""
+    cells' ring volumes V (m^3). In plane strain ``w`` = 1/4 |det J| t, ``inv_R`` = 0 (the
+    out-of-plane strain's factor) and ``volume`` the slab's t A."""
 
-    def __init__(self, cell_nodes: np.ndarray, node_xy: np.ndarray, cells: np.ndarray):
-        """``cell_nodes``: the dofmap (local cells, 4) in the block indices of ``node_xy``."""
+    def __init__(self, cell_nodes: np.ndarray, node_xy: np.ndarray, cells: np.ndarray,
+                 geometry: Geometry = AXISYMMETRIC_GEOMETRY):
+        """``cell_nodes``: the dofmap (local cells, 4) in the block indices of ``node_xy``.
+        (``geometry``'s default serves the path-dependent and finite-strain forces, which
+        a plane-strain model refuses until they take it.)"""
         self.cells = cells
         self.dofs = np.ascontiguousarray(cell_nodes[cells].astype(np.int32))
         X = node_xy[self.dofs]  # (n, 4, 2)
@@ -117,8 +126,12 @@ class QuadGeometry:
         self.dNdR = np.ascontiguousarray(grad[..., 0])
         self.dNdZ = np.ascontiguousarray(grad[..., 1])
         self.R = np.ascontiguousarray(np.einsum("qi,ni->nq", N, X[:, :, 0]))
-        self.inv_R = 1.0 / self.R  # kernels multiply (a division per point costs more)
-        self.w = np.ascontiguousarray(GAUSS_WEIGHT * np.abs(det) * 2.0 * math.pi * self.R)
+        if geometry.plane:
+            self.inv_R = np.zeros_like(self.R)  # eps_out = 0
+            self.w = np.ascontiguousarray(GAUSS_WEIGHT * np.abs(det) * geometry.thickness)
+        else:
+            self.inv_R = 1.0 / self.R  # kernels multiply (a division per point costs more)
+            self.w = np.ascontiguousarray(GAUSS_WEIGHT * np.abs(det) * 2.0 * math.pi * self.R)
         self.volume = self.w.sum(axis=1)
 
     def node_masses(self, density: float) -> np.ndarray:

@@ -94,11 +94,16 @@ def stable_step_line(stable: dict[str, float], limiting: str, shared: str,
 def console_lines(s: dict) -> list[str]:
     """The summary's impact figures and timing as console lines."""
     lines = []
+    plane = s.get("geometry", {}).get("kind") == "plane_strain"
+    axial, v_axial = ("sigma_yy", "v_y") if plane else ("sigma_zz", "v_z")
+    if plane:
+        lines.append(f"plane strain: masses, forces and energies per thickness t = "
+                     f"{s['geometry']['thickness']:.6g} m")
     if s.get("strain") != "finite" and "eps_p_max" in s:
         lines.append(f"plastic strain: largest equivalent plastic strain {s['eps_p_max']:.4g} "
                      "at the end (at a point of the stiffness rule)")
     for name, b in s.get("bodies", {}).items():
-        lines.append(f"body {name}: mass {b['mass']:.6g} kg, v_z {b['velocity_z_final']:.4g} m/s "
+        lines.append(f"body {name}: mass {b['mass']:.6g} kg, {v_axial} {b['velocity_z_final']:.4g} m/s "
                      f"at the end, kinetic {b['kinetic_energy']:.4g} J, strain "
                      f"{b['strain_energy']:.4g} J"
                      + (f", plastic work {b['plastic_work']:.4g} J" if "plastic_work" in b else ""))
@@ -116,8 +121,8 @@ def console_lines(s: dict) -> list[str]:
     peaks = s.get("peak_stress")
     if peaks:
         lines.append(f"peak stresses (at field outputs): von Mises {peaks['von_mises'] / 1e6:.4g} MPa "
-                     f"at {peaks['von_mises_time'] * 1e6:.2f} us, sigma_zz in "
-                     f"[{peaks['sigma_zz_min'] / 1e6:.4g}, {peaks['sigma_zz_max'] / 1e6:.4g}] MPa")
+                     f"at {peaks['von_mises_time'] * 1e6:.2f} us, {axial} in "
+                     f"[{peaks[axial + '_min'] / 1e6:.4g}, {peaks[axial + '_max'] / 1e6:.4g}] MPa")
     timing = s.get("timing")
     if timing:
         wall = s["wall_time"]

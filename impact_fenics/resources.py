@@ -161,6 +161,11 @@ def generator_regions(generator: str, p: dict) -> list[Region]:
                            p["structured"]),
                 _rectangle("transmitter", bar, p["transmitter_length"], p["h_bar"],
                            p["structured"])]
+    if generator == "block":  # a structured grid: triangles, or quadrilaterals
+        region = _rectangle("block", p["width"], p["height"], p["h"], True)
+        if p["quadrilaterals"]:
+            region = Region("block", 0.5 * region.cells, region.nodes, p["h"], "quad")
+        return [region]
     raise ValueError(generator)
 
 
@@ -168,6 +173,8 @@ def generator_size(generator: str, p: dict) -> float:
     """The largest extent (m) in r or z of a generator mesh with parameters ``p``."""
     if generator in ("bar", "quad_bar"):
         return max(p["radius"], p["length"])
+    if generator == "block":
+        return max(p["width"], p["height"])
     if generator in ("coaxial_bars", "coaxial_bars_sized"):
         return max(p["radius"], p["striker_length"] + p["target_length"])
     if generator == "nosed_striker_on_block":

@@ -26,11 +26,14 @@ from mpi4py import MPI
 
 from . import plausibility, resources, rundir
 from .errors import InputError
-from .scene_keys import ENERGY_EVERY, GENERATORS, METHODS, PULSES, REQUIRED, REQUIRED_PARAMS
+from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
+from .scene_keys import (ENERGY_EVERY, GENERATORS, METHODS, PLANE_QUANTITIES, PULSES,
+                         QUANTITIES, REQUIRED, REQUIRED_PARAMS)
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
 
 COMPONENTS = {"r": 0, "z": 1}
+PLANE_COMPONENTS = {"x": 0, "y": 1}
 # ----------------------------------------------------------------------------- the scene
 
 @dataclass
@@ -124,6 +127,7 @@ class Scene:
     force: bool = False  # run what the checks refuse (dt, penalty bound, memory, disk)
     wall: Any = None     # finite_scene.WallSpec of a [wall] table, or None
     warned: set[str] = field(default_factory=set)  # the plausibility findings said so far
+    geometry: Geometry = AXISYMMETRIC_GEOMETRY  # the section: axisymmetric or plane strain
 
     @property
     def finite(self) -> bool:
@@ -163,6 +167,7 @@ def read_scene(path: str) -> Scene:
         raise InputError(f"scene file '{path}' cannot be read: {exc}")
     top = Table(data, f"[{os.path.basename(path)}, top level]", "top")
     title = top.value("title", os.path.basename(path))
+    geometry = _read_geometry(top)
     for key in ("mesh", "time"):
         if key not in top:
             raise InputError(f"[{key}] is missing: the scene needs a [{key}] table")
@@ -189,10 +194,11 @@ def read_scene(path: str) -> Scene:
             raise InputError(f"[rigid.{name}] a rigid body must be in exactly one [[contact]] "
                              f"(it is in {len(users)})")
     loads = [_read_load(where, d, rigid) for where, d in array_of(top, "loads")]
-    fixed = [_read_fixed(where, d) for where, d in array_of(top, "fixed")]
+    fixed = [_read_fixed(where, d, geometry) for where, d in array_of(top, "fixed")]
     time = _read_time(top.data["time"])
     output = _read_output(top.data.get("output", {}))
-    probes = [_read_probe(where, d, k) for k, (where, d) in enumerate(array_of(top, "probes"))]
+    probes = [_read_probe(where, d, k, geometry)
+              for k, (where, d) in enumerate(array_of(top, "probes"))]
     names = [p.name for p in probes]
     for p in probes:
         if names.count(p.name) > 1 or p.name in ("step", "time", "dt"):
@@ -209,8 +215,42 @@ def read_scene(path: str) -> Scene:
 
     if "wall" in top:
         scene.wall = finite_scene.read_wall(top.data["wall"])
+    scene.geometry = geometry
+    if geometry.plane:
+        _check_plane_strain(scene)
     finite_scene.check_kind(scene)
     return scene
+
+
+def _read_geometry(top: Table) -> Geometry:
+    """The scene's geometry, thickness and symmetry plane (top level)."""
+    kind = top.value("geometry")
+    if kind != "plane_strain":
+        for key in ("thickness", "symmetry"):
+            if key in top:
+                raise top.error(key, 'only a plane-strain scene (geometry = "plane_strain") '
+                                "has it")
+        return AXISYMMETRIC_GEOMETRY
+    return Geometry(kind, top.value("thickness", 1.0), top.value("symmetry"))
+
+
+def _check_plane_strain(scene: Scene) -> None:
+    """Refuse, in one line each, what plane strain does not run yet: finite-strain and
+    path-dependent bodies, contact, rigid bodies and the wall (docs/plane_strain.md)."""
+    not_yet = "plane strain runs linear elastic bodies without contact so far"
+    for b in scene.bodies:
+        spec = scene.materials[b.material]
+        if b.strain == "finite":
+            raise InputError(f'[bodies.{b.name}] strain = "finite": {not_yet} (small strain)')
+        if spec.plastic:
+            raise InputError(f'{spec.where} model = "{spec.model}" is path-dependent: '
+                             f"{not_yet}")
+    if scene.contacts:
+        raise InputError(f"{scene.contacts[0].where} contact: {not_yet}")
+    if scene.rigid:
+        raise InputError(f"[rigid.{next(iter(scene.rigid))}] a rigid body: {not_yet}")
+    if scene.wall is not None:
+        raise InputError(f"[wall] a wall is contact: {not_yet}")
 
 
 def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:
@@ -363,13 +403,15 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
     return load
 
 
-def _read_fixed(where: str, data: dict) -> FixedSpec:
+def _read_fixed(where: str, data: dict, geometry: Geometry) -> FixedSpec:
     t = Table(data, where, "fixed")
     facet = t.value("facet")
     comps = t._get("components", t.section.key("components").described, MISSING)
+    first, second = geometry.axes
     if (not isinstance(comps, list) or not comps or len(set(map(str, comps))) != len(comps)
-            or not all(isinstance(c, str) and c in COMPONENTS for c in comps)):
-        raise t.error("components", "must be a list of distinct components \"r\" and \"z\"")
+            or not all(isinstance(c, str) and c in (first, second) for c in comps)):
+        raise t.error("components", f"must be a list of distinct components \"{first}\" and "
+                      f"\"{second}\"" + (" (plane strain)" if geometry.plane else ""))
     return FixedSpec(where, facet, list(comps))
 
 
@@ -388,9 +430,13 @@ def _read_output(data: Any) -> dict[str, Any]:
     return {key: t.value(key) for key in t.section.allowed()}
 
 
-def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
+def _read_probe(where: str, data: dict, k: int, geometry: Geometry) -> ProbeSpec:
     t = Table(data, where, "probes")
     quantity = t.value("quantity")
+    names = PLANE_QUANTITIES if geometry.plane else QUANTITIES
+    if quantity not in names:
+        raise t.error("quantity", f"use one of {', '.join(names)}"
+                      + (" (plane strain)" if geometry.plane else ""))
     if quantity == "section" and "point" in t:
         raise t.error("point", 'a quantity = "section" is the plane z = const: give z, not point')
     if "z" in t:  # a surface gauge: r is the mesh's outer radius at z (build); a section
@@ -404,7 +450,7 @@ def _read_probe(where: str, data: dict, k: int) -> ProbeSpec:
         raise t.error("quantity", 'a quantity = "section" needs z, the height of its plane (m)')
     else:
         point = t.value("point", REQUIRED)
-        if point[0] < 0:
+        if point[0] < 0 and not geometry.plane:
             raise t.error("point", "r must be >= 0 (m)")
     name = t.value("name", f"{quantity}_{k}")
     length = t.value("length")
@@ -570,11 +616,12 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     size = plausibility.model_size(tmesh.mesh, comm)
     with within("[bodies]"):
         model = DeformableModel(tmesh, [Body(b.name, scene.materials[b.material].material(b.strain))
-                                        for b in scene.bodies])
+                                        for b in scene.bodies], geometry=scene.geometry)
     fixed = []
+    components = PLANE_COMPONENTS if scene.geometry.plane else COMPONENTS
     for f in scene.fixed:
         with within(f.where):
-            fixed += [model.facet_dofs(f.facet, COMPONENTS[c]) for c in f.components]
+            fixed += [model.facet_dofs(f.facet, components[c]) for c in f.components]
     surface_loads, rigid_loads = [], {name: [] for name in scene.rigid}
     incident = {name: [] for name in scene.rigid}
     for spec in scene.loads:

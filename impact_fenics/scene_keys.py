@@ -75,6 +75,10 @@ class Section:
 METHODS = ("penalty", "film", "dme")
 QUANTITIES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "u_r", "u_z",
               "eps_p_eq", "yielded", "r", "z", "strain_gauge", "section")
+# their names in a plane-strain scene (impact_fenics.geometry: the same slots)
+PLANE_QUANTITIES = ("sigma_xx", "sigma_yy", "sigma_out", "sigma_xy", "von_mises", "u_x", "u_y",
+                    "eps_p_eq", "yielded", "x", "y", "strain_gauge", "section")
+GEOMETRIES = ("axisymmetric", "plane_strain")
 MODELS = tuple(MATERIAL_MODELS)  # the materials by name (impact_fenics.materials.MODELS)
 STRAIN_WORDS = {"small": "small strain", "finite": "finite strain"}
 PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
@@ -86,7 +90,7 @@ ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 # the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
 # (impact_fenics.finite_run: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
-              "nosed_striker_on_block", "shpb")
+              "nosed_striker_on_block", "shpb", "block")
 # parameters a generator has no default for (quad_bar: impact_fenics.finite_run.quad_bar)
 REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
 _BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
@@ -108,7 +112,7 @@ _MESH = Section("mesh", "[mesh]", (
         groups=_TWO_BARS + ("shpb",)),
     Key("target_length", "positive", "m", _GEN, "target length (z in [0, target_length])",
         groups=_TWO_BARS),
-    Key("h", "positive", "m", _GEN, "element size", groups=("bar", "coaxial_bars")),
+    Key("h", "positive", "m", _GEN, "element size", groups=("bar", "coaxial_bars", "block")),
     Key("h_striker", "positive", "m", _GEN, "element size of the striker",
         groups=("coaxial_bars_sized", "nosed_striker_on_block")),
     Key("h_target", "positive", "m", _GEN, "element size of the target",
@@ -116,6 +120,11 @@ _MESH = Section("mesh", "[mesh]", (
     Key("structured", "flag", "", _GEN, "a structured grid of alternating diagonals",
         groups=("bar", "coaxial_bars", "coaxial_bars_sized", "shpb")),
     Key("width", "positive", "m", _GEN, "block radius", groups=("punch_block",)),
+    Key("width", "positive", "m", _GEN, "block width (x in [0, width]; a plane-strain section, "
+        "or r in axisymmetry)", groups=("block",)),
+    Key("height", "positive", "m", _GEN, "block height (y in [0, height])", groups=("block",)),
+    Key("quadrilaterals", "flag", "", _GEN, "Q1 quadrilaterals instead of triangles",
+        groups=("block",)),
     Key("depth", "positive", "m", _GEN, "block depth (z in [-depth, 0])", groups=("punch_block",)),
     Key("h_surface", "positive", "m", _GEN, "element size at the surface", groups=("punch_block",)),
     Key("grading", "positive", "m/m", _GEN, "growth of the element size with the distance "
@@ -209,7 +218,8 @@ _BODIES = Section("bodies", "[bodies.NAME]", (
     "A deformable body: one per cell group NAME of the mesh, and every cell group "
     "must be one."), (
     Key("material", "text", "", REQUIRED, "the name of a [materials.NAME] table"),
-    Key("velocity", "pair", "m/s", [0.0, 0.0], "initial velocity [v_r, v_z]"),
+    Key("velocity", "pair", "m/s", [0.0, 0.0], "initial velocity [v_r, v_z] ([v_x, v_y] in "
+        "plane strain)"),
     Key("strain", "text", "", "small", "the kinematics", choices=("small", "finite"),
         note="Small strain: the linear and small-strain plastic paths on triangles, or Q1 "
         "quadrilaterals with mean dilatation on `quad_bar` (one body, below). Finite "
@@ -285,8 +295,9 @@ _LOADS = Section("loads", "[[loads]]", (
     "a rigid body. The pulse (its time function) multiplies it."), (
     Key("facet", "text", "", REQUIRED, "a facet group under a pressure (Pa, pushing into the "
         "body)", groups=("facet",)),
-    Key("traction", "pair", "Pa", None, "instead of a pressure: the traction [t_r, t_z] per unit "
-        "of the pulse", groups=("facet",), default_text="a pressure"),
+    Key("traction", "pair", "Pa", None, "instead of a pressure: the traction [t_r, t_z] ([t_x, "
+        "t_y] in plane strain) per unit of the pulse", groups=("facet",),
+        default_text="a pressure"),
     Key("rigid", "text", "", REQUIRED, "a [rigid.NAME] body pushed by a z force (N)",
         groups=("rigid",)),
     Key("area", "positive", "m^2", None, "the pulse is a pressure (Pa) on this area pushing the "
@@ -309,10 +320,10 @@ _LOADS = Section("loads", "[[loads]]", (
 
 _FIXED = Section("fixed", "[[fixed]]", (
     "Displacement components held at zero on a facet group (u_r = 0 on the axis is "
-    "automatic)."), (
+    "automatic; in plane strain u_x = 0 on x = 0 with `symmetry = \"x=0\"`)."), (
     Key("facet", "text", "", REQUIRED, "the facet group held"),
     Key("components", "list", "", REQUIRED, "the components held: [\"r\"], [\"z\"] or "
-        "[\"r\", \"z\"]", choices=("r", "z")),
+        "[\"r\", \"z\"] (plane strain: \"x\", \"y\")", choices=("r", "z", "x", "y")),
 ))
 
 _TIME = Section("time", "[time]", (
@@ -354,7 +365,7 @@ _PROBES = Section("probes", "[[probes]]", (
     "through a plane of a linear body's nodes (a section)."), (
     Key("name", "text", "", None, "the column's name (unique; not step, time or dt)",
         default_text="<quantity>_<k>"),
-    Key("point", "pair", "m", None, "the point [r, z], r >= 0",
+    Key("point", "pair", "m", None, "the point [r, z], r >= 0 ([x, y] in plane strain)",
         default_text="required (a strain_gauge: or z; a section: z)"),
     Key("z", "number", "m", None, "a strain_gauge on the surface: its centre's height, at r = "
         "the mesh's outer radius there (the largest r of a cell at that z), instead of point; "
@@ -365,7 +376,8 @@ _PROBES = Section("probes", "[[probes]]", (
         "the axial strain (u_z(r, z + l/2) - u_z(r, z - l/2)) / l over the gauge length l "
         "centred at the point, compression negative; section (N): the axial force through "
         "the plane z, compression positive",
-        choices=QUANTITIES,
+        choices=QUANTITIES + PLANE_QUANTITIES[:4] + PLANE_QUANTITIES[5:7]
+        + PLANE_QUANTITIES[9:11],
         note="A gauge bonded on a bar's surface has r = the bar's radius; u_z is interpolated "
         "at each end (linear on a triangle, bilinear on a quadrilateral), so a linear field "
         "reads exactly. Both ends must lie in one body. A section's plane is a row of nodes "
@@ -397,6 +409,18 @@ _TABLES = (_MESH, _MATERIALS, _BODIES, _RIGID, _CONTACT, _LOADS, _FIXED, _TIME, 
 
 TOP = Section("top", "top level", "Keys outside every table.", (
     Key("title", "text", "", None, "a name for the run's report", default_text="the file name"),
+    Key("geometry", "text", "", "axisymmetric", "the section's geometry: a body of revolution "
+        "(r, z), or plane strain (x, y) of a slab of thickness `thickness`",
+        choices=GEOMETRIES, note="Plane strain: every mass (kg), force (N), energy (J) and "
+        "slab-scaled input is that of the slab t; the stresses are named sigma_xx, sigma_yy, "
+        "sigma_out (out of the plane, eps_out = 0), sigma_xy, the displacements u_x, u_y, "
+        "and nothing is held on x = 0 unless `symmetry` says so. It runs linear elastic "
+        "bodies, small strain, without contact, rigid bodies or a wall, for now "
+        "([plane_strain.md](plane_strain.md))."),
+    Key("thickness", "positive", "m", None, "plane strain: the slab's thickness t",
+        default_text="1 (per metre)"),
+    Key("symmetry", "text", "", None, "plane strain: a symmetry plane of a half model, u_x = 0 "
+        "on the nodes of x = 0", choices=("x=0",), default_text="none"),
     Key("force", "flag", "", False, "run what the checks refuse: dt above the stable limit, a "
         "penalty above its stable bound, a run estimated beyond the memory or the free disk"),
 ) + tuple(Key(s.name, "array" if s.toml.startswith("[[") else

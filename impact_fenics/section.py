@@ -152,7 +152,8 @@ def _triangle_action(model, name: str, layer: np.ndarray, plane: np.ndarray) -> 
     degree = dx.metadata()["quadrature_degree"]
     one = fem.Function(model.V)
     one.x.array[1::2] = plane.astype(float)
-    form = stiffness_form(model.V, [(material, cell_measure(mesh, tags, 1, degree))])
+    form = stiffness_form(model.V, [(material, cell_measure(mesh, tags, 1, degree))],
+                          model.geometry)
     return assemble_owned(model, ufl.action(form, one))
 
 
@@ -169,7 +170,7 @@ def _quad_action(model, name: str, layer: np.ndarray, plane: np.ndarray) -> np.n
 
     n_owned_cells = model.mesh.topology.index_map(2).size_local
     owned = layer[layer < n_owned_cells]
-    g = q1.QuadGeometry(model.cell_dofs, model.node_xy, owned)
+    g = q1.QuadGeometry(model.cell_dofs, model.node_xy, owned, model.geometry)
     Ke = np.empty((owned.size, 8, 8))
     q1.bbar_element_matrices(g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, elastic_stiffness(material), Ke)
     dofs = (2 * g.dofs[:, :, None] + np.arange(2)).reshape(-1, 8)  # (n, 8) unrolled

@@ -58,9 +58,9 @@ def _triangle_w2(model: DeformableModel, fixed_local: np.ndarray) -> np.ndarray:
     """Per part of ``model`` (triangles), the largest element eigenvalue w^2 (rad^2/s^2)
     over its owned cells (0 on a rank without any)."""
     V_dg = vector_space(model.mesh, "DG", 1)
-    K = fem.petsc.assemble_matrix(compile_form(stiffness_form(V_dg, model.parts)))
+    K = fem.petsc.assemble_matrix(compile_form(stiffness_form(V_dg, model.parts, model.geometry)))
     K.assemble()
-    m_vec = fem.petsc.assemble_vector(compile_form(lumped_mass_form(V_dg, model.parts)))
+    m_vec = fem.petsc.assemble_vector(compile_form(lumped_mass_form(V_dg, model.parts, model.geometry)))
     indptr, indices, data = K.getValuesCSR()
     start = K.getOwnershipRange()[0]
     K.destroy()

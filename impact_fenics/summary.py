@@ -77,6 +77,10 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
                           "compiled_steps: the steps ran as compiled blocks with their "
                           "output steps' sums (linear bodies: step_block.py); "
                           "compiled_frames: the blocks wrote the frames too (one rank)"}
+    geometry = getattr(model, "geometry", None)
+    if geometry is not None and geometry.plane:  # every figure is the slab's (kg, N, J)
+        summary["geometry"] = {"kind": geometry.kind, "thickness": geometry.thickness,
+                               "symmetry": geometry.symmetry}
     summary["bodies"] = body_figures(model, sim.integrator, sim.body_mass, sim._v_start,
                                       _velocities(sim), comm)
     element_cycle_figures(summary, {name: model.owned_cells(name).size for name in model.bodies},
@@ -85,7 +89,9 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         summary["impact"] = impact_figures(sim.history.data(), sim.contacts, sim._v_start,
                                            _velocities(sim), s.dt, model, comm)
     if sim._peaks[-1]:
-        summary["peak_stress"] = dict(zip(PEAK_NAMES, sim._peaks.tolist()))
+        names = PEAK_NAMES if geometry is None or not geometry.plane else tuple(  # sigma_yy
+            n.replace("sigma_zz", geometry.public("sigma_zz")) for n in PEAK_NAMES)
+        summary["peak_stress"] = dict(zip(names, sim._peaks.tolist()))
     if last_energy is not None:
         last = last_energy
         summary["energy"] = {k: last[k] for k in ENERGY_COLUMNS}  # the last row's

@@ -9,7 +9,7 @@ Layout (what ``fields.xdmf`` describes):
   values). Each rank writes its own HDF5 file (``fields.h5`` on one rank,
   ``fields_p<rank>.h5`` on more), so nothing is gathered to one rank and the
   writes run in parallel without an MPI-enabled HDF5;
-* ``/mesh/geometry`` (r, z in m), ``/mesh/topology`` (piece-local node
+* ``/mesh/geometry`` (r, z in m; x, y in plane strain), ``/mesh/topology`` (piece-local node
   indices) and the static cell fields (``body_id``) are written once and
   referenced at every time;
 * at each output time one temporal step: a spatial collection of the pieces,
@@ -99,6 +99,9 @@ array and time: not done.) :func:`data_item` reads all three forms.
 
 ParaView (File > Open fields.xdmf, Apply) then shows one block per piece,
 every block with every array at every time; colour by sigma_zz, Warp By Vector.
+A plane-strain run names its stresses for its slots (sigma_xx, sigma_yy, sigma_out,
+sigma_xy: :meth:`.geometry.Geometry.public`) and says its geometry and thickness in an
+Information element ``geometry`` (absent: axisymmetric).
 
 The XML is appended, never rewritten: rank 0 keeps the file open, writes each
 new step where the closing tags were and the closing tags after it, in one pwrite,
@@ -248,6 +251,10 @@ class FieldWriter:
         comm = self.comm
         self.path = path
         self.cell_fields = list(cell_fields)
+        # the names in the file: plane strain names the slots x, out, y (model.geometry;
+        # a model without one, the finite-strain driver's, is axisymmetric)
+        geometry = getattr(model, "geometry", None)
+        self._public = geometry.public if geometry is not None else str
         mesh = model.mesh
         n_cells = mesh.topology.index_map(2).size_local
         from .compat import cell_dofs  # (the reader below must not load dolfinx)
@@ -310,9 +317,12 @@ class FieldWriter:
         if comm.rank == 0:
             self._xml = open(path, "wb")  # (appended with os.pwrite at _tail_at, see _xml_job)
             names = ", ".join(f"{k}: {n}" for k, n in enumerate(model.bodies))
+            plane = ("" if geometry is None or not geometry.plane else
+                     f'    <Information Name="geometry" Value="plane_strain, thickness '
+                     f'{geometry.thickness!r} m"/>\n')
             head = ('<?xml version="1.0"?>\n<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
                     '  <Domain>\n'
-                    f'    <Information Name="body_id" Value="{names}"/>\n'
+                    f'    <Information Name="body_id" Value="{names}"/>\n' + plane +
                     '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n')
             self._xml.write(head.encode())
             self._tail_at = self._xml.tell()
@@ -644,8 +654,8 @@ class FieldWriter:
             for j, key in enumerate(self.cell_fields):
                 item = _slab((n_cells,), h5, block.cells_path, (_ROW, j, 0), (1, 1, n_cells),
                              (block.capacity, n_fields, n_cells))
-                lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" '
-                             f'Center="Cell">{item}</Attribute>')
+                lines.append(f'          <Attribute Name="{self._public(key)}" '
+                             f'AttributeType="Scalar" Center="Cell">{item}</Attribute>')
             for key, dtype in self._static.items():
                 kind = "Int" if np.issubdtype(dtype, np.integer) else "Float"
                 lines.append(f'          <Attribute Name="{key}" AttributeType="Scalar" Center="Cell">'
@@ -742,6 +752,9 @@ class FieldSeries:
         self.points = np.concatenate(points)
         self.cells = np.concatenate(cells)
         self.center = {a.get("Name"): a.get("Center") for a in pieces[0].findall("Attribute")}
+        info = root.find("Domain/Information[@Name='geometry']")
+        # "axisymmetric" or "plane_strain" (the writer's Information element, if any)
+        self.geometry = "axisymmetric" if info is None else info.get("Value").split(",")[0]
 
     def values(self, name: str, k: int) -> np.ndarray:
         """Field ``name`` at output k, the pieces joined in order."""

@@ -2,13 +2,16 @@
 and print, as JSON, what every block holds at every time, then apply the recipe of docs/outputs.md
 (colour by sigma_zz, Warp By Vector) and print the colour range it gets.
 
-    pvbatch tests/pvbatch_fields.py RUN/fields.xdmf
+    pvbatch tests/pvbatch_fields.py RUN/fields.xdmf [FIELD]
+
+FIELD: the cell field to colour by (sigma_zz; a plane-strain run's sigma_yy).
 """
 import json
 import sys
 
 from paraview import simple, servermanager
 
+FIELD = sys.argv[2] if len(sys.argv) > 2 else "sigma_zz"
 reader = simple.OpenDataFile(sys.argv[1])  # the reader ParaView picks for the file
 reader.UpdatePipelineInformation()
 times = [float(t) for t in reader.TimestepValues]
@@ -36,8 +39,8 @@ for t in times:
 view = simple.CreateRenderView()
 view.ViewTime = times[-1]
 display = simple.Show(reader, view)
-simple.ColorBy(display, ("CELLS", "sigma_zz"))
-lut = simple.GetColorTransferFunction("sigma_zz")
+simple.ColorBy(display, ("CELLS", FIELD))
+lut = simple.GetColorTransferFunction(FIELD)
 display.RescaleTransferFunctionToDataRange(True, False)
 warp = simple.WarpByVector(Input=reader)
 warp.Vectors = ["POINTS", "displacement"]

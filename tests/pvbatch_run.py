@@ -31,12 +31,13 @@ def _free_display(rng: random.Random) -> int:
             return n
 
 
-def pvbatch_json(xdmf: str, tries: int = 5) -> dict | None:
-    """tests/pvbatch_fields.py's JSON on ``xdmf``, or None without pvbatch."""
+def pvbatch_json(xdmf: str, tries: int = 5, field: str = "sigma_zz") -> dict | None:
+    """tests/pvbatch_fields.py's JSON on ``xdmf`` (coloured by ``field``), or None without
+    pvbatch."""
     if not shutil.which("pvbatch"):
         return None
     tried = []
-    proc = subprocess.run(["pvbatch", "--force-offscreen-rendering", SCRIPT, xdmf],
+    proc = subprocess.run(["pvbatch", "--force-offscreen-rendering", SCRIPT, xdmf, field],
                           capture_output=True, text=True, timeout=300, env=clean_mpi_env())
     if proc.returncode == 0:
         return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -47,7 +48,7 @@ def pvbatch_json(xdmf: str, tries: int = 5) -> dict | None:
     for _ in range(tries):
         display = _free_display(rng)
         proc = subprocess.run(["xvfb-run", "-n", str(display), "-s", "-screen 0 1280x1024x24",
-                               "pvbatch", SCRIPT, xdmf], capture_output=True, text=True,
+                               "pvbatch", SCRIPT, xdmf, field], capture_output=True, text=True,
                               timeout=300, env=clean_mpi_env())
         if proc.returncode == 0:
             return json.loads(proc.stdout.strip().splitlines()[-1])

@@ -15,6 +15,7 @@ from mpi4py import MPI
 
 from conftest import load_demo
 from impact_fenics import forms, meshing
+from impact_fenics.geometry import AXISYMMETRIC_GEOMETRY
 from impact_fenics.materials import LinearElastic
 from roundoff import LIBM, ledger, rounding
 
@@ -65,7 +66,7 @@ def test_stress_of_a_linear_field(comm):
     V = vector_space(tmesh.mesh, "Lagrange", 1)
     u = fem.Function(V)
     u.interpolate(lambda x: np.vstack([a * x[0] + c * x[1], b * x[1]]))
-    components = forms.stress_components(u, material)
+    components = forms.stress_components(u, material, AXISYMMETRIC_GEOMETRY)
     n_cells = tmesh.mesh.topology.index_map(2).size_local
     cells = np.arange(n_cells, dtype=np.int32)
     mid = compute_midpoints(tmesh.mesh, 2, cells)

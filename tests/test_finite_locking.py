@@ -16,6 +16,7 @@ from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from impact_fenics import forms
+from impact_fenics.geometry import AXISYMMETRIC_GEOMETRY
 from impact_fenics.compat import vector_space
 from impact_fenics.finite_run import FiniteRun, FiniteSettings
 from impact_fenics.materials import LinearElastic
@@ -81,7 +82,7 @@ def cst_inner_displacement(n):
     V = vector_space(mesh, "Lagrange", 1)
     parts = [(LinearElastic(E=E, nu=NU, density=1000.0),
               forms.cell_measure(mesh, None, None, forms.STIFFNESS_DEGREE))]
-    Kp = fem.petsc.assemble_matrix(compile_form(forms.stiffness_form(V, parts)))
+    Kp = fem.petsc.assemble_matrix(compile_form(forms.stiffness_form(V, parts, AXISYMMETRIC_GEOMETRY)))
     Kp.assemble()
     dense = Kp.convert("dense")  # held: getDenseArray is a view of this Mat's storage
     K = dense.getDenseArray().copy()

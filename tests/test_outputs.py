@@ -239,7 +239,7 @@ def test_cell_stress_equals_the_ufl_expression():
     points = np.array([[1.0 / 3.0, 1.0 / 3.0]])
     cells = np.arange(n_cells, dtype=np.int32)
     for body in model.bodies.values():
-        comps = stress_components(u, body.material)
+        comps = stress_components(u, body.material, model.geometry)
         mine = np.intersect1d(model.tmesh.cells(body.name), cells).astype(np.int32)
         for k, name in enumerate(STRESS_NAMES):
             ref = eval_expression(fem.Expression(comps[name], points), model.mesh, mine)[:, 0]

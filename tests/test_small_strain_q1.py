@@ -98,7 +98,8 @@ def traction_forces(model, sigma: np.ndarray) -> np.ndarray:
         if side not in tm.facet_names:
             continue  # the axis carries no force (r = 0)
         t = (value, 0.0) if comp == 0 else (0.0, value)
-        f += assemble_owned(model, traction_form(model.V, tm.facet_tags, tm.facet_tag(side), t))
+        f += assemble_owned(model, traction_form(model.V, tm.facet_tags, tm.facet_tag(side),
+                                                   model.geometry, t))
     return f
 
 
@@ -424,11 +425,11 @@ def cylinder_error(n: int, full_integration: bool) -> float:
     tm = quad_rectangle(COMM, A_IN, 0.0, B_OUT, B_OUT - A_IN, n, n, "wall")
     model = DeformableModel(tm, [Body("wall", LinearElastic(E=E_CYL, nu=NU_CYL, density=1e3))])
     if full_integration:  # 2x2 Gauss on every term, the volumetric one included
-        K = fem.petsc.assemble_matrix(compat.compile_form(stiffness_form(model.V, model.parts)))
+        K = fem.petsc.assemble_matrix(compat.compile_form(stiffness_form(model.V, model.parts, model.geometry)))
         K.assemble()
     else:
         K = assemble_stiffness(model)
-    f = assemble_owned(model, traction_form(model.V, tm.facet_tags, tm.facet_tag("inner")))
+    f = assemble_owned(model, traction_form(model.V, tm.facet_tags, tm.facet_tag("inner"), model.geometry))
     fixed = model.to_global(np.concatenate([model.facet_dofs("bottom", 1),
                                             model.facet_dofs("top", 1)]))
     b = K.createVecLeft()

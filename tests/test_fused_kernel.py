@@ -18,6 +18,14 @@ array ``update`` (the seam of a material that gives no ``point``); on triangles 
 the B-bar kernel, which now calls ``screen`` and ``point`` the same way, on
 quadrilaterals (the previous B-bar kernel kept verbatim here too). Under MPI each rank
 runs both kernels on its own cells and ghosts, so the comparison holds on every rank.
+
+J2 has a screen too, the exact elastic test (the first half of its ``point``, which
+begins with it), and on triangles the kernel runs it at a cell's three points before it
+updates any: the same operations on every value, in another order of independent
+chains, so its bar must equal the previous run bit for bit as well; a point the screen
+finds elastic books no work, as the previous kernel booked none there (eps_p - eps_p = 0).
+The screen's decision is the previous update's branch, checked at trial states one ulp
+and more either side of the yield surface.
 """
 import math
 
@@ -385,7 +393,7 @@ def _run_both(material, strain: float, tension: float, previous_update, seam: st
 
 
 @pytest.mark.parametrize("quad", [False, True], ids=["triangles", "quadrilaterals"])
-@pytest.mark.parametrize("seam", ["point", "array"])
+@pytest.mark.parametrize("seam", ["point", "unscreened", "array"])
 def test_j2_bar_bit_for_bit(seam, quad):
     qs, wp = _run_both(J2(E=200e9, nu=0.3, density=7850.0, yield_stress=250e6,
                           hardening=2e9), 3e-3, 0.0, previous_j2_update, seam, quad)
@@ -459,6 +467,59 @@ def test_drucker_prager_update_near_its_surfaces():
                 cases += 1
     assert cases == 200 * len(deltas) * 3
     assert 0 < screened < cases  # the screen decided some states, not all
+
+
+def test_j2_kernel_screens_ahead():
+    """J2's force on triangles runs the kernel that screens a cell's points ahead (the one
+    the bar tests compare); Drucker-Prager's, whose return is a call, does not."""
+    for material in (J2(yield_stress=250e6), DruckerPrager()):
+        integ = _bar(material, strain=1e-4, seed=1)
+        ahead = getattr(material, "screen_ahead", False)
+        assert integ.nonlinear[0].cell_kernel is kernels(
+            material.update, material.n_state, material.point, material.screen, ahead)[0]
+        assert ahead == isinstance(material, J2)
+
+
+@pytest.mark.parametrize("viscosity", [0.0, 1e3])
+def test_j2_screen_and_point_near_the_yield_surface(viscosity):
+    """J2's screen and point against the previous radial return, bit for bit, at trial
+    states whose sigma_eq,tr is sigma_y moved by relative amounts from one ulp to 0.3
+    either way, rate-independent and viscous: where the screen says elastic the previous
+    update returned the trial stress (which the screen gives) and kept the state, and
+    point equals the previous update everywhere."""
+    steel = J2(yield_stress=250e6, hardening=2e9, viscosity=viscosity)
+    prm = steel.params()
+    dt = 1e-7
+    rng = np.random.default_rng(5)
+    deltas = [0.0] + [sg * d for d in (1e-16, 2e-16, 1e-15, 1e-13, 1e-9, 1e-6, 0.3)
+                      for sg in (-1.0, 1.0)]
+    one = np.array([1.0, 1.0, 1.0, 0.0])
+    elastic_cases = yielded = cases = 0
+    for _ in range(200):
+        eb = abs(rng.standard_normal()) * 1e-3 * (rng.random() < 0.5)
+        sy = steel.yield_stress + steel.hardening * eb
+        n = rng.standard_normal(4)
+        n[:3] -= n[:3].mean()                                    # a deviatoric direction
+        n /= math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2 + 2.0 * n[3] ** 2)
+        p = rng.uniform(-2.0, 2.0) * sy
+        for d in deltas:
+            sig = p * one + SQRT_2_3 * sy * (1.0 + d) * n
+            eps_p = 1e-4 * rng.standard_normal(4)
+            eps = eps_p + ((1.0 + steel.nu) * sig - steel.nu * sig[:3].sum() * one) / steel.E
+            ep, st, s = eps_p.copy(), np.array([eb]), np.zeros(4)
+            previous_j2_update(eps, ep, st, prm, dt, s)
+            state = np.array([eb])
+            elastic, *trial = j2.screen(*eps, *eps_p, state, 0, prm)
+            if elastic:  # the previous update returned the trial stress, eps_p and eb kept
+                assert np.array_equal(np.array(trial), s), d
+                assert st[0] == eb and np.array_equal(ep, eps_p), d
+            out = j2.point(*eps, *eps_p, state, 0, prm, dt)
+            assert np.array_equal(np.array(out[:4]), s) and np.array_equal(np.array(out[4:]), ep)
+            assert state[0] == st[0]
+            elastic_cases += elastic
+            yielded += st[0] > eb
+            cases += 1
+    assert elastic_cases > 0 and yielded > 0  # both branches, at the surface's edge
 
 
 def test_screen_without_point_is_refused():

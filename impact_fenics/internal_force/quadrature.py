@@ -132,17 +132,21 @@ class QuadratureState:
 _KERNELS: dict = {}
 
 
-def kernels(update, n_state: int = 1, point=None, screen=None):
+def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = False):
     """The fused cell kernel and the point loop of the generic path for ``update``, whose
     points carry ``n_state`` variables (the last axis of the state array, at least 1).
     With ``point``, the same update on scalars (:mod:`..materials.axisym`), the fused
     kernel calls that instead, on the point's values where they are. With ``screen``
-    too (a material whose ``point`` is too large to be inlined in the cell loop), the
-    kernel runs that test first, inlined: where it finds the trial stress clearly
-    elastic the trial stress is the result and ``point`` is not called."""
+    too, the kernel runs that test first, inlined: where it finds the trial stress
+    elastic the trial stress is the result and ``point`` is not called. With ``ahead``
+    it runs the screen at a cell's three points before it updates any (three
+    independent chains of arithmetic the core overlaps: J2's step, whose ``point`` is
+    inlined, is faster so; a material whose ``point`` is a call would keep the three
+    trial stresses across it)."""
     if screen is not None and point is None:
         raise ValueError("a screen needs the scalar point it screens for")
-    key = (update, max(int(n_state), 1), point, screen)
+    ahead = bool(ahead) and screen is not None
+    key = (update, max(int(n_state), 1), point, screen, ahead)
     if key in _KERNELS:
         return _KERNELS[key]
     ns = key[1]
@@ -165,7 +169,9 @@ def kernels(update, n_state: int = 1, point=None, screen=None):
         into the big arrays per point would cost two reference-count updates each),
         copied in and out (unrolled: ``ns`` is fixed when the kernel is built). A
         material's ``screen`` runs before its ``point``, which only the points it leaves
-        undecided call."""
+        undecided call (with ``ahead``, at the cell's three points before the first
+        update). A point the screen decides keeps its plastic strain and books no work:
+        the update it stands for changes neither (d eps_p = eps_p - eps_p = 0)."""
         # (The generic path's loop below repeats the point block: a compiled helper for
         # it, called or inlined by numba, made this kernel 2-5x slower.)
         if state.shape[2] != ns:
@@ -193,46 +199,65 @@ def kernels(update, n_state: int = 1, point=None, screen=None):
             # weighted sums of sigma_rr, sigma_zz, sigma_rz and, for the hoop term, of
             # w_q sigma_tt,q / r_q N_i(x_q)
             S_rr = S_zz = S_rz = h0 = h1 = h2 = 0.0
+            if ahead:
+                # the material's elastic test at the cell's three points before any update:
+                # straight-line code whose three chains the core runs side by side
+                j = 4 * c3
+                e_tt0 = (n00 * ur0 + n01 * ur1 + n02 * ur2) * ir_q[c3]
+                e_tt1 = (n10 * ur0 + n11 * ur1 + n12 * ur2) * ir_q[c3 + 1]
+                e_tt2 = (n20 * ur0 + n21 * ur1 + n22 * ur2) * ir_q[c3 + 2]
+                tr0 = screen(e_rr, e_tt0, e_zz, e_rz, ep_q[j], ep_q[j + 1], ep_q[j + 2],
+                             ep_q[j + 3], st_q, ns * c3, params)
+                tr1 = screen(e_rr, e_tt1, e_zz, e_rz, ep_q[j + 4], ep_q[j + 5], ep_q[j + 6],
+                             ep_q[j + 7], st_q, ns * (c3 + 1), params)
+                tr2 = screen(e_rr, e_tt2, e_zz, e_rz, ep_q[j + 8], ep_q[j + 9], ep_q[j + 10],
+                             ep_q[j + 11], st_q, ns * (c3 + 2), params)
+            else:
+                e_tt0 = e_tt1 = e_tt2 = 0.0
+                tr0 = tr1 = tr2 = (False, 0.0, 0.0, 0.0, 0.0)
             for q in range(3):
                 if q == 0:
                     n0, n1, n2 = n00, n01, n02
+                    e_tt, trial = e_tt0, tr0
                 elif q == 1:
                     n0, n1, n2 = n10, n11, n12
+                    e_tt, trial = e_tt1, tr1
                 else:
                     n0, n1, n2 = n20, n21, n22
+                    e_tt, trial = e_tt2, tr2
                 i = c3 + q  # the point
                 j = 4 * i   # its first tensor component
                 k0 = ns * i  # its first state variable
                 ir = ir_q[i]
-                e_tt = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
-                p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
-                elastic = False
-                if screened:  # the material's elastic test: the trial stress, no call
-                    elastic, s0, s1, s2, s3 = screen(e_rr, e_tt, e_zz, e_rz, p0, p1, p2, p3,
-                                                     st_q, k0, params)
-                    q0, q1, q2, q3 = p0, p1, p2, p3
-                if elastic:
-                    pass
-                elif scalar:
-                    s0, s1, s2, s3, q0, q1, q2, q3 = point(e_rr, e_tt, e_zz, e_rz, p0, p1, p2,
-                                                           p3, st_q, k0, params, dt)
-                else:
-                    eps[0], eps[1], eps[2], eps[3] = e_rr, e_tt, e_zz, e_rz
-                    ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
-                    for k in range(ns):
-                        st[k] = st_q[k0 + k]
-                    update(eps, ep, st, params, dt, s)
-                    for k in range(ns):
-                        st_q[k0 + k] = st[k]
-                    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
-                    q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
+                if not ahead:
+                    e_tt = (n0 * ur0 + n1 * ur1 + n2 * ur2) * ir
                 wq = w_q[i]
-                d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
-                if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: book its work
-                    o0, o1, o2, o3 = sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3]
-                    wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
-                                      + 2.0 * (o3 + s3) * d3)
-                    ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = q0, q1, q2, q3
+                elastic, s0, s1, s2, s3 = trial  # ahead: the trial stress if elastic
+                if screened and not ahead:  # the material's elastic test: no call
+                    elastic, s0, s1, s2, s3 = screen(e_rr, e_tt, e_zz, e_rz, ep_q[j],
+                                                     ep_q[j + 1], ep_q[j + 2], ep_q[j + 3],
+                                                     st_q, k0, params)
+                if not elastic:
+                    p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
+                    if scalar:
+                        s0, s1, s2, s3, q0, q1, q2, q3 = point(e_rr, e_tt, e_zz, e_rz, p0, p1,
+                                                               p2, p3, st_q, k0, params, dt)
+                    else:
+                        eps[0], eps[1], eps[2], eps[3] = e_rr, e_tt, e_zz, e_rz
+                        ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                        for k in range(ns):
+                            st[k] = st_q[k0 + k]
+                        update(eps, ep, st, params, dt, s)
+                        for k in range(ns):
+                            st_q[k0 + k] = st[k]
+                        s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                        q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
+                    d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
+                    if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: its work
+                        o0, o1, o2, o3 = sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3]
+                        wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                          + 2.0 * (o3 + s3) * d3)
+                        ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = q0, q1, q2, q3
                 sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3] = s0, s1, s2, s3
                 S_rr += wq * s0
                 S_zz += wq * s2
@@ -371,9 +396,11 @@ class QuadratureForce:
         self.plastic_work_local = 0.0      # sum over points of 1/2 (s^{n-1} + s^n) : d eps_p (J)
         self._started = False
         point, screen = (getattr(self.material, name, None) for name in ("point", "screen"))
+        ahead = getattr(self.material, "screen_ahead", False)
         self._fused, self._points = ((bbar.kernel(self.material.update, point, screen), None)
                                      if quad else kernels(self.material.update,
-                                                          self.material.n_state, point, screen))
+                                                          self.material.n_state, point, screen,
+                                                          ahead))
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()

@@ -46,6 +46,25 @@ LAMBDA, MU, YIELD_STRESS, HARDENING, VISCOSITY = range(5)
 
 
 @njit(cache=True, error_model="numpy")
+def screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params):
+    """The trial stress sigma_tr = C : (eps - eps_p,n) (Pa) and whether it is elastic
+    (f_tr <= 0), on scalars: (elastic, s0, s1, s2, s3). Arguments as :func:`point`'s.
+
+    The exact test, without a square root: sigma_eq,tr^2 <= sigma_y^2 (sigma_y > 0).
+    Small and without calls, so that a cell loop inlines it and runs it at several
+    points side by side before it updates any; :func:`point` begins with it."""
+    lmbda, mu = params[LAMBDA], params[MU]
+    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
+    lt = lmbda * (x0 + x1 + x2)
+    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
+    m = (s0 + s1 + s2) / 3.0
+    d0, d1, d2 = s0 - m, s1 - m, s2 - m
+    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)  # sigma_eq,tr^2
+    sy = params[YIELD_STRESS] + params[HARDENING] * state[k]
+    return q2_tr <= sy * sy, s0, s1, s2, s3
+
+
+@njit(cache=True, error_model="numpy")
 def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     """Radial return for J2 at one point, on scalars (the scalar seam of :mod:`.axisym`).
 
@@ -57,21 +76,17 @@ def point(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params, dt):
     sigma_eq,tr > sigma_y > 0 where it divides by it), and without a zero test and an
     exception path at each division numba drops the reference counts of the arrays, so
     that a cell loop inlines this function instead of calling it."""
-    lmbda, mu = params[LAMBDA], params[MU]
-    # trial stress sigma_tr = C : (eps - eps_p,n), its deviator and sigma_eq
-    x0, x1, x2, x3 = e0 - p0, e1 - p1, e2 - p2, e3 - p3
-    lt = lmbda * (x0 + x1 + x2)
-    s0, s1, s2, s3 = lt + 2.0 * mu * x0, lt + 2.0 * mu * x1, lt + 2.0 * mu * x2, 2.0 * mu * x3
+    elastic, s0, s1, s2, s3 = screen(e0, e1, e2, e3, p0, p1, p2, p3, state, k, params)
+    if elastic:  # f_tr <= 0: no square root needed
+        return s0, s1, s2, s3, p0, p1, p2, p3
+    mu, hardening = params[MU], params[HARDENING]
+    # the deviator and sigma_eq,tr^2 again, as the screen forms them
     m = (s0 + s1 + s2) / 3.0
     d0, d1, d2 = s0 - m, s1 - m, s2 - m
-    q2_tr = 1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3)  # sigma_eq,tr^2
-    sy = params[YIELD_STRESS] + params[HARDENING] * state[k]
-    if q2_tr <= sy * sy:  # f_tr <= 0 (sigma_y > 0): elastic, no square root needed
-        return s0, s1, s2, s3, p0, p1, p2, p3
-    q_tr = math.sqrt(q2_tr)
-    f_tr = q_tr - sy
+    q_tr = math.sqrt(1.5 * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * s3 * s3))
+    f_tr = q_tr - (params[YIELD_STRESS] + hardening * state[k])
     viscous = params[VISCOSITY] / dt if params[VISCOSITY] > 0.0 else 0.0
-    dg = f_tr / (3.0 * mu + params[HARDENING] + viscous)  # Delta eps_bar_p
+    dg = f_tr / (3.0 * mu + hardening + viscous)  # Delta eps_bar_p
     kp = 1.5 * dg / q_tr  # Delta eps_p = kp s_tr
     state[k] += dg
     c = 2.0 * mu * kp  # sigma = sigma_tr - 2 mu Delta eps_p
@@ -105,6 +120,9 @@ class J2(IsotropicConstants):
     linear: bool = False
     n_state: int = 1
     strain: ClassVar[str] = "small"
+    # the triangles' cell kernel runs the exact :func:`screen` at a cell's three points
+    # before it updates any (:func:`..internal_force.quadrature.kernels`)
+    screen_ahead: ClassVar[bool] = True
     parameters: ClassVar[tuple[Parameter, ...]] = (
         YIELD, LINEAR_HARDENING,
         non_negative("viscosity", "Pa s", "overstress viscosity eta, d eps_bar_p / dt = "
@@ -125,6 +143,11 @@ class J2(IsotropicConstants):
     def update(self):
         """The compiled point update (radial return)."""
         return update
+
+    @property
+    def screen(self):
+        """The compiled elastic test and trial stress on scalars (exact: :func:`screen`)."""
+        return screen
 
     @property
     def point(self):

@@ -19,6 +19,7 @@ Oracles:
 * the ledger closes with friction (roundoff.ledger), D >= 0 and grows at every step;
 * the refusals of what is not built (one line each).
 """
+import json
 import math
 import os
 
@@ -435,6 +436,10 @@ def test_wall_with_friction(tmp, method):
     ledger closes."""
     h, e = _run(tmp, f"wall_mu_{method}", WALL_SCENE.format(method=method,
                                                           friction="friction = 0.3"))
+    with open(os.path.join(tmp, f"wall_mu_{method}", "summary.json")) as f:
+        (summary,) = json.load(f)["friction"]
+    assert summary["friction"] == "0.3" and summary["slip_work"] == h["slip_work"][-1]
+    assert summary["peak_tangential_force"] == np.abs(h["tangential_force"]).max()
     assert np.any(h["n_stick"] + h["n_slip"] > 0)
     assert np.all(h["tangential_force"] <= 0.0) and h["tangential_force"].min() < 0.0
     scale = np.abs(e["total"]).max()

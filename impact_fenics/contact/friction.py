@@ -51,8 +51,8 @@ from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
 
 # the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
 # numbers sticking and slipping, then the cumulative slip work and tangential arrival
-# loss (J)
-T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS = range(5)
+# loss (J) (the history's five columns), and the largest |total| so far (N)
+T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS, T_PEAK = range(6)
 FILM_T, DME_T = 1, 2  # the tangential kernels
 
 
@@ -218,7 +218,8 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     """Write the corrected r state back to the owned dofs, book the tangential work by
     the one contact-work booking (:func:`.state._book`, no jump) and roll the r slots
     to n+1; slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| and L_t = -W_t - D into ``stats``
-    (cumulative), with the step's total tangential force and stick/slip counts.
+    (cumulative), with the step's total tangential force, its largest magnitude so far
+    and the stick/slip counts.
     Returns W_t (J)."""
     for k in range(local.size):
         dst_u[local[k]] = u[pos[k]]
@@ -243,6 +244,7 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     stats[2] = n_slip
     stats[3] += slip
     stats[4] += -w_t - slip
+    stats[5] = max(stats[5], abs(total))
     return w_t
 
 
@@ -279,7 +281,7 @@ class Tangential:
         self.lam = np.zeros(c.n)  # λ_t (N) of the last step
         self.state = np.zeros(c.n, dtype=np.int8)  # 0 none, 1 stick, 2 slip
         self.a_inv = np.zeros(c.n)
-        self.stats = np.zeros(5)
+        self.stats = np.zeros(6)
         self.set_step()
 
     @staticmethod
@@ -364,3 +366,9 @@ class Tangential:
     def tangential_loss(self) -> float:
         """L_t (J) so far: -W_t - D, the tangential arrival loss."""
         return float(self.stats[T_LOSS])
+
+    def summary(self) -> dict:
+        """The run's friction figures: the law, D and L_t (J), the peak |Σ λ_t| (N)."""
+        return {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
+                "tangential_loss": self.tangential_loss,
+                "peak_tangential_force": float(self.stats[T_PEAK])}

@@ -485,3 +485,33 @@ def test_refused_in_one_line(tmp, text, words, capsys):
     assert len(lines) == 1 and lines[0].startswith("error: ") and words in lines[0], err
     assert "Traceback" not in err and not os.path.exists(out)
     COMM.barrier()
+
+
+def test_node_pair_slip_past_half_a_facet_warns_once(capsys):
+    """Two node pairs 1 cm apart (their facet), the upper nodes sliding at 1 m/s over the
+    lower ones under μ = 0.01: once the relative r displacement passes 5 mm the run warns,
+    once, naming the pair and pointing to node to segment (docs/friction.md 6)."""
+    mine = COMM.rank == 0
+    m, h, N = 1.0, 1e-4, 1.0
+    # dofs: lower nodes (r, z) 0-3, upper nodes 4-7, all owned by rank 0
+    mass = np.full(8, m) if mine else np.zeros(0)
+    u = np.zeros(mass.size)
+    v = np.array([0, 0, 0, 0, 1.0, 0, 1.0, 0]) if mine else np.zeros(0)
+    host = _Host(COMM, 0 if mine else 8, mass, u, v, h)
+    cons = Constraints(r=np.array([0.0, 0.01]), b=np.zeros(2), lower=np.array([1, 3]),
+                       upper=np.array([5, 7]), names=("lower", "upper"))
+    c = ContactSet(cons, host, FILM("fast"), None)
+    c.set_friction(0.01)
+    c.initialize()
+    capsys.readouterr()
+    for _ in range(80):  # 8 mm of slip at most
+        if mine:
+            v[[5, 7]] -= h * N / m
+            v[[1, 3]] += h * N / m
+            u += h * v
+        c.step()
+        host.n += 1
+    err = COMM.bcast(capsys.readouterr().err if mine else None)
+    lines = [x for x in err.splitlines() if "past half its facet" in x]
+    assert len(lines) == 1 and "node to segment" in lines[0] and lines[0].startswith("warning:")
+    assert c.friction.stats[N_SLIP] == 2

@@ -47,6 +47,7 @@ from mpi4py import MPI
 from numba import njit
 
 from ..errors import InputError
+from ..plausibility import warn
 from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
 
 # the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
@@ -214,13 +215,13 @@ def dme_tangential(lo, up, active, force, mass, m_over_h, h_over_m, h, mu_s, mu_
 
 @njit(cache=True)
 def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pred, u_now,
-                       v_now, f_prev, ku_prev, jump, lo, up, lam, state, stats):
+                       v_now, f_prev, ku_prev, jump, lo, up, lam, state, stats, slip_limit):
     """Write the corrected r state back to the owned dofs, book the tangential work by
     the one contact-work booking (:func:`.state._book`, no jump) and roll the r slots
     to n+1; slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| and L_t = -W_t - D into ``stats``
     (cumulative), with the step's total tangential force, its largest magnitude so far
-    and the stick/slip counts.
-    Returns W_t (J)."""
+    and the stick/slip counts. Returns (W_t (J), the first constraint whose relative
+    tangential displacement u_up,r - u_lo,r exceeds its ``slip_limit`` (m), or -1)."""
     for k in range(local.size):
         dst_u[local[k]] = u[pos[k]]
         dst_v[local[k]] = v[pos[k]]
@@ -245,7 +246,10 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     stats[3] += slip
     stats[4] += -w_t - slip
     stats[5] = max(stats[5], abs(total))
-    return w_t
+    for i in range(lam.size):
+        if abs(u_now[up[i]] - u_now[lo[i]]) > slip_limit[i]:
+            return w_t, i
+    return w_t, -1
 
 
 # ----------------------------------------------------------------------------- the pass
@@ -282,6 +286,16 @@ class Tangential:
         self.state = np.zeros(c.n, dtype=np.int8)  # 0 none, 1 stick, 2 slip
         self.a_inv = np.zeros(c.n)
         self.stats = np.zeros(6)
+        # a node pair keeps its partner (docs/friction.md 6): past half the smaller facet
+        # at the pair the slave is nearer another master node, and the run says so once
+        self.slip_limit = np.full(c.n, np.inf)
+        if c.rigid is None and c.n > 1:
+            r = np.asarray(c.r, dtype=float)
+            order = np.argsort(r, kind="stable")
+            gaps = np.diff(r[order])
+            near = np.minimum(np.r_[np.inf, gaps], np.r_[gaps, np.inf])
+            self.slip_limit[order] = 0.5 * near
+        self.warned = False
         self.set_step()
 
     @staticmethod
@@ -340,7 +354,7 @@ class Tangential:
         return (self._local, self._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg,
                 self.m_over_h, self.u, self.v, self.v_pred, self.u_now, self.v_now,
                 self.f_prev, self.ku_prev, self.jump, self.lo, self.up, self.lam, self.state,
-                self.stats)
+                self.stats, self.slip_limit)
 
     def step(self) -> float:
         """The tangential pass of the step, after the set's normal step: gather the
@@ -354,7 +368,16 @@ class Tangential:
             film_tangential(*self._film_args())
         else:
             dme_tangential(*self._dme_args())
-        return _commit_tangential(*self._commit_args())
+        w_t, far = _commit_tangential(*self._commit_args())
+        if far >= 0 and not self.warned:
+            self.warned = True
+            c = self.c
+            s = self.u_now[self.up[far]] - self.u_now[self.lo[far]]
+            warn(f"contact {'/'.join(c.constraints.names)}: the node pair at r = {c.r[far]:.6g} "
+                 f"m has slipped {s:.3g} m, past half its facet ({self.slip_limit[far]:.3g} m): "
+                 "node pairs keep their partner, so the force acts at the wrong place; use "
+                 "node to segment (slave/master) for faces that slide", c.comm)
+        return w_t
 
     # outputs
     @property

@@ -54,6 +54,7 @@ class WallSpec:
     penalty: float | str = "scaled"  # N/m, or "scaled" (beta = 1 each step)
     face: str = "contact"         # the impact face: unilateral contact, or held (u_z = 0)
     friction: Any = None          # contact.friction.FrictionLaw (small strain), None: none
+    tangential_penalty: float | str = "scaled"  # N/m, penalty with friction
     given: tuple[str, ...] = ()
 
 
@@ -70,6 +71,7 @@ def read_wall(data: Any) -> WallSpec:
 
         law = friction_law(t.data["friction"], "[wall] friction")
         wall.friction = None if law.is_zero else law
+    wall.tangential_penalty = t.value("tangential_penalty")
     return wall
 
 

@@ -22,12 +22,6 @@ ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
                   "balance_error_rel")
 
 
-# a contact set's friction columns (its tangential pass's stats): the total tangential
-# force (N, on the upper sides along +r), the numbers sticking and slipping, and the slip
-# work and tangential arrival loss so far (J)
-FRICTION_COLUMNS = ("tangential_force", "n_stick", "n_slip", "slip_work", "tangential_loss")
-
-
 def momentum_columns(bodies: Iterable[str], contacts: list) -> list[str]:
     """The z momentum columns (kg m/s): the total, then per body and per moving rigid body
     of the contact sets (a fixed one takes any impulse and keeps none)."""
@@ -56,8 +50,8 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         if c.moving_rigid is not None:  # (a fixed part's would be zeros)
             cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
         cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
-        if getattr(c, "friction", None) is not None:  # friction_columns, in its stats' order
-            cols += [f"{tag}{x}" for x in FRICTION_COLUMNS]
+        if getattr(c, "friction", None) is not None:  # its tangential pass's stats
+            cols += [f"{tag}{name}" for name, _ in c.friction.history_columns]
     n_raw = probes.n_raw if probes else 0
     n_probes = len(probes.names) if probes else 0
     block = 256
@@ -102,13 +96,14 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
     # per contact: its stats (number active, total force, smallest gap; updated in place
     # by its step), its phase times, its rigid body and its first raw column
     layout, k = [], offset + 3
-    friction = []  # (its stats, its first raw column) per set with friction
+    friction = []  # (its stats, their indices, its first raw column) per set with friction
     for c in contacts:
         layout.append((memoryview(c.stats), c.times, c.moving_rigid, k))
         k += 6 + (2 if c.moving_rigid is not None else 0)
         if getattr(c, "friction", None) is not None:
-            friction.append((c.friction.stats, k))
-            k += len(FRICTION_COLUMNS)
+            which = tuple(i for _, i in c.friction.history_columns)
+            friction.append((c.friction.stats, which, k))
+            k += len(which)
 
     def history_row() -> None:
         j = next_row()
@@ -131,10 +126,11 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
             cells[k + 3] = times.detection
             cells[k + 4] = times.solve
             cells[k + 5] = times.update
-        for stats, k in friction:
+        for stats, which, k in friction:
             k += j
-            for i in range(5):
-                cells[k + i] = stats[i]
+            for i in which:
+                cells[k] = stats[i]
+                k += 1
     return history_row
 
 

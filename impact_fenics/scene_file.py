@@ -75,6 +75,7 @@ class ContactSpec:
     reach: float | None = None   # m, node to segment: farthest master segment of a slave
     repair_every: int = 0        # node to segment: steps between re-pairings (0: never)
     friction: Any = None         # contact.friction.FrictionLaw, None: frictionless
+    tangential_penalty: float | str = "scaled"  # N/m, penalty with friction
     given: tuple[str, ...] = ()  # the keys the file gave
 
 
@@ -324,6 +325,7 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
     c.positions = t.value("positions")
     c.film_solver = t.value("film_solver")
     c.friction = read_friction(t)
+    c.tangential_penalty = t.value("tangential_penalty")
     return c
 
 
@@ -641,7 +643,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
                                 method, rigid=body)
             if c.friction is not None:
-                sim.contacts[-1].set_friction(c.friction)
+                sim.contacts[-1].set_friction(c.friction, c.tangential_penalty, scene.force)
     if scene.wall is not None:  # a fixed rigid part under every boundary node
         from .contact.plane import boundary_nodes, plane_below, wall_part
 
@@ -651,7 +653,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                                model.offset, w.z, model.length_scale)
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
             if w.friction is not None:
-                sim.contacts[-1].set_friction(w.friction)
+                sim.contacts[-1].set_friction(w.friction, w.tangential_penalty, scene.force)
     for p in scene.probes:
         with within(p.where):
             if p.quantity == "section":  # its plane checked now (Probes builds it in run)
@@ -689,7 +691,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
 
 # contact keys that only one method reads
 _METHOD_KEYS = {"penalty": ("penalty",), "restitution": ("dme",), "positions": ("dme",),
-                "film_solver": ("film",)}
+                "film_solver": ("film",), "tangential_penalty": ("penalty",)}
 
 
 def _warn_ignored_keys(c: ContactSpec, comm: MPI.Comm) -> None:

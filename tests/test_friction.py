@@ -1,4 +1,5 @@
-"""Coulomb friction on node pairs, a rigid face and the wall (FILM, DME): docs/friction.md.
+"""Coulomb friction on node pairs, a rigid face and the wall (FILM, DME, penalty):
+docs/friction.md.
 
 Oracles:
 
@@ -17,7 +18,11 @@ Oracles:
 * DME = FILM with friction on node pairs (e = 0, mass-weighted positions, faces touching
   at t = 0), in stick and in slip, within the spread of a one-ulp change of the start;
 * the ledger closes with friction (roundoff.ledger), D >= 0 and grows at every step;
-* the refusals of what is not built (one line each).
+* the penalty (docs/friction.md 4): one pair by hand (trial, return, s_e, D, R); under a
+  steady tangential load it settles at s_e = (1 - beta_t) F / k_t (beta_t = 0.5, 1);
+  the scaled penalty on the wall equals FILM within the spread of a one-ulp change;
+* the refusals of what is not built (one line each), and a node pair that slips past half
+  its facet warns once.
 """
 import json
 import math
@@ -28,9 +33,10 @@ import pytest
 from mpi4py import MPI
 
 from impact_fenics import cli
-from impact_fenics.contact import DME, FILM, ContactSet
-from impact_fenics.contact.friction import (N_SLIP, N_STICK, SLIP_WORK, FrictionLaw,
-                                            dme_tangential, film_tangential, friction_law)
+from impact_fenics.contact import DME, FILM, ContactSet, Penalty
+from impact_fenics.contact.friction import (N_SLIP, N_STICK, RETURN_LOSS, FrictionLaw,
+                                            dme_tangential, film_tangential, friction_law,
+                                            penalty_tangential)
 from impact_fenics.contact.pairing import Constraints
 from impact_fenics.contact.plane import _Host, wall_part
 from impact_fenics.errors import InputError
@@ -447,8 +453,8 @@ def test_wall_with_friction(tmp, method):
 
 
 REFUSED = [
-    (WALL_SCENE.format(method="penalty", friction="friction = 0.3"),
-     "friction with the penalty method is not built yet"),
+    (WALL_SCENE.format(method="penalty", friction="friction = 0.3\ntangential_penalty = 1e15"),
+     "passes the stable bound 4/3"),
     (WALL_SCENE.format(method="film", friction="friction = -0.3"),
      "[wall] friction = -0.3: must be a finite number >= 0"),
     (WALL_SCENE.format(method="film", friction='friction = "rough"'),
@@ -464,7 +470,7 @@ REFUSED = [
 ]
 
 
-@pytest.mark.parametrize("text, words", REFUSED, ids=["penalty", "negative", "word",
+@pytest.mark.parametrize("text, words", REFUSED, ids=["stiff", "negative", "word",
                                                        "finite-wall", "segments"])
 def test_refused_in_one_line(tmp, text, words, capsys):
     """What is not built is refused in one line "error: ...", exit 2, nothing written."""
@@ -515,3 +521,90 @@ def test_node_pair_slip_past_half_a_facet_warns_once(capsys):
     lines = [x for x in err.splitlines() if "past half its facet" in x]
     assert len(lines) == 1 and "node to segment" in lines[0] and lines[0].startswith("warning:")
     assert c.friction.stats[N_SLIP] == 2
+
+
+# ----------------------------------------------------------------------------- penalty
+
+@pytest.mark.parametrize("mu, sticks", [(0.5, True), (0.1, False)])
+def test_penalty_one_pair_by_hand(mu, sticks):
+    """The pair of test_one_pair_by_hand with a committed elastic slip s_e = 1e-7 m and
+    k_t = 3e7 N/m: the trial λ_tr = -k_t (s_e + h w~) = -3 + 1500 = 1497 N. Stick (cone
+    1e4 N): λ_t = λ_tr, s_e += h w⁺. Slip (cone 1000 N): λ_t = 1000 N, Δs_p =
+    (c - λ_tr) / k_t, s_e += h w⁺ - Δs_p, D = c |Δs_p|, R = 1/2 k_t Δs_p^2."""
+    m_p, m_q, vp, vq, h, k, s0 = 2.0, 3.0, 0.3, -0.2, 1e-4, 3e7, 1e-7
+    fn = 2e4 if sticks else 1e4
+    trial = -k * (s0 + h * (vq - vp))
+    lo, up = np.array([0]), np.array([1])
+    v = np.array([vp, vq])
+    u, lam, state = np.zeros(2), np.zeros(1), np.zeros(1, np.int8)
+    s_e, d_slip, stats = np.array([s0]), np.zeros(1), np.zeros(8)
+    h_over_m = np.array([h / m_p, h / m_q])
+    penalty_tangential(lo, up, np.ones(1, np.bool_), np.array([fn]), np.array([k]), h_over_m,
+                       h, mu, mu, 0.0, False, v.copy(), u, v, lam, state, s_e, d_slip, stats)
+    c = mu * fn
+    f = trial if sticks else c
+    dsp = 0.0 if sticks else (c - trial) / k
+    tol = rounding(8, abs(trial))
+    assert state[0] == (1 if sticks else 2) and abs(lam[0] - f) <= tol
+    assert abs(v[1] - (vq + h * f / m_q)) <= rounding(8, 0.5)
+    assert abs(v[0] - (vp - h * f / m_p)) <= rounding(8, 0.5)
+    w_new = v[1] - v[0]
+    assert abs(s_e[0] - (s0 + h * w_new - dsp)) <= rounding(8, h * 0.5)
+    assert abs(d_slip[0] - c * abs(dsp)) <= rounding(8, c * abs(dsp))
+    assert abs(stats[RETURN_LOSS] - 0.5 * k * dsp * dsp) <= rounding(8, 0.5 * k * dsp * dsp)
+
+
+@pytest.mark.parametrize("beta", [1.0, 0.5])
+def test_penalty_steady_tangential_load(beta):
+    """A node on the wall under a constant normal load N and a tangential load F inside
+    the cone: the spring settles at s_e = (1 - beta_t) F / k_t with λ_t = -F and w⁺ = 0
+    (docs/friction.md 4: the drift of a trial built on the last force is excluded). The
+    recurrence's transient decays as sqrt(1 - beta_t)^n (its matrix [[1 - b, -b],
+    [1 - b, 1 - b]] on (w⁺, s_e / h) has determinant 1 - b): below 1e-30 after 200
+    steps at beta_t = 0.5, none at 1. Round-off: a step's (EPS x 32) on F and F / k_t."""
+    m, N, F, h = 2.0, 10.0, 1.0, 1e-3
+    k = beta * m / h ** 2
+    mine = COMM.rank == 0
+    mass = np.array([m, m]) if mine else np.zeros(0)
+    u, v = np.zeros(mass.size), np.zeros(mass.size)
+    host = _Host(COMM, 0 if mine else 2, mass, u, v, h)
+    cons = Constraints(r=np.array([1.0]), b=np.array([0.0]), lower=None,
+                       upper=np.array([1]), names=("node", "wall"))
+    c = ContactSet(cons, host, Penalty("scaled"), wall_part())
+    c.set_friction(1.0, "scaled" if beta == 1.0 else k)
+    c.initialize()
+    for _ in range(200):
+        if mine:
+            v[1] += h * (-N / m)
+            v[0] += h * F / m
+            u += h * v
+        c.step()
+        host.n += 1
+    t = c.friction
+    assert abs(t.beta_max - beta) <= rounding(8, beta)
+    assert abs(t.s_e[0] - (1.0 - beta) * F / k) <= rounding(32, F / k)
+    assert abs(t.lam[0] + F) <= rounding(32, F) and t.state[0] == 1
+    assert abs(t.v_now[0]) <= rounding(32, h * F / m)
+
+
+def test_penalty_scaled_wall_equals_film(tmp):
+    """On the wall, the scaled penalty (beta = 1 per node, normal and tangential) is FILM
+    (docs/friction.md 4, contact.md): with μ = 0.3 every history column agrees within
+    the spread of a one-ulp change of v0; its spring energy is zero at beta_t = 1 (the
+    spring returns to zero at every step) and the ledger closes."""
+    f = "friction = 0.3"
+    hf, ef = _run(tmp, "pw_film", WALL_SCENE.format(method="film", friction=f))
+    hp, ep = _run(tmp, "pw_pen", WALL_SCENE.format(method="penalty", friction=f))
+    hu, _ = _run(tmp, "pw_ulp", WALL_SCENE.format(method="film", friction=f).replace(
+        "velocity = [0.0, -5.0]", f"velocity = [0.0, {-one_ulp(5.0)!r}]"))
+    n = hf.size
+    assert np.any(hf["n_slip"] > 0) and np.any(hf["n_stick"] > 0)
+    for col in ("wall_force", "tangential_force"):
+        assert_within_spread(hp[col], hf[col], hu[col], n, col)
+    assert np.array_equal(hp["n_stick"], hf["n_stick"])
+    assert np.array_equal(hp["n_slip"], hf["n_slip"])
+    # the spring's energy is the round-off of s_e = 0 (a step's roundings of the energy)
+    assert np.all(hp["spring_energy"] <= rounding(32, np.abs(ep["total"]).max()))
+    assert np.all(np.diff(hp["return_loss"]) >= 0.0) and np.all(np.diff(hp["slip_work"]) >= 0.0)
+    scale = np.abs(ep["total"]).max()
+    assert np.abs(ep["balance_error"]).max() <= ledger(n, 2 * 5 * 17) * scale

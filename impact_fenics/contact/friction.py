@@ -52,9 +52,15 @@ from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
 
 # the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
 # numbers sticking and slipping, then the cumulative slip work and tangential arrival
-# loss (J) (the history's five columns), and the largest |total| so far (N)
-T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS, T_PEAK = range(6)
-FILM_T, DME_T = 1, 2  # the tangential kernels
+# loss (J) (the history's five columns), the largest |total| so far (N), then the
+# penalty's return loss so far and the stored energy 1/2 k_t s_e^2 now (J)
+T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS, T_PEAK, RETURN_LOSS, STORED = range(8)
+# a set's history columns and the stats they read (the penalty adds its two energies)
+HISTORY = (("tangential_force", T_FORCE), ("n_stick", N_STICK), ("n_slip", N_SLIP),
+           ("slip_work", SLIP_WORK), ("tangential_loss", T_LOSS))
+PENALTY_HISTORY = (("return_loss", RETURN_LOSS), ("spring_energy", STORED))
+STABILITY_BOUND = 4.0 / 3.0  # of beta_t = k_t h A_ii (penalty.py's derivation)
+FILM_T, DME_T, PENALTY_T = 1, 2, 3  # the tangential kernels
 
 
 @dataclass(frozen=True)
@@ -214,13 +220,69 @@ def dme_tangential(lo, up, active, force, mass, m_over_h, h_over_m, h, mu_s, mu_
 
 
 @njit(cache=True)
+def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, decay, stick,
+                       v_now, u, v, lam, state, s_e, d_slip, stats):
+    """The penalty's tangential spring with a return to the cone (docs/friction.md 4) on
+    the predicted r state: per active constraint the trial λ_tr = -k_t (s_e + h w~_t)
+    (``k_t``: N/m, ``s_e``: the committed elastic slip, m), stick inside the cone, else
+    λ_t = ±c and the plastic slip Δs_p = -(|λ_tr| - c) sign(λ_tr) / k_t; u, v corrected
+    as FILM's, then s_e += h w_t^{n+1/2} - Δs_p. A constraint without a compressive λ_n
+    is released: λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 into the return loss.
+    ``d_slip`` receives c |Δs_p| (J) per constraint; the return loss and the stored
+    energy (J) in ``stats`` are updated."""
+    ret = 0.0
+    stored = 0.0
+    for i in range(lo.size):
+        lam[i] = 0.0
+        state[i] = 0
+        d_slip[i] = 0.0
+        fn = force[i]
+        p, q = lo[i], up[i]
+        if not active[i] or not fn > 0.0 or k_t[i] == 0.0:
+            if s_e[i] != 0.0:  # released: the spring's energy is returned as loss
+                ret += 0.5 * k_t[i] * s_e[i] * s_e[i]
+                s_e[i] = 0.0
+            continue
+        trial = -k_t[i] * (s_e[i] + h * (v[q] - v[p]))
+        dsp = 0.0
+        if stick:
+            f = trial
+            state[i] = 1
+        else:
+            c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
+            if abs(trial) <= c:
+                f = trial
+                state[i] = 1
+            else:
+                f = c if trial > 0.0 else -c
+                dsp = (f - trial) / k_t[i]  # -(|trial| - c) sign(trial) / k_t
+                state[i] = 2
+                d_slip[i] = c * abs(dsp)
+                ret += 0.5 * k_t[i] * dsp * dsp
+        lam[i] = f
+        dv_q = f * h_over_m[q]
+        dv_p = f * h_over_m[p]
+        v[q] += dv_q
+        u[q] += h * dv_q
+        v[p] -= dv_p
+        u[p] -= h * dv_p
+        s_e[i] += h * (v[q] - v[p]) - dsp
+        stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
+    stats[RETURN_LOSS] += ret
+    stats[STORED] = stored
+
+
+@njit(cache=True)
 def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pred, u_now,
-                       v_now, f_prev, ku_prev, jump, lo, up, lam, state, stats, slip_limit):
+                       v_now, f_prev, ku_prev, jump, lo, up, lam, state, stats, slip_limit,
+                       penalty, d_slip, spring_change):
     """Write the corrected r state back to the owned dofs, book the tangential work by
     the one contact-work booking (:func:`.state._book`, no jump) and roll the r slots
-    to n+1; slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| and L_t = -W_t - D into ``stats``
-    (cumulative), with the step's total tangential force, its largest magnitude so far
-    and the stick/slip counts. Returns (W_t (J), the first constraint whose relative
+    to n+1; slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| (the ``penalty``: Σ ``d_slip``,
+    c |Δs_p|) and L_t = -W_t - D (the penalty: minus also ``spring_change``, the step's
+    return loss and change of stored energy, J) into ``stats`` (cumulative), with the
+    step's total tangential force, its largest magnitude so far and the stick/slip
+    counts. Returns (W_t (J), the first constraint whose relative
     tangential displacement u_up,r - u_lo,r exceeds its ``slip_limit`` (m), or -1)."""
     for k in range(local.size):
         dst_u[local[k]] = u[pos[k]]
@@ -236,7 +298,9 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
             n_stick += 1
         elif state[i] == 2:
             n_slip += 1
-        if f != 0.0:
+        if penalty:
+            slip += d_slip[i]
+        elif f != 0.0:
             slip += h_avg * abs(f) * abs(v[up[i]] - v[lo[i]])
     w_t, _ = _book(h, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, False,
                    False)
@@ -244,7 +308,7 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     stats[1] = n_stick
     stats[2] = n_slip
     stats[3] += slip
-    stats[4] += -w_t - slip
+    stats[4] += -w_t - slip - spring_change
     stats[5] = max(stats[5], abs(total))
     for i in range(lam.size):
         if abs(u_now[up[i]] - u_now[lo[i]]) > slip_limit[i]:
@@ -257,10 +321,13 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
 class Tangential:
     """The tangential slots and pass of a node-pair or rigid-face contact set ``c``
     (:class:`~.interface.ContactSet`) with friction ``law`` (a :class:`FrictionLaw`, not
-    zero); ``kernel`` FILM_T or DME_T. Made by ``ContactSet.set_friction``."""
+    zero); ``kernel`` FILM_T, DME_T or PENALTY_T, the last with the tangential
+    stiffness ``stiffness`` (N/m, or ``"scaled"``: beta_t = 1 per row, k_t = m_red /
+    (h_{n+1/2} h_n)). Made by ``ContactSet.set_friction``."""
 
-    def __init__(self, c, law: FrictionLaw, kernel: int):
+    def __init__(self, c, law: FrictionLaw, kernel: int, stiffness: float | str = "scaled"):
         self.c, self.law, self.kernel = c, law, kernel
+        self.stiffness = stiffness
         integ = c.integrator
         model = integ.model
         nd, ns = c.n_deformable, c.n_slots
@@ -285,7 +352,10 @@ class Tangential:
         self.lam = np.zeros(c.n)  # λ_t (N) of the last step
         self.state = np.zeros(c.n, dtype=np.int8)  # 0 none, 1 stick, 2 slip
         self.a_inv = np.zeros(c.n)
-        self.stats = np.zeros(6)
+        self.stats = np.zeros(8)
+        self.k_t = np.zeros(c.n)  # N/m, the penalty's tangential stiffnesses
+        self.s_e = np.zeros(c.n)  # m, the penalty's committed elastic slips
+        self.d_slip = np.zeros(c.n)  # J, the penalty's c |Δs_p| of the step
         # a node pair keeps its partner (docs/friction.md 6): past half the smaller facet
         # at the pair the slave is nearer another master node, and the run says so once
         self.slip_limit = np.full(c.n, np.inf)
@@ -325,6 +395,12 @@ class Tangential:
         a = self.h_over_m[self.lo] + self.h_over_m[self.up]
         self.a_inv[:] = 0.0
         np.divide(1.0, a, out=self.a_inv, where=a > 0.0)
+        if self.kernel == PENALTY_T:  # beta_t = k_t h A_ii
+            if isinstance(self.stiffness, str):
+                self.k_t[:] = self.a_inv / self.c.dt
+            else:
+                self.k_t[:] = np.where(a > 0.0, float(self.stiffness), 0.0)
+            self.beta_max = float((self.k_t * self.c.dt * a).max(initial=0.0))
 
     def initialize(self) -> None:
         """Read u_r^0 and v_r^0 (the first step's v^{n-1/2})."""
@@ -335,7 +411,8 @@ class Tangential:
 
         load(film_tangential, *self._film_args())
         load(dme_tangential, *self._dme_args())
-        load(_commit_tangential, *self._commit_args())
+        load(penalty_tangential, *self._penalty_args())
+        load(_commit_tangential, *self._commit_args(), 0.0)
 
     def _film_args(self) -> tuple:
         law, c = self.law, self.c
@@ -349,12 +426,18 @@ class Tangential:
                 c.dt, law.static, law.dynamic, law.decay, law.stick, self.u_now, self.v_now,
                 self.u, self.v, self.lam, self.state)
 
+    def _penalty_args(self) -> tuple:
+        law, c = self.law, self.c
+        return (self.lo, self.up, c.active, c.force, self.k_t, self.h_over_m, c.dt,
+                law.static, law.dynamic, law.decay, law.stick, self.v_now, self.u, self.v,
+                self.lam, self.state, self.s_e, self.d_slip, self.stats)
+
     def _commit_args(self) -> tuple:
         c, integ = self.c, self.c.integrator
         return (self._local, self._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg,
                 self.m_over_h, self.u, self.v, self.v_pred, self.u_now, self.v_now,
                 self.f_prev, self.ku_prev, self.jump, self.lo, self.up, self.lam, self.state,
-                self.stats, self.slip_limit)
+                self.stats, self.slip_limit, self.kernel == PENALTY_T, self.d_slip)
 
     def step(self) -> float:
         """The tangential pass of the step, after the set's normal step: gather the
@@ -364,11 +447,17 @@ class Tangential:
         self._gather(integ.u_owned, integ.v_owned, self.u_pred[:nd], self.v_pred[:nd])
         self.u[:] = self.u_pred
         self.v[:] = self.v_pred
+        change = 0.0
         if self.kernel == FILM_T:
             film_tangential(*self._film_args())
-        else:
+        elif self.kernel == DME_T:
             dme_tangential(*self._dme_args())
-        w_t, far = _commit_tangential(*self._commit_args())
+        else:
+            stats = self.stats
+            before = stats[RETURN_LOSS] + stats[STORED]
+            penalty_tangential(*self._penalty_args())
+            change = stats[RETURN_LOSS] + stats[STORED] - before
+        w_t, far = _commit_tangential(*self._commit_args(), change)
         if far >= 0 and not self.warned:
             self.warned = True
             c = self.c
@@ -381,6 +470,11 @@ class Tangential:
 
     # outputs
     @property
+    def history_columns(self) -> tuple:
+        """(name, index into ``stats``) of the set's history columns."""
+        return HISTORY + (PENALTY_HISTORY if self.kernel == PENALTY_T else ())
+
+    @property
     def slip_work(self) -> float:
         """D (J) so far: Σ h_n |λ_t| |w_t^{n+1/2}| >= 0."""
         return float(self.stats[SLIP_WORK])
@@ -392,6 +486,11 @@ class Tangential:
 
     def summary(self) -> dict:
         """The run's friction figures: the law, D and L_t (J), the peak |Σ λ_t| (N)."""
-        return {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
-                "tangential_loss": self.tangential_loss,
-                "peak_tangential_force": float(self.stats[T_PEAK])}
+        out = {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
+               "tangential_loss": self.tangential_loss,
+               "peak_tangential_force": float(self.stats[T_PEAK])}
+        if self.kernel == PENALTY_T:
+            out.update(return_loss=float(self.stats[RETURN_LOSS]),
+                       spring_energy=float(self.stats[STORED]), beta_t_max=self.beta_max,
+                       tangential_penalty=self.stiffness)
+        return out

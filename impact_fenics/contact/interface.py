@@ -362,13 +362,17 @@ class ContactSet:
         self.friction = None  # node to segment: frictionless (set_friction refuses)
         self.method.setup(self)
 
-    def set_friction(self, friction) -> None:
+    def set_friction(self, friction, tangential_penalty: float | str = "scaled",
+                     force: bool = False) -> None:
         """Coulomb friction on this set (docs/friction.md): ``friction`` a coefficient
         μ >= 0, ``"stick"``, a table {static, dynamic, decay} or a
         :class:`.friction.FrictionLaw`. μ = 0 makes nothing: the set's step stays the
-        frictionless one. Built for FILM and DME on node pairs and a rigid or fixed face
-        (the wall); refused in one line elsewhere. Call before the run."""
-        from .friction import DME_T, FILM_T, Tangential, friction_law
+        frictionless one. Built for FILM, DME and the penalty (its tangential spring
+        ``tangential_penalty``: N/m, or ``"scaled"``, beta_t = 1 per row; one whose
+        beta_t passes 4/3 is refused unless ``force``) on node pairs and a flat rigid or
+        fixed face (the wall); refused in one line elsewhere. Call before the run."""
+        from .friction import (DME_T, FILM_T, PENALTY_T, STABILITY_BOUND, Tangential,
+                               friction_law)
 
         law = friction_law(friction)
         if law.is_zero:
@@ -377,22 +381,32 @@ class ContactSet:
         what = f"friction = {law.text()}"
         if self.kind == SEGMENTS:
             raise InputError(f"{what}: friction on node-to-segment contact is not built yet "
-                             "(built: node pairs, a rigid face and the wall, with film or dme)")
+                             "(built: node pairs, a rigid face and the wall)")
+        if isinstance(tangential_penalty, str):
+            if tangential_penalty != "scaled":
+                raise InputError(f"tangential_penalty = '{tangential_penalty}': give a "
+                                 "stiffness in N/m or 'scaled'")
+        elif not (isinstance(tangential_penalty, (int, float)) and tangential_penalty > 0):
+            raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: must be > 0")
         if isinstance(self.method, Penalty):
-            raise InputError(f"{what}: friction with the penalty method is not built yet "
-                             "(built: film and dme, on node pairs, a rigid face and the wall)")
-        if isinstance(self.method, FILM):
+            kernel = PENALTY_T
+        elif isinstance(self.method, FILM):
             kernel = FILM_T
         elif isinstance(self.method, DME):
             kernel = DME_T
         else:
-            raise InputError(f"{what}: friction needs method film or dme")
+            raise InputError(f"{what}: friction needs method film, dme or penalty")
         if np.any(self.constraints.b != self.constraints.b[0]) and self.rigid is not None \
                 and not self.rigid.fixed:
             raise InputError(f"{what}: a button (a rigid face with a profile) with friction is "
                              "not built: its tangent is tilted, which the rigid kind does not "
                              "have")
-        self.friction = Tangential(self, law, kernel)
+        tangential = Tangential(self, law, kernel, tangential_penalty)
+        if kernel == PENALTY_T and tangential.beta_max > STABILITY_BOUND and not force:
+            raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t = "
+                             f"{tangential.beta_max:.3g} passes the stable bound 4/3 (k_t h "
+                             "h_n (1/m_lo + 1/m_up)); lower it, use 'scaled' or force")
+        self.friction = tangential
 
     def set_repairing(self, every: int, reach: float | None = None,
                       end_tol: float = END_TOLERANCE) -> None:

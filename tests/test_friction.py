@@ -40,7 +40,7 @@ from impact_fenics.contact.friction import (N_SLIP, N_STICK, RETURN_LOSS, Fricti
 from impact_fenics.contact.pairing import Constraints
 from impact_fenics.contact.plane import _Host, wall_part
 from impact_fenics.errors import InputError
-from roundoff import EPS, assert_within_spread, ledger, one_ulp, rounding
+from roundoff import EPS, assert_runs_agree, assert_within_spread, ledger, one_ulp, rounding
 
 COMM = MPI.COMM_WORLD
 INF = np.inf
@@ -367,21 +367,42 @@ def tmp(tmp_path_factory):
     return COMM.bcast(path)
 
 
-@pytest.mark.parametrize("method", ["film", "dme"])
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
 @pytest.mark.parametrize("kind", ["pairs", "wall"])
 def test_zero_friction_is_todays_path(tmp, method, kind):
-    """friction = 0 makes no tangential slot: the run equals the one without the key, bit
-    for bit (every column of both tables)."""
+    """friction = 0 makes no tangential slot, no pass and no column: the set built from
+    the scene has none, and the run equals the one without the key, every column, bit
+    for bit on one rank (roundoff.assert_runs_agree). On several ranks two runs of one
+    scene in one process may be partitioned differently (measured on 3 ranks: one run
+    in six differed by 1.9e-10 N of 33 kN, without any friction key): there they agree
+    within the spread of a one-ulp change of v0."""
+    from impact_fenics.scene_file import build, read_scene
+
     text = SCENE if kind == "pairs" else WALL_SCENE
     fmt = dict(method=method, v0=5.0)
+    zero = text.format(friction="friction = 0.0", **fmt)
+    path = os.path.join(tmp, f"zero_{kind}_{method}.toml")
+    if COMM.rank == 0:
+        with open(path, "w") as f:
+            f.write(zero)
+    COMM.barrier()
+    sim = build(read_scene(path))
+    assert all(c.friction is None for c in sim.contacts)
     h0, e0 = _run(tmp, f"none_{kind}_{method}", text.format(friction="", **fmt))
-    h1, e1 = _run(tmp, f"zero_{kind}_{method}", text.format(friction="friction = 0.0", **fmt))
+    h1, e1 = _run(tmp, f"zero_{kind}_{method}", zero)
+    hu = eu = None
+    if COMM.size > 1:
+        fmt["v0"] = one_ulp(5.0)
+        ulp = text.format(friction="", **fmt)
+        if kind == "wall":
+            ulp = ulp.replace("velocity = [0.0, -5.0]", f"velocity = [0.0, {-one_ulp(5.0)!r}]")
+        hu, eu = _run(tmp, f"ulp_{kind}_{method}", ulp)
     assert h0.dtype.names == h1.dtype.names and "n_stick" not in h0.dtype.names
     for col in h0.dtype.names:
         if not col.startswith("cpu_"):
-            assert np.array_equal(h0[col], h1[col]), col
+            assert_runs_agree(h1[col], h0[col], None if hu is None else hu[col], h0.size, col)
     for col in e0.dtype.names:
-        assert np.array_equal(e0[col], e1[col]), col
+        assert_runs_agree(e1[col], e0[col], None if eu is None else eu[col], h0.size, col)
 
 
 @pytest.fixture(scope="module", params=["0.3", '"stick"'])

@@ -24,14 +24,19 @@ c = μ λ_n (``"stick"``: no cone):
   side's velocity where one side is fixed), the reaction that sticking implies
   λ* = m_up (v* - v~_up) / h_n; inside the cone both r velocities become v*, outside it
   λ_t = ±c is applied; positions u^{n+1} = u^n + h_{n+1/2} v^{n+1/2} (no jump in r).
+- penalty: a tangential spring k_t (N/m) on the committed elastic slip s_e (m), trial
+  λ_tr = -k_t (s_e + h_{n+1/2} w~_t), returned to the cone where it lies outside it
+  (plastic slip Δs_p), applied as FILM's; s_e += h_{n+1/2} w_t^{n+1/2} - Δs_p. k_t is
+  "scaled" (beta_t = k_t h_{n+1/2} A_ii = 1: the penalty's stick is FILM's) or given.
 
 μ_i = μ_d + (μ_s - μ_d) exp(-d_c |w_t^{n-1/2}|) with the previous step's slip speed.
 
 The ledger (docs/friction.md 5): the r slots carry only tangential forces, so the one
 contact-work booking (:func:`.state._book`) on them gives the tangential work W_t of the
 step, added to the set's contact work. The slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| >= 0
-and the tangential arrival loss L_t = -W_t - D are kept beside it, with the stats of a
-history row: the total tangential force Σ λ_t (N, on the upper sides along +r) and the
+(the penalty: Σ c |Δs_p|) and the tangential arrival loss L_t = -W_t - D (the penalty:
+minus also the return loss Σ 1/2 k_t Δs_p^2 and the change of the springs' stored
+energy 1/2 k_t s_e^2, both kept) are kept beside it, with the stats of a history row: the total tangential force Σ λ_t (N, on the upper sides along +r) and the
 numbers of sticking and slipping constraints.
 
 Under MPI the r components are gathered once per step (one Allgatherv) in slot order;

@@ -406,6 +406,7 @@ class Tangential:
             else:
                 self.k_t[:] = np.where(a > 0.0, float(self.stiffness), 0.0)
             self.beta_max = float((self.k_t * self.c.dt * a).max(initial=0.0))
+        self._bind()
 
     def initialize(self) -> None:
         """Read u_r^0 and v_r^0 (the first step's v^{n-1/2})."""
@@ -444,25 +445,28 @@ class Tangential:
                 self.f_prev, self.ku_prev, self.jump, self.lo, self.up, self.lam, self.state,
                 self.stats, self.slip_limit, self.kernel == PENALTY_T, self.d_slip)
 
+    def _bind(self) -> None:
+        """The step's calls with their arguments (fixed between changes of the step)."""
+        nd = self.c.n_deformable
+        self._pred = (self.u_pred[:nd], self.v_pred[:nd])
+        self._kernel_call = {FILM_T: (film_tangential, self._film_args()),
+                             DME_T: (dme_tangential, self._dme_args()),
+                             PENALTY_T: (penalty_tangential, self._penalty_args())}[self.kernel]
+        self._commit_call = self._commit_args()
+
     def step(self) -> float:
         """The tangential pass of the step, after the set's normal step: gather the
         predicted r state, correct, write back, book. Returns W_t (J)."""
         integ = self.c.integrator
-        nd = self.c.n_deformable
-        self._gather(integ.u_owned, integ.v_owned, self.u_pred[:nd], self.v_pred[:nd])
+        self._gather(integ.u_owned, integ.v_owned, *self._pred)
         self.u[:] = self.u_pred
         self.v[:] = self.v_pred
-        change = 0.0
-        if self.kernel == FILM_T:
-            film_tangential(*self._film_args())
-        elif self.kernel == DME_T:
-            dme_tangential(*self._dme_args())
-        else:
-            stats = self.stats
-            before = stats[RETURN_LOSS] + stats[STORED]
-            penalty_tangential(*self._penalty_args())
-            change = stats[RETURN_LOSS] + stats[STORED] - before
-        w_t, far = _commit_tangential(*self._commit_args(), change)
+        stats = self.stats
+        before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
+        kernel, args = self._kernel_call
+        kernel(*args)
+        change = stats[RETURN_LOSS] + stats[STORED] - before
+        w_t, far = _commit_tangential(*self._commit_call, change)
         if far >= 0 and not self.warned:
             self.warned = True
             c = self.c

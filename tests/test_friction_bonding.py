@@ -93,7 +93,8 @@ def _bonded_run(masses):
     sim = Simulation(model, _settings(), initial_velocity={"striker": (0.0, V0)})
     r, m_s, m_t = masses
     # the shared interface nodes start at the momentum average of the two bodies' nodes
-    z_dofs = model.body_dofs("target", 1)
+    # (every owned node: a rank may own an interface node without a local cell of one body)
+    z_dofs = np.union1d(model.body_dofs("striker", 1), model.body_dofs("target", 1))
     xy = model.dof_coordinates(z_dofs)
     on_face = np.flatnonzero(np.abs(xy[:, 1]) <= 1e-12 * L)
     v = sim.integrator.v_owned

@@ -40,6 +40,7 @@ from impact_fenics.contact.friction import (N_SLIP, N_STICK, RETURN_LOSS, Fricti
 from impact_fenics.contact.pairing import Constraints
 from impact_fenics.contact.plane import _Host, wall_part
 from impact_fenics.errors import InputError
+from impact_fenics.report import console_lines
 from roundoff import EPS, assert_runs_agree, assert_within_spread, ledger, one_ulp, rounding
 
 COMM = MPI.COMM_WORLD
@@ -464,8 +465,12 @@ def test_wall_with_friction(tmp, method):
     h, e = _run(tmp, f"wall_mu_{method}", WALL_SCENE.format(method=method,
                                                           friction="friction = 0.3"))
     with open(os.path.join(tmp, f"wall_mu_{method}", "summary.json")) as f:
-        (summary,) = json.load(f)["friction"]
+        whole = json.load(f)
+    (summary,) = whole["friction"]
     assert summary["friction"] == "0.3" and summary["slip_work"] == h["slip_work"][-1]
+    # the console says them too, one line per set
+    (line,) = [x for x in console_lines(whole) if x.startswith("friction ")]
+    assert f"slip work {summary['slip_work']:.4g} J" in line and "(0.3)" in line
     assert summary["peak_tangential_force"] == np.abs(h["tangential_force"]).max()
     assert np.any(h["n_stick"] + h["n_slip"] > 0)
     assert np.all(h["tangential_force"] <= 0.0) and h["tangential_force"].min() < 0.0

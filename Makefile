@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study study-taylor docs clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor study-shpb docs clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -44,6 +44,11 @@ test-modern: setup-modern
 # the Taylor bar on three meshes against the literature (tests/test_taylor_study.py; long)
 study-taylor: setup
 	$(PY) -m pytest tests/test_taylor_study.py -m study -q -s
+
+# the SHPB's recovered J2 curve on the shipped and the halved mesh against the law
+# (tests/test_shpb_study.py, docs/shpb.md; a few minutes on 2 cores)
+study-shpb: setup
+	N=$(NP) PY=$(PY) scripts/mpi_pytest.sh tests/test_shpb_study.py -m study -q -s
 
 # the generated pages: docs/scenes.md from the scene reader's table of keys, and
 # docs/performance.md from docs/bench.json (BENCH=results/bench.json takes a new benchmark

@@ -18,7 +18,7 @@ from impact_fenics.bench.step import scipy_equivalence
 from roundoff import rounding
 
 # akantu needs a venv of its own that CI does not have: left out here
-PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite,gain"
+PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite,gain,shpb"
 TIMING_KEYS = ("median", "gbs", "step", "matmult", "multadd", "axpy", "contact", "fast", "force",
                "numba_call_floor")
 
@@ -175,3 +175,17 @@ def test_small_strain_bytes_are_the_hand_count():
     n_local, n_owned = force.f.x.array.size, model.n_owned
     assert force.geometry.dofs.dtype.itemsize == 4 and force.qs.state.shape[1:] == (3, 1)
     assert small_strain_bytes(force, n_owned) == (432 + 108) * cells + 32 * n_local + 96 * n_owned
+
+
+def test_smoke_shpb_splits_the_scene_into_bars_and_specimen(smoke):
+    """The SHPB part's cells are the scene's (the generator's structured triangles: the
+    striker, the incident and the transmitter bar of 20 mm at 1 mm, 2 x 10 x length / h
+    each; the specimen 2 x 20 x 20), its figures positive and its shares a split."""
+    r = smoke["shpb"]
+    bars = 2 * 10 * round((0.2 + 0.5 + 0.25) / 0.001)
+    assert r["bars"]["n_cells"] == bars and r["specimen"]["n_cells"] == 2 * 20 * 20
+    assert r["n_cells"] == bars + 800 and r["n_steps"] > 0
+    for v in (r["whole_seconds"], r["loop_seconds"], r["ns_per_element_cycle"],
+              r["bars"]["ns_per_element_cycle"], r["specimen"]["ns_per_element_cycle"]):
+        assert math.isfinite(v) and v > 0
+    assert 0.0 < r["specimen_share"] < 1.0

@@ -83,6 +83,32 @@ def test_matched_specimen_passes_the_incident_wave(matched_run):
     assert np.array_equal(c["stress_law_3"], E * c["strain_3"])
 
 
+def test_the_equilibrium_time_and_the_time_split(matched_run):
+    """The equilibrium time is the first face-axis sample of shpb.csv whose R is at most
+    5 %, counted in transits L_s / c_s of the specimen (its steel's bar speed here); the
+    time split adds the summary's per-body internal-force seconds (exact sums)."""
+    import json
+
+    from impact_fenics.shpb import run_analysis
+
+    out, c = matched_run
+    r = run_analysis.analyse_run(out)
+    t = c["time"]
+    first = np.flatnonzero(c["equilibrium_ratio"] <= 0.05)[0]
+    assert r.equilibrium_time() == t[first] - t[0]
+    assert r.setup.transit == 0.005 / C0  # L_s over sqrt(E / rho) of the bars' steel
+    f, b = c["force_front_true"], c["force_back_true"]
+    ratio = 2.0 * np.abs(f - b) / (f + b)
+    assert r.equilibrium_time(truth=True) == t[np.flatnonzero(ratio <= 0.05)[0]] - t[0]
+    with open(os.path.join(out, "summary.json")) as fh:
+        bodies = json.load(fh)["bodies"]
+    bars = sum(bodies[n]["f_int_seconds"] for n in ("striker", "incident", "transmitter"))
+    assert run_analysis.time_split(out) == (bars, bodies["specimen"]["f_int_seconds"])
+    lines = run_analysis.summary_lines(r) + run_analysis.time_lines(out)
+    assert sum("transits of the specimen" in ln for ln in lines) == 2
+    assert any(ln.startswith("internal forces: bars (linear)") for ln in lines)
+
+
 def test_the_analysis_is_recorded_in_the_run_and_replaces_only_its_own(matched_run):
     out, _ = matched_run
     from impact_fenics import rundir

@@ -30,6 +30,8 @@ akantu    Akantu's explicit lumped-mass plane-strain step in its own venv       
           (benchmarks/akantu_peer.py).
 whole     whole runs against their steps (punch Sim3, bars; default outputs),    whole_run.py
           the set-up by phase, the contact share at Sim3, history and field cost.
+shpb      the SHPB scene's whole run (whole time, ns per element-cycle) and its    shpb.py
+          internal forces split between the linear bars and the J2 specimen.
 
 The j2 and finite parts print each step's time over its floor ("x the floor", roofline.py:
 the larger of its bytes over the one-core STREAM triad and its arithmetic over the core's

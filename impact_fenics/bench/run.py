@@ -11,8 +11,8 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import (contact, finite, gain, matrix_format, nts, peers, plastic, scaling, step,
-               whole_run)
+from . import (contact, finite, gain, matrix_format, nts, peers, plastic, scaling, shpb,
+               step, whole_run)
 from ..output import json_ready
 from .common import MODES, Context
 from .machine import machine_info
@@ -26,6 +26,7 @@ PART_FUNCTIONS = {
     "j2": plastic.part_j2, "finite": finite.part_finite, "taylor": finite.part_taylor,
     "gain": gain.part_gain,
     "whole": whole_run.part_whole_run,
+    "shpb": shpb.part_shpb,
 }
 PARTS = tuple(PART_FUNCTIONS)
 SERIAL_ONLY = ("ranks", "gain", "matfree", "akantu")  # launchers and serial prototypes

@@ -39,6 +39,9 @@ FILES = ("shpb.csv", "shpb_waves.png", "shpb_stress_strain.png", "shpb_equilibri
 BODIES = ("striker", "incident", "specimen", "transmitter")
 GAUGES = ("incident_gauge", "transmitter_gauge")
 FACE_PROBES = ("specimen_front_u", "specimen_back_u")
+BARS = ("striker", "incident", "transmitter")  # the linear bodies of the step
+# the equilibrium ratio below which the specimen counts as in equilibrium (the plateau's)
+R_EQUILIBRIUM = 0.05
 # the share of the bars' yield stress that the incident stress rho c0 v / 2 may reach
 # without a warning: the bar's surface carries the Pochhammer-Chree overshoot of the rise
 # (some 10 % of the plateau at a sharp impact) and the gauges need the bars elastic
@@ -79,6 +82,13 @@ class Setup:
     front_force: str | None
     back_force: str | None
     face_probes: tuple[float, float] | None
+
+    @property
+    def transit(self) -> float:
+        """The specimen's elastic transit L_s / c_s (s), c_s = sqrt(E_s / rho_s) its bar
+        speed."""
+        m = self.specimen_material
+        return self.specimen.length / math.sqrt(float(m["E"]) / float(m["density"]))
 
 
 def _need(cond: bool, message: str) -> None:
@@ -232,6 +242,35 @@ class Result:
     rate: float
     law: np.ndarray | None
 
+    def equilibrium_time(self, truth: bool = False) -> float | None:
+        """The time (s) from the incident front's arrival at the front face to the first
+        sample where R <= R_EQUILIBRIUM: R of the gauges' face forces, or with ``truth``
+        of the faces' contact forces (None without them, or when R never falls so far)."""
+        if truth:
+            if self.force_front_true is None or self.force_back_true is None:
+                return None
+            f, b = self.force_front_true, self.force_back_true
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(f + b > 0.0, 2.0 * np.abs(f - b) / (f + b), np.inf)
+        else:
+            ratio = self.analysis.equilibrium
+        hit = np.flatnonzero(ratio <= R_EQUILIBRIUM)
+        return None if hit.size == 0 else float(self.waves.t[hit[0]] - self.waves.t[0])
+
+
+def time_split(run_dir: str) -> tuple[float, float] | None:
+    """The loop's internal-force seconds of the bars (the linear bodies, BARS) and of the
+    specimen, from the run's summary.json (each body's ``f_int_seconds``); None without."""
+    import json
+
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            bodies = json.load(f)["bodies"]
+        return (sum(float(bodies[b]["f_int_seconds"]) for b in BARS),
+                float(bodies["specimen"]["f_int_seconds"]))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
 
 def analyse_run(run_dir: str, dispersion: bool = False) -> Result:
     """Read and analyse the run in ``run_dir`` (nothing written)."""
@@ -384,7 +423,25 @@ def summary_lines(r: Result) -> list[str]:
                      f"3-wave stress {1e-6 * float(np.mean(a.stress_3[p])):.4g} MPa mean")
     else:
         lines.append("plateau: none (the equilibrium ratio never fell to 5 %)")
+    transit = r.setup.transit
+    for label, truth in (("gauges", False), ("face forces", True)):
+        t_eq = r.equilibrium_time(truth)
+        if t_eq is not None:
+            lines.append(f"equilibrium (R <= {R_EQUILIBRIUM:g}, {label}): {t_eq * 1e6:.3g} us "
+                         f"after the incident front, {t_eq / transit:.3g} transits of the "
+                         f"specimen (L_s / c_s = {transit * 1e6:.3g} us)")
     return lines
+
+
+def time_lines(run_dir: str) -> list[str]:
+    """The step's internal-force time split between the bars and the specimen (a line)."""
+    split = time_split(run_dir)
+    if split is None:
+        return []
+    bars, specimen = split
+    total = bars + specimen
+    return [f"internal forces: bars (linear) {bars:.3g} s ({bars / total:.0%}), specimen "
+            f"(nonlinear) {specimen:.3g} s ({specimen / total:.0%})"] if total > 0 else []
 
 
 def run_command(run_dir: str, dispersion: bool = False, quiet: bool = False) -> int:
@@ -398,6 +455,6 @@ def run_command(run_dir: str, dispersion: bool = False, quiet: bool = False) -> 
             if not quiet:
                 print(path)
         if not quiet:
-            for line in summary_lines(r):
+            for line in summary_lines(r) + time_lines(run_dir):
                 print(line)
     return 0

@@ -40,7 +40,7 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         "t_end": sim.n_steps * s.dt,
         "wall_time": wall,
     }
-    steps = getattr(sim.step_policy, "steps", None)
+    steps = getattr(sim, "listed_steps", None)
     if not sim.integrator.step.constant and steps is not None:  # a varying step: s.dt the first
         summary["t_end"] = float(sum(steps))
         summary["dt_range"] = [min(steps), max(steps)]

@@ -288,8 +288,8 @@ class Integrator:
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
         u, v = self.u_owned, self.v_owned
-        if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none) and
-            # for a following policy's limit, which reads the current cells
+        if self._scatter and self.step.ahead is None:  # u's ghosts for the cell kernels (the
+            # MatMultAdd reads none) and for a following policy's limit (current cells)
             self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         h, h_avg = self.step.begin(self.n)
         clock = self._clock
@@ -325,6 +325,13 @@ class Integrator:
                 if value != 0.0:
                     add_load(v, dofs, coef, value)
         self._u.axpy(h, self._v)
+
+    def next_step(self) -> float:
+        """h_{n+1/2} (s) of the coming step, asked of the policy now (u's ghosts refreshed
+        first, as :meth:`predict` does; it then takes this step without asking again)."""
+        if self._scatter:
+            self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        return self.step.peek(self.n)
 
     def predictor(self):
         """:meth:`predict` as a function for the loop: when every body is linear and no

@@ -258,7 +258,7 @@ class Simulation:
 
     def _penalty_beta_over_steps(self, c: ContactSet) -> float:
         """The largest beta_max (-) of the penalty set ``c`` over the pairs (h_{n+1/2}, h_n)
-        of this run's steps (listed at set-up), the set left at the first."""
+        of this run's steps (listed at set-up), the set left at the first. Collective."""
         steps = self.listed_steps
         pairs = {(steps[0], steps[0])}
         pairs.update((steps[k], 0.5 * (steps[k - 1] + steps[k])) for k in range(1, len(steps)))
@@ -267,7 +267,7 @@ class Simulation:
             c.set_step(h, h_avg)
             beta = max(beta, c.penalty_beta())
         c.set_step(steps[0], steps[0])
-        return beta
+        return self.comm.allreduce(beta, op=MPI.MAX)  # (each rank's slots: one verdict)
 
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz",
                   length: float = GAUGE_LENGTH) -> None:

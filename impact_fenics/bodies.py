@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 from dolfinx import fem, mesh as dmesh
 
 from .compat import vector_space
@@ -109,6 +110,7 @@ class DeformableModel:
         self.cell_dofs: np.ndarray = self.dofs.cell_dofs(0)
         self.bs = self.V.dofmap.index_map_bs
         self.n_owned = self.dofs.n_owned
+        self._body_blocks: dict[str, np.ndarray] | None = None  # (body_dofs, on first call)
         self.n_global = self.dofs.n_global
         self.offset = self.dofs.offset
         covered = 0
@@ -147,11 +149,31 @@ class DeformableModel:
         return self._unrolled(fem.locate_dofs_topological(self.V, 1, facets), component, owned)
 
     def body_dofs(self, body: str, component: int) -> np.ndarray:
-        """Owned unrolled dofs of ``component`` of the nodes of body ``body``."""
+        """Owned unrolled dofs of ``component`` of the nodes of body ``body``: every owned
+        node that a cell of the body touches on any rank. Collective on the first call
+        (it finds every body's nodes then)."""
         require(body in self.bodies, f"no body named '{body}' (bodies: {', '.join(self.bodies)})")
-        cells = self.tmesh.cells(body)
-        blocks = np.unique(self.cell_dofs[cells].ravel())
-        return self._unrolled(blocks, component, owned=True)
+        if self._body_blocks is None:
+            self._body_blocks = self._owned_body_blocks()
+        return self._unrolled(self._body_blocks[body], component, owned=True)
+
+    def _owned_body_blocks(self) -> dict[str, np.ndarray]:
+        """Per body, the owned nodes (blocks) its cells touch on any rank: 1 on the nodes of
+        its owned cells (ghost nodes included), summed into their owners by a reverse
+        scatter. A node whose cells of a body all sit on another rank and meet this rank's
+        cells at that node only is in none of this rank's cells of the body (ghosting by
+        shared facet does not bring them), and still belongs to it. Collective."""
+        mark = self.dofs.create_vec()
+        out = {}
+        for name in self.bodies:
+            blocks = self.cell_dofs[self.owned_cells(name)].ravel()
+            with mark.localForm() as local:
+                local.set(0.0)
+                local.array[self.bs * blocks] = 1.0
+            mark.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            out[name] = (np.flatnonzero(mark.array_r[::self.bs] > 0.0)).astype(np.int32)
+        mark.destroy()
+        return out
 
     def axis_dofs(self, owned: bool = True) -> np.ndarray:
         """Radial dofs of the nodes on the axis r = 0 (u_r = 0 there); in plane strain the

@@ -200,20 +200,12 @@ class Integrator:
         (one compiled gather a force), and :meth:`after_contact` corrects the bookings.
         A dof of D that turns out to take one increment gets a correction of 0. Returns D."""
         model = self.model
-        # per body, the owned dofs its cells touch on any rank: 1 on the dofs of its owned
-        # cells (ghosts included), summed into the owners (a node whose cells of a body are
-        # all another rank's still takes that body's increment)
+        # per body, the owned dofs its cells touch on any rank (body_dofs: a node whose
+        # cells of a body are all another rank's still takes that body's increment)
         seen = np.zeros(model.n_owned, dtype=np.int32)
-        mark = model.dofs.create_vec()
         for name in model.bodies:
-            blocks = model.cell_dofs[model.owned_cells(name)].ravel()
-            with mark.localForm() as local:
-                local.set(0.0)
-                local.array[2 * blocks] = 1.0
-                local.array[2 * blocks + 1] = 1.0
-            mark.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            seen += mark.array_r > 0.0
-        mark.destroy()
+            seen[model.body_dofs(name, 0)] += 1
+            seen[model.body_dofs(name, 1)] += 1
         touched = seen > 1  # shared by two bodies (of one force or two: a superset)
         for dofs in self._load_dofs:
             touched[dofs] = True
@@ -296,8 +288,8 @@ class Integrator:
     def predict(self) -> None:
         """Step without contact: (u, v) become the predicted (u~^{n+1}, v~^{n+1})."""
         u, v = self.u_owned, self.v_owned
-        if self._scatter:  # u's ghosts for the cell kernels (the MatMultAdd reads none) and
-            # for a following policy's limit, which reads the current cells
+        if self._scatter and self.step.ahead is None:  # u's ghosts for the cell kernels (the
+            # MatMultAdd reads none) and for a following policy's limit (current cells)
             self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         h, h_avg = self.step.begin(self.n)
         clock = self._clock
@@ -333,6 +325,13 @@ class Integrator:
                 if value != 0.0:
                     add_load(v, dofs, coef, value)
         self._u.axpy(h, self._v)
+
+    def next_step(self) -> float:
+        """h_{n+1/2} (s) of the coming step, asked of the policy now (u's ghosts refreshed
+        first, as :meth:`predict` does; it then takes this step without asking again)."""
+        if self._scatter:
+            self._u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        return self.step.peek(self.n)
 
     def predictor(self):
         """:meth:`predict` as a function for the loop: when every body is linear and no

@@ -41,6 +41,7 @@ class HalfStep:
         self.h = self.h_avg = float(h)  # the pair every stepped object holds
         self.h_prev: float | None = None  # h_{n-1/2} (s); None before the first step
         self._t = 0.0  # t^n (s) accumulated (a varying step)
+        self.ahead: float | None = None  # h_{n+1/2} (s) taken by peek, before begin
 
     def add(self, obj: Stepped) -> None:
         """Keep ``obj``'s step current too (a contact set added after set-up)."""
@@ -50,10 +51,19 @@ class HalfStep:
         """t^n (s): n h under a constant step, else the sum of the steps taken."""
         return n * self.policy.h if self.constant else self._t
 
+    def peek(self, n: int) -> float:
+        """h_{n+1/2} (s) of step n, asked of the policy before the step (which then takes
+        it): a loop that must know whether the step ends the run."""
+        self.ahead = self.policy.next(n, self.time(n))
+        return self.ahead
+
     def begin(self, n: int) -> tuple[float, float]:
         """(h_{n+1/2}, h_n) (s) of step n; ``set_step`` on every stepped object when the
         pair changes."""
-        h = self.policy.next(n, self.time(n))
+        if self.ahead is None:
+            h = self.policy.next(n, self.time(n))
+        else:
+            h, self.ahead = self.ahead, None
         h_avg = h if self.h_prev is None else 0.5 * (self.h_prev + h)
         if h != self.h or h_avg != self.h_avg:
             for obj in self.stepped:
@@ -68,4 +78,4 @@ class HalfStep:
 
     def restart(self) -> None:
         """Back to t = 0, before the first step (new initial conditions)."""
-        self._t, self.h_prev = 0.0, None
+        self._t, self.h_prev, self.ahead = 0.0, None, None

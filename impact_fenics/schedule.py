@@ -93,6 +93,13 @@ class Schedule:
         sched.next = last + 1
         return sched
 
+    def end_at(self, n: int) -> None:
+        """Step n is the last (found as the run goes: a run to t_end under a step that
+        follows a limit): due there too, unless the schedule is never due."""
+        never = self.next > self.last
+        self.last = n
+        self.next = n + 1 if never else min(self.next, n)
+
     def due(self, n: int) -> bool:
         if n != self.next:
             return False

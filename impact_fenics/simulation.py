@@ -38,11 +38,15 @@ from .probes import GAUGE_LENGTH, Probes
 from .xdmf import FieldWriter
 from .schedule import Progress, Schedule, StopFlag
 from .step_block import StepBlock
-from .stepping import ConstantStep
+from .stepping import ConstantStep, FollowingStep
 from .summary import mean_velocities, run_summary
 from .stability import (converged_omega_max, critical_dt, element_omega_bounds,
                         ghosted_dofs)
 from .timers import PhaseTimers
+
+# the steps a run to t_end may take before it ends (a bound of the loop, never reached
+# by a run whose step follows a limit that stays above zero)
+MAX_STEPS = 2**62
 
 PHASES = ("f_int", "contact_detection", "contact_solve", "contact_update", "history", "output")
 OUTPUT_PHASE = PHASES.index("output")
@@ -95,7 +99,10 @@ class Simulation:
         """``policy``: the step policy (:mod:`.stepping`); by default the constant step of
         ``settings`` (dt or cfl). Another policy gives every step itself (its ``n_steps``
         known at the start, :class:`~.stepping.StepSequence`); its steps are checked
-        against the stable limit unless ``force_dt``. Under a varying step the linear
+        against the stable limit unless ``force_dt``. A :class:`~.stepping.FollowingStep`
+        with a fixed dt runs to t_end (the last step clipped) and stops the run (status
+        "diverged", UnstableRunError: exit 3) at the step whose re-estimated limit falls
+        below dt; its adaptive form is refused in one line for now. Under a varying step the linear
         bodies take the per-step pass and the ledger books by the kinetic identity with
         the step's terms (one_loop.md 4.7: the multiply-touched dofs, ``work_gap``)."""
         self.model = model
@@ -135,20 +142,39 @@ class Simulation:
             policy = ConstantStep(settings.dt, settings.cfl, self.dt_critical,
                                   settings.n_steps, settings.t_end, settings.force_dt,
                                   self.stable_dt_limiting)
+        # the steps of a policy that lists them, known at set-up (None: a constant step)
+        self.listed_steps: list[float] | None = None
+        if isinstance(policy, FollowingStep):  # a fixed dt: its steps to t_end, stopped
+            # (exit 3) once the current limit falls below it; else the step follows the
+            # limit and the run ends when t reaches t_end (the schedules end there)
+            if policy.dt is not None:
+                self.listed_steps = policy.fixed_steps()
         elif not isinstance(policy, ConstantStep):
             require(getattr(policy, "n_steps", None) is not None,
                     f"{type(policy).__name__}: a step policy that ends at t_end does not run "
                     "in this driver yet; give its steps (stepping.StepSequence)")
             if hasattr(policy, "check"):
                 policy.check(self.dt_critical, settings.force_dt, self.stable_dt_limiting)
+            self.listed_steps = list(policy.steps)
         self.step_policy = policy
-        settings.dt, self.n_steps = float(policy.first()), int(policy.n_steps)
+        # a run whose count of steps is found as it goes (it ends at t_end)
+        self._ends_at_t = isinstance(policy, FollowingStep) and self.listed_steps is None
+        bound = not isinstance(policy, FollowingStep) or policy.bound
         t1 = clock()
         self.setup_time["stability"] = t1 - t0
-        self.integrator = Integrator(model, settings.dt, fixed_owned, self.loads,
+        self.integrator = Integrator(model, float(policy.first()) if bound else None,
+                                     fixed_owned, self.loads,
                                      settings.matrix_type, settings.f_int_path,
                                      policy=self.step_policy,
                                      per_step_linear=not isinstance(policy, ConstantStep))
+        settings.dt = float(policy.first())
+        if self.listed_steps is not None:
+            self.n_steps = len(self.listed_steps)
+        elif self._ends_at_t:  # the count if the first step held (the tables' first size;
+            # the run's count once it ends)
+            self.n_steps = int(math.ceil(policy.t_end / settings.dt - 1e-9))
+        else:
+            self.n_steps = int(policy.n_steps)
         t2 = clock()
         self.setup_time["operators"] = t2 - t1
         self.dt_converged = None
@@ -217,7 +243,8 @@ class Simulation:
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()
         beta = getattr(method, "info", {}).get("beta_max") if method.name == "penalty" else None
-        if beta is not None and varying:  # beta at every (h_{n+1/2}, h_n) the run will take
+        if beta is not None and self.listed_steps is not None:  # at every (h_{n+1/2}, h_n)
+            # the run will take (a step that follows the limit: checked as it changes)
             beta = max(beta, self._penalty_beta_over_steps(c))
         if beta is not None and beta > PENALTY_BOUND and not self.settings.force:
             raise InputError(f"penalty: beta_max = {beta:.4g} is above the stable bound 4/3 of "
@@ -231,8 +258,8 @@ class Simulation:
 
     def _penalty_beta_over_steps(self, c: ContactSet) -> float:
         """The largest beta_max (-) of the penalty set ``c`` over the pairs (h_{n+1/2}, h_n)
-        of this run's steps (a policy that lists them), the set left at the first."""
-        steps = self.step_policy.steps
+        of this run's steps (listed at set-up), the set left at the first. Collective."""
+        steps = self.listed_steps
         pairs = {(steps[0], steps[0])}
         pairs.update((steps[k], 0.5 * (steps[k - 1] + steps[k])) for k in range(1, len(steps)))
         beta = 0.0
@@ -240,7 +267,7 @@ class Simulation:
             c.set_step(h, h_avg)
             beta = max(beta, c.penalty_beta())
         c.set_step(steps[0], steps[0])
-        return beta
+        return self.comm.allreduce(beta, op=MPI.MAX)  # (each rank's slots: one verdict)
 
     def add_probe(self, name: str, point: tuple[float, float], quantity: str = "sigma_zz",
                   length: float = GAUGE_LENGTH) -> None:
@@ -335,6 +362,11 @@ class Simulation:
         # a memoryview into the timers' block (booked by one compiled call per block),
         # progress is looked at only when a line may be due, the signal flag is one
         # attribute. Everything else happens on the steps an event is due.
+        ends_at_t = self._ends_at_t  # the last step found as the run goes (at t_end)
+        if ends_at_t:
+            n_steps = MAX_STEPS
+            t_end = self.step_policy.t_end
+            penalties = [c for c in self.contacts if c.method.name == "penalty"]
         last = n_steps - 1
         # energy rows (and their history rows)
         output_at = Schedule(0, s.energy_every or s.output_every, last)
@@ -445,6 +477,16 @@ class Simulation:
                         stopped_at = n
                         break
                     continue
+                if ends_at_t:  # this step's h first: is it the last one?
+                    h = integ.next_step()
+                    if penalties and self.step_policy.renewed:
+                        self._check_penalties(penalties, h, n)
+                    if integ.t + h >= t_end * (1.0 - 1e-12):
+                        n_steps = n + 1
+                        for sched in (output_at, fields_at, pairs_at, check_at, agree_at):
+                            sched.end_at(n)
+                        next_event = min(output_at.next, fields_at.next, pairs_at.next,
+                                         check_at.next, agree_at.next)
                 if n == next_event:  # advance only the schedules due (a call costs ~0.15 us)
                     is_output = output_at.next == n and output_at.due(n)
                     is_fields = fields_at.next == n and fields_at.due(n)
@@ -536,6 +578,7 @@ class Simulation:
                 n += 1
             else:
                 self.status = "completed" + penalty_trouble(track.as_dict())
+                stopped_at = n
         except UnstableRunError as exc:
             self.status = "diverged"
             stopped_at = integ.n
@@ -545,6 +588,8 @@ class Simulation:
             raise
         finally:
             wall = clock() - t_run
+            if ends_at_t:
+                self.n_steps = stopped_at  # (the steps taken)
             if times is not None:
                 times.book(pos)  # the steps of the last, partial block
             gc.unfreeze()
@@ -587,6 +632,24 @@ class Simulation:
         return summary
 
     # ------------------------------------------------------------ pieces of the loop
+    def _check_penalties(self, penalties: list[ContactSet], h: float, n: int) -> None:
+        """A penalty's beta_max at the re-estimated step h = h_{n+1/2} (s) and its h_n: above
+        the stable bound 4/3 of persistent contact the run stops (UnstableRunError, exit 3)
+        before step n, unless forced. Collective."""
+        integ = self.integrator
+        h_prev = integ.step.h_prev
+        h_avg = h if h_prev is None else 0.5 * (h_prev + h)
+        beta = 0.0
+        for c in penalties:
+            c.set_step(h, h_avg)
+            beta = max(beta, c.penalty_beta())
+        beta = self.comm.allreduce(beta, op=MPI.MAX)
+        if beta > PENALTY_BOUND and not self.settings.force:
+            raise UnstableRunError(
+                f"run stopped at step {n} (t = {integ.t:.6g} s): penalty beta_max = {beta:.4g} "
+                f"is above the stable bound 4/3 of persistent contact at the re-estimated "
+                f"dt = {h:.4g} s; lower the penalty, use penalty = \"scaled\", or force it")
+
     def _after_contact(self) -> None:
         """A varying step's bookings after contact (v = v^{n+1/2}): the booking forces'
         shares on the multiply-touched dofs, and at a change of step the small-strain

@@ -142,6 +142,17 @@ class FollowingStep:
         """The first step h_{1/2} (s) as :meth:`next` will take it (the set-up's checks)."""
         return min(self.dt if self.dt is not None else self.safety * self.limit, self.t_end)
 
+    def fixed_steps(self) -> list[float]:
+        """With a fixed ``dt``: the steps (s) it takes to t_end, the last clipped, t summed
+        as the loop sums it (t += h, up to t_end to 1e-12 relative, no sliver step after).
+        :meth:`next` returns these steps unless it stops the run first."""
+        require(self.dt is not None and self.dt > 0, f"dt = {self.dt} s: a fixed step must be > 0")
+        steps, t = [], 0.0
+        while t < self.t_end * (1.0 - 1e-12):
+            steps.append(min(self.dt, self.t_end - t))
+            t += steps[-1]
+        return steps
+
     def next(self, n: int, t: float) -> float:
         """h_{n+1/2} (s) from step n at time t (s); raises UnstableRunError when a fixed dt
         is above the current limit. Call once per step, in order."""

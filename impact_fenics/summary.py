@@ -40,10 +40,14 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         "t_end": sim.n_steps * s.dt,
         "wall_time": wall,
     }
-    steps = getattr(sim.step_policy, "steps", None)
+    steps = getattr(sim, "listed_steps", None)
     if not sim.integrator.step.constant and steps is not None:  # a varying step: s.dt the first
         summary["t_end"] = float(sum(steps))
         summary["dt_range"] = [min(steps), max(steps)]
+    elif not sim.integrator.step.constant and hasattr(sim.step_policy, "h_range"):
+        summary["t_end"] = float(sim.integrator.t)  # a step that follows a limit: the time
+        # reached and the steps' range before the clipped last one
+        summary["dt_range"] = [float(h) for h in sim.step_policy.h_range]
     if s.title is not None:
         summary["title"] = s.title
     summary.update(provenance())

@@ -40,12 +40,14 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError
-from .banded import band_factor, band_matvec, band_of_s, band_solve, bandwidth
+from ..plausibility import warn
+from .banded import band_factor, band_matvec, band_of_s, band_solve, bandwidth, gap_of
 from .friction import HISTORY, N_SLIP, N_STICK, SLIP_WORK, T_FORCE, T_LOSS, T_PEAK, \
     FrictionLaw, _coefficient
 
 OFF, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # a row's set: λ_t = 0, free, +c, -c
 COUPLING_TOL = 1e-12  # |G M^-1 T'| against the largest |G M^-1 G'|: round-off of the normals
+TRESCA_PASSES = 10  # at most, per step (docs/friction.md 2)
 
 
 def tangent_rows(cc: np.ndarray) -> np.ndarray:
@@ -184,10 +186,8 @@ def _caps(active, force, no_free, mu_s, mu_d, decay, stick, w_prev, cap, state):
 
 
 @njit(cache=True)
-def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_prev, w_next,
-                    stats):
-    """v += h_n M^-1 T' λ, u += h_{n+1/2} (that change); the stats of the step (Σ λ_t,
-    counts, D and L_t cumulative, the peak). Returns W_t (J)."""
+def _apply_tangential(lam, cs, ct, mass, free, h, h_avg, u, v):
+    """v += h_n M^-1 T' λ, u += h_{n+1/2} (that change)."""
     for i in range(lam.size):
         f = lam[i]
         if f == 0.0:
@@ -198,6 +198,15 @@ def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_pre
                 dv = h_avg * (ct[i, k] * f) / mass[s]
                 v[s] += dv
                 u[s] += h * dv
+
+
+@njit(cache=True)
+def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_prev, w_next,
+                    stats, apply):
+    """With ``apply``, :func:`_apply_tangential`; then the stats of the step (Σ λ_t,
+    counts, D and L_t cumulative, the peak) on λ and the corrected v. Returns W_t (J)."""
+    if apply:
+        _apply_tangential(lam, cs, ct, mass, free, h, h_avg, u, v)
     _tangential_gaps(cs, ct, v_now, w_prev)
     _tangential_gaps(cs, ct, v, w_next)
     total = 0.0
@@ -233,11 +242,11 @@ class SegmentTangential:
     def __init__(self, c, law: FrictionLaw, what: str):
         self.c, self.law = c, law
         self.ct = tangent_rows(c.cc)
-        ratio = coupling(c.cs, c.cc, self.ct, c.minv)
-        if ratio > COUPLING_TOL:
-            raise InputError(f"{what}: friction on a curved master face (node to segment, "
-                             f"'{c.constraints.names[1]}': normal and tangential rows couple) "
-                             "is not built yet; a straight master face is")
+        # normal and tangential rows couple (a curved master face): the Tresca iteration
+        self.coupled = coupling(c.cs, c.cc, self.ct, c.minv) > COUPLING_TOL
+        if self.coupled and getattr(c.method, "e", 0.0) > 0.0:
+            raise InputError(f"{what}: friction on a curved master face with restitution "
+                             "e > 0 is not built yet (e = 0 is)")
         n = c.n
         self.bw = bandwidth(c.cs, self.ct, c.minv)
         self.band = np.empty((n, self.bw + 1))
@@ -250,7 +259,15 @@ class SegmentTangential:
         self.factored = np.zeros(n + 1, dtype=np.bool_)
         self.stats = np.zeros(8)
         self.iterations = 0
-        self.info = {"tangential_bandwidth": int(self.bw), "tangential_iterations_max": 0}
+        self.info = {"tangential_bandwidth": int(self.bw), "tangential_iterations_max": 0,
+                     "coupled": bool(self.coupled), "tresca_passes_max": 0,
+                     "tresca_passes_total": 0, "tresca_unsettled": 0}
+        # the Tresca iteration's state: λ_t applied so far, the last pass's λ_t, λ_n, sets
+        (self.applied, self.delta, self.lam_last, self.force_last, self.aw) = np.zeros((5, n))
+        self.state_last = np.zeros(n, dtype=np.int8)
+        self.active_last = np.zeros(n, dtype=np.bool_)
+        self.passes = 0
+        self._v_pred_saved = np.zeros(c.n_slots)
         self.set_step()
 
     def set_step(self) -> None:
@@ -267,7 +284,8 @@ class SegmentTangential:
         load(_tangential_gaps, c.cs, self.ct, c.v_now, self.w_prev)
         load(_caps, *self._caps_args())
         load(box_bpp, *self._box_args())
-        load(_apply_and_book, *self._apply_args())
+        load(_apply_and_book, *self._apply_args(), True)
+        load(_apply_tangential, self.lam, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
 
     def _caps_args(self) -> tuple:
         c, law = self.c, self.law
@@ -283,13 +301,10 @@ class SegmentTangential:
         return (self.lam, self.state, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v,
                 c.v_now, self.w_prev, self.w_next, self.stats)
 
-    def step(self) -> float:
-        """The pass on the set's corrected predicted state (c.u, c.v) before its commit.
-        Returns W_t (J)."""
+    def _box(self) -> None:
+        """The box problem on the caps of c.force and self.wt: λ_t into self.lam."""
         c = self.c
-        _tangential_gaps(c.cs, self.ct, c.v_now, self.w_prev)  # the decaying μ's speed
         _caps(*self._caps_args())
-        _tangential_gaps(c.cs, self.ct, c.v, self.wt)
         if np.any(self.state):
             it = box_bpp(*self._box_args())
             if it < 0:
@@ -300,7 +315,75 @@ class SegmentTangential:
             self.lam[:] = 0.0
         self.iterations = it
         self.info["tangential_iterations_max"] = max(self.info["tangential_iterations_max"], it)
-        return _apply_and_book(*self._apply_args())
+
+    def step(self) -> float:
+        """The pass on the set's corrected predicted state (c.u, c.v) before its commit,
+        the method's normal correction made. Where the rows couple, the Tresca iteration
+        (docs/friction.md 2, 3): the normal problem again with the tangential forces in
+        its prediction, then the tangential one with the new radii, until the sets repeat
+        and λ_n, λ_t change by at most 1e-13 of the largest; the tangential problem last.
+        Returns W_t (J)."""
+        c = self.c
+        _tangential_gaps(c.cs, self.ct, c.v_now, self.w_prev)  # the decaying μ's speed
+        if not self.coupled:
+            _tangential_gaps(c.cs, self.ct, c.v, self.wt)
+            self._box()
+            return _apply_and_book(*self._apply_args(), True)
+        return self._tresca()
+
+    def _tresca(self) -> float:
+        c = self.c
+        applied, delta = self.applied, self.delta
+        applied[:] = 0.0
+        passes, settled = 0, False
+        while True:
+            passes += 1
+            # w~' = T v - A λ_applied: the velocities of the normal step alone
+            _tangential_gaps(c.cs, self.ct, c.v, self.wt)
+            band_matvec(self.band, self.bw, applied, self.aw)
+            self.wt -= self.aw
+            self._box()
+            np.subtract(self.lam, applied, out=delta)
+            _apply_tangential(delta, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+            applied[:] = self.lam
+            if passes > 1:
+                scale_t = np.abs(self.lam).max(initial=0.0)
+                scale_n = np.abs(c.force).max(initial=0.0)
+                tol = 1e-13 * max(scale_t, scale_n)
+                settled = (np.array_equal(self.state, self.state_last)
+                           and np.array_equal(c.active, self.active_last)
+                           and np.abs(self.lam - self.lam_last).max(initial=0.0) <= tol
+                           and np.abs(c.force - self.force_last).max(initial=0.0) <= tol)
+            if settled or passes == TRESCA_PASSES or not np.any(self.lam):
+                break
+            self.lam_last[:] = self.lam
+            self.state_last[:] = self.state
+            self.force_last[:] = c.force
+            self.active_last[:] = c.active
+            # the normal problem again, the tangential forces in its prediction
+            c.u[:] = c.u_pred
+            c.v[:] = c.v_pred
+            _apply_tangential(applied, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+            gap_of(c.g0, c.cs, c.cc, c.u, c.gap)
+            self._v_pred_saved[:] = c.v_pred
+            c.v_pred[:] = c.v  # DME's velocity problem reads its prediction here
+            try:
+                c.method.correct(c)
+            finally:
+                c.v_pred[:] = self._v_pred_saved
+        info = self.info
+        self.passes = passes
+        info["tresca_passes_max"] = max(info["tresca_passes_max"], passes)
+        info["tresca_passes_total"] += passes
+        if not (settled or not np.any(self.lam)):
+            info["tresca_unsettled"] += 1
+            if info["tresca_unsettled"] == 1:
+                gap = gap_of(c.g0, c.cs, c.cc, c.u, self.aw).min(initial=0.0)
+                warn(f"contact {'/'.join(c.constraints.names)}: friction on the curved master "
+                     f"did not settle in {TRESCA_PASSES} passes at step {c.integrator.n} "
+                     f"(residual penetration {max(-gap, 0.0):.3g} m); counted in the summary",
+                     c.comm)
+        return _apply_and_book(*self._apply_args(), False)
 
     # outputs (as friction.Tangential's)
     history_columns = HISTORY
@@ -317,7 +400,12 @@ class SegmentTangential:
 
     def summary(self) -> dict:
         """The law, D and L_t (J), the peak |Σ λ_t| (N), the pivoting's largest count."""
-        return {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
-                "tangential_loss": self.tangential_loss,
-                "peak_tangential_force": float(self.stats[T_PEAK]),
-                "tangential_iterations_max": int(self.info["tangential_iterations_max"])}
+        out = {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
+               "tangential_loss": self.tangential_loss,
+               "peak_tangential_force": float(self.stats[T_PEAK]),
+               "tangential_iterations_max": int(self.info["tangential_iterations_max"])}
+        if self.coupled:
+            out.update({k: int(self.info[k]) for k in ("tresca_passes_max",
+                                                        "tresca_passes_total",
+                                                        "tresca_unsettled")})
+        return out

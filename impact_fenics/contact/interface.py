@@ -768,9 +768,12 @@ class ContactSet:
         t1 = clock()
         self.method.correct(self)
         # the tangential pass last (docs/friction.md 2), booked apart from the normal share
-        w_t = 0.0 if self.friction is None else self.friction.step()
+        w_t = None if self.friction is None else self.friction.step()
         t2 = clock()
-        self._ledger.book_segments(integ.n, w_t)
+        if w_t is None:
+            self._ledger.book_segments(integ.n)
+        else:
+            self._ledger.book_segments(integ.n, w_t)
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2

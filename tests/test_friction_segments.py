@@ -18,6 +18,8 @@ Oracles:
 * a curved master (a nose on a block), where the normal and tangential rows couple: the
   step's multipliers after the Tresca passes (counted) against the coupled problem
   solved by enumerating its sets, at every step with at most five candidate rows;
+* contact_pairs.h5 with friction: per pair the tangential force and the stick/slip flag,
+  summing and counting to the history's columns;
 * the refusals of what is not built, one line each: a curved master with restitution
   e > 0, the penalty on node to segment.
 """
@@ -467,3 +469,35 @@ def test_curved_master_cone_momentum_ledger(tmp, method):
         print(f"\nnose {method}: Tresca passes max {info['tresca_passes_max']}, mean "
               f"{info['tresca_passes_total'] / sim.n_steps:.2f}; balance "
               f"{np.abs(np.asarray(e['balance_error'])).max():.3g} J of {scale:.3g} J")
+
+
+@pytest.mark.parametrize("kind", ["pairs", "segments"])
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_contact_pairs_file_with_friction(tmp, method, kind):
+    """contact_pairs.h5 of a set with friction (μ = 0.3, a row every step) holds each
+    pair's tangential force and its stick/slip flag: per row they sum and count to the
+    history's tangential_force (within the rounding of a sum of the pairs' |λ_t|, in
+    another order), n_stick and n_slip; |λ_t| <= μ λ_n at every pair (exactly: the clip);
+    a pair that is neither has λ_t = 0."""
+    from impact_fenics.output import read_pairs
+
+    text = SCENE.format(method=method, friction="friction = 0.3", v0=5.0).replace(
+        "history_every = 1", "history_every = 1\npairs_every = 1")
+    if kind == "segments":
+        text = text.replace(PAIRS, SEGMENTS)
+    name = f"pairs_file_{method}_{kind}"
+    h, _ = _run(tmp, name, text)
+    if COMM.rank == 0:
+        p = read_pairs(os.path.join(tmp, name, "contact_pairs.h5"))
+        row = {int(s): j for j, s in enumerate(h["step"])}
+        js = [row[int(s)] for s in p["step"]]
+        lam, flag = p["tangential_force"], p["slip_state"]
+        assert np.all(np.abs(lam) <= 0.3 * p["force"])
+        assert np.all(lam[flag == 0] == 0.0)
+        sums = lam.sum(axis=1)
+        bound = rounding(lam.shape[1], np.abs(lam).sum(axis=1))
+        assert np.all(np.abs(sums - h["tangential_force"][js]) <= bound)
+        assert np.array_equal((flag == 1).sum(axis=1), h["n_stick"][js])
+        assert np.array_equal((flag == 2).sum(axis=1), h["n_slip"][js])
+        assert (flag == 2).any() and (flag == 1).any()
+    COMM.barrier()

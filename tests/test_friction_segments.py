@@ -36,7 +36,7 @@ from impact_fenics import cli
 from impact_fenics.contact.banded import band_of_s, bandwidth, dense_s
 from impact_fenics.contact.friction_segments import (OFF, SLIP_DOWN, SLIP_UP, STICK,
                                                      box_bpp)
-from roundoff import EPS, assert_within_spread, ledger, one_ulp, rounding
+from roundoff import assert_within_spread, ledger, one_ulp, rounding
 from test_friction import SCENE, _run
 
 COMM = MPI.COMM_WORLD

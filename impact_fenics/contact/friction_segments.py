@@ -1,4 +1,5 @@
-"""Coulomb friction on node to segment (FILM, DME): the box problem of the stick set.
+"""Coulomb friction on node to segment (FILM, DME): the box problem of the stick set and
+the Tresca iteration on a curved master.
 
 Derived in docs/friction.md (sections 1.1, 2 and 3). Constraint i of a segment set has
 the normal row G_i (the slave's (r, z) slots with n, the master nodes' with -N_a n and
@@ -22,10 +23,12 @@ from the last step's sets. Then v += h_n M^-1 T' λ_t and u += h_{n+1/2} (that c
 no tangential position jump, for DME too (whose stick is this same velocity
 projection, its momentum average).
 
-Built where the normal and tangential rows decouple: G M^-1 T' = 0 (a straight master
-face, or one whose every slot has both components free and equal masses and whose
-normals are parallel). A set where they couple (a curved master face, a partly fixed
-slot under an inclined normal) needs the Tresca iteration and is refused at set-up.
+Where the normal and tangential rows decouple (G M^-1 T' = 0: a straight master face)
+this is one pass. Where they couple (a curved master face, a partly fixed slot under an
+inclined normal; measured at set-up) each step iterates (the Tresca iteration,
+:meth:`SegmentTangential._tresca`): the normal problem again with the tangential forces
+in its prediction, then the box problem with the new radii, until the sets repeat and
+the multipliers settle, the tangential problem last so that the cone holds exactly.
 
 The ledger: the pass's forces sit on the set's own slots, so the set's one booking
 holds them; the tangential work of the step, by linearity of T,

@@ -233,15 +233,26 @@ def _pair_row(clock, state, k, step, t, gap, force, active) -> None:
         state[k, 2, i] = 1.0 if active[i] else 0.0
 
 
+@njit(cache=True)
+def _pair_row_tangential(state, k, lam_t, slip_state) -> None:
+    """Row k's friction fields: the tangential force λ_t (N) and 0 (none), 1 (stick) or 2
+    (slip) from a tangential pass's sets (a segment set's slip at -c, 3, is slip)."""
+    for i in range(lam_t.size):
+        state[k, 3, i] = lam_t[i]
+        state[k, 4, i] = float(min(slip_state[i], 2))
+
+
 class PairHistory:
     """Per-pair gap (m), contact force (N) and active flag at every history row, in HDF5
     (``contact_pairs.h5``: ``clock`` (rows x 2: step, time in s), ``r`` (pairs, m) and
-    ``state`` (rows x 3 x pairs: gap, force, active as 0/1)), written by rank 0 in
-    blocks of rows, two dataset writes a block; the contact state is the same on
-    every rank, so nothing is gathered. :func:`read_pairs` reads it back."""
+    ``state`` (rows x 3 x pairs: gap, force, active as 0/1; with ``tangential``, a set
+    with friction, rows x 5 x pairs: then the tangential force λ_t (N) and 0/1/2 for
+    none, stick, slip)), written by rank 0 in blocks of rows, two dataset writes a
+    block; the contact state is the same on every rank, so nothing is gathered.
+    :func:`read_pairs` reads it back."""
 
     def __init__(self, path: str, r: np.ndarray, comm: MPI.Comm, capacity: int = 256,
-                 rows: int = 1024):
+                 rows: int = 1024, tangential: bool = False):
         self.path = path
         self.comm = comm
         n = r.size
@@ -252,7 +263,7 @@ class PairHistory:
             import h5py
 
             self._clock = np.zeros((capacity, 2))
-            self._state = np.zeros((capacity, 3, n))
+            self._state = np.zeros((capacity, 5 if tangential else 3, n))
             self._alloc = max(rows, capacity)  # rows the datasets hold (grown if exceeded)
             self._f = h5py.File(path, "w")
             self._f.create_dataset("r", data=r)
@@ -261,18 +272,25 @@ class PairHistory:
                                                chunks=(min(capacity, 64),) + arr.shape[1:])
                         for name, arr in (("clock", self._clock), ("state", self._state))]
 
-    def prepare(self, gap: np.ndarray, force: np.ndarray, active: np.ndarray) -> None:
+    def prepare(self, gap: np.ndarray, force: np.ndarray, active: np.ndarray,
+                lam_t: np.ndarray | None = None, slip_state: np.ndarray | None = None) -> None:
         """Load the compiled row copy for these arrays' types now (set-up), not in a step;
         it writes nothing that a first :meth:`record` does not overwrite."""
         if self._f is not None:
             _pair_row(self._clock, self._state, 0, 0, 0.0, gap, force, active)
+            if lam_t is not None and self._state.shape[1] == 5:
+                _pair_row_tangential(self._state, 0, lam_t, slip_state)
 
     def record(self, step: int, t: float, gap: np.ndarray, force: np.ndarray,
-               active: np.ndarray) -> None:
-        """One row: the committed gaps (m), forces (N) and active flags of step ``step``."""
+               active: np.ndarray, lam_t: np.ndarray | None = None,
+               slip_state: np.ndarray | None = None) -> None:
+        """One row: the committed gaps (m), forces (N) and active flags of step ``step``;
+        with friction its tangential forces (N) and sets (``slip_state``)."""
         if self._f is None:
             return
         _pair_row(self._clock, self._state, self._n, step, t, gap, force, active)
+        if lam_t is not None and self._state.shape[1] == 5:
+            _pair_row_tangential(self._state, self._n, lam_t, slip_state)
         self._n += 1
         if self._n == self._clock.shape[0]:
             self.flush()
@@ -325,10 +343,14 @@ class PairHistory:
 
 def read_pairs(path: str) -> dict[str, np.ndarray]:
     """contact_pairs.h5 as arrays: step, time (rows), r (pairs, m), gap (m), force (N),
-    active (rows x pairs)."""
+    active (rows x pairs); with friction also tangential_force (N) and slip_state (0
+    none, 1 stick, 2 slip)."""
     import h5py
 
     with h5py.File(path, "r") as f:
         clock, state, r = f["clock"][...], f["state"][...], f["r"][...]
-    return {"step": clock[:, 0].astype(np.int64), "time": clock[:, 1], "r": r,
-            "gap": state[:, 0], "force": state[:, 1], "active": state[:, 2] > 0.5}
+    out = {"step": clock[:, 0].astype(np.int64), "time": clock[:, 1], "r": r,
+           "gap": state[:, 0], "force": state[:, 1], "active": state[:, 2] > 0.5}
+    if state.shape[1] == 5:
+        out.update(tangential_force=state[:, 3], slip_state=state[:, 4].astype(np.int8))
+    return out

@@ -78,10 +78,14 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
     for k, c in enumerate(contacts):
         name = "contact_pairs.h5" if len(contacts) == 1 else f"contact_pairs_{k}.h5"
         if staging:
-            tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm, rows=pair_rows)
+            friction = getattr(c, "friction", None)
+            tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm, rows=pair_rows,
+                                                     tangential=friction is not None)
             if comm.rank == 0:
                 pair_tables.append((c, tables[f"pairs{k}"]))
-                tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active)
+                tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active,
+                                            *(() if friction is None else
+                                              (friction.lam, friction.state)))
     return tables, history_row, pair_tables
 
 
@@ -144,8 +148,14 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
 def record_pairs(pair_tables: list, n: int, dt: float, t: float | None = None) -> None:
     """One per-pair row of every contact set of ``pair_tables`` (:func:`open_tables`'; rank 0)
     for the state of step n (time n dt, s, or ``t`` under a varying step): the committed
-    gaps (m), forces (N) and active flags."""
+    gaps (m), forces (N) and active flags (and with friction the tangential forces and
+    stick/slip flags)."""
     if t is None:
         t = n * dt
     for c, pairs in pair_tables:
-        pairs.record(n, t, c.committed_gap(), c.force, c.active)
+        friction = getattr(c, "friction", None)
+        if friction is None:
+            pairs.record(n, t, c.committed_gap(), c.force, c.active)
+        else:  # with the tangential forces (N) and sets
+            pairs.record(n, t, c.committed_gap(), c.force, c.active, friction.lam,
+                         friction.state)

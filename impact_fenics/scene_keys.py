@@ -242,8 +242,10 @@ _FRICTION = Key("friction", "friction", "-", 0.0, "Coulomb friction: a coefficie
         "slip at all) or {static, dynamic, decay} (mu = dynamic + (static - dynamic) "
         "exp(-decay |w_t|), decay in s/m, w_t the previous step's slip speed)", default_text="0 "
         "(frictionless)", note="Built for film, dme and penalty on node pairs, a rigid face (not a button) "
-        "and a small-strain wall; refused in one line elsewhere (node to segment, a "
-        "finite-strain wall). [friction.md](friction.md).")
+        "and a small-strain wall, and for film and dme on node to segment (a curved "
+        "master by the Tresca iteration, with e = 0); refused in one line elsewhere (the "
+        "penalty on node to segment, re-pairing, a finite-strain wall). "
+        "[friction.md](friction.md).")
 _TANGENTIAL_PENALTY = Key("tangential_penalty", "stiffness", "N/m", "scaled", "penalty with "
                           "friction: the tangential spring k_t", choices=("scaled",),
                           note="\"scaled\": beta_t = k_t h^2 (1/m_lo + 1/m_up) = 1 per row "

@@ -489,15 +489,11 @@ REFUSED = [
         'material = "steel"\nvelocity', 'material = "steel"\nstrain = "finite"\nvelocity').replace(
         'density = 7850.0', 'density = 7850.0\nmodel = "neo_hookean"'),
      "not built for a finite-strain body yet"),
-    (SCENE.format(method="film", friction="friction = 0.2", v0=5.0).replace(
-        'lower = "striker_contact"\nupper = "target_contact"',
-        'slave = "striker_contact"\nmaster = "target_contact"'),
-     "friction on node-to-segment contact is not built yet"),
 ]
 
 
 @pytest.mark.parametrize("text, words", REFUSED, ids=["stiff", "negative", "word",
-                                                       "finite-wall", "segments"])
+                                                       "finite-wall"])
 def test_refused_in_one_line(tmp, text, words, capsys):
     """What is not built is refused in one line "error: ...", exit 2, nothing written."""
     path = os.path.join(tmp, "bad.toml")

@@ -359,7 +359,7 @@ class ContactSet:
         self.jumps = bool(getattr(self.method, "jumps", False))
         self._ledger = _ContactWork(self)
         self.repair_every = 0  # re-pairing off (set_repairing): the set-up's pairs
-        self.friction = None  # node to segment: frictionless (set_friction refuses)
+        self.friction = None  # the tangential pass (set_friction); None: frictionless
         self.method.setup(self)
 
     def set_friction(self, friction, tangential_penalty: float | str = "scaled",
@@ -380,8 +380,16 @@ class ContactSet:
             return
         what = f"friction = {law.text()}"
         if self.kind == SEGMENTS:
-            raise InputError(f"{what}: friction on node-to-segment contact is not built yet "
-                             "(built: node pairs, a rigid face and the wall)")
+            from .friction_segments import SegmentTangential
+
+            if not isinstance(self.method, (FILM, DME)):
+                raise InputError(f"{what}: friction on node-to-segment contact is built for "
+                                 "film and dme (not yet the penalty)")
+            if self.repair_every:
+                raise InputError(f"{what}: friction with re-pairing (node to segment at "
+                                 "finite strain) is not built yet")
+            self.friction = SegmentTangential(self, law, what)
+            return
         if isinstance(tangential_penalty, str):
             if tangential_penalty != "scaled":
                 raise InputError(f"tangential_penalty = '{tangential_penalty}': give a "
@@ -425,6 +433,9 @@ class ContactSet:
         largest Gershgorin bound of the rows the run used."""
         if self.kind != SEGMENTS:
             raise InputError("re-pairing is for node-to-segment contact")
+        if self.friction is not None and int(every):
+            raise InputError("contact: friction with re-pairing (node to segment at finite "
+                             "strain) is not built yet")
         every = int(every)
         if every < 0:
             raise InputError(f"contact: repair_every = {every} must be >= 0 (0: never)")
@@ -563,6 +574,8 @@ class ContactSet:
         self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
         if self.kind == SEGMENTS:
             self._load_segment_kernels()
+            if self.friction is not None:
+                self.friction.initialize()
             return
         if self.rigid is not None:
             r = self.rigid
@@ -754,8 +767,13 @@ class ContactSet:
                          self.gap, self.active, self.was_active)
         t1 = clock()
         self.method.correct(self)
+        # the tangential pass last (docs/friction.md 2), booked apart from the normal share
+        w_t = None if self.friction is None else self.friction.step()
         t2 = clock()
-        self._ledger.book_segments(integ.n)
+        if w_t is None:
+            self._ledger.book_segments(integ.n)
+        else:
+            self._ledger.book_segments(integ.n, w_t)
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
@@ -876,14 +894,17 @@ class _ContactWork:
         state[2] = 1.0 if jumped else 0.0
         state[3] = 1.0 if grew else 0.0
 
-    def book_segments(self, n_step: int) -> None:
+    def book_segments(self, n_step: int, w_t: float = 0.0) -> None:
         """The segment kind's commit: write the owned dofs back, book step n as
-        :meth:`book` does (the one booking, state._book) and the history's stats."""
+        :meth:`book` does (the one booking, state._book) and the history's stats;
+        ``w_t`` (J) the tangential work held in the increment, which goes to the work
+        but not to the activation loss (docs/friction.md 5)."""
         c = self.c
         integ = c.integrator
         inc, jumped, grew, min_gap = _commit_segments(
             c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, c.m_over_dt, c.u,
             c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped,
             c.active, c.was_active, c.g0, c.cs, c.cc, c._gap_out)
-        self.add(inc, jumped, grew)
+        self.add(inc - w_t, jumped, grew)
+        self._state[0] += w_t
         c.stats[0], c.stats[1], c.stats[2] = np.count_nonzero(c.active), c.force.sum(), min_gap

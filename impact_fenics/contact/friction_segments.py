@@ -1,0 +1,414 @@
+"""Coulomb friction on node to segment (FILM, DME): the box problem of the stick set and
+the Tresca iteration on a curved master.
+
+Derived in docs/friction.md (sections 1.1, 2 and 3). Constraint i of a segment set has
+the normal row G_i (the slave's (r, z) slots with n, the master nodes' with -N_a n and
+-N_b n) and a tangential row T_i: the same slots with the unit tangent t = (n_z, -n_r)
+in place of n, so w_t = t . (v_s - N_a v_a - N_b v_b) (m/s) and λ_t (N) acts along +t
+on the slave, along -t on the master nodes (in proportion to N_a, N_b). On a face
+normal to z (n = ±e_z) this is the force along +r on the upper side, the convention
+of the node pairs.
+
+After the set's normal step (λ_n: FILM's multipliers, DME's φ), with the cone radius
+c_i = μ_i λ_n,i on the active rows, the tangential multipliers solve the box problem
+
+    w = w~ + A λ_t,   A = h_n T M^-1 T' (m/(N s)),   |λ_t,i| <= c_i,
+    |λ_t,i| < c_i  =>  w_i = 0 (stick),   λ_t,i = ±c_i  =>  ±w_i <= 0 (slip),
+
+on the velocities the normal step left (w~ = T v~'), by a three-set block pivoting
+(stick; slip at +c; slip at -c) on A's band with the safeguard of the normal pivoting
+(:func:`.banded.lcp_bpp`): block exchanges while the number of infeasible rows falls,
+three tries otherwise, then single exchanges on the last infeasible row. It starts
+from the last step's sets. Then v += h_n M^-1 T' λ_t and u += h_{n+1/2} (that change):
+no tangential position jump, for DME too (whose stick is this same velocity
+projection, its momentum average).
+
+Where the normal and tangential rows decouple (G M^-1 T' = 0: a straight master face)
+this is one pass. Where they couple (a curved master face, a partly fixed slot under an
+inclined normal; measured at set-up) each step iterates (the Tresca iteration,
+:meth:`SegmentTangential._tresca`): the normal problem again with the tangential forces
+in its prediction, then the box problem with the new radii, until the sets repeat and
+the multipliers settle, the tangential problem last so that the cone holds exactly.
+
+The ledger: the pass's forces sit on the set's own slots, so the set's one booking
+holds them; the tangential work of the step, by linearity of T,
+W_t = 1/2 h_n Σ λ_t,i (w_i^{n-1/2} + w_i^{n+1/2}), is returned so that the activation
+loss takes the normal share only, and the slip work D = Σ h_n |λ_t| |w^{n+1/2}| and
+L_t = -W_t - D are kept with the stats of :mod:`.friction` (same indices and columns).
+Every rank holds the set's gathered slots and takes the same decisions.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..errors import InputError
+from ..plausibility import warn
+from .banded import band_factor, band_matvec, band_of_s, band_solve, bandwidth, gap_of
+from .friction import HISTORY, N_SLIP, N_STICK, SLIP_WORK, T_FORCE, T_LOSS, T_PEAK, \
+    FrictionLaw, _coefficient
+
+OFF, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # a row's set: λ_t = 0, free, +c, -c
+COUPLING_TOL = 1e-12  # |G M^-1 T'| against the largest |G M^-1 G'|: round-off of the normals
+TRESCA_PASSES = 10  # at most, per step (docs/friction.md 2)
+
+
+def tangent_rows(cc: np.ndarray) -> np.ndarray:
+    """T's coefficients from G's: each slot's (r, z) pair (a n_r, a n_z) becomes
+    (a n_z, -a n_r), i.e. t = (n_z, -n_r)."""
+    ct = np.empty_like(cc)
+    ct[:, 0::2] = cc[:, 1::2]
+    ct[:, 1::2] = -cc[:, 0::2]
+    return ct
+
+
+def coupling(cs: np.ndarray, cc: np.ndarray, ct: np.ndarray, minv: np.ndarray) -> float:
+    """max |(G M^-1 T')_ij| / max |(G M^-1 G')_ii| (-): 0 where normal and tangential
+    rows decouple (docs/friction.md 1.1)."""
+    n, ns = cs.shape[0], minv.size
+    G = np.zeros((n, ns))
+    T = np.zeros((n, ns))
+    rows = np.repeat(np.arange(n), cs.shape[1])
+    np.add.at(G, (rows, cs.ravel()), cc.ravel())
+    np.add.at(T, (rows, cs.ravel()), ct.ravel())
+    scale = float(np.max(np.einsum("ij,j,ij->i", G, minv, G), initial=0.0))
+    cross = float(np.abs((G * minv) @ T.T).max(initial=0.0))
+    return cross / scale if scale > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _tangential_gaps(cs, ct, v, out):
+    """w_i = T_i v (m/s)."""
+    for i in range(cs.shape[0]):
+        s = 0.0
+        for k in range(cs.shape[1]):
+            s += ct[i, k] * v[cs[i, k]]
+        out[i] = s
+
+
+@njit(cache=True)
+def box_bpp(band, bw, wt, cap, lam, w, state, idx, rhs, sol, L, factored, max_iter):
+    """The box problem w = wt + A λ, |λ_i| <= cap_i (A: ``band``, its lower band of
+    bandwidth ``bw``), on the rows whose ``state`` is not OFF on entry (their start:
+    STICK, SLIP_UP or SLIP_DOWN; ``cap`` inf: no cone). Writes λ and w, the sets into
+    ``state``; ``factored`` (n + 1): the stick set whose band factor L holds and its
+    validity. Returns the iterations (band solves), -1 if none converged."""
+    n = wt.size
+    scale = 0.0
+    for i in range(n):
+        if state[i] != OFF:
+            scale = max(scale, abs(wt[i]))
+    tol_w = 1e-13 * scale
+    best = n + 1
+    budget = 3
+    for it in range(1, max_iter + 1):
+        for i in range(n):
+            lam[i] = 0.0
+            if state[i] == SLIP_UP:
+                lam[i] = cap[i]
+            elif state[i] == SLIP_DOWN:
+                lam[i] = -cap[i]
+        band_matvec(band, bw, lam, w)  # A λ_slip
+        m = 0
+        for i in range(n):
+            if state[i] == STICK:
+                idx[m] = i
+                rhs[m] = -(wt[i] + w[i])
+                m += 1
+        if m > 0:
+            same = factored[n]
+            if same:
+                for i in range(n):
+                    if factored[i] != (state[i] == STICK):
+                        same = False
+                        break
+            if not same:
+                if not band_factor(band, bw, idx, m, L):
+                    factored[n] = False
+                    return -1
+                for i in range(n):
+                    factored[i] = state[i] == STICK
+                factored[n] = True
+            band_solve(L, bw, m, rhs, sol)
+            for p in range(m):
+                lam[idx[p]] = sol[p]
+        band_matvec(band, bw, lam, w)
+        lam_max = 0.0
+        for i in range(n):
+            w[i] += wt[i]
+            lam_max = max(lam_max, abs(lam[i]))
+        tol_lam = 1e-13 * lam_max
+        count = 0
+        last = -1
+        for i in range(n):
+            s = state[i]
+            if ((s == STICK and abs(lam[i]) > cap[i] + tol_lam) or
+                    (s == SLIP_UP and w[i] > tol_w) or (s == SLIP_DOWN and w[i] < -tol_w)):
+                count += 1
+                last = i
+        if count == 0:
+            for i in range(n):
+                if state[i] == STICK:  # within the tolerance: on the cone, exactly
+                    w[i] = 0.0
+                    lam[i] = min(max(lam[i], -cap[i]), cap[i])
+            return it
+        if count < best:
+            best = count
+            budget = 3
+        elif budget > 0:
+            budget -= 1
+        else:  # a single exchange of the last infeasible row
+            count = 1
+        for i in range(n):
+            s = state[i]
+            if count == 1 and i != last:
+                continue
+            if s == STICK and abs(lam[i]) > cap[i] + tol_lam:
+                state[i] = SLIP_UP if lam[i] > 0.0 else SLIP_DOWN
+            elif (s == SLIP_UP and w[i] > tol_w) or (s == SLIP_DOWN and w[i] < -tol_w):
+                state[i] = STICK
+    return -1
+
+
+@njit(cache=True)
+def _caps(active, force, no_free, mu_s, mu_d, decay, stick, w_prev, cap, state):
+    """Cone radii c_i = μ_i λ_n,i (inf under "stick") on the active rows with a
+    compressive λ_n and a free slot; the others OFF. A row newly in the problem starts
+    STICK, the others keep the last step's set."""
+    for i in range(force.size):
+        if not active[i] or not force[i] > 0.0 or no_free[i]:
+            state[i] = OFF
+            cap[i] = 0.0
+            continue
+        if state[i] == OFF:
+            state[i] = STICK
+        if stick:
+            cap[i] = np.inf
+        else:
+            cap[i] = _coefficient(mu_s, mu_d, decay, w_prev[i]) * force[i]
+
+
+@njit(cache=True)
+def _apply_tangential(lam, cs, ct, mass, free, h, h_avg, u, v):
+    """v += h_n M^-1 T' λ, u += h_{n+1/2} (that change)."""
+    for i in range(lam.size):
+        f = lam[i]
+        if f == 0.0:
+            continue
+        for k in range(cs.shape[1]):
+            s = cs[i, k]
+            if free[s] and ct[i, k] != 0.0:
+                dv = h_avg * (ct[i, k] * f) / mass[s]
+                v[s] += dv
+                u[s] += h * dv
+
+
+@njit(cache=True)
+def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_prev, w_next,
+                    stats, apply):
+    """With ``apply``, :func:`_apply_tangential`; then the stats of the step (Σ λ_t,
+    counts, D and L_t cumulative, the peak) on λ and the corrected v. Returns W_t (J)."""
+    if apply:
+        _apply_tangential(lam, cs, ct, mass, free, h, h_avg, u, v)
+    _tangential_gaps(cs, ct, v_now, w_prev)
+    _tangential_gaps(cs, ct, v, w_next)
+    total = 0.0
+    work = 0.0
+    slip = 0.0
+    n_stick = 0
+    n_slip = 0
+    for i in range(lam.size):
+        f = lam[i]
+        total += f
+        work += 0.5 * h_avg * f * (w_prev[i] + w_next[i])
+        slip += h_avg * abs(f) * abs(w_next[i])
+        if state[i] == STICK:
+            n_stick += 1
+        elif state[i] != OFF:
+            n_slip += 1
+    stats[T_FORCE] = total
+    stats[N_STICK] = n_stick
+    stats[N_SLIP] = n_slip
+    stats[SLIP_WORK] += slip
+    stats[T_LOSS] += -work - slip
+    stats[T_PEAK] = max(stats[T_PEAK], abs(total))
+    return work
+
+
+class SegmentTangential:
+    """The tangential pass of a node-to-segment set ``c`` (FILM or DME) with friction
+    ``law`` (not zero). Made by ``ContactSet.set_friction``; :meth:`step` runs between
+    the method's normal correction and the set's commit."""
+
+    max_iter = 1000
+
+    def __init__(self, c, law: FrictionLaw, what: str):
+        self.c, self.law = c, law
+        self.ct = tangent_rows(c.cc)
+        # normal and tangential rows couple (a curved master face): the Tresca iteration
+        self.coupled = coupling(c.cs, c.cc, self.ct, c.minv) > COUPLING_TOL
+        if self.coupled and getattr(c.method, "e", 0.0) > 0.0:
+            raise InputError(f"{what}: friction on a curved master face with restitution "
+                             "e > 0 is not built yet (e = 0 is)")
+        n = c.n
+        self.bw = bandwidth(c.cs, self.ct, c.minv)
+        self.band = np.empty((n, self.bw + 1))
+        self.lam = np.zeros(n)  # λ_t (N) of the last step
+        self.state = np.zeros(n, dtype=np.int8)
+        self.cap = np.zeros(n)
+        (self.wt, self.w, self.w_prev, self.w_next, self.rhs, self.sol) = np.zeros((6, n))
+        self.idx = np.zeros(n, dtype=np.int64)
+        self.L = np.zeros((n, self.bw + 1))
+        self.factored = np.zeros(n + 1, dtype=np.bool_)
+        self.stats = np.zeros(8)
+        self.iterations = 0
+        self.info = {"tangential_bandwidth": int(self.bw), "tangential_iterations_max": 0,
+                     "coupled": bool(self.coupled), "tresca_passes_max": 0,
+                     "tresca_passes_total": 0, "tresca_unsettled": 0}
+        # the Tresca iteration's state: λ_t applied so far, the last pass's λ_t, λ_n, sets
+        (self.applied, self.delta, self.lam_last, self.force_last, self.aw) = np.zeros((5, n))
+        self.state_last = np.zeros(n, dtype=np.int8)
+        self.active_last = np.zeros(n, dtype=np.bool_)
+        self.passes = 0
+        self._v_pred_saved = np.zeros(c.n_slots)
+        self.set_step()
+
+    def set_step(self) -> None:
+        """A's band, h_n T M^-1 T' (band_of_s with sqrt(h_n) for its dt^2)."""
+        c = self.c
+        band_of_s(c.cs, self.ct, c.minv, np.sqrt(c.h_avg), self.bw, self.band)
+        self.no_free = self.band[:, 0] <= 0.0  # a row moving no free slot: λ_t = 0
+        self.factored[-1] = False
+
+    def initialize(self) -> None:
+        from ..jit_watch import load
+
+        c = self.c
+        load(_tangential_gaps, c.cs, self.ct, c.v_now, self.w_prev)
+        load(_caps, *self._caps_args())
+        load(box_bpp, *self._box_args())
+        load(_apply_and_book, *self._apply_args(), True)
+        load(_apply_tangential, self.lam, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+
+    def _caps_args(self) -> tuple:
+        c, law = self.c, self.law
+        return (c.active, c.force, self.no_free, law.static, law.dynamic, law.decay, law.stick,
+                self.w_prev, self.cap, self.state)
+
+    def _box_args(self) -> tuple:
+        return (self.band, self.bw, self.wt, self.cap, self.lam, self.w, self.state, self.idx,
+                self.rhs, self.sol, self.L, self.factored, self.max_iter)
+
+    def _apply_args(self) -> tuple:
+        c = self.c
+        return (self.lam, self.state, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v,
+                c.v_now, self.w_prev, self.w_next, self.stats)
+
+    def _box(self) -> None:
+        """The box problem on the caps of c.force and self.wt: λ_t into self.lam."""
+        c = self.c
+        _caps(*self._caps_args())
+        if np.any(self.state):
+            it = box_bpp(*self._box_args())
+            if it < 0:
+                raise RuntimeError(f"friction: the stick-set pivoting did not converge in "
+                                   f"{self.max_iter} iterations ({c.n} constraints)")
+        else:
+            it = 0
+            self.lam[:] = 0.0
+        self.iterations = it
+        self.info["tangential_iterations_max"] = max(self.info["tangential_iterations_max"], it)
+
+    def step(self) -> float:
+        """The pass on the set's corrected predicted state (c.u, c.v) before its commit,
+        the method's normal correction made. Where the rows couple, the Tresca iteration
+        (docs/friction.md 2, 3): the normal problem again with the tangential forces in
+        its prediction, then the tangential one with the new radii, until the sets repeat
+        and λ_n, λ_t change by at most 1e-13 of the largest; the tangential problem last.
+        Returns W_t (J)."""
+        c = self.c
+        _tangential_gaps(c.cs, self.ct, c.v_now, self.w_prev)  # the decaying μ's speed
+        if not self.coupled:
+            _tangential_gaps(c.cs, self.ct, c.v, self.wt)
+            self._box()
+            return _apply_and_book(*self._apply_args(), True)
+        return self._tresca()
+
+    def _tresca(self) -> float:
+        c = self.c
+        applied, delta = self.applied, self.delta
+        applied[:] = 0.0
+        passes, settled = 0, False
+        while True:
+            passes += 1
+            # w~' = T v - A λ_applied: the velocities of the normal step alone
+            _tangential_gaps(c.cs, self.ct, c.v, self.wt)
+            band_matvec(self.band, self.bw, applied, self.aw)
+            self.wt -= self.aw
+            self._box()
+            np.subtract(self.lam, applied, out=delta)
+            _apply_tangential(delta, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+            applied[:] = self.lam
+            if passes > 1:
+                scale_t = np.abs(self.lam).max(initial=0.0)
+                scale_n = np.abs(c.force).max(initial=0.0)
+                tol = 1e-13 * max(scale_t, scale_n)
+                settled = (np.array_equal(self.state, self.state_last)
+                           and np.array_equal(c.active, self.active_last)
+                           and np.abs(self.lam - self.lam_last).max(initial=0.0) <= tol
+                           and np.abs(c.force - self.force_last).max(initial=0.0) <= tol)
+            if settled or passes == TRESCA_PASSES or not np.any(self.lam):
+                break
+            self.lam_last[:] = self.lam
+            self.state_last[:] = self.state
+            self.force_last[:] = c.force
+            self.active_last[:] = c.active
+            # the normal problem again, the tangential forces in its prediction
+            c.u[:] = c.u_pred
+            c.v[:] = c.v_pred
+            _apply_tangential(applied, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+            gap_of(c.g0, c.cs, c.cc, c.u, c.gap)
+            self._v_pred_saved[:] = c.v_pred
+            c.v_pred[:] = c.v  # DME's velocity problem reads its prediction here
+            try:
+                c.method.correct(c)
+            finally:
+                c.v_pred[:] = self._v_pred_saved
+        info = self.info
+        self.passes = passes
+        info["tresca_passes_max"] = max(info["tresca_passes_max"], passes)
+        info["tresca_passes_total"] += passes
+        if not (settled or not np.any(self.lam)):
+            info["tresca_unsettled"] += 1
+            if info["tresca_unsettled"] == 1:
+                gap = gap_of(c.g0, c.cs, c.cc, c.u, self.aw).min(initial=0.0)
+                warn(f"contact {'/'.join(c.constraints.names)}: friction on the curved master "
+                     f"did not settle in {TRESCA_PASSES} passes at step {c.integrator.n} "
+                     f"(residual penetration {max(-gap, 0.0):.3g} m); counted in the summary",
+                     c.comm)
+        return _apply_and_book(*self._apply_args(), False)
+
+    # outputs (as friction.Tangential's)
+    history_columns = HISTORY
+
+    @property
+    def slip_work(self) -> float:
+        """D (J) so far: Σ h_n |λ_t| |w_t^{n+1/2}| >= 0."""
+        return float(self.stats[SLIP_WORK])
+
+    @property
+    def tangential_loss(self) -> float:
+        """L_t (J) so far: -W_t - D."""
+        return float(self.stats[T_LOSS])
+
+    def summary(self) -> dict:
+        """The law, D and L_t (J), the peak |Σ λ_t| (N), the pivoting's largest count."""
+        out = {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
+               "tangential_loss": self.tangential_loss,
+               "peak_tangential_force": float(self.stats[T_PEAK]),
+               "tangential_iterations_max": int(self.info["tangential_iterations_max"])}
+        if self.coupled:
+            out.update({k: int(self.info[k]) for k in ("tresca_passes_max",
+                                                        "tresca_passes_total",
+                                                        "tresca_unsettled")})
+        return out

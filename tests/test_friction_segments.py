@@ -1,0 +1,503 @@
+"""Coulomb friction on node to segment (FILM, DME): docs/friction.md sections 1.1, 2, 3, 8.
+
+Oracles:
+
+* the box problem of the stick set (contact.friction_segments.box_bpp) against the same
+  problem solved by enumerating every assignment of the rows to stick, slip at +c and
+  slip at -c (3^n sets, dense solves): the unique solution of a positive definite box
+  problem, from random starts, with and without a cone;
+* node to segment on matched faces equals node pairs with friction (FILM, DME; μ = 0.3
+  with slip at the rim, and "stick"), whole runs within the spread of a one-ulp change of
+  the striker's speed (roundoff.assert_within_spread), equal stick and slip counts;
+* on non-matching flat faces (3:2), at every active constraint and step: the cone
+  |λ_t| <= μ λ_n, the slip opposing the force on it, w_t^{n+1/2} = 0 inside it within
+  ε cond(A_FF) |w~|; the contact step's change of Σ m v_r and Σ m v_z is the impulse it
+  puts on the axis's fixed components (zero away from the axis), to the round-off of the
+  sum; the ledger closes (roundoff.ledger) and the slip work never falls; DME equals
+  FILM there (e = 0, faces touching at t = 0);
+* a curved master (a nose on a block), where the normal and tangential rows couple: the
+  step's multipliers after the Tresca passes (counted) against the coupled problem
+  solved by enumerating its sets, at every step with at most five candidate rows;
+* contact_pairs.h5 with friction: per pair the tangential force and the stick/slip flag,
+  summing and counting to the history's columns;
+* the refusals of what is not built, one line each: a curved master with restitution
+  e > 0, the penalty on node to segment.
+"""
+from __future__ import annotations
+
+import itertools
+import os
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import cli
+from impact_fenics.contact.banded import band_of_s, bandwidth, dense_s
+from impact_fenics.contact.friction_segments import (OFF, SLIP_DOWN, SLIP_UP, STICK,
+                                                     box_bpp)
+from roundoff import assert_within_spread, ledger, one_ulp, rounding
+from test_friction import SCENE, _run
+
+COMM = MPI.COMM_WORLD
+PAIRS = 'lower = "striker_contact"\nupper = "target_contact"'
+SEGMENTS = 'slave = "striker_contact"\nmaster = "target_contact"'
+
+
+# ----------------------------------------------------------------------------- the box problem
+
+def _enumerate(A: np.ndarray, wt: np.ndarray, cap: np.ndarray, tol: float) -> np.ndarray:
+    """λ of the box problem by trying every set (stick, +c, -c) of the rows."""
+    n = wt.size
+    found = []
+    for sets in itertools.product((STICK, SLIP_UP, SLIP_DOWN), repeat=n):
+        s = np.array(sets)
+        if np.any(np.isinf(cap) & (s != STICK)):
+            continue
+        lam = np.where(s == SLIP_UP, cap, np.where(s == SLIP_DOWN, -cap, 0.0))
+        lam[np.isinf(lam)] = 0.0
+        F = np.flatnonzero(s == STICK)
+        if F.size:
+            lam[F] = np.linalg.solve(A[np.ix_(F, F)], -(wt[F] + A[F] @ lam))
+        w = wt + A @ lam
+        if (np.all(np.abs(lam[F]) <= cap[F] + tol * np.abs(lam).max())
+                and np.all(w[s == SLIP_UP] <= tol * np.abs(wt).max())
+                and np.all(w[s == SLIP_DOWN] >= -tol * np.abs(wt).max())):
+            found.append(lam)
+    assert found, "no set solves the box problem"
+    return found[0]
+
+
+@pytest.mark.parametrize("stick", [False, True])
+def test_box_problem_against_enumeration(stick):
+    """40 random banded positive definite A (6 rows, each moving three of eight slots, as
+    a slave and a segment's two nodes) with random w~ and cone radii: the pivoting's λ
+    equals the enumerated solution within ε cond(A) |λ| times the roundings of a band
+    Cholesky solve (2 (bw + 1) a row, twice) and the cone and complementarity hold."""
+    rng = np.random.default_rng(7)
+    n, width = 6, 3
+    for trial in range(40):
+        cs = (np.arange(n)[:, None] + np.arange(width)[None, :]).astype(np.int64)
+        ct = rng.uniform(-1.0, 1.0, (n, width))
+        minv = rng.uniform(0.5, 2.0, n + width)
+        bw = bandwidth(cs, ct, minv)
+        band = np.empty((n, bw + 1))
+        band_of_s(cs, ct, minv, 1.0, bw, band)
+        A = dense_s(band, bw)
+        wt = rng.normal(size=n)
+        cap = np.full(n, np.inf) if stick else rng.uniform(0.0, 1.0, n)
+        lam, w = np.zeros(n), np.zeros(n)
+        state = rng.choice([STICK, SLIP_UP, SLIP_DOWN], n).astype(np.int8)  # a random start
+        if stick:
+            state[:] = STICK
+        it = box_bpp(band, bw, wt, cap, lam, w, state, np.zeros(n, np.int64), np.zeros(n),
+                     np.zeros(n), np.zeros((n, bw + 1)), np.zeros(n + 1, np.bool_), 200)
+        assert it > 0
+        expect = _enumerate(A, wt, cap, 1e-12)
+        scale = np.linalg.cond(A) * max(np.abs(expect).max(), 1.0)
+        assert np.abs(lam - expect).max() <= rounding(4 * (bw + 1), scale), trial
+        assert np.all(np.abs(lam) <= cap)  # the clip: exactly
+        assert np.all(state != OFF)
+        assert np.all(lam[state == SLIP_UP] == cap[state == SLIP_UP])
+        assert np.all(w[state == SLIP_UP] <= 0.0) and np.all(w[state == SLIP_DOWN] >= 0.0)
+
+
+# ----------------------------------------------------------------------------- whole runs
+
+@pytest.fixture(scope="module")
+def tmp(tmp_path_factory):
+    path = str(tmp_path_factory.mktemp("friction_nts")) if COMM.rank == 0 else None
+    return COMM.bcast(path)
+
+
+@pytest.mark.parametrize("law", ["0.3", '"stick"'])
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_matched_faces_equal_node_pairs(tmp, method, law):
+    """Node to segment on matched faces (each slave on a master node, xi = 0 or 1, a flat
+    face: A diagonal, the rows decoupled) is node pairs with friction: every column within
+    the steps x the spread of a one-ulp change of v0 of the pair run; the same stick and
+    slip counts; its ledger closes."""
+    f = f"friction = {law}"
+    tag = f"{method}_{'stick' if 'stick' in law else 'mu'}"
+    hp, ep = _run(tmp, f"pairs_{tag}", SCENE.format(method=method, friction=f, v0=5.0))
+    hu, eu = _run(tmp, f"ulp_{tag}", SCENE.format(method=method, friction=f, v0=one_ulp(5.0)))
+    hs, es = _run(tmp, f"nts_{tag}", SCENE.format(method=method, friction=f,
+                                                  v0=5.0).replace(PAIRS, SEGMENTS))
+    n = hp.size
+    for col in ("contact_force", "tangential_force"):
+        assert_within_spread(hs[col], hp[col], hu[col], n, col)
+    # D and L_t add h |λ_t| |w_t| a row each step, |w_t| <= 2 v0: under "stick" the pairs'
+    # merge gives w⁺ = 0 exactly and the band solve its round-off, so the step's roundings
+    # are those of terms of size h |Σ λ_t| 2 v0, not of the (zero) column
+    work = hp["dt"][0] * np.abs(hp["tangential_force"]).max() * 2 * 5.0
+    for col in ("slip_work", "tangential_loss"):
+        assert_within_spread(hs[col], hp[col], hu[col], n, col,
+                             max(work, np.abs(hp[col]).max()))
+    assert np.array_equal(hs["n_stick"], hp["n_stick"])
+    assert np.array_equal(hs["n_slip"], hp["n_slip"])
+    assert hs["n_stick"].max() > 0 and np.any(np.abs(hs["tangential_force"]) > 0.0)
+    assert np.any(hs["n_slip"] > 0) == ("stick" not in law)  # μ = 0.3 slips at the rim
+    scale = np.abs(ep["total"]).max()
+    for col in ("kinetic", "strain", "contact_work", "activation_loss"):
+        assert_within_spread(es[col], ep[col], eu[col], n, col, scale)
+    n_dofs = 2 * 6 * 21 * 2  # at most: two bars of 6 x 21 nodes, (r, z) each
+    assert np.abs(es["balance_error"]).max() <= ledger(n, n_dofs) * scale
+
+
+NONMATCHING = SCENE.replace('generator = "coaxial_bars"', 'generator = "coaxial_bars_sized"').replace(
+    "h = 0.002", "h_striker = 0.003333333333333333\nh_target = 0.0022222222222222222").replace(
+    PAIRS, 'slave = "target_contact"\nmaster = "striker_contact"')
+
+
+class _Checks:
+    """Wraps a set's tangential pass: after each step, the cone, the slip's direction,
+    stick's w = 0 and the contact step's momentum change, on the pass's own numbers."""
+
+    def __init__(self, c):
+        self.c, self.f = c, c.friction
+        self.step, self.f.step = self.f.step, self.checked
+        self.rows = self.slips = self.sticks = 0
+        r_slots = np.zeros(c.n_slots, bool)
+        r_slots[0::2] = True
+        self.r_slots = r_slots & c.free
+        self.z_slots = ~r_slots & c.free
+
+    def checked(self) -> float:
+        c, f = self.c, self.f
+        w_t = self.step()
+        lam, cap, state = f.lam, f.cap, f.state
+        on = state != OFF
+        assert np.all(lam[~on] == 0.0)
+        assert np.all(np.abs(lam[on]) <= cap[on])  # exactly: the solver's clip
+        slip = (state == SLIP_UP) | (state == SLIP_DOWN)
+        assert np.all(np.abs(lam[slip]) == cap[slip])
+        assert np.all(lam[slip] * f.w_next[slip] <= 0.0)  # the slip opposes the force
+        stick = np.flatnonzero(state == STICK)
+        if stick.size:
+            A = dense_s(f.band, f.bw)[np.ix_(stick, stick)]
+            # a band solve and the rows' sums: 4 (bw + 1) roundings, amplified by cond(A_FF)
+            tol = rounding(4 * (f.bw + 1), np.linalg.cond(A) * np.abs(f.wt[stick]).max())
+            # and w = T v itself: six products and sums on terms of size |t_k| |v_k|, the
+            # velocities' own roundings (v += h f / m per pass) as many again
+            tv = (np.abs(f.ct) * np.abs(c.v[c.cs])).sum(axis=1)[stick].max()
+            tol += rounding(12, tv)
+            assert np.abs(f.w_next[stick]).max() <= tol
+        # the contact step's momentum change per slot (kg m/s), normal and tangential (on
+        # a curved master the pass solves the normal problem again)
+        dp = c.mass * (c.v - c.v_pred)
+        # the terms that round: m |v| and m |v~| and each slot's impulses h_n |G' λ_n| and
+        # h_n |T' λ_t| (a face's normals hold the geometry's round-off, n_r ~ 1e-17, so
+        # the normal and tangential impulses on r cancel to far below their size)
+        p = (np.abs(c.mass * c.v) + np.abs(c.mass * c.v_pred)
+             + c.h_avg * (_dense_rows(c, np.abs(c.cc)).T @ np.abs(c.force)
+                          + _dense_rows(c, np.abs(f.ct)).T @ np.abs(lam)))
+        # the impulse h_n (λ_n n + λ_t t) on a fixed component (the axis: u_r = 0) is the
+        # support's reaction, not the body's: Σ m Δv over the free slots balances it
+        held = ~c.free[c.cs]
+        for first, slots in ((0, self.r_slots), (1, self.z_slots)):
+            coef_t = np.where(held[:, first::2], f.ct[:, first::2], 0.0).sum(axis=1)
+            coef_n = np.where(held[:, first::2], c.cc[:, first::2], 0.0).sum(axis=1)
+            support = c.h_avg * (np.dot(lam, coef_t) + np.dot(c.force, coef_n))
+            # each slot's v += h f / m (twice) and the difference v - v~: 2 + 2 roundings of
+            # its terms, then the sum of the slots' terms one rounding each
+            bound = rounding(4 + slots.sum(), p[slots].sum() + abs(support))
+            assert abs(dp[slots].sum() + support) <= bound
+        self.rows += int(on.sum())
+        self.slips += int(slip.sum())
+        self.sticks += stick.size
+        return w_t
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_nonmatching_flat_faces_cone_momentum_ledger(tmp, method):
+    """3:2 flat faces, the finer target's nodes as slaves, μ = 0.3: the checks of
+    :class:`_Checks` at every step, rows in stick and in slip; the ledger closes and the
+    slip work never falls."""
+    from impact_fenics.scene_file import build, read_scene
+
+    out = os.path.join(tmp, f"nonmatching_{method}")
+    text = NONMATCHING.format(method=method, friction="friction = 0.3", v0=5.0).replace(
+        "[output]\n", f'[output]\ndir = "{out}"\n')
+    path = os.path.join(tmp, f"nonmatching_{method}.toml")
+    if COMM.rank == 0:
+        with open(path, "w") as fh:
+            fh.write(text)
+    COMM.barrier()
+    sim = build(read_scene(path))
+    c = sim.contacts[0]
+    assert c.bw > 0  # slaves share master nodes: A is banded, not diagonal
+    checks = _Checks(c)
+    sim.run()
+    assert checks.sticks > 0 and checks.slips > 0
+    h, e = sim.history.data(), sim.energy.data()
+    scale = np.abs(np.asarray(e["total"])).max()
+    n_dofs = 2 * 13 * 19 * 2  # at most: the finer bar's nodes, twice, (r, z) each
+    assert np.abs(np.asarray(e["balance_error"])).max() <= ledger(sim.n_steps, n_dofs) * scale
+    assert np.all(np.diff(np.asarray(h["slip_work"])) >= 0.0)
+    assert c.friction.info["tangential_iterations_max"] >= 1
+
+
+def test_nonmatching_dme_equals_film(tmp):
+    """With e = 0 on faces touching at t = 0, DME's ν = φ and its tangential problem is
+    FILM's (docs/friction.md 3): whole runs within the spread of a one-ulp change of v0."""
+    runs = {}
+    for name, m, v0 in (("film", "film", 5.0), ("dme", "dme", 5.0), ("ulp", "film",
+                                                                    one_ulp(5.0))):
+        runs[name] = _run(tmp, f"nm_{name}", NONMATCHING.format(
+            method=m, friction="friction = 0.3", v0=v0))
+    (hf, ef), (hd, ed), (hu, eu) = runs["film"], runs["dme"], runs["ulp"]
+    n = hf.size
+    for col in ("contact_force", "tangential_force", "slip_work"):
+        assert_within_spread(hd[col], hf[col], hu[col], n, col)
+    assert np.array_equal(hd["n_stick"], hf["n_stick"])
+    assert np.array_equal(hd["n_slip"], hf["n_slip"])
+    assert np.any(hf["n_slip"] > 0)
+
+
+NOSE = """title = "nose on a block"
+[mesh]
+generator = "nosed_striker_on_block"
+nose_radius = 0.02
+shank_length = 0.03
+block_width = 0.06
+block_depth = 0.04
+h_striker = 0.005
+h_block = 0.004
+[materials.steel]
+E = 200e9
+nu = 0.3
+density = 7850.0
+[bodies.striker]
+material = "steel"
+velocity = [0.0, -20.0]
+[bodies.block]
+material = "steel"
+[[contact]]
+slave = "block_contact"
+master = "nose"
+method = "{method}"
+friction = 0.2
+[time]
+cfl = 0.9
+t_end = 1e-6
+"""
+
+
+@pytest.mark.parametrize("text, words", [
+    (NOSE.format(method="dme").replace('method = "dme"', 'method = "dme"\nrestitution = 0.5'),
+     "curved master face with restitution e > 0 is not built yet"),
+    (SCENE.format(method="penalty", friction="friction = 0.2", v0=5.0).replace(PAIRS, SEGMENTS),
+     "built for film and dme (not yet the penalty)")], ids=["curved-restitution", "penalty"])
+def test_refused_in_one_line(tmp, text, words, capsys):
+    """What is not built is refused in one line "error: ...", exit 2, nothing written."""
+    path = os.path.join(tmp, "bad.toml")
+    out = os.path.join(tmp, "bad")
+    if COMM.rank == 0:
+        with open(path, "w") as fh:
+            fh.write(text)
+    COMM.barrier()
+    capsys.readouterr()
+    try:
+        code = cli.main(["run", path, "--out", out, "--quiet"])
+    except SystemExit as exc:
+        code = exc.code
+    err = COMM.bcast(capsys.readouterr().err if COMM.rank == 0 else None)
+    lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning: ")]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("error: ") and words in lines[0], err
+    assert "Traceback" not in err and not os.path.exists(out)
+    COMM.barrier()
+
+
+# ----------------------------------------------------------------------------- a curved master
+
+def _dense_rows(c, coef):
+    """The rows of G (``coef`` = c.cc) or T (its tangent rows) as a dense (n, slots) array."""
+    out = np.zeros((c.n, c.n_slots))
+    np.add.at(out, (np.repeat(np.arange(c.n), c.cs.shape[1]), c.cs.ravel()), coef.ravel())
+    return out
+
+
+def _coulomb_by_enumeration(c, mu, candidates):
+    """The coupled normal-tangential problem of FILM with friction, from the step's
+    prediction, by trying every set of the ``candidates`` rows (open; closed and stick;
+    closed and slipping at ±μ λ_n), the others open: every (λ_n, λ_t) that satisfies
+    g = g~ + S_nn λ_n + S_nt λ_t >= 0 ⊥ λ_n >= 0 and the box of w = w~ + A_tn λ_n + A_tt λ_t
+    (docs/friction.md 1, 1.1) within ``slack`` of their scales."""
+    G, T = _dense_rows(c, c.cc), _dense_rows(c, c.friction.ct)
+    minv = c.minv
+    h, hb = c.dt, c.h_avg
+    K = np.block([[h * hb * (G * minv) @ G.T, h * hb * (G * minv) @ T.T],
+                  [hb * (T * minv) @ G.T, hb * (T * minv) @ T.T]])
+    n = c.n
+    rhs0 = np.concatenate([c.g0 + G @ c.u_pred, T @ c.v_pred])
+    no_free = c.friction.no_free
+    found = []
+    for sets in itertools.product(range(4), repeat=len(candidates)):
+        kind = np.zeros(n, int)  # 0 open, 1 stick, 2 slip +, 3 slip -
+        kind[candidates] = sets
+        if np.any(no_free & (kind > 1)):
+            continue
+        closed = np.flatnonzero(kind > 0)
+        stick = np.flatnonzero((kind == 1) & ~no_free)
+        # unknowns λ_n (closed), λ_t (stick); λ_t = ±μ λ_n on slipping rows
+        P = np.zeros((2 * n, closed.size + stick.size))
+        for j, i in enumerate(closed):
+            P[i, j] = 1.0
+            if kind[i] > 1:
+                P[n + i, j] = mu if kind[i] == 2 else -mu
+        for j, i in enumerate(stick):
+            P[n + i, closed.size + j] = 1.0
+        eqs = np.concatenate([closed, n + stick])
+        if eqs.size == 0:
+            x = np.zeros(0)
+        else:
+            M = (K @ P)[eqs]
+            if np.linalg.matrix_rank(M) < eqs.size:
+                continue
+            x = np.linalg.solve(M, -rhs0[eqs])
+        lam = P @ x
+        res = rhs0 + K @ lam
+        ln, lt, g, w = lam[:n], lam[n:], res[:n], res[n:]
+        s_l = max(np.abs(lam).max(initial=0.0), 1e-300)
+        s_g = max(np.abs(rhs0[:n]).max(), 1e-300)
+        s_w = max(np.abs(rhs0[n:]).max(), 1e-300)
+        slack = 1e-10
+        ok = (np.all(ln[closed] >= -slack * s_l) and np.all(g[kind == 0] >= -slack * s_g)
+              and np.all(np.abs(lt[stick]) <= mu * ln[stick] + slack * s_l)
+              and np.all(w[kind == 2] <= slack * s_w) and np.all(w[kind == 3] >= -slack * s_w))
+        if ok:
+            found.append((ln, lt))
+    return found
+
+
+NOSE_FINE = NOSE.replace("h_striker = 0.005", "h_striker = 0.0025").replace(
+    "h_block = 0.004", "h_block = 0.0016666666666666668").replace(
+    "velocity = [0.0, -20.0]", "velocity = [0.0, -60.0]").replace(
+    "t_end = 1e-6", "t_end = 1.2e-5").replace("friction = 0.2", "friction = {mu}")
+
+
+MU = 0.05  # small enough that the rim of the contact slips
+
+
+def test_curved_master_against_enumeration(tmp):
+    """A nose (R = 2 cm) on a block, FILM with μ = 0.05: the normal and tangential rows
+    couple (G M^-1 T' != 0), so the step iterates (the Tresca passes, counted). At every
+    step with at most five candidate rows (a row loaded, or predicted to penetrate), the
+    step's (λ_n, λ_t) is the one solution of the coupled problem found by enumerating
+    every set, within 1e-12 of the largest multiplier: the passes stop once a pass changes
+    λ by at most 1e-13 of it, and the enumeration's dense solves round to ε cond(K) (of
+    order 1e2 here: K's rows scale by h and the segment's N_a, N_b)."""
+    from impact_fenics.scene_file import build, read_scene
+
+    out = os.path.join(tmp, "nose_enum")
+    text = NOSE_FINE.format(method="film", mu=MU) + (
+        f'[output]\ndir = "{out}"\nhistory_every = 1\nenergy_every = 1\nfields = false\n'
+        'plots = false\n')
+    path = os.path.join(tmp, "nose_enum.toml")
+    if COMM.rank == 0:
+        with open(path, "w") as fh:
+            fh.write(text)
+    COMM.barrier()
+    sim = build(read_scene(path))
+    c = sim.contacts[0]
+    f = c.friction
+    assert f.coupled
+    step, seen = f.step, {"steps": 0, "checked": 0, "slip": 0, "stick": 0, "passes": []}
+
+    def checked():
+        w_t = step()
+        seen["steps"] += 1
+        g_pred = c.g0 + _dense_rows(c, c.cc) @ c.u_pred
+        candidates = np.flatnonzero((c.force > 0.0) | (g_pred < 0.0))
+        if 0 < candidates.size <= 5:
+            found = _coulomb_by_enumeration(c, MU, candidates)
+            assert len(found) == 1, len(found)
+            ln, lt = found[0]
+            scale = max(np.abs(ln).max(), np.abs(lt).max())
+            assert np.abs(c.force - ln).max() <= 1e-12 * scale
+            assert np.abs(f.lam - lt).max() <= 1e-12 * scale
+            seen["checked"] += 1
+        seen["slip"] += int(np.sum(f.state >= SLIP_UP))
+        seen["stick"] += int(np.sum(f.state == STICK))
+        seen["passes"].append(f.passes)
+        return w_t
+
+    f.step = checked
+    sim.run()
+    assert seen["checked"] >= 10 and seen["stick"] > 0 and seen["slip"] > 0, seen
+    assert max(seen["passes"]) > 1 and f.info["tresca_unsettled"] == 0
+    e = sim.energy.data()
+    scale = np.abs(np.asarray(e["total"])).max()
+    n_dofs = 2 * 2 * 600  # at most: the two bodies' nodes, (r, z) each
+    assert np.abs(np.asarray(e["balance_error"])).max() <= ledger(sim.n_steps, n_dofs) * scale
+    if COMM.rank == 0:
+        print(f"\ncurved master: {seen['checked']} steps of {seen['steps']} against the "
+              f"enumeration; Tresca passes per step: max {max(seen['passes'])}, mean "
+              f"{np.mean(seen['passes']):.2f}; row-steps in stick {seen['stick']}, in slip "
+              f"{seen['slip']}")
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_curved_master_cone_momentum_ledger(tmp, method):
+    """The nose with μ = 0.05, FILM and DME: the checks of :class:`_Checks` at every step
+    after the Tresca passes (the tangential problem is solved last, so the cone holds
+    exactly), rows in stick and in slip, every step settled; the ledger closes."""
+    from impact_fenics.scene_file import build, read_scene
+
+    out = os.path.join(tmp, f"nose_{method}")
+    text = NOSE_FINE.format(method=method, mu=MU) + (
+        f'[output]\ndir = "{out}"\nhistory_every = 1\nenergy_every = 1\nfields = false\n'
+        'plots = false\n')
+    path = os.path.join(tmp, f"nose_{method}.toml")
+    if COMM.rank == 0:
+        with open(path, "w") as fh:
+            fh.write(text)
+    COMM.barrier()
+    sim = build(read_scene(path))
+    c = sim.contacts[0]
+    checks = _Checks(c)
+    sim.run()
+    assert checks.sticks > 0 and checks.slips > 0
+    info = c.friction.info
+    assert info["tresca_passes_max"] > 1 and info["tresca_unsettled"] == 0
+    e = sim.energy.data()
+    scale = np.abs(np.asarray(e["total"])).max()
+    n_dofs = 2 * 2 * 600  # at most: the two bodies' nodes, (r, z) each
+    assert np.abs(np.asarray(e["balance_error"])).max() <= ledger(sim.n_steps, n_dofs) * scale
+    if COMM.rank == 0:
+        print(f"\nnose {method}: Tresca passes max {info['tresca_passes_max']}, mean "
+              f"{info['tresca_passes_total'] / sim.n_steps:.2f}; balance "
+              f"{np.abs(np.asarray(e['balance_error'])).max():.3g} J of {scale:.3g} J")
+
+
+@pytest.mark.parametrize("kind", ["pairs", "segments"])
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_contact_pairs_file_with_friction(tmp, method, kind):
+    """contact_pairs.h5 of a set with friction (μ = 0.3, a row every step) holds each
+    pair's tangential force and its stick/slip flag: per row they sum and count to the
+    history's tangential_force (within the rounding of a sum of the pairs' |λ_t|, in
+    another order), n_stick and n_slip; |λ_t| <= μ λ_n at every pair (exactly: the clip);
+    a pair that is neither has λ_t = 0."""
+    from impact_fenics.output import read_pairs
+
+    text = SCENE.format(method=method, friction="friction = 0.3", v0=5.0).replace(
+        "history_every = 1", "history_every = 1\npairs_every = 1")
+    if kind == "segments":
+        text = text.replace(PAIRS, SEGMENTS)
+    name = f"pairs_file_{method}_{kind}"
+    h, _ = _run(tmp, name, text)
+    if COMM.rank == 0:
+        p = read_pairs(os.path.join(tmp, name, "contact_pairs.h5"))
+        row = {int(s): j for j, s in enumerate(h["step"])}
+        js = [row[int(s)] for s in p["step"]]
+        lam, flag = p["tangential_force"], p["slip_state"]
+        assert np.all(np.abs(lam) <= 0.3 * p["force"])
+        assert np.all(lam[flag == 0] == 0.0)
+        sums = lam.sum(axis=1)
+        bound = rounding(lam.shape[1], np.abs(lam).sum(axis=1))
+        assert np.all(np.abs(sums - h["tangential_force"][js]) <= bound)
+        assert np.array_equal((flag == 1).sum(axis=1), h["n_stick"][js])
+        assert np.array_equal((flag == 2).sum(axis=1), h["n_slip"][js])
+        assert (flag == 2).any() and (flag == 1).any()
+    COMM.barrier()

@@ -86,8 +86,10 @@ STRIP = open(SCENE).read()
     ('facet = "left"\ncomponents = ["x"]\n', 'facet = "left"\ncomponents = ["r"]\n',
      "error: [fixed #1] components = [\"r\"]: must be a list of distinct components \"x\" and \"y\" (plane strain)"),
     ('quantity = "sigma_yy"', 'quantity = "sigma_zz"', "error: [probes #1] quantity"),
-    ('[materials.steel]\n', '[materials.steel]\nmodel = "j2"\nyield_stress = 5e8\n',
-     "error: [materials.steel] model = \"j2\" is path-dependent: plane strain runs linear"),
+    ('density = 7850.0        # kg/m^3\n\n[bodies.block]\nmaterial = "steel"\n',
+     'density = 7850.0\nmodel = "neo_hookean"\n\n[bodies.block]\nmaterial = "steel"\n'
+     'strain = "finite"\n',
+     "error: [bodies.block] strain = \"finite\": plane strain runs small-strain bodies"),
     ('thickness = 0.01        # m, the slab\'s thickness t\n', 'thickness = 0.0\n',
      "error: [plane_strain.toml, top level] thickness = 0"),
     ('thickness = 0.01        # m, the slab\'s thickness t\n', 'symmetry = "y=0"\n',
@@ -103,7 +105,7 @@ def test_contact_refused(tmp_path):
     scene = tmp_path / "pair.toml"
     scene.write_text('geometry = "plane_strain"\n' + PAIR.replace("sigma_zz", "sigma_yy"))
     assert_refused(["run", scene, "--out", tmp_path / "out"],
-                   "error: [contact #1] contact: plane strain runs linear elastic bodies "
+                   "error: [contact #1] contact: plane strain runs small-strain bodies "
                    "without contact so far", tmp_path / "out")
 
 

@@ -25,6 +25,22 @@ against its oracles, on P1 (one point per cell) and Q1 (B-bar, 2x2 points).
   and, perfectly plastic, flows at sigma_xy = sigma_y0 / sqrt 3 with sigma_out = 0
   (a special case of the above, stated for the reader).
 
+* Locking: the plane-strain thick cylinder, a quarter annulus a <= r <= b (symmetry planes
+  x = 0 and y = 0 held), J2 perfectly plastic at nu = 0.4999, driven quasi-statically by
+  the radial displacement U of its inner wall to twice U_L = k b^2 / (2 G a) (Hill's
+  collapse, k = sigma_y / sqrt 3): the reaction pressure reaches the limit
+  p_L = (2 / sqrt 3) sigma_y ln(b / a) (Hill, The Mathematical Theory of Plasticity,
+  ch. V; it holds for every nu: at collapse the flow is deviatoric with eps_out = 0). The
+  mesh is the rectangle (r, phi) of n x 2n cells mapped onto the annulus: Q1, and P1 on the
+  block's alternating diagonals. A locking element's collapse load does not converge to p_L
+  (the incompressible flow is over-constrained on every mesh); a sound one's error falls
+  with h: halving h at least halves it (first order; B-bar and the constant-strain triangle
+  are second order on this smooth flow). On the plateau (U_L to 2 U_L) the pressure is
+  stationary up to Hill's O(1 - 2 nu) lag of a compressible material. Each increment is
+  solved by the elastic-stiffness iteration K du = -R(u) of the axisymmetric limit test
+  (tests/test_q1_limit_pressure.py), the pressure read as the inner wall's radial reaction
+  over the polygon's t a m sin(dphi) (the radial sum of a uniform pressure on its m chords).
+
 Every test runs unchanged on 1, 2 and 3 ranks (sums and maxima are collective).
 """
 import math
@@ -32,6 +48,7 @@ import math
 import numpy as np
 import pytest
 from mpi4py import MPI
+from petsc4py import PETSc
 from dolfinx import fem
 
 from roundoff import rounding
@@ -43,6 +60,7 @@ from impact_fenics.internal_force.quadrature import QuadratureForce
 from impact_fenics.materials.drucker_prager import DruckerPrager
 from impact_fenics.materials.j2 import J2
 from impact_fenics.operators import assemble_stiffness
+from impact_fenics.quad_meshes import quad_rectangle
 
 COMM = MPI.COMM_WORLD
 EPS = np.finfo(float).eps
@@ -193,3 +211,93 @@ def test_the_generic_path_is_refused_in_plane_strain():
 
     with pytest.raises(InputError, match="runs axisymmetric triangles only"):
         QuadratureForce(model, "block", u, 1e-7, np.zeros(model.n_owned), path="generic")
+
+
+# ------------------------------------------------------------------ locking: the thick cylinder
+A_IN, B_OUT, SY = 0.1, 0.2, 1e6  # m, m, Pa
+P_LIMIT = 2.0 / math.sqrt(3.0) * SY * math.log(B_OUT / A_IN)
+NU_INCOMPRESSIBLE = 0.4999
+RES, MAX_ITERATIONS = 1e-10, 200
+
+
+def annulus(n: int, quadrilaterals: bool):
+    """The quarter annulus of n cells through the wall and 2n round it: (tagged mesh, its
+    facet names (inner wall, y = 0, x = 0), the number of chords of the inner wall)."""
+    m, W = 2 * n, B_OUT - A_IN
+    if quadrilaterals:
+        tm = quad_rectangle(COMM, A_IN, 0.0, B_OUT, 1.0, n, m, "wall")
+        names = ("inner", "bottom", "top")
+        x = tm.mesh.geometry.x
+        r, phi = x[:, 0].copy(), x[:, 1] * (0.5 * math.pi)
+    else:
+        tm = meshing.block(W, 2.0 * W, h=W / n, comm=COMM)
+        names = ("left", "bottom", "top")
+        x = tm.mesh.geometry.x
+        r, phi = A_IN + x[:, 0], x[:, 1] / (2.0 * W) * (0.5 * math.pi)
+    x[:, 0], x[:, 1] = r * np.cos(phi), r * np.sin(phi)
+    return tm, names, m
+
+
+def collapse(n: int, quadrilaterals: bool, n_increments: int = 40) -> np.ndarray:
+    """The reaction pressure (Pa) at U_k = 2 U_L k / n_increments, k = 1..n_increments."""
+    tm, (inner, bottom, top), m = annulus(n, quadrilaterals)
+    j2 = J2(E=1e9, nu=NU_INCOMPRESSIBLE, density=1e3, yield_stress=SY)
+    body = "wall" if quadrilaterals else "block"  # the generators' cell groups
+    model = DeformableModel(tm, [Body(body, j2)], geometry=Geometry(PLANE_STRAIN, T))
+    u = fem.Function(model.V)
+    n_owned = model.n_owned
+    force = QuadratureForce(model, body, u, 1.0, np.zeros(n_owned))
+    qs = force.qs
+    ix, iy = model.facet_dofs(inner, 0), model.facet_dofs(inner, 1)
+    cos, sin = model.node_xy[ix // 2, 0] / A_IN, model.node_xy[iy // 2, 1] / A_IN
+    held = np.unique(np.concatenate([ix, iy, model.facet_dofs(bottom, 1),
+                                     model.facet_dofs(top, 0)]))
+    K = assemble_stiffness(model)
+    K.zeroRowsColumns(model.to_global(held).astype(PETSc.IntType), 1.0)
+    ksp = PETSc.KSP().create(COMM)
+    ksp.setOperators(K)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    rhs, du = K.createVecLeft(), K.createVecRight()
+    U_L = SY / math.sqrt(3.0) * B_OUT ** 2 / (2.0 * j2.mu * A_IN)
+    chords = T * A_IN * m * math.sin(0.5 * math.pi / m)
+    committed = [a.copy() for a in (qs.eps_p, qs.state, qs.sigma)]
+    pressures = []
+    for k in range(1, n_increments + 1):
+        U = 2.0 * U_L * k / n_increments
+        u.x.array[ix], u.x.array[iy] = U * cos, U * sin
+        for _ in range(MAX_ITERATIONS):
+            u.x.scatter_forward()
+            for a, c in zip((qs.eps_p, qs.state, qs.sigma), committed):
+                a[:] = c  # every iterate returns from the last converged state
+            f = force.compute()
+            reaction = COMM.allreduce(float(f[ix] @ cos + f[iy] @ sin))
+            R = f.copy()
+            R[held] = 0.0
+            if math.sqrt(COMM.allreduce(float(R @ R))) <= RES * abs(reaction):
+                break
+            rhs.array[:] = -R
+            ksp.solve(rhs, du)
+            u.x.array[:n_owned] += du.array
+        else:
+            raise AssertionError(f"increment {k}: the iteration did not converge")
+        for a, c in zip((qs.eps_p, qs.state, qs.sigma), committed):
+            c[:] = a
+        pressures.append(reaction / chords)
+    for obj in (ksp, K, rhs, du):
+        obj.destroy()
+    return np.array(pressures)
+
+
+@pytest.mark.parametrize("element", ["P1", "Q1"])
+def test_thick_cylinder_reaches_the_limit_pressure_without_locking(element):
+    runs = {n: collapse(n, element == "Q1") for n in (4, 8)}
+    errors = {n: p[-1] / P_LIMIT - 1.0 for n, p in runs.items()}
+    for n, p in runs.items():
+        print(f"{element}, {n} x {2 * n} cells: p / p_L at 2 U_L = {p[-1] / P_LIMIT:.6f}, "
+              f"at U_L = {p[19] / P_LIMIT:.6f}")
+        # the plateau: stationary from U_L on, but for Hill's O(1 - 2 nu) lag
+        assert abs(p[-1] - p[19]) <= (1.0 - 2.0 * NU_INCOMPRESSIBLE) * P_LIMIT
+    print(f"{element}: error ratio {errors[4] / errors[8]:.2f} as h halves")
+    assert abs(errors[8]) <= 0.5 * abs(errors[4])

@@ -58,6 +58,8 @@ def _kind(k: Key) -> str:
         return "one of " + ", ".join(f'`"{c}"`' for c in k.choices) if k.choices else "string"
     if k.kind == "list":
         return "list of " + ", ".join(f'`"{c}"`' for c in k.choices)
+    if k.kind == "friction":
+        return 'number ≥ 0, `"stick"` or table'
     if k.kind == "stiffness":
         return "number > 0 or " + ", ".join(f'`"{c}"`' for c in k.choices)
     return _KIND[k.kind]

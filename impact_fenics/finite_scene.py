@@ -53,6 +53,8 @@ class WallSpec:
     method: str                   # film, dme or penalty
     penalty: float | str = "scaled"  # N/m, or "scaled" (beta = 1 each step)
     face: str = "contact"         # the impact face: unilateral contact, or held (u_z = 0)
+    friction: Any = None          # contact.friction.FrictionLaw (small strain), None: none
+    tangential_penalty: float | str = "scaled"  # N/m, penalty with friction
     given: tuple[str, ...] = ()
 
 
@@ -64,6 +66,12 @@ def read_wall(data: Any) -> WallSpec:
         raise t.error("face", f"it keeps the bar's face Z = 0 on the wall and needs z = 0 "
                       f"(got z = {wall.z!r} m)")
     wall.penalty = t.value("penalty")
+    if "friction" in t.data:
+        from .contact.friction import friction_law
+
+        law = friction_law(t.data["friction"], "[wall] friction")
+        wall.friction = None if law.is_zero else law
+    wall.tangential_penalty = t.value("tangential_penalty")
     return wall
 
 
@@ -97,6 +105,10 @@ def check_kind(scene) -> None:
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
         raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
                          f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+    if scene.wall is not None and scene.wall.friction is not None:
+        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: not built for a "
+                         "finite-strain body yet (built: a small-strain wall, node pairs and "
+                         "rigid faces, with film or dme)")
     for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
                       ("loads", "[[loads]]"), ("fixed", "[[fixed]]"), ("probes", "[[probes]]")):
         if getattr(scene, key):

@@ -50,6 +50,8 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         if c.moving_rigid is not None:  # (a fixed part's would be zeros)
             cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
         cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
+        if getattr(c, "friction", None) is not None:  # its tangential pass's stats
+            cols += [f"{tag}{name}" for name, _ in c.friction.history_columns]
     n_raw = probes.n_raw if probes else 0
     n_probes = len(probes.names) if probes else 0
     block = 256
@@ -94,9 +96,14 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
     # per contact: its stats (number active, total force, smallest gap; updated in place
     # by its step), its phase times, its rigid body and its first raw column
     layout, k = [], offset + 3
+    friction = []  # (its stats, their indices, its first raw column) per set with friction
     for c in contacts:
         layout.append((memoryview(c.stats), c.times, c.moving_rigid, k))
         k += 6 + (2 if c.moving_rigid is not None else 0)
+        if getattr(c, "friction", None) is not None:
+            which = tuple(i for _, i in c.friction.history_columns)
+            friction.append((c.friction.stats, which, k))
+            k += len(which)
 
     step = integ.step
     constant = step.constant
@@ -126,6 +133,11 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
             cells[k + 3] = times.detection
             cells[k + 4] = times.solve
             cells[k + 5] = times.update
+        for stats, which, k in friction:
+            k += j
+            for i in which:
+                cells[k] = stats[i]
+                k += 1
     return history_row
 
 

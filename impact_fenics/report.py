@@ -118,6 +118,13 @@ def console_lines(s: dict) -> list[str]:
             line += (f"; rebound {c['velocity_lower_after']:.4g} / {c['velocity_upper_after']:.4g}"
                      f" m/s, restitution {c['restitution']:.3f}")
         lines.append(line)
+    for f in s.get("friction", []):
+        line = (f"friction {'/'.join(f['surfaces'])} ({f['friction']}): slip work {f['slip_work']:.4g} J, "
+                f"tangential loss {f['tangential_loss']:.4g} J, peak tangential force "
+                f"{f['peak_tangential_force']:.4g} N")
+        if "return_loss" in f:
+            line += f", return loss {f['return_loss']:.4g} J"
+        lines.append(line)
     peaks = s.get("peak_stress")
     if peaks:
         lines.append(f"peak stresses (at field outputs): von Mises {peaks['von_mises'] / 1e6:.4g} MPa "

@@ -77,6 +77,8 @@ class ContactSpec:
     master: str | None = None    # facet group of the master segments (node to segment)
     reach: float | None = None   # m, node to segment: farthest master segment of a slave
     repair_every: int = 0        # node to segment: steps between re-pairings (0: never)
+    friction: Any = None         # contact.friction.FrictionLaw, None: frictionless
+    tangential_penalty: float | str = "scaled"  # N/m, penalty with friction
     given: tuple[str, ...] = ()  # the keys the file gave
 
 
@@ -358,7 +360,20 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
         raise t.error("restitution", "must lie in [0, 1] (0: the pair sticks, 1: elastic)")
     c.positions = t.value("positions")
     c.film_solver = t.value("film_solver")
+    c.friction = read_friction(t)
+    c.tangential_penalty = t.value("tangential_penalty")
     return c
+
+
+def read_friction(t: Table):
+    """The ``friction`` key of a [[contact]] or the [wall]: its law
+    (contact.friction.friction_law), None when absent or zero (frictionless)."""
+    from .contact.friction import friction_law
+
+    if "friction" not in t.data:
+        return None
+    law = friction_law(t.data["friction"], f"{t.where} friction")
+    return None if law.is_zero else law
 
 
 def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
@@ -670,6 +685,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 profile = None if c.button is None else spherical_button(c.button)
                 sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
                                 method, rigid=body)
+            if c.friction is not None:
+                sim.contacts[-1].set_friction(c.friction, c.tangential_penalty, scene.force)
     if scene.wall is not None:  # a fixed rigid part under every boundary node
         from .contact.plane import boundary_nodes, plane_below, wall_part
 
@@ -678,6 +695,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             cons = plane_below(comm, boundary_nodes(model.V, model.n_owned // 2), model.node_xy,
                                model.offset, w.z, model.length_scale)
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
+            if w.friction is not None:
+                sim.contacts[-1].set_friction(w.friction, w.tangential_penalty, scene.force)
     for p in scene.probes:
         with within(p.where):
             if p.quantity == "section":  # its plane checked now (Probes builds it in run)
@@ -715,7 +734,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
 
 # contact keys that only one method reads
 _METHOD_KEYS = {"penalty": ("penalty",), "restitution": ("dme",), "positions": ("dme",),
-                "film_solver": ("film",)}
+                "film_solver": ("film",), "tangential_penalty": ("penalty",)}
 
 
 def _warn_ignored_keys(c: ContactSpec, comm: MPI.Comm) -> None:

@@ -237,6 +237,19 @@ _RIGID = Section("rigid", "[rigid.NAME]", (
         "downward velocity, F_i its incident wave: [[loads]] incident)."),
 ))
 
+# Coulomb friction of a [[contact]] and of the [wall] (docs/friction.md)
+_FRICTION = Key("friction", "friction", "-", 0.0, "Coulomb friction: a coefficient mu >= 0, \"stick\" (no "
+        "slip at all) or {static, dynamic, decay} (mu = dynamic + (static - dynamic) "
+        "exp(-decay |w_t|), decay in s/m, w_t the previous step's slip speed)", default_text="0 "
+        "(frictionless)", note="Built for film, dme and penalty on node pairs, a rigid face (not a button) "
+        "and a small-strain wall; refused in one line elsewhere (node to segment, a "
+        "finite-strain wall). [friction.md](friction.md).")
+_TANGENTIAL_PENALTY = Key("tangential_penalty", "stiffness", "N/m", "scaled", "penalty with "
+                          "friction: the tangential spring k_t", choices=("scaled",),
+                          note="\"scaled\": beta_t = k_t h^2 (1/m_lo + 1/m_up) = 1 per row "
+                          "(the penalty's stick is FILM's); a stiffness whose beta_t passes "
+                          "4/3 is refused unless forced.")
+
 _CONTACT = Section("contact", "[[contact]]", (
     "A contact between two facet groups, or between a facet group and a rigid body, "
     "enforced by one method ([contact.md](contact.md)). A facet group may be in one "
@@ -286,6 +299,8 @@ _CONTACT = Section("contact", "[[contact]]", (
         choices=("mass_weighted", "paper")),
     Key("film_solver", "text", "", "fast", "film: the exact O(n log n) solver, or the dense "
         "factorisation the paper timed", choices=("fast", "dense")),
+    _FRICTION,
+    _TANGENTIAL_PENALTY,
 ), variants="`rigid` makes a rigid face, `slave`/`master` node to segment, else `lower`/"
             "`upper` node pairs. `penalty`, `restitution`, `positions` and `film_solver` are "
             "read by their method only (a warning names a key the method ignores).")
@@ -390,7 +405,7 @@ _PROBES = Section("probes", "[[probes]]", (
 ))
 
 _WALL = Section("wall", "[wall]", (
-    "A fixed rigid frictionless plane z = const (normal +z) at or below the body: every "
+    "A fixed rigid plane z = const (normal +z) at or below the body: every "
     "boundary node a unilateral candidate (a side node that folds onto it joins as it "
     "reaches it); its contact columns are named boundary/wall."), (
     Key("z", "number", "m", 0.0, "height of the plane"),
@@ -402,6 +417,8 @@ _WALL = Section("wall", "[wall]", (
         note="contact: unilateral (its rim may lift off); held: u_z = 0 on Z = 0 from t = 0, "
         "sliding radially (the Taylor references' condition; needs z = 0; finite strain "
         "only: a small-strain face is held by [[fixed]])."),
+    _FRICTION,
+    _TANGENTIAL_PENALTY,
 ))
 
 _TABLES = (_MESH, _MATERIALS, _BODIES, _RIGID, _CONTACT, _LOADS, _FIXED, _TIME, _OUTPUT, _PROBES,

@@ -474,8 +474,9 @@ class StepBlock:
             return None
         contact = sim.contacts[0] if sim.contacts else None
         if contact is not None and (type(contact) is not ContactSet or contact._fused is None
-                                    or (contact.rigid is not None and contact.rigid.fixed)):
-            return None  # (a fixed part, a wall: the Python step)
+                                    or (contact.rigid is not None and contact.rigid.fixed)
+                                    or contact.friction is not None):
+            return None  # (a fixed part, a wall, friction's tangential pass: the Python step)
         if probes is not None and probes._plastic:
             return None
         addresses = native.addresses()

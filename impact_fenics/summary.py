@@ -132,6 +132,10 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
                                     "surfaces": list(c.constraints.names),
                                     "method_info": getattr(c.method, "info", {})}
                                    for c in sim.contacts]
+        frictional = [c for c in sim.contacts if getattr(c, "friction", None) is not None]
+        if frictional:  # the dissipation (both parts, J) and the peak tangential force (N)
+            summary["friction"] = [{"surfaces": list(c.constraints.names), **c.friction.summary()}
+                                   for c in frictional]
         for c in sim.contacts:  # a rigid body driven by a rod: its wave energies (J)
             if c.rigid is not None and c.rigid.impedance > 0:
                 summary.setdefault("rod_waves", {})[c.rigid.name] = {

@@ -304,6 +304,7 @@ class ContactSet:
                              self._recv if self.comm.size > 1 else np.empty(0), self._floats,
                              self._ints, self._flags, self._misc))
         self._gathered = self.comm.size > 1
+        self.friction = None  # the tangential pass (set_friction); None: frictionless
 
     def _init_segments(self, c: SegmentConstraints) -> None:
         """The segment kind: slave node k has slots (2k, 2k+1) = (r, z), master node k
@@ -358,7 +359,54 @@ class ContactSet:
         self.jumps = bool(getattr(self.method, "jumps", False))
         self._ledger = _ContactWork(self)
         self.repair_every = 0  # re-pairing off (set_repairing): the set-up's pairs
+        self.friction = None  # node to segment: frictionless (set_friction refuses)
         self.method.setup(self)
+
+    def set_friction(self, friction, tangential_penalty: float | str = "scaled",
+                     force: bool = False) -> None:
+        """Coulomb friction on this set (docs/friction.md): ``friction`` a coefficient
+        μ >= 0, ``"stick"``, a table {static, dynamic, decay} or a
+        :class:`.friction.FrictionLaw`. μ = 0 makes nothing: the set's step stays the
+        frictionless one. Built for FILM, DME and the penalty (its tangential spring
+        ``tangential_penalty``: N/m, or ``"scaled"``, beta_t = 1 per row; one whose
+        beta_t passes 4/3 is refused unless ``force``) on node pairs and a flat rigid or
+        fixed face (the wall); refused in one line elsewhere. Call before the run."""
+        from .friction import (DME_T, FILM_T, PENALTY_T, STABILITY_BOUND, Tangential,
+                               friction_law)
+
+        law = friction_law(friction)
+        if law.is_zero:
+            self.friction = None
+            return
+        what = f"friction = {law.text()}"
+        if self.kind == SEGMENTS:
+            raise InputError(f"{what}: friction on node-to-segment contact is not built yet "
+                             "(built: node pairs, a rigid face and the wall)")
+        if isinstance(tangential_penalty, str):
+            if tangential_penalty != "scaled":
+                raise InputError(f"tangential_penalty = '{tangential_penalty}': give a "
+                                 "stiffness in N/m or 'scaled'")
+        elif not (isinstance(tangential_penalty, (int, float)) and tangential_penalty > 0):
+            raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: must be > 0")
+        if isinstance(self.method, Penalty):
+            kernel = PENALTY_T
+        elif isinstance(self.method, FILM):
+            kernel = FILM_T
+        elif isinstance(self.method, DME):
+            kernel = DME_T
+        else:
+            raise InputError(f"{what}: friction needs method film, dme or penalty")
+        if np.any(self.constraints.b != self.constraints.b[0]) and self.rigid is not None \
+                and not self.rigid.fixed:
+            raise InputError(f"{what}: a button (a rigid face with a profile) with friction is "
+                             "not built: its tangent is tilted, which the rigid kind does not "
+                             "have")
+        tangential = Tangential(self, law, kernel, tangential_penalty)
+        if kernel == PENALTY_T and tangential.beta_max > STABILITY_BOUND and not force:
+            raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t = "
+                             f"{tangential.beta_max:.3g} passes the stable bound 4/3 (k_t h "
+                             "h_n (1/m_lo + 1/m_up)); lower it, use 'scaled' or force")
+        self.friction = tangential
 
     def set_repairing(self, every: int, reach: float | None = None,
                       end_tol: float = END_TOLERANCE) -> None:
@@ -469,6 +517,8 @@ class ContactSet:
         self.dt, self.h_avg = float(h), float(h_avg)
         self._step_constants()
         self.method.setup(self)
+        if self.friction is not None:
+            self.friction.set_step()
         if self._fused is not None:
             if type(self.method) is Penalty:
                 self.p[:] = self.method.p
@@ -519,6 +569,8 @@ class ContactSet:
             self.u_now[-1], self.v_now[-1] = r.u, r.v
             self._misc[WAVES:WAVES + 3] = r.wave_incident, r.wave_reflected, r.wave_delivered
         self._load_kernels()
+        if self.friction is not None:
+            self.friction.initialize()
 
     def _fused_method(self):
         """(code, penalty stiffnesses (N/m), restitution, mass-weighted positions) of a
@@ -652,6 +704,8 @@ class ContactSet:
                 misc = self._misc
                 rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
                     float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
+        if self.friction is not None:  # the tangential pass, booked with the contact work
+            self._misc[LEDGER] += self.friction.step()
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
@@ -681,6 +735,8 @@ class ContactSet:
             rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
             self._ledger.book_rigid(v_n, self.rigid.v, rigid_f)
         self._ledger.book(integ.n)
+        if self.friction is not None:
+            self._misc[LEDGER] += self.friction.step()
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2

@@ -1,0 +1,505 @@
+"""Coulomb friction on the decoupled kinds: node pairs and a node on a rigid or fixed face.
+
+The law and its discrete form are derived in docs/friction.md. A contact set with a
+coefficient μ > 0 (or ``"stick"``) gets a :class:`Tangential` pass that runs after its
+normal step; with μ = 0 nothing here is made and the set's step is unchanged.
+
+On node pairs and a rigid face (the wall included) the normal and the tangential rows
+decouple exactly (docs/friction.md 1.1): the normal multipliers λ_n (N) of the step do
+not depend on the tangential ones, and the tangential operator A = h_n T M^-1 T' is
+diagonal, A_ii = h_n (1/m_lo,r + 1/m_up,r) (m/(N s); 1/m = 0 on a fixed r dof and on a
+rigid part, which has no r slot). So the pass is one loop over the constraints, after
+the normal step, on the r components of the constraints' nodes (the *tangential slots*:
+one per deformable slot of the set, in the same order, and one with zero inverse mass in
+place of a rigid part's).
+
+With t = e_r, the relative tangential velocity of constraint i is
+w_t = v_up,r - v_lo,r (m/s) and its multiplier λ_t (N) acts along +r on the upper side,
+along -r on the lower side. Per active constraint with λ_n > 0 and the cone radius
+c = μ λ_n (``"stick"``: no cone):
+
+- FILM: λ* = -w~_t / A_ii, λ_t = clip(λ*, -c, c); velocities move by h_n λ_t / m,
+  positions by h_{n+1/2} times that.
+- DME: the merged r velocity v* = (m_lo v~_lo + m_up v~_up) / (m_lo + m_up) (the fixed
+  side's velocity where one side is fixed), the reaction that sticking implies
+  λ* = m_up (v* - v~_up) / h_n; inside the cone both r velocities become v*, outside it
+  λ_t = ±c is applied; positions u^{n+1} = u^n + h_{n+1/2} v^{n+1/2} (no jump in r).
+- penalty: a tangential spring k_t (N/m) on the committed elastic slip s_e (m), trial
+  λ_tr = -k_t (s_e + h_{n+1/2} w~_t), returned to the cone where it lies outside it
+  (plastic slip Δs_p), applied as FILM's; s_e += h_{n+1/2} w_t^{n+1/2} - Δs_p. k_t is
+  "scaled" (beta_t = k_t h_{n+1/2} A_ii = 1: the penalty's stick is FILM's) or given.
+
+μ_i = μ_d + (μ_s - μ_d) exp(-d_c |w_t^{n-1/2}|) with the previous step's slip speed.
+
+The ledger (docs/friction.md 5): the r slots carry only tangential forces, so the one
+contact-work booking (:func:`.state._book`) on them gives the tangential work W_t of the
+step, added to the set's contact work. The slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| >= 0
+(the penalty: Σ c |Δs_p|) and the tangential arrival loss L_t = -W_t - D (the penalty:
+minus also the return loss Σ 1/2 k_t Δs_p^2 and the change of the springs' stored
+energy 1/2 k_t s_e^2, both kept) are kept beside it, with the stats of a history row: the total tangential force Σ λ_t (N, on the upper sides along +r) and the
+numbers of sticking and slipping constraints.
+
+Under MPI the r components are gathered once per step (one Allgatherv) in slot order;
+every rank takes the decisions on the same gathered data and writes back what it owns.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from numba import njit
+
+from ..errors import InputError
+from ..plausibility import warn
+from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
+
+# the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
+# numbers sticking and slipping, then the cumulative slip work and tangential arrival
+# loss (J) (the history's five columns), the largest |total| so far (N), then the
+# penalty's return loss so far and the stored energy 1/2 k_t s_e^2 now (J)
+T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS, T_PEAK, RETURN_LOSS, STORED = range(8)
+# a set's history columns and the stats they read (the penalty adds its two energies)
+HISTORY = (("tangential_force", T_FORCE), ("n_stick", N_STICK), ("n_slip", N_SLIP),
+           ("slip_work", SLIP_WORK), ("tangential_loss", T_LOSS))
+PENALTY_HISTORY = (("return_loss", RETURN_LOSS), ("spring_energy", STORED))
+STABILITY_BOUND = 4.0 / 3.0  # of beta_t = k_t h A_ii (penalty.py's derivation)
+FILM_T, DME_T, PENALTY_T = 1, 2, 3  # the tangential kernels
+
+
+@dataclass(frozen=True)
+class FrictionLaw:
+    """Coulomb's law: μ = μ_d + (μ_s - μ_d) exp(-d_c |w_t|) (``static`` μ_s, ``dynamic``
+    μ_d, ``decay`` d_c in s/m, w_t the previous step's slip speed, m/s); ``stick``: no
+    slip at all (no cone is evaluated)."""
+
+    static: float = 0.0
+    dynamic: float = 0.0
+    decay: float = 0.0
+    stick: bool = False
+
+    @property
+    def is_zero(self) -> bool:
+        """μ = 0 everywhere: frictionless (today's path, nothing made)."""
+        return not self.stick and self.static == 0.0 and self.dynamic == 0.0
+
+    def text(self) -> str:
+        if self.stick:
+            return '"stick"'
+        if self.static == self.dynamic:
+            return f"{self.static:g}"
+        return f"{{static = {self.static:g}, dynamic = {self.dynamic:g}, decay = {self.decay:g}}}"
+
+
+def friction_law(value, where: str = "friction") -> FrictionLaw:
+    """The law of a scene's or a caller's ``friction`` (``where``: how messages name it): a
+    number μ >= 0, ``"stick"``, a :class:`FrictionLaw`, or a table {static, dynamic,
+    decay} (decay in s/m, default 0; dynamic defaults to static). Refuses anything else
+    in one line."""
+    usage = 'give a coefficient >= 0, "stick" or {static, dynamic, decay}'
+    if isinstance(value, FrictionLaw):
+        law = value
+    elif isinstance(value, str):
+        if value != "stick":
+            raise InputError(f'{where} = "{value}": {usage}')
+        law = FrictionLaw(stick=True)
+    elif isinstance(value, dict):
+        extra = sorted(set(value) - {"static", "dynamic", "decay"})
+        if extra or "static" not in value:
+            problem = f"unknown key {', '.join(extra)}" if extra else "static is missing"
+            raise InputError(f"{where}: {problem} ({usage})")
+        s = value["static"]
+        law = FrictionLaw(s, value.get("dynamic", s), value.get("decay", 0.0))
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        law = FrictionLaw(value, value)
+    else:
+        raise InputError(f"{where} = {value!r}: {usage}")
+    for name in ("static", "dynamic", "decay"):
+        x = getattr(law, name)
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not (math.isfinite(x)
+                                                                          and x >= 0):
+            label = where if isinstance(value, (int, float)) else f"{where} {name}"
+            raise InputError(f"{label} = {x!r}: must be a finite number >= 0")
+    return FrictionLaw(float(law.static), float(law.dynamic), float(law.decay), law.stick)
+
+
+# ----------------------------------------------------------------------------- kernels
+
+@njit(cache=True)
+def _coefficient(mu_s, mu_d, decay, w_prev):
+    """μ of a constraint from its previous slip speed |w_prev| (m/s)."""
+    if mu_s == mu_d:
+        return mu_s
+    return mu_d + (mu_s - mu_d) * math.exp(-decay * abs(w_prev))
+
+
+@njit(cache=True)
+def film_tangential(lo, up, active, force, a_inv, h_over_m, h, mu_s, mu_d, decay, stick,
+                    v_now, u, v, lam, state):
+    """FILM's tangential pass on the predicted r state (u, v; m, m/s) of the tangential
+    slots, after the normal step (``force``: λ_n (N), ``active``): per constraint the
+    stick multiplier λ* = -w~_t / A_ii (``a_inv``: 1/A_ii, 0 where no slot is free),
+    projected on the cone; u, v corrected in place (``h_over_m``: h_n / m per slot, 0 on
+    a fixed r dof or a rigid part; ``h``: h_{n+1/2}). ``v_now``: v^{n-1/2} (the decaying
+    coefficient's slip speed). Writes λ_t (N) into ``lam`` and 0 (none), 1 (stick) or 2
+    (slip) into ``state``."""
+    for i in range(lo.size):
+        lam[i] = 0.0
+        state[i] = 0
+        fn = force[i]
+        if not active[i] or not fn > 0.0 or a_inv[i] == 0.0:
+            continue
+        p, q = lo[i], up[i]
+        lam_star = -(v[q] - v[p]) * a_inv[i]
+        if stick:
+            f = lam_star
+            state[i] = 1
+        else:
+            c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
+            if abs(lam_star) <= c:
+                f = lam_star
+                state[i] = 1
+            else:
+                f = c if lam_star > 0.0 else -c
+                state[i] = 2
+        lam[i] = f
+        dv_q = f * h_over_m[q]
+        dv_p = f * h_over_m[p]
+        v[q] += dv_q
+        u[q] += h * dv_q
+        v[p] -= dv_p
+        u[p] -= h * dv_p
+
+
+@njit(cache=True)
+def dme_tangential(lo, up, active, force, mass, m_over_h, h_over_m, h, mu_s, mu_d, decay,
+                   stick, u_now, v_now, u, v, lam, state):
+    """DME's tangential pass (see the module): the merged r velocity v* of each active
+    constraint (``mass``: the r slots' masses, inf on a fixed r dof or a rigid part;
+    ``m_over_h``: m / h_n, 0 there) and the reaction m_up (v* - v~_up) / h_n it implies,
+    tested against the cone; stick merges, slip applies λ_t = ±μ λ_n. Positions
+    u^{n+1} = u^n + h v^{n+1/2} (``u_now``: u^n) on the slots it moves."""
+    for i in range(lo.size):
+        lam[i] = 0.0
+        state[i] = 0
+        fn = force[i]
+        if not active[i] or not fn > 0.0:
+            continue
+        p, q = lo[i], up[i]
+        free_p, free_q = h_over_m[p] != 0.0, h_over_m[q] != 0.0
+        if not (free_p or free_q):
+            continue
+        if not free_p:
+            v_star = v[p]
+        elif not free_q:
+            v_star = v[q]
+        else:
+            v_star = (mass[p] * v[p] + mass[q] * v[q]) / (mass[p] + mass[q])
+        lam_star = (m_over_h[q] * (v_star - v[q]) if free_q else
+                    m_over_h[p] * (v[p] - v_star))
+        if stick:
+            sticks = True
+        else:
+            c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
+            sticks = abs(lam_star) <= c
+        if sticks:
+            lam[i] = lam_star
+            state[i] = 1
+            if free_p:
+                v[p] = v_star
+            if free_q:
+                v[q] = v_star
+        else:
+            f = c if lam_star > 0.0 else -c
+            lam[i] = f
+            state[i] = 2
+            if free_q:
+                v[q] += f * h_over_m[q]
+            if free_p:
+                v[p] -= f * h_over_m[p]
+        if free_p:
+            u[p] = u_now[p] + h * v[p]
+        if free_q:
+            u[q] = u_now[q] + h * v[q]
+
+
+@njit(cache=True)
+def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, decay, stick,
+                       v_now, u, v, lam, state, s_e, d_slip, stats):
+    """The penalty's tangential spring with a return to the cone (docs/friction.md 4) on
+    the predicted r state: per active constraint the trial λ_tr = -k_t (s_e + h w~_t)
+    (``k_t``: N/m, ``s_e``: the committed elastic slip, m), stick inside the cone, else
+    λ_t = ±c and the plastic slip Δs_p = -(|λ_tr| - c) sign(λ_tr) / k_t; u, v corrected
+    as FILM's, then s_e += h w_t^{n+1/2} - Δs_p. A constraint without a compressive λ_n
+    is released: λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 into the return loss.
+    ``d_slip`` receives c |Δs_p| (J) per constraint; the return loss and the stored
+    energy (J) in ``stats`` are updated."""
+    ret = 0.0
+    stored = 0.0
+    for i in range(lo.size):
+        lam[i] = 0.0
+        state[i] = 0
+        d_slip[i] = 0.0
+        fn = force[i]
+        p, q = lo[i], up[i]
+        if not active[i] or not fn > 0.0 or k_t[i] == 0.0:
+            if s_e[i] != 0.0:  # released: the spring's energy is returned as loss
+                ret += 0.5 * k_t[i] * s_e[i] * s_e[i]
+                s_e[i] = 0.0
+            continue
+        trial = -k_t[i] * (s_e[i] + h * (v[q] - v[p]))
+        dsp = 0.0
+        if stick:
+            f = trial
+            state[i] = 1
+        else:
+            c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
+            if abs(trial) <= c:
+                f = trial
+                state[i] = 1
+            else:
+                f = c if trial > 0.0 else -c
+                dsp = (f - trial) / k_t[i]  # -(|trial| - c) sign(trial) / k_t
+                state[i] = 2
+                d_slip[i] = c * abs(dsp)
+                ret += 0.5 * k_t[i] * dsp * dsp
+        lam[i] = f
+        dv_q = f * h_over_m[q]
+        dv_p = f * h_over_m[p]
+        v[q] += dv_q
+        u[q] += h * dv_q
+        v[p] -= dv_p
+        u[p] -= h * dv_p
+        s_e[i] += h * (v[q] - v[p]) - dsp
+        stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
+    stats[RETURN_LOSS] += ret
+    stats[STORED] = stored
+
+
+@njit(cache=True)
+def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pred, u_now,
+                       v_now, f_prev, ku_prev, jump, lo, up, lam, state, stats, slip_limit,
+                       penalty, d_slip, spring_change):
+    """Write the corrected r state back to the owned dofs, book the tangential work by
+    the one contact-work booking (:func:`.state._book`, no jump) and roll the r slots
+    to n+1; slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| (the ``penalty``: Σ ``d_slip``,
+    c |Δs_p|) and L_t = -W_t - D (the penalty: minus also ``spring_change``, the step's
+    return loss and change of stored energy, J) into ``stats`` (cumulative), with the
+    step's total tangential force, its largest magnitude so far and the stick/slip
+    counts. Returns (W_t (J), the first constraint whose relative
+    tangential displacement u_up,r - u_lo,r exceeds its ``slip_limit`` (m), or -1)."""
+    for k in range(local.size):
+        dst_u[local[k]] = u[pos[k]]
+        dst_v[local[k]] = v[pos[k]]
+    total = 0.0
+    n_stick = 0
+    n_slip = 0
+    slip = 0.0
+    for i in range(lam.size):
+        f = lam[i]
+        total += f
+        if state[i] == 1:
+            n_stick += 1
+        elif state[i] == 2:
+            n_slip += 1
+        if penalty:
+            slip += d_slip[i]
+        elif f != 0.0:
+            slip += h_avg * abs(f) * abs(v[up[i]] - v[lo[i]])
+    w_t, _ = _book(h, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, False,
+                   False)
+    stats[0] = total
+    stats[1] = n_stick
+    stats[2] = n_slip
+    stats[3] += slip
+    stats[4] += -w_t - slip - spring_change
+    stats[5] = max(stats[5], abs(total))
+    for i in range(lam.size):
+        if abs(u_now[up[i]] - u_now[lo[i]]) > slip_limit[i]:
+            return w_t, i
+    return w_t, -1
+
+
+# ----------------------------------------------------------------------------- the pass
+
+class Tangential:
+    """The tangential slots and pass of a node-pair or rigid-face contact set ``c``
+    (:class:`~.interface.ContactSet`) with friction ``law`` (a :class:`FrictionLaw`, not
+    zero); ``kernel`` FILM_T, DME_T or PENALTY_T, the last with the tangential
+    stiffness ``stiffness`` (N/m, or ``"scaled"``: beta_t = 1 per row, k_t = m_red /
+    (h_{n+1/2} h_n)). Made by ``ContactSet.set_friction``."""
+
+    def __init__(self, c, law: FrictionLaw, kernel: int, stiffness: float | str = "scaled"):
+        self.c, self.law, self.kernel = c, law, kernel
+        self.stiffness = stiffness
+        integ = c.integrator
+        model = integ.model
+        nd, ns = c.n_deformable, c.n_slots
+        z_dofs = self._z_dofs(c)
+        r_dofs = z_dofs - 1  # (r, z) pairs: each node's r dof precedes its z dof
+        local, pos, all_pos, self._counts, self._displs = owned_slots(model, r_dofs, c.comm)
+        self._local, self._pos, self._all_pos = local, pos, all_pos
+        self._recv_u, self._recv_v = gathered_order(self._counts, self._displs)
+        self._send = np.empty(2 * local.size)
+        self._recv = np.empty(2 * nd)
+        # per tangential slot (a rigid part's: zero inverse mass, never moved)
+        (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.f_prev,
+         self.ku_prev, self.jump, self.mass, self.h_over_m,
+         self.m_over_h) = np.zeros((12, ns))
+        free_owned = np.ones(model.n_owned)
+        free_owned[np.asarray(getattr(integ, "fixed", []), dtype=np.int64)] = 0.0
+        free = np.zeros(ns)
+        self._gather(integ.mass, free_owned, self.mass[:nd], free[:nd])
+        self.free = free > 0.5
+        self.mass[~self.free] = np.inf
+        self.lo, self.up = c.lo.astype(np.int64), c.up.astype(np.int64)
+        self.lam = np.zeros(c.n)  # λ_t (N) of the last step
+        self.state = np.zeros(c.n, dtype=np.int8)  # 0 none, 1 stick, 2 slip
+        self.a_inv = np.zeros(c.n)
+        self.stats = np.zeros(8)
+        self.k_t = np.zeros(c.n)  # N/m, the penalty's tangential stiffnesses
+        self.s_e = np.zeros(c.n)  # m, the penalty's committed elastic slips
+        self.d_slip = np.zeros(c.n)  # J, the penalty's c |Δs_p| of the step
+        # a node pair keeps its partner (docs/friction.md 6): past half the smaller facet
+        # at the pair the slave is nearer another master node, and the run says so once
+        self.slip_limit = np.full(c.n, np.inf)
+        if c.rigid is None and c.n > 1:
+            r = np.asarray(c.r, dtype=float)
+            order = np.argsort(r, kind="stable")
+            gaps = np.diff(r[order])
+            near = np.minimum(np.r_[np.inf, gaps], np.r_[gaps, np.inf])
+            self.slip_limit[order] = 0.5 * near
+        self.warned = False
+        self.set_step()
+
+    @staticmethod
+    def _z_dofs(c) -> np.ndarray:
+        k = c.constraints
+        if c.rigid is None:
+            return np.concatenate([k.lower, k.upper]).astype(np.int64)
+        return np.asarray(k.upper if k.lower is None else k.lower, dtype=np.int64)
+
+    def _gather(self, src_u, src_v, u_out, v_out) -> None:
+        if self.c.comm.size == 1:
+            _take(src_u, src_v, self._local, self._pos, u_out, v_out)
+            return
+        _pack(src_u, src_v, self._local, self._send)
+        self.c.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
+        _unpack(self._recv, self._recv_u, self._recv_v, self._all_pos, u_out, v_out)
+
+    def set_step(self) -> None:
+        """h_n / m, m / h_n and 1/A_ii = 1 / (h_n (1/m_lo + 1/m_up)) at the set's steps (0
+        where no slot of a row is free)."""
+        h_avg = self.c.h_avg
+        free = self.free
+        self.h_over_m[:] = 0.0
+        self.m_over_h[:] = 0.0
+        self.h_over_m[free] = h_avg / self.mass[free]
+        self.m_over_h[free] = self.mass[free] / h_avg
+        a = self.h_over_m[self.lo] + self.h_over_m[self.up]
+        self.a_inv[:] = 0.0
+        np.divide(1.0, a, out=self.a_inv, where=a > 0.0)
+        if self.kernel == PENALTY_T:  # beta_t = k_t h A_ii
+            if isinstance(self.stiffness, str):
+                self.k_t[:] = self.a_inv / self.c.dt
+            else:
+                self.k_t[:] = np.where(a > 0.0, float(self.stiffness), 0.0)
+            self.beta_max = float((self.k_t * self.c.dt * a).max(initial=0.0))
+        self._bind()
+
+    def initialize(self) -> None:
+        """Read u_r^0 and v_r^0 (the first step's v^{n-1/2})."""
+        integ = self.c.integrator
+        nd = self.c.n_deformable
+        self._gather(integ.u_owned, integ.v_owned, self.u_now[:nd], self.v_now[:nd])
+        from ..jit_watch import load
+
+        load(film_tangential, *self._film_args())
+        load(dme_tangential, *self._dme_args())
+        load(penalty_tangential, *self._penalty_args())
+        load(_commit_tangential, *self._commit_args(), 0.0)
+
+    def _film_args(self) -> tuple:
+        law, c = self.law, self.c
+        return (self.lo, self.up, c.active, c.force, self.a_inv, self.h_over_m, c.dt,
+                law.static, law.dynamic, law.decay, law.stick, self.v_now, self.u, self.v,
+                self.lam, self.state)
+
+    def _dme_args(self) -> tuple:
+        law, c = self.law, self.c
+        return (self.lo, self.up, c.active, c.force, self.mass, self.m_over_h, self.h_over_m,
+                c.dt, law.static, law.dynamic, law.decay, law.stick, self.u_now, self.v_now,
+                self.u, self.v, self.lam, self.state)
+
+    def _penalty_args(self) -> tuple:
+        law, c = self.law, self.c
+        return (self.lo, self.up, c.active, c.force, self.k_t, self.h_over_m, c.dt,
+                law.static, law.dynamic, law.decay, law.stick, self.v_now, self.u, self.v,
+                self.lam, self.state, self.s_e, self.d_slip, self.stats)
+
+    def _commit_args(self) -> tuple:
+        c, integ = self.c, self.c.integrator
+        return (self._local, self._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg,
+                self.m_over_h, self.u, self.v, self.v_pred, self.u_now, self.v_now,
+                self.f_prev, self.ku_prev, self.jump, self.lo, self.up, self.lam, self.state,
+                self.stats, self.slip_limit, self.kernel == PENALTY_T, self.d_slip)
+
+    def _bind(self) -> None:
+        """The step's calls with their arguments (fixed between changes of the step)."""
+        nd = self.c.n_deformable
+        self._pred = (self.u_pred[:nd], self.v_pred[:nd])
+        self._kernel_call = {FILM_T: (film_tangential, self._film_args()),
+                             DME_T: (dme_tangential, self._dme_args()),
+                             PENALTY_T: (penalty_tangential, self._penalty_args())}[self.kernel]
+        self._commit_call = self._commit_args()
+
+    def step(self) -> float:
+        """The tangential pass of the step, after the set's normal step: gather the
+        predicted r state, correct, write back, book. Returns W_t (J)."""
+        integ = self.c.integrator
+        self._gather(integ.u_owned, integ.v_owned, *self._pred)
+        self.u[:] = self.u_pred
+        self.v[:] = self.v_pred
+        stats = self.stats
+        before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
+        kernel, args = self._kernel_call
+        kernel(*args)
+        change = stats[RETURN_LOSS] + stats[STORED] - before
+        w_t, far = _commit_tangential(*self._commit_call, change)
+        if far >= 0 and not self.warned:
+            self.warned = True
+            c = self.c
+            s = self.u_now[self.up[far]] - self.u_now[self.lo[far]]
+            warn(f"contact {'/'.join(c.constraints.names)}: the node pair at r = {c.r[far]:.6g} "
+                 f"m has slipped {s:.3g} m, past half its facet ({self.slip_limit[far]:.3g} m): "
+                 "node pairs keep their partner, so the force acts at the wrong place; use "
+                 "node to segment (slave/master) for faces that slide", c.comm)
+        return w_t
+
+    # outputs
+    @property
+    def history_columns(self) -> tuple:
+        """(name, index into ``stats``) of the set's history columns."""
+        return HISTORY + (PENALTY_HISTORY if self.kernel == PENALTY_T else ())
+
+    @property
+    def slip_work(self) -> float:
+        """D (J) so far: Σ h_n |λ_t| |w_t^{n+1/2}| >= 0."""
+        return float(self.stats[SLIP_WORK])
+
+    @property
+    def tangential_loss(self) -> float:
+        """L_t (J) so far: -W_t - D, the tangential arrival loss."""
+        return float(self.stats[T_LOSS])
+
+    def summary(self) -> dict:
+        """The run's friction figures: the law, D and L_t (J), the peak |Σ λ_t| (N)."""
+        out = {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
+               "tangential_loss": self.tangential_loss,
+               "peak_tangential_force": float(self.stats[T_PEAK])}
+        if self.kernel == PENALTY_T:
+            out.update(return_loss=float(self.stats[RETURN_LOSS]),
+                       spring_energy=float(self.stats[STORED]), beta_t_max=self.beta_max,
+                       tangential_penalty=self.stiffness)
+        return out

@@ -62,6 +62,7 @@ from numba import njit
 
 from .. import compat
 from ..errors import UnstableRunError
+from ..geometry import AXISYMMETRIC_GEOMETRY
 from ..q1 import N_POINTS, QuadGeometry
 from .base import Booking
 
@@ -323,7 +324,7 @@ class FiniteStrainForce:
         self.last_work = 0.0        # its term of the last step (J)
         self.trapezoid_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.node_xy = np.ascontiguousarray(node_xy)
-        self.geometry = QuadGeometry(compat.cell_dofs(V), node_xy, cells)
+        self.geometry = QuadGeometry(compat.cell_dofs(V), node_xy, cells, AXISYMMETRIC_GEOMETRY)
         n = cells.size
         self.params = material.params()
         self.state = np.empty((n, N_POINTS, max(material.n_state, 1)))

@@ -148,3 +148,26 @@ def test_a_linear_anvil_bonded_to_a_finite_rod_closes_its_ledger():
     n_dofs = COMM.allreduce(model.n_owned)
     assert np.abs(e["balance_error"]).max() <= ledger(sim.n_steps, n_dofs) * sim.ledger.E0
     assert COMM.allreduce(sim.integrator.linear.work_local) > 0.0
+
+
+def test_the_taylor_table_at_n_r_4():
+    """The unilateral wall's table of docs/taylor_bar.md, its 4 x 40 row (FILM, 80 us, the
+    finite-strain driver's run) reproduced by Simulation: the steps exactly, and the
+    length, face radius, largest eps_p, plastic work, kinetic energy and the wall's
+    activation within half a unit of the table's last printed digit."""
+    sim = _sim(80e-6, (0.0, -V0), "film")
+    sim.settings.energy_every = sim.settings.history_every = 500
+    for name, point, quantity in (("top", (0.0, L), "u_z"), ("bottom", (0.0, 0.0), "u_z"),
+                                  ("corner", (R, 0.0), "u_r")):
+        sim.add_probe(name, point, quantity)
+    summary = sim.run()
+    assert sim.status == "completed" and sim.n_steps == 13179
+    h = sim.history.data()
+    length_mm = 1e3 * ((L + h["top"][-1]) - h["bottom"][-1])
+    radius_mm = 1e3 * (R + h["corner"][-1])
+    e = summary["energy"]
+    for got, table, half in ((length_mm, 21.4850, 5e-5), (radius_mm, 7.1726, 5e-5),
+                             (summary["eps_p_max"], 3.276, 5e-4),
+                             (e["plastic_work"], 235.87, 5e-3), (e["kinetic"], 0.129, 5e-4),
+                             (e["activation_loss"], 3.547, 5e-4)):
+        assert abs(got - table) <= half, (got, table)

@@ -72,7 +72,7 @@ from numba import njit
 
 from .. import compat
 from ..errors import UnstableRunError
-from ..geometry import AXISYMMETRIC_GEOMETRY, Geometry
+from ..geometry import Geometry
 from ..q1 import N_POINTS, QuadGeometry
 from .base import Booking
 
@@ -353,11 +353,10 @@ class FiniteStrainForce:
     identity's work booked and returned); :meth:`velocity_increment` runs both. A driver
     that writes the state at u^n with v^{n-1/2} calls the halves with its outputs between.
     The point updates take the step just taken, h_{n-1/2} (h_{1/2} at the first step),
-    from :meth:`set_step`. ``geometry``: the model's (axisymmetric or plane strain); a
-    caller that builds a plane-strain model must pass it."""
+    from :meth:`set_step`. ``geometry``: the model's (axisymmetric or plane strain)."""
 
     def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray, material,
-                 u: fem.Function, geometry: Geometry = AXISYMMETRIC_GEOMETRY):
+                 u: fem.Function, geometry: Geometry):
         self.V, self.material, self.u = V, material, u
         self.coef: np.ndarray | None = None
         self.h = self.h_avg = self.h_taken = None

@@ -350,6 +350,9 @@ class Simulation:
             self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms
             self._neg_mass = -integ.mass
             load(gap_dot, integ.mass, integ.mass, integ.mass)  # (its entry loaded now)
+            if not integ.nonlinear:  # every body's work by the kinetic identity: no jump
+                for c in self.contacts:  # term (one_loop.md 4.7)
+                    c.book_no_jumps()
         times = PhaseTimers(PHASES) if s.timers else None
         # an output step's u^n, v^{n-1/2} and internal force f_int(u^n)
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "f")}

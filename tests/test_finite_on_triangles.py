@@ -53,14 +53,15 @@ def _tagged(mesh: dmesh.Mesh) -> TaggedMesh:
 
 
 def test_a_finite_strain_body_of_a_small_strain_run_is_refused():
-    """The model and the integrator take a finite-strain body on quadrilaterals; until the
-    run's ledger and events take one, the small-strain run refuses it in one line."""
+    """The model and the integrator take a finite-strain body on quadrilaterals; the
+    small-strain run under a constant step refuses it in one line (its step must follow
+    the body's cells)."""
     mesh = dmesh.create_rectangle(COMM, [np.array([0.0, 0.0]), np.array([3.2e-3, 32.4e-3])],
                                   [2, 20], cell_type=dmesh.CellType.quadrilateral)
     model = DeformableModel(_tagged(mesh), [Body("bar", MATERIAL)])
     with pytest.raises(InputError) as error:
         Simulation(model, Settings(dt=1e-9, n_steps=1))
-    assert one_line(error).startswith("body 'bar': FiniteJ2 is a finite-strain material")
+    assert one_line(error).startswith("body 'bar' is a finite-strain body: its step follows")
 
 
 def test_a_finite_strain_body_of_a_model_on_triangles_is_refused():

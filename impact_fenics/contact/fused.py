@@ -74,6 +74,7 @@ def _make_face_step(code: int):
         reference count (an atomic operation) each."""
         n = int(misc[N_CONS])
         dt = misc[DT]
+        h_n = misc[H_AVG]  # the velocity step, the booking's (dt under a constant step)
         kappa = misc[KAPPA]
         body = n
         # +1: the body above its nodes (g = b + u_body - u_node), -1: below (g = b + u_node -
@@ -199,7 +200,7 @@ def _make_face_step(code: int):
                 src_u[k] = ui
                 src_v[k] = vi
             fb = F[M_OVER_DT, i] * (vi - vt)
-            inc += 0.5 * dt * (F[V_NOW, i] + vi) * fb
+            inc += 0.5 * h_n * (F[V_NOW, i] + vi) * fb
             F[F_PREV, i] = fb
             if jumps:
                 ku = -F[M_OVER_DT, i] * (vt - F[V_NOW, i])
@@ -222,7 +223,7 @@ def _make_face_step(code: int):
         F[U, body] = u_b
         F[V, body] = v_b
         fb = F[M_OVER_DT, body] * (v_b - vt_b)
-        inc += 0.5 * dt * (F[V_NOW, body] + v_b) * fb
+        inc += 0.5 * h_n * (F[V_NOW, body] + v_b) * fb
         F[F_PREV, body] = fb
         F[U_NOW, body] = u_b
         F[V_NOW, body] = v_b
@@ -270,7 +271,7 @@ def _general_step(code, src_u, src_v, recv, F, ints, flags, misc):
         _cluster(gap, b, up, lo[0], -1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
     else:
         _cluster(gap, b, lo, up[0], 1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
-    return _commit(local, pos, src_u, src_v, dt, int(misc[N_DEFORMABLE]), m_over_dt, u,
+    return _commit(local, pos, src_u, src_v, dt, misc[H_AVG], int(misc[N_DEFORMABLE]), m_over_dt, u,
                    v, u_pred, v_pred, u_now, v_now, F[F_PREV], F[KU_PREV], F[JUMP],
                    misc[JUMPS] != 0.0, misc[LEDGER + 2] != 0.0, active, was_active, b, lo, up,
                    force, misc[STATS:STATS + 3])
@@ -288,18 +289,18 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, f_ext, f_in):
     incident wave F_i(t^n) (N, compressive > 0; 0 without). Returns the rigid body's
     (u^{n+1}, v^{n+1}) (m, m/s; zeros without one). Positions move by the step
     h_{n+1/2} (misc[DT]), velocities by h_n (misc[H_AVG] and the slots' h_n / m), equal
-    under a constant step; the contact and rigid-body work here are booked by the
-    kinetic identity with misc[DT], the constant-step ledger's form."""
+    under a constant step; the contact and rigid-body work here, and the rod's wave
+    energies, are booked by the kinetic identity with h_n, exact under any steps."""
     code = int(misc[CODE])
     dt = misc[DT]
     rigid = misc[RIGID] != 0.0
     body = F.shape[1] - 1
     v_n = 0.0
     drive = 0.0
+    h_avg = misc[H_AVG]  # the velocity step h_n (dt under a constant step)
     if rigid:  # RigidBody.predict: its state without contact at t^n+1
         drive = f_ext - (2.0 * f_in if misc[INCIDENT] != 0.0 else 0.0)
         m_r, z = misc[RIGID_MASS], misc[IMPEDANCE]
-        h_avg = misc[H_AVG]  # the velocity's step (dt under a constant step)
         v_n = F[V_NOW, body]
         if z == 0.0:
             v_tilde = v_n + h_avg * drive / m_r  # a fixed part (m_r = inf): v_n
@@ -335,11 +336,11 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, f_ext, f_in):
         w = -0.5 * (v_n + v_next)
         rod = 2.0 * f_in - z * w
         f_r = f_in - z * w
-        misc[WAVES] += dt * f_in * f_in / z
-        misc[WAVES + 1] += dt * f_r * f_r / z
-        misc[WAVES + 2] += dt * rod * w
+        misc[WAVES] += h_avg * f_in * f_in / z
+        misc[WAVES + 1] += h_avg * f_r * f_r / z
+        misc[WAVES + 2] += h_avg * rod * w
         f = f_ext - rod
-    misc[RIGID_WORK] += 0.5 * dt * (v_n + v_next) * f
+    misc[RIGID_WORK] += 0.5 * h_avg * (v_n + v_next) * f
     misc[RIGID_F_PREV] = f
     return F[U, body], v_next
 

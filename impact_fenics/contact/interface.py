@@ -517,6 +517,14 @@ class ContactSet:
         self.d[:] = hh * (1.0 / self.mass[self.nodes] + up)
         self.d_inv[:] = 1.0 / self.d
 
+    def book_no_jumps(self) -> None:
+        """Book no work of the position jumps (DME's): the run books every body's work by
+        the kinetic identity (a finite-strain body, a linear body's per-step pass under a
+        varying step), which no jump enters; the contact's share is then its slots'
+        1/2 h_n (v^{n-1/2} + v^{n+1/2}) . F^n alone (one_loop.md 4.7)."""
+        self.jumps = False
+        self._misc[JUMPS] = 0.0
+
     def set_step(self, h: float, h_avg: float) -> None:
         """Steps h_{n+1/2} (positions) and h_n (velocities) of the next step (s): rewrite
         every constant that holds them (h_n / m, m / h_n, S's diagonal and kappa, a
@@ -622,8 +630,8 @@ class ContactSet:
         load(_detect_gathered, self._recv, self._recv_u, self._recv_v, self._all_pos, *slots)
         w = self._ledger
         load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt,
-             self.n_deformable, self.m_over_dt, self.u, self.v, self.u_pred, self.v_pred,
-             self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump, self.jumps,
+             self.h_avg, self.n_deformable, self.m_over_dt, self.u, self.v, self.u_pred,
+             self.v_pred, self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump, self.jumps,
              w.jumped, self.active, self.was_active, self.b, self.lo, self.up, self.force,
              self.stats)
         self.u[:], self.v[:] = self.u_now, self.v_now
@@ -641,9 +649,10 @@ class ContactSet:
         calls = [(_detect_segments, (self.u_pred, self.v_pred, self.u, self.v, self.g0, self.cs,
                                      self.cc, self.gap, self.active, self.was_active)),
                  (_commit_segments, (self._local, self._pos, integ.u_owned, integ.v_owned,
-                                     self.dt, self.m_over_dt, self.u, self.v, self.v_pred,
-                                     self.u_now, self.v_now, self.f_prev, self.ku_prev,
-                                     self.jump, self.jumps, False, self.active, self.was_active,
+                                     self.dt, self.h_avg, self.m_over_dt, self.u, self.v,
+                                     self.v_pred, self.u_now, self.v_now, self.f_prev,
+                                     self.ku_prev, self.jump, self.jumps, False, self.active,
+                                     self.was_active,
                                      self.g0, self.cs, self.cc, self._gap_out))]
         if self.comm.size == 1:
             calls.append((_take, (integ.u_owned, integ.v_owned, self._local, self._pos,
@@ -745,7 +754,7 @@ class ContactSet:
         t2 = clock()
         if self.rigid is not None:  # commit the rigid body first: the booking needs its F^n
             v_n = self.rigid.v
-            rigid_f = self.rigid.advance(integ.t, self.dt, self.u[-1], self.v[-1])
+            rigid_f = self.rigid.advance(integ.t, self.h_avg, self.u[-1], self.v[-1])
             self._ledger.book_rigid(v_n, self.rigid.v, rigid_f)
         self._ledger.book(integ.n)
         if self.friction is not None:
@@ -870,9 +879,9 @@ class _ContactWork:
 
     def book_rigid(self, v_n: float, v_next: float, f: float) -> None:
         """Work (J) of the external force F^n on the rigid body in step n by the kinetic
-        identity, 1/2 dt (v^{n-1/2} + v^{n+1/2}) F^n (``v_n``, ``v_next``)."""
+        identity, 1/2 h_n (v^{n-1/2} + v^{n+1/2}) F^n (``v_n``, ``v_next``)."""
         misc = self._misc
-        misc[RIGID_WORK] += 0.5 * self.c.dt * (v_n + v_next) * f
+        misc[RIGID_WORK] += 0.5 * self.c.h_avg * (v_n + v_next) * f
         misc[RIGID_F_PREV] = f
 
     def book(self, n_step: int) -> None:
@@ -880,7 +889,7 @@ class _ContactWork:
         integ = c.integrator
         self.add(*_commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
-            c.dt, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
+            c.dt, c.h_avg, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
             c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped, c.active,
             c.was_active, c.b, c.lo, c.up, c.force, c.stats))
 
@@ -902,7 +911,7 @@ class _ContactWork:
         c = self.c
         integ = c.integrator
         inc, jumped, grew, min_gap = _commit_segments(
-            c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, c.m_over_dt, c.u,
+            c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg, c.m_over_dt, c.u,
             c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped,
             c.active, c.was_active, c.g0, c.cs, c.cc, c._gap_out)
         self.add(inc - w_t, jumped, grew)

@@ -147,28 +147,30 @@ def _committed_gap(b, u_now, lo, up, out):
 
 
 @njit(cache=True)
-def _book(dt, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump,
-          jumps, jumped):
+def _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump,
+          jumps, jumped, h=0.0):
     """Book the contact work increment of step n by the kinetic identity of the half-step
     scheme (see impact_fenics.energy) and roll the slots' state to n+1: every kind's
     booking.
 
     Slot k's contact force is its momentum change over the step,
     F_k^n = (m_k / h_n) (v_k^{n+1/2} - v~_k^{n+1/2}) (``m_over_dt``: m / h_n, kg/s; 0 at a
-    fixed part's slot; ``dt``: the position step h_{n+1/2}, s, equal to h_n under the
-    constant step this form books); the step adds 1/2 dt (v^{n-1/2} + v^{n+1/2}) . F^n
-    (``v_now`` holds v^{n-1/2}: v^0 at the first step). A set whose method ``jumps``
-    (positions apart from u^n + dt v^{n+1/2}) adds, over its ``n_deformable`` deformable
-    slots, the previous step's jump j (``jumped``: was any nonzero) times
-    1/2 K (u^{n-1} + u^n), K u^n = -(m / h_n) (v~^{n+1/2} - v^{n-1/2}) on a contact dof,
-    and records this step's jump u^{n+1} - u^n - dt v^{n+1/2}. ``f_prev`` keeps F^n.
+    fixed part's slot; ``h_n``: the velocity step (h_{n-1/2} + h_{n+1/2}) / 2, s); the step
+    adds 1/2 h_n (v^{n-1/2} + v^{n+1/2}) . F^n (``v_now`` holds v^{n-1/2}: v^0 at the first
+    step), exact under any sequence of steps. A set whose method ``jumps`` (positions
+    apart from u^n + h v^{n+1/2}, ``h`` the position step h_{n+1/2}, s) adds, over its
+    ``n_deformable`` deformable slots, the previous step's jump j (``jumped``: was any
+    nonzero) times 1/2 K (u^{n-1} + u^n), K u^n = -(m / h_n) (v~^{n+1/2} - v^{n-1/2}) on a
+    contact dof, and records this step's jump u^{n+1} - u^n - h v^{n+1/2}: the work of
+    the jumps on a body whose stored energy is booked from its positions (a linear or
+    small-strain body under a constant step). ``f_prev`` keeps F^n.
     Returns (the increment (J), whether this step jumped)."""
     inc = 0.0  # the work of the slots' forces,
     inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
     jumped_now = False
     for k in range(m_over_dt.size):
         f = m_over_dt[k] * (v[k] - v_pred[k])
-        inc += 0.5 * dt * (v_now[k] + v[k]) * f
+        inc += 0.5 * h_n * (v_now[k] + v[k]) * f
         f_prev[k] = f
     rolled = 0  # slots already rolled to n+1 (in the jump loop, after their last read)
     if jumps:
@@ -177,7 +179,7 @@ def _book(dt, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_pr
             if jumped:
                 inc_jump += 0.5 * jump[k] * (ku_prev[k] + ku)
             ku_prev[k] = ku
-            jump[k] = u[k] - u_now[k] - dt * v[k]
+            jump[k] = u[k] - u_now[k] - h * v[k]
             if jump[k] != 0.0:
                 jumped_now = True
             u_now[k] = u[k]
@@ -190,11 +192,12 @@ def _book(dt, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_pr
 
 
 @njit(cache=True)
-def _commit(local, pos, dst_u, dst_v, dt, n_deformable, m_over_dt, u, v, u_pred, v_pred,
+def _commit(local, pos, dst_u, dst_v, dt, h_n, n_deformable, m_over_dt, u, v, u_pred, v_pred,
             u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
             force, stats):
     """The commit of node pairs and a rigid face: write the corrected state back to the
-    owned dofs, then book step n and roll the state to n+1 (:func:`_book`; one call).
+    owned dofs, then book step n and roll the state to n+1 (:func:`_book`; one call; ``dt``
+    and ``h_n`` the position and velocity steps h_{n+1/2}, h_n, s).
     Returns the increment (J), whether this step jumped and whether the active set grew;
     ``stats`` receives (number active, total force (N), smallest committed gap (m))."""
     for k in range(local.size):
@@ -211,8 +214,8 @@ def _commit(local, pos, dst_u, dst_v, dt, n_deformable, m_over_dt, u, v, u_pred,
             if not was_active[i]:
                 grew = True
         min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
-    inc, jumped_now = _book(dt, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now,
-                            f_prev, ku_prev, jump, jumps, jumped)
+    inc, jumped_now = _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now,
+                            f_prev, ku_prev, jump, jumps, jumped, dt)
     stats[0] = n_active
     stats[1] = total
     stats[2] = min_gap
@@ -232,7 +235,7 @@ def _detect_segments(u_pred, v_pred, u, v, g0, cs, cc, gap, active, was_active):
 
 
 @njit(cache=True)
-def _commit_segments(local, pos, dst_u, dst_v, dt, m_over_dt, u, v, v_pred, u_now, v_now,
+def _commit_segments(local, pos, dst_u, dst_v, dt, h_n, m_over_dt, u, v, v_pred, u_now, v_now,
                      f_prev, ku_prev, jump, jumps, jumped, active, was_active, g0, cs, cc,
                      gap_buf):
     """The commit of node to segment: write the corrected state back to the owned dofs,
@@ -250,8 +253,8 @@ def _commit_segments(local, pos, dst_u, dst_v, dt, m_over_dt, u, v, v_pred, u_no
     min_gap = np.inf
     for i in range(gap_buf.size):
         min_gap = min(min_gap, gap_buf[i])
-    inc, jumped_now = _book(dt, m_over_dt.size, m_over_dt, u, v, v_pred, u_now, v_now,
-                            f_prev, ku_prev, jump, jumps, jumped)
+    inc, jumped_now = _book(h_n, m_over_dt.size, m_over_dt, u, v, v_pred, u_now, v_now,
+                            f_prev, ku_prev, jump, jumps, jumped, dt)
     return inc, jumped_now, grew, min_gap
 
 

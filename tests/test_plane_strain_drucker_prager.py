@@ -29,6 +29,8 @@ the out-of-plane one zero.
   (3 cos phi')), 2.8 times the axial stress at this confinement; at phi = 50 deg,
   psi = 0 its slope is beyond plane strain's bound and the axial stress grows without a
   limit.
+* A scene: a strip of the matched rock on rollers under a 10 MPa pulse runs on 1, 2 and
+  3 ranks, its stress inside the matched cone.
 * The key: ``match`` is a word of two, refused otherwise in one line; the plane-strain
   match is refused in an axisymmetric scene and model in one line; the tension cut-off's bound uses
   the matched cone.
@@ -43,7 +45,7 @@ import pytest
 from mpi4py import MPI
 from dolfinx import fem
 
-from scene_texts import ROOT, assert_refused, replace
+from scene_texts import ROOT, assert_ranks_agree, assert_refused, launch, read_history, replace
 
 from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
@@ -268,3 +270,51 @@ def test_scene_key_accepted(tmp_path):
     material = read_scene(str(scene)).materials["steel"].material("small")
     assert material.match == "plane_strain"
     assert material.k == rock(40.0, 10.0).k
+
+
+# the strip of rock matched in plane strain, on rollers (phi = psi = 30 deg; ucs chosen so
+# that the 10 MPa load yields it: the elastic precursor's limit is about 6 MPa)
+ROCK_STRIP = replace(STRIP, "[materials.steel]\n",
+                     '[materials.steel]\nmodel = "drucker_prager"\nucs = 3e6\n'
+                     'friction_angle = 30.0\ndilatancy_angle = 30.0\ntensile_strength = 1e5\n'
+                     'match = "plane_strain"\n') + """
+[[probes]]
+name = "sigma_xx_mid"
+point = [0.01, 0.1]
+quantity = "sigma_xx"
+
+[[probes]]
+name = "eps_p_mid"
+point = [0.01, 0.1]
+quantity = "eps_p_eq"
+"""
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="launches its own runs (serial and under mpirun)")
+def test_rock_strip_runs_on_ranks(tmp_path):
+    """The plane-strain match in a scene, on 1, 2 and 3 ranks (within 1e-10 of each
+    column's largest value). At every output the mid probe's stress lies inside the cone of
+    the plane-strain match, q <= alpha_f p + k with alpha_f = 3 sin phi / sqrt(3 + sin^2 phi)
+    and k = 3 c cos phi / sqrt(3 + sin^2 phi) at psi = phi (section 4's formulas written
+    out here), to the return's round-off (64 EPS of the stress), and it has flowed."""
+    scene = tmp_path / "rock_strip.toml"
+    scene.write_text(ROCK_STRIP)
+    out = tmp_path / "n1"
+    proc = launch(["run", scene, "--out", out, "--quiet"], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    h = read_history(out)
+    s = math.sin(math.radians(30.0))
+    c = 3e6 * (1.0 - s) / (2.0 * math.cos(math.radians(30.0)))
+    alpha = 3.0 * s / math.sqrt(3.0 + s * s)
+    k = 3.0 * c * math.cos(math.radians(30.0)) / math.sqrt(3.0 + s * s)
+    sxx, sout, syy = h["sigma_xx_mid"], h["sigma_out_mid"], h["sigma_yy_mid"]
+    mean = (sxx + sout + syy) / 3.0
+    q = np.sqrt(0.5 * ((sxx - sout) ** 2 + (sout - syy) ** 2 + (syy - sxx) ** 2))
+    f = q + alpha * mean - k  # p = -mean
+    scale = np.maximum(np.abs(syy), k)
+    print(f"largest f / |sigma| on the cone {np.max(f / scale):.3g}; sigma_yy down to "
+          f"{syy.min():.4g} Pa; eps_p_eq at the end {h['eps_p_mid'][-1]:.3g}")
+    assert np.all(f <= 64 * EPS * scale)
+    assert h["eps_p_mid"][-1] > 0.0
+    assert_ranks_agree(scene, str(tmp_path), h,
+                       ("sigma_yy_mid", "sigma_out_mid", "u_y_bottom", "eps_p_mid"))

@@ -85,6 +85,11 @@ class DeformableModel:
         if geometry.plane:
             for b in bodies:
                 check_plane_strain_material(b)
+        for b in bodies:  # a match to Mohr-Coulomb in plane strain means nothing elsewhere
+            require(geometry.plane or getattr(b.material, "match", None) != "plane_strain",
+                    f"body '{b.name}': match = \"plane_strain\" (the plane-strain match to "
+                    "Mohr-Coulomb) needs geometry = \"plane_strain\" (the model is "
+                    "axisymmetric)")
         cell_type = tmesh.mesh.topology.cell_type
         if cell_type not in (dmesh.CellType.triangle, dmesh.CellType.quadrilateral):
             raise InputError(f"the mesh's cells are {cell_type.name}s: small strain runs on "

@@ -220,6 +220,12 @@ def read_scene(path: str) -> Scene:
     scene.geometry = geometry
     if geometry.plane:
         _check_plane_strain(scene)
+    else:
+        for spec in materials.values():
+            if spec.params.get("match") == "plane_strain":
+                raise InputError(f'{spec.where} match = "plane_strain": the plane-strain match '
+                                 'to Mohr-Coulomb needs geometry = "plane_strain" (this scene '
+                                 "is axisymmetric)")
     finite_scene.check_kind(scene)
     return scene
 

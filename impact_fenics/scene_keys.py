@@ -183,10 +183,10 @@ def _material_keys() -> tuple[Key, ...]:
                     None if p.scene_default == CLASS_DEFAULT else p.scene_default)
                 text = (f"required ({model})" if default == REQUIRED
                         else p.default_text if p.scene_default == CLASS_DEFAULT else "")
-                rng = f", {p.range_text}" if p.range_text else ""
-                keys.append(Key(p.name, "number", p.unit, default,
-                                f"{model}: {p.what}{rng}{note}", groups=(model,),
-                                default_text=text))
+                rng = f", {p.range_text}" if p.range_text and not p.choices else ""
+                keys.append(Key(p.name, "text" if p.choices else "number", p.unit, default,
+                                f"{model}: {p.what}{rng}{note}", choices=p.choices,
+                                groups=(model,), default_text=text))
     return tuple(keys)
 
 

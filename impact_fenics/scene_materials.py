@@ -119,6 +119,11 @@ def read_material(name: str, data: Any, base: str) -> MaterialSpec:
         p = own[key]
         v = t.data[key]
         what = p.what if p.unit in ("", "-") else f"{p.what} ({p.unit})"
+        if p.choices:
+            if not p.admits(v):
+                raise t.error(key, f"must be {p.range_text} ({what})")
+            spec.params[key] = v
+            continue
         if not is_number(v):
             raise t.error(key, f"must be a finite number ({what})")
         if not p.admits(float(v)):

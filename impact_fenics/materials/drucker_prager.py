@@ -34,6 +34,23 @@ The tensile strength p_t fixes the cut-off (a mean-stress cut-off: hydrostatic
 tension at most p_t; it is also the uniaxial tensile strength whenever the cone
 allows that state, UT = 3 p_t).
 
+Matching to Mohr-Coulomb in plane strain (``match = "plane_strain"``). The
+compression-meridian cone overstates the strength of a body in plane strain at large
+phi. In steady plane-strain flow (the out-of-plane plastic strain rate zero, so
+3/2 s_out/q = -alpha_g/3) the cone's in-plane shear strength is that of Mohr-Coulomb,
+(sigma_1 - sigma_3)/2 = c cos phi - (sigma_1 + sigma_3)/2 sin phi, exactly when
+
+    alpha_g = 3 sin psi / sqrt(3 + sin^2 psi),
+    alpha_f = 3 sin phi sqrt(3 + sin^2 psi) / (3 + sin phi sin psi),
+    k       = 3 c cos phi sqrt(3 + sin^2 psi) / (3 + sin phi sin psi),
+
+c = UCS (1 - sin phi) / (2 cos phi) as above (UCS then names Mohr-Coulomb's uniaxial
+strength 2 c cos phi / (1 - sin phi), not the cone's). At psi = phi it is the associated
+match alpha_f = alpha_g = 3 sin phi / sqrt(3 + sin^2 phi). alpha_g <= alpha_f holds
+exactly when psi <= phi (sin phi (3 + sin^2 psi) >= sin psi (3 + sin phi sin psi)), so
+the angles' check is the slopes' check in both matches. The point update is the same;
+only the three parameters differ.
+
 Hardening: k(kappa) = max(k_0 + h kappa, k_res), kappa = sum d gamma (the
 deviatoric equivalent plastic strain), h = dk/dkappa (Pa) > 0 hardening, < 0
 softening down to the residual k_res >= alpha_f p_t. That bound keeps the
@@ -97,7 +114,7 @@ from numba import njit
 from ..errors import require
 from .axisym import SQRT_2_3
 from .elastic import IsotropicConstants
-from .parameters import CLASS_DEFAULT, Parameter, check, non_negative, positive
+from .parameters import CLASS_DEFAULT, Parameter, check, non_negative, positive, word
 
 # params layout (float64 array)
 LMBDA, MU, BULK, ALPHA_F, ALPHA_G, K0, H, K_RES, P_T, ETA = range(10)
@@ -110,6 +127,22 @@ def alpha_of_angle(angle_deg: float) -> float:
     """Slope 6 sin(angle) / (3 - sin(angle)) of the compression-meridian match (dimensionless)."""
     s = math.sin(math.radians(angle_deg))
     return 6.0 * s / (3.0 - s)
+
+
+MATCHES = ("compression", "plane_strain")  # the cone's match to Mohr-Coulomb
+
+
+def plane_strain_match(friction_deg: float, dilatancy_deg: float,
+                       cohesion: float) -> tuple[float, float, float]:
+    """(alpha_f, alpha_g, k) of the plane-strain match to Mohr-Coulomb (slopes
+    dimensionless, k in Pa, ``cohesion`` c in Pa; the module docstring's formulas)."""
+    sf = math.sin(math.radians(friction_deg))
+    sg = math.sin(math.radians(dilatancy_deg))
+    root = math.sqrt(3.0 + sg * sg)
+    denominator = 3.0 + sf * sg
+    cos_phi = math.cos(math.radians(friction_deg))
+    return (3.0 * sf * root / denominator, 3.0 * sg / root,
+            3.0 * cohesion * cos_phi * root / denominator)
 
 
 # ----------------------------------------------------------------------------- the update
@@ -275,7 +308,9 @@ class DruckerPrager(IsotropicConstants):
     ``tensile_strength`` p_t (Pa), the largest hydrostatic tension (mean-stress cut-off);
     ``hardening`` h = dk/dkappa (Pa; < 0 softens); ``residual`` k_res (Pa), the
     smallest cone intercept under softening (default and minimum alpha_f p_t);
-    ``viscosity`` eta (Pa s) of the Perzyna law, 0 for rate independence.
+    ``viscosity`` eta (Pa s) of the Perzyna law, 0 for rate independence; ``match``
+    the cone's match to Mohr-Coulomb, "compression" (the compression meridian) or
+    "plane_strain" (steady plane-strain flow; for plane-strain models only).
     """
 
     E: float = 60e9
@@ -288,6 +323,7 @@ class DruckerPrager(IsotropicConstants):
     hardening: float = 0.0
     residual: float | None = None
     viscosity: float = 0.0
+    match: str = "compression"
     linear: ClassVar[bool] = False
     n_state: ClassVar[int] = N_STATE
     strain: ClassVar[str] = "small"
@@ -304,6 +340,8 @@ class DruckerPrager(IsotropicConstants):
                   "[alpha_f p_t, k]", scene_default=CLASS_DEFAULT, default_text="alpha_f p_t"),
         non_negative("viscosity", "Pa s", "Perzyna viscosity eta (0: rate-independent)",
                      scene_default=0.0),
+        word("match", "the cone's match to Mohr-Coulomb: on the compression meridian, or "
+             "in steady plane-strain flow (plane-strain scenes only)", MATCHES, "compression"),
     )
     update = staticmethod(update)  # the compiled point update (numba), signature of axisym
     point = staticmethod(point)    # the same on scalars (the scalar seam of axisym)
@@ -328,18 +366,33 @@ class DruckerPrager(IsotropicConstants):
 
     # the cone
     @property
+    def plane_strain(self) -> bool:
+        """Whether the cone is matched to Mohr-Coulomb in plane strain."""
+        return self.match == "plane_strain"
+
+    @property
     def alpha_f(self) -> float:
         """Friction slope of the cone, dq/dp (dimensionless)."""
+        if self.plane_strain:
+            return plane_strain_match(self.friction_angle, self.dilatancy_angle,
+                                      self.cohesion)[0]
         return alpha_of_angle(self.friction_angle)
 
     @property
     def alpha_g(self) -> float:
         """Dilatancy slope of the plastic potential (dimensionless)."""
+        if self.plane_strain:
+            return plane_strain_match(self.friction_angle, self.dilatancy_angle,
+                                      self.cohesion)[1]
         return alpha_of_angle(self.dilatancy_angle)
 
     @property
     def k(self) -> float:
-        """Initial cone intercept k_0 = UCS (1 - alpha_f/3) (Pa)."""
+        """Initial cone intercept k_0 (Pa): UCS (1 - alpha_f/3) on the compression
+        meridian, 3 c cos phi sqrt(3 + sin^2 psi) / (3 + sin phi sin psi) in plane strain."""
+        if self.plane_strain:
+            return plane_strain_match(self.friction_angle, self.dilatancy_angle,
+                                      self.cohesion)[2]
         return self.ucs * (1.0 - self.alpha_f / 3.0)
 
     @property

@@ -37,10 +37,14 @@ class Parameter:
     high_open: bool = False
     scene_default: Any = REQUIRED
     default_text: str = ""  # with CLASS_DEFAULT: the default in words
+    choices: tuple[str, ...] = ()  # a word parameter: its admissible words (no range then)
 
-    def admits(self, value: float) -> bool:
-        """Whether ``value`` is finite and within the range."""
-        if not math.isfinite(value):
+    def admits(self, value: Any) -> bool:
+        """Whether ``value`` is one of the choices (a word parameter), or a finite number
+        within the range."""
+        if self.choices:
+            return isinstance(value, str) and value in self.choices
+        if isinstance(value, str) or not math.isfinite(value):
             return False
         if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
             return False
@@ -50,7 +54,10 @@ class Parameter:
 
     @property
     def range_text(self) -> str:
-        """The range as a condition: '> 0', '>= 0', 'in [0, 90)' ('' when unbounded)."""
+        """The range as a condition: '> 0', '>= 0', 'in [0, 90)', 'one of "a", "b"' ('' when
+        unbounded)."""
+        if self.choices:
+            return "one of " + ", ".join(f'"{c}"' for c in self.choices)
         if self.low is not None and self.high is not None:
             return (f"in {'(' if self.low_open else '['}{self.low:g}, "
                     f"{self.high:g}{')' if self.high_open else ']'}")
@@ -78,12 +85,18 @@ def non_negative(name: str, unit: str, what: str, **kw) -> Parameter:
     return Parameter(name, unit, what, low=0.0, **kw)
 
 
+def word(name: str, what: str, choices: tuple[str, ...], default: str) -> Parameter:
+    """A parameter that is one of the words ``choices``; ``default`` its scene default."""
+    return Parameter(name, "-", what, choices=choices, scene_default=default)
+
+
 def check(material) -> None:
-    """Refuse, in one line, a parameter of ``material`` outside its range."""
+    """Refuse, in one line, a parameter of ``material`` outside its range (or its words)."""
     for p in type(material).parameters:
         value = getattr(material, p.name)
         if value is None and p.scene_default == CLASS_DEFAULT:
             continue
         unit = "" if p.unit in ("", "-") else f" {p.unit}"
-        require(isinstance(value, (int, float)) and p.admits(float(value)),
+        require((isinstance(value, str) if p.choices else isinstance(value, (int, float)))
+                and p.admits(value),
                 f"material.{p.name} = {value!r}{unit}: must be {p.range_text} ({p.what})")

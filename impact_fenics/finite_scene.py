@@ -105,10 +105,11 @@ def check_kind(scene) -> None:
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
         raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
                          f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
-    if scene.wall is not None and scene.wall.friction is not None:
-        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: not built for a "
-                         "finite-strain body yet (built: a small-strain wall, node pairs and "
-                         "rigid faces, with film or dme)")
+    if scene.wall is not None and scene.wall.friction is not None \
+            and scene.wall.method == "penalty":
+        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
+                         "tangential spring is not built for a finite-strain body (use method "
+                         "= \"film\" or \"dme\")")
     for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
                       ("loads", "[[loads]]"), ("fixed", "[[fixed]]"), ("probes", "[[probes]]")):
         if getattr(scene, key):
@@ -186,7 +187,7 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
         run = FiniteRun(mesh, material, settings, velocity=body.velocity,
                         wall=wall.method if wall else None, z_wall=wall.z if wall else 0.0,
                         penalty=wall.penalty if wall else "scaled", name=body.name,
-                        fixed_z=held)
+                        fixed_z=held, friction=wall.friction if wall else None)
     if wall is not None:
         # a held face stops at t = 0 (FiniteRun zeroes its u_z velocity): that loss is
         # outside the run's ledger, which starts from the rest of the bar

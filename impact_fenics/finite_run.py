@@ -579,7 +579,7 @@ class FiniteRun:
                 summary["wall"]["penalty"] = self.wall.penalty
                 summary["wall"]["beta_max"] = getattr(self, "beta_max", None)
                 summary["wall"]["beta_bound"] = 4.0 / 3.0
-            if getattr(self.wall, "friction", None) is not None:  # its D, L_t (J), peak |Σλ_t| (N)
+            if getattr(self.wall, "friction", None) is not None:  # D, L_t (J), peak force (N)
                 summary["wall"].update(self.wall.friction.summary())
         summary.update(provenance())
         summary["setup_time"] = dict(getattr(self, "setup_time", {}))

@@ -80,7 +80,8 @@ def test_foot_radius_falls_with_mu_and_the_ledger_closes(tmp, method):
             print(f"{method} mu = {mu}: foot {foot * 1e3:.4f} mm, contact {contact * 1e3:.4f} "
                   f"mm, face {s['final_face_radius'] * 1e3:.4f} mm, length "
                   f"{s['final_length'] * 1e3:.4f} mm, slip work "
-                  f"{s['wall'].get('slip_work', 0.0):.4g} J, identity {s['kinetic_identity_error']:.2g}")
+                  f"{s['wall'].get('slip_work', 0.0):.4g} J, identity "
+                  f"{s['kinetic_identity_error']:.2g}")
         feet.append(foot)
     assert all(a > b for a, b in zip(feet, feet[1:])), feet
 
@@ -151,7 +152,8 @@ def test_full_stick_is_a_held_face_until_a_face_node_would_pull(tmp, method):
     du, dv = COMM.allreduce(du, op=MPI.MAX), COMM.allreduce(dv, op=MPI.MAX)
     if COMM.rank == 0:
         print(f"{method}: a face node first lets go at step {k + 1} (t = {stick['t'] * 1e6:.4g} "
-              f"us, the node at R = {stick['r'] * 1e3:.3g} mm); before it |du| {du:.3g} m of {u_scale:.3g}, |dv| {dv:.3g} m/s")
+              f"us, the node at R = {stick['r'] * 1e3:.3g} mm); before it |du| {du:.3g} m of "
+              f"{u_scale:.3g}, |dv| {dv:.3g} m/s")
     assert du <= 32 * k * EPS * u_scale and dv <= 32 * k * EPS * v_scale
     # and at that step the held face pulls: the runs part
     dk = COMM.allreduce(float(np.abs(stick["v"][k] - held["v"][k]).max(initial=0.0)), op=MPI.MAX)

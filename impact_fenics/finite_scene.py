@@ -12,8 +12,9 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   Hencky elasticity, linear hardening, rate-independent; ``"johnson_cook"``;
   ``"neo_hookean"``) or a class of one's own with ``strain = "finite"``
   (the kinematics is checked with the materials, :mod:`.scene_materials`);
-* optionally a ``[wall]``: the rigid frictionless plane z (m, default 0, at or
-  below the bar) with ``method`` = "film", "dme" or "penalty" and, for
+* optionally a ``[wall]``: the rigid plane z (m, default 0, at or below the bar),
+  frictionless or with ``friction`` (film and dme: contact/friction.py), with
+  ``method`` = "film", "dme" or "penalty" and, for
   penalty, ``penalty`` = a stiffness in N/m or "scaled" (the default: beta = 1
   at every step); a stiffness whose beta = p dt^2 / m exceeds 4/3 is refused
   unless forced (contact/plane.py); ``face`` = "contact" (default: every boundary

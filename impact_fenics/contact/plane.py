@@ -121,7 +121,7 @@ class FixedPlane:
         self.mass = mass[2 * self.nodes + 1].copy()  # kg, the owned candidates'
         cons = plane_below(comm, self.nodes, node_xy, offset, self.z_wall, length)
         self._xy = node_xy[self.nodes].copy()  # m, the candidates' reference (r, z)
-        self._x_of_dof = {int(2 * k + 1): float(node_xy[k, 0]) for k in self.nodes}
+        self._node_r = np.array(node_xy[:, 0])  # m, every local node's reference r
         chosen = {"film": lambda: FILM("fast"), "dme": lambda: DME(),
                   "penalty": lambda: Penalty(penalty, beta_target=beta_target)}[method]()
         self._host = _Host(comm, offset, mass, u_owned, v_owned, dt, fixed)
@@ -194,11 +194,9 @@ class FixedPlane:
         """The current r (m) of the outermost node in contact (active on the plane) over all
         ranks, from the owned displacement ``u`` (m); 0 with none."""
         c = self.set
-        r = 0.0
-        for k in np.flatnonzero(c.active[c._pos] if c._pos.size else np.zeros(0, bool)):
-            dof_z = c._local[k]
-            r = max(r, self._x_r(dof_z) + float(u[dof_z - 1]))
-        return self._host.comm.allreduce(r, op=MPI.MAX)
+        z_dofs = c._local[c.active[c._pos]]  # owned z dofs of the active constraints
+        r = self._node_r[(z_dofs - 1) // 2] + u[z_dofs - 1]
+        return self._host.comm.allreduce(float(r.max(initial=0.0)), op=MPI.MAX)
 
     def foot_radius(self, u: np.ndarray, h: float) -> float:
         """The largest current r (m) of any candidate node within ``h`` (m) of the plane
@@ -207,6 +205,3 @@ class FixedPlane:
         r = self._xy[:, 0] + u[2 * self.nodes]
         near = r[z <= h]
         return self._host.comm.allreduce(float(near.max(initial=0.0)), op=MPI.MAX)
-
-    def _x_r(self, dof_z: int) -> float:
-        return float(self._x_of_dof[dof_z])

@@ -64,14 +64,13 @@ def check_quadrilateral_material(body: Body) -> None:
 
 
 def check_plane_strain_material(body: Body) -> None:
-    """Refuse, in one line, a body plane strain does not run yet: path-dependent and
-    finite-strain materials (their kernels carry the ring weights and the hoop term)."""
+    """Refuse, in one line, a body plane strain does not run yet: finite-strain materials
+    (their kernel carries the ring weights and the hoop term)."""
     m = body.material
-    if is_finite(m) or not m.linear:
-        kind = "finite-strain" if is_finite(m) else "path-dependent"
-        raise InputError(f"body '{body.name}': plane strain runs linear elastic bodies only "
-                         f"so far ({type(m).__name__} is {kind}): use geometry = "
-                         "\"axisymmetric\" or a linear material")
+    if is_finite(m):
+        raise InputError(f"body '{body.name}': plane strain runs small-strain bodies only "
+                         f"so far ({type(m).__name__} is finite-strain): use geometry = "
+                         "\"axisymmetric\" or a small-strain material")
 
 
 class DeformableModel:

@@ -127,7 +127,8 @@ class Integrator:
         inverse = np.where(self.free, -1.0 / self.mass, 0.0) if finite else None
         for name in finite:
             force = FiniteStrainForce(model.V, model.node_xy, model.owned_cells(name),
-                                      model.bodies[name].material, self._u_fn)
+                                      model.bodies[name].material, self._u_fn,
+                                      model.geometry)
             force.coef = inverse
             self.finite.append(force)
         if isinstance(policy, FollowingStep) and not policy.bound:

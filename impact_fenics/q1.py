@@ -46,7 +46,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
+from .geometry import Geometry
 
 
 N_POINTS = 4
@@ -104,10 +104,10 @@ class QuadGeometry:
     out-of-plane strain's factor) and ``volume`` the slab's t A."""
 
     def __init__(self, cell_nodes: np.ndarray, node_xy: np.ndarray, cells: np.ndarray,
-                 geometry: Geometry = AXISYMMETRIC_GEOMETRY):
-        """``cell_nodes``: the dofmap (local cells, 4) in the block indices of ``node_xy``.
-        (``geometry``'s default serves the path-dependent and finite-strain forces, which
-        a plane-strain model refuses until they take it.)"""
+                 geometry: Geometry):
+        """``cell_nodes``: the dofmap (local cells, 4) in the block indices of ``node_xy``;
+        ``geometry`` the section's (required: a site that forgot it would weigh a plane-
+        strain slab with rings)."""
         self.cells = cells
         self.dofs = np.ascontiguousarray(cell_nodes[cells].astype(np.int32))
         X = node_xy[self.dofs]  # (n, 4, 2)

@@ -434,9 +434,10 @@ TOP = Section("top", "top level", "Keys outside every table.", (
         choices=GEOMETRIES, note="Plane strain: every mass (kg), force (N), energy (J) and "
         "slab-scaled input is that of the slab t; the stresses are named sigma_xx, sigma_yy, "
         "sigma_out (out of the plane, eps_out = 0), sigma_xy, the displacements u_x, u_y, "
-        "and nothing is held on x = 0 unless `symmetry` says so. It runs linear elastic "
-        "bodies, small strain, without contact, rigid bodies or a wall, for now "
-        "([plane_strain.md](plane_strain.md))."),
+        "and nothing is held on x = 0 unless `symmetry` says so. It runs small-strain "
+        "bodies, linear elastic and path-dependent (J2, Drucker-Prager: the plastic "
+        "strain's out-of-plane component evolves), without finite strain, contact, rigid "
+        "bodies or a wall, for now ([plane_strain.md](plane_strain.md))."),
     Key("thickness", "positive", "m", None, "plane strain: the slab's thickness t",
         default_text="1 (per metre)"),
     Key("symmetry", "text", "", None, "plane strain: a symmetry plane of a half model, u_x = 0 "

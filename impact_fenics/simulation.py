@@ -86,6 +86,7 @@ class Settings:
     f_int_path: str = "fast"  # path-dependent bodies: "fast" (fused cell kernel) or "generic"
     compiled_steps: bool = True  # the steps between events as compiled blocks where they apply
     title: str | None = None  # the run's name in its summary and pictures (a scene's title)
+    max_steps: int | None = None  # a step that follows the limit: stop (exit 3) beyond these
 
 
 
@@ -102,9 +103,13 @@ class Simulation:
         against the stable limit unless ``force_dt``. A :class:`~.stepping.FollowingStep`
         with a fixed dt runs to t_end (the last step clipped) and stops the run (status
         "diverged", UnstableRunError: exit 3) at the step whose re-estimated limit falls
-        below dt; its adaptive form is refused in one line for now. Under a varying step the linear
-        bodies take the per-step pass and the ledger books by the kinetic identity with
-        the step's terms (one_loop.md 4.7: the multiply-touched dofs, ``work_gap``)."""
+        below dt; its adaptive form (dt None) finds its last step at t_end as it goes, at most
+        ``settings.max_steps`` of them. Under a varying step the linear bodies take the
+        per-step pass and the ledger books by the kinetic identity with the step's terms
+        (one_loop.md 4.7: the multiply-touched dofs, ``work_gap``). A finite-strain body
+        (Q1, total Lagrangian) needs a FollowingStep, bound here to its current cells and
+        capped by the other bodies' element bound; its force's booked work less its split
+        (psi(u^n), plastic work, the boundary term) goes into ``work_gap``, O(dt^2)."""
         self.model = model
         self.comm: MPI.Comm = model.comm
         self.settings = settings
@@ -115,12 +120,13 @@ class Simulation:
         t0 = clock()
         require(policy is not None or (settings.dt is None) != (settings.cfl is None),
                 "give either dt or cfl")
-        for name, body in model.bodies.items():  # (its ledger and events: the next step)
-            if is_finite(body.material):
-                raise InputError(f"body '{name}': {type(body.material).__name__} is a "
-                                 "finite-strain material: it runs in the finite-strain driver "
-                                 "(finite_run.FiniteRun, strain = \"finite\" in a scene), and "
-                                 "this run holds small-strain bodies")
+        finite = [name for name, body in model.bodies.items() if is_finite(body.material)]
+        if finite and not isinstance(policy, FollowingStep):
+            raise InputError(f"body '{finite[0]}' is a finite-strain body: its step follows its "
+                             "cells (give the run a stepping.FollowingStep)")
+        require(settings.max_steps is None or (isinstance(settings.max_steps, (int, np.integer))
+                                               and settings.max_steps > 0),
+                f"max_steps = {settings.max_steps!r}: must be an integer > 0")
         for key in ("output_every", "energy_every", "history_every", "pairs_every"):
             every = getattr(settings, key)
             if key == "energy_every" and every is None:
@@ -184,6 +190,12 @@ class Simulation:
             self.dt_converged = critical_dt(converged_omega_max(
                 K, self.integrator.mass, model.to_global(fixed_owned)))
             self.setup_time["converged_dt"] = clock() - t2
+        # the forces whose work is split into stored energy and dissipation at their points
+        self._split_forces = bool(self.integrator.nonlinear or self.integrator.finite)
+        # each finite-strain force's u^n (m, ghosts too) at an output step, and the ranks'
+        # share of their booked work less its split (J), for work_gap
+        self._finite_u = [np.empty_like(f.u.x.array) for f in self.integrator.finite]
+        self._finite_gap_local = 0.0
         self.plastic_fields = (PlasticCellFields(model, self.integrator.nonlinear)
                                if self.integrator.nonlinear else None)
         v0 = np.zeros(model.n_owned)
@@ -196,7 +208,7 @@ class Simulation:
                           for name, d in self._body_z.items()}
         # the sums of an output step: energies, momenta (its kernel loaded now)
         self._output_sums = OutputSums(self.integrator.mass, list(self._body_z.values()),
-                                       self.comm, 4 if self.integrator.nonlinear else 1)
+                                       self.comm, 4 if self._split_forces else 1)
         mass = self.integrator.mass  # the other kernels of an output step, for arrays like it:
         # their compiled entries (the arrays an event passes are contiguous float64 ones)
         self._copy_state = direct(copy_state, mass, mass, mass, mass)
@@ -367,6 +379,7 @@ class Simulation:
             n_steps = MAX_STEPS
             t_end = self.step_policy.t_end
             penalties = [c for c in self.contacts if c.method.name == "penalty"]
+        max_steps = s.max_steps  # (a run of listed steps knows its count at set-up)
         last = n_steps - 1
         # energy rows (and their history rows)
         output_at = Schedule(0, s.energy_every or s.output_every, last)
@@ -478,6 +491,10 @@ class Simulation:
                         break
                     continue
                 if ends_at_t:  # this step's h first: is it the last one?
+                    if max_steps is not None and n >= max_steps:
+                        raise UnstableRunError(f"run stopped at step {n} (t = {integ.t:.6g} "
+                                               f"s): more than max_steps = {max_steps} steps "
+                                               f"before t_end = {t_end} s")
                     h = integ.next_step()
                     if penalties and self.step_policy.renewed:
                         self._check_penalties(penalties, h, n)
@@ -700,7 +717,7 @@ class Simulation:
             self._bind_output(buf)
         integ = self.integrator
         self._copy_state(integ.u_owned, integ.v_owned, buf["u"], buf["v"])  # u^n, v^n
-        if integ.nonlinear:  # 1/2 u'Ku of the linear bodies (the others book psi_e, W_p)
+        if self._split_forces:  # 1/2 u'Ku of the linear bodies (the others book psi_e, W_p)
             if integ.K is not None:
                 integ.K.mult(integ.u_vec, Ku)
                 self._ku_linear = Ku.array  # (K u^n: the linear bodies' share of f_int)
@@ -708,6 +725,11 @@ class Simulation:
             else:
                 self._ku_linear = None
                 self._strain_local = 0.0
+        if self._finite_u:  # each finite-strain force's u^n, its ghosts refreshed (the
+            # step's own refresh comes with its prediction, which moves u)
+            integ.u_function.x.scatter_forward()
+            for force, u_all in zip(integ.finite, self._finite_u):
+                np.copyto(u_all, force.u.x.array)
         v_now = self._rigid_v_now
         if v_now:
             for i, c in enumerate(self._rigid_sets):
@@ -735,7 +757,7 @@ class Simulation:
                     load = self._minus_m_over_dt[dofs] * coef
                     strain -= 0.5 * value * float(np.dot(u[dofs], load))
                     np.subtract.at(f, dofs, value * load)
-        if not self.integrator.nonlinear:  # (else _pre_output's 1/2 u'Ku and psi_e)
+        if not self._split_forces:  # (else _pre_output's 1/2 u'Ku and psi_e)
             self._strain_local = strain
 
     def _initial_energy(self) -> float:
@@ -784,16 +806,26 @@ class Simulation:
         dt, v_next = integ.step.h, integ.v_owned
         boundary = dt * half_dot(v_next, buf["f"])
         strain = self._strain_local + boundary
-        if nonlinear:  # stored elastic energy, plastic and deformation work (J)
+        if self._split_forces:  # stored elastic energy, plastic and deformation work (J)
             # the deformation work by the kinetic identity: the trapezoid sum and the
             # path-dependent bodies' boundary term, 1/2 dt v^{n+1/2} . (f_int - K u^n)
-            # (their 1/2 dt v^0 . f^0 is 0: a run starts unstressed)
+            # (their 1/2 dt v^0 . f^0 is 0: a run starts unstressed); a finite-strain
+            # body's stored energy psi at u^n, its plastic work, its trapezoid sum, and
+            # (into work_gap) its booked work less that split with its boundary term
             if self._ku_linear is not None:
                 boundary -= dt * half_dot(v_next, self._ku_linear)
-            total = sums.reduce(v_next, strain, (
-                load_work.local, sum(f.elastic_energy_local() for f in nonlinear),
-                sum(f.plastic_work_local for f in nonlinear),
-                sum(f.deformation_work_local for f in nonlinear) + boundary))
+            stored = sum(f.elastic_energy_local() for f in nonlinear)
+            plastic = sum(f.plastic_work_local for f in nonlinear)
+            deformation = sum(f.deformation_work_local for f in nonlinear) + boundary
+            self._finite_gap_local = 0.0
+            for f, u_all in zip(integ.finite, self._finite_u):
+                psi = f.stored_energy_local(u_all)
+                split = psi + f.plastic_work_local + dt * half_dot(v_next, f.f_owned)
+                stored += psi
+                plastic += f.plastic_work_local
+                deformation += f.trapezoid_local
+                self._finite_gap_local += f.work_local - split
+            total = sums.reduce(v_next, strain, (load_work.local, stored, plastic, deformation))
         else:
             total = sums.reduce(v_next, strain, (load_work.local,))
         rec = self._record_view
@@ -821,7 +853,7 @@ class Simulation:
         per-step pass, exact on D) plus Phi_-1 less its split 1/2 (u^n)' K u^n + 1/2
         h_{n+1/2} v^{n+1/2} . K u^n (``h`` = h_{n+1/2}, s), which the same terms make up."""
         integ = self.integrator
-        local = self._gap_local
+        local = self._gap_local + self._finite_gap_local
         if integ.linear is not None:
             ku = integ.linear.pass_force  # K u^n of this step's pass
             local += integ.linear.work_local - (half_dot(buf["u"], ku)
@@ -850,7 +882,7 @@ class Simulation:
             activation += rec[j + 1]
             j += 2
         plastic = deformation = gap = 0.0
-        if self.integrator.nonlinear:
+        if self._split_forces:
             strain += rec[k + 1]
             plastic, deformation = rec[k + 2], rec[k + 3]
         if self._varying:

@@ -116,8 +116,17 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
                 "term, and E_n adds work_gap, the sum over the changes of step of 1/4 "
                 "(h_(n+1/2) - h_(n-1/2)) (v^(n-1/2) - v^(n+1/2)) f_int(u^n), the internal "
                 "work the split into stored energy and dissipation leaves out")
+        if sim.integrator.finite:
+            summary["energy_balance_definition"] += (
+                "; a finite-strain body books its work by the kinetic identity, and work_gap "
+                "adds that work less psi(u^n) + its plastic work + 1/2 h_(n+1/2) v^(n+1/2) "
+                "f_int(u^n) (O(dt^2))")
     if sim.integrator.nonlinear:
         summary["eps_p_max"] = eps_p_max(sim.integrator.nonlinear, sim.status == "diverged", comm)
+    if sim.integrator.finite:  # (a small-strain body's eps_p_max above, if any, included)
+        finite = finite_figures(sim.integrator.finite, sim.status == "diverged", comm)
+        summary["eps_p_max"] = max(summary.get("eps_p_max", 0.0), finite.pop("eps_p_max"))
+        summary.update(finite)
     if sim.contacts:
         c = sim.contacts[0]
         summary["contact"] = {  # the first contact set, or all of them for the figures below
@@ -267,6 +276,22 @@ def eps_p_max(forces: list, diverged: bool, comm: MPI.Comm) -> float:
         states = [f.qs.state for f in forces]
     local = max(float(st[..., 0].max(initial=0.0)) for st in states)
     return comm.allreduce(local, op=MPI.MAX)
+
+
+def finite_figures(forces: list, diverged: bool, comm: MPI.Comm) -> dict:
+    """The finite-strain bodies' figures at the final displacement u^N: the largest
+    equivalent plastic strain at a point (-) and the smallest J = det F (-), the points
+    updated to u^N by one more force evaluation with the last step (their last update,
+    at u^(N-1), if the run ``diverged``), as the finite-strain driver reports them.
+    Collective."""
+    if not diverged:
+        forces[0].u.x.scatter_forward()  # (every force's displacement Function)
+        for f in forces:
+            f.set_step(f.h, f.h)  # the points' step: the last one taken
+            f.evaluate()
+    local = max(float(f.state[..., 0].max(initial=0.0)) for f in forces)
+    return {"eps_p_max": comm.allreduce(local, op=MPI.MAX),
+            "j_min": min(f.j_min for f in forces)}
 
 
 def contact_bodies(c, model, comm: MPI.Comm) -> dict[str, str]:

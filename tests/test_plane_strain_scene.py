@@ -86,8 +86,10 @@ STRIP = open(SCENE).read()
     ('facet = "left"\ncomponents = ["x"]\n', 'facet = "left"\ncomponents = ["r"]\n',
      "error: [fixed #1] components = [\"r\"]: must be a list of distinct components \"x\" and \"y\" (plane strain)"),
     ('quantity = "sigma_yy"', 'quantity = "sigma_zz"', "error: [probes #1] quantity"),
-    ('[materials.steel]\n', '[materials.steel]\nmodel = "j2"\nyield_stress = 5e8\n',
-     "error: [materials.steel] model = \"j2\" is path-dependent: plane strain runs linear"),
+    ('density = 7850.0        # kg/m^3\n\n[bodies.block]\nmaterial = "steel"\n',
+     'density = 7850.0\nmodel = "neo_hookean"\n\n[bodies.block]\nmaterial = "steel"\n'
+     'strain = "finite"\n',
+     "error: [bodies.block] strain = \"finite\": plane strain runs small-strain bodies"),
     ('thickness = 0.01        # m, the slab\'s thickness t\n', 'thickness = 0.0\n',
      "error: [plane_strain.toml, top level] thickness = 0"),
     ('thickness = 0.01        # m, the slab\'s thickness t\n', 'symmetry = "y=0"\n',
@@ -103,7 +105,7 @@ def test_contact_refused(tmp_path):
     scene = tmp_path / "pair.toml"
     scene.write_text('geometry = "plane_strain"\n' + PAIR.replace("sigma_zz", "sigma_yy"))
     assert_refused(["run", scene, "--out", tmp_path / "out"],
-                   "error: [contact #1] contact: plane strain runs linear elastic bodies "
+                   "error: [contact #1] contact: plane strain runs small-strain bodies "
                    "without contact so far", tmp_path / "out")
 
 
@@ -112,3 +114,51 @@ def test_symmetry_refused_in_axisymmetry(tmp_path):
     scene.write_text('symmetry = "x=0"\n' + PAIR)
     assert_refused(["run", scene, "--out", tmp_path / "out"],
                    "error: [pair.toml, top level] symmetry", tmp_path / "out")
+
+
+# the strip of J2 steel (perfectly plastic, sigma_y = 4 MPa) on rollers: uniaxial strain
+J2_STRIP = replace(STRIP, "[materials.steel]\n",
+                   '[materials.steel]\nmodel = "j2"\nyield_stress = 4e6\n') + """
+[[probes]]
+name = "eps_p_mid"
+point = [0.01, 0.1]
+quantity = "eps_p_eq"
+"""
+
+
+def test_j2_strip_runs_its_elastic_precursor_at_the_hel(tmp_path):
+    """A path-dependent body in a plane-strain scene, on 1, 2 and 3 ranks. On rollers the
+    strain is uniaxial (eps_xx = eps_out = 0), so sigma_xx = sigma_out and J2 yields where
+    sigma_out - sigma_yy = sigma_y: the elastic precursor carries sigma_yy up to the
+    Hugoniot elastic limit sigma_HEL = sigma_y (1 - nu) / (1 - 2 nu) = 6 MPa (the 10 MPa
+    load reaches it at 3 us), the rest follows as a slower plastic wave
+    (sqrt(K / rho) against sqrt((lambda + 2 G) / rho)). At the mid probe (y = 0.1 m) the
+    precursor's plateau lasts from ~21 us to the plastic wave's arrival at ~27 us; read
+    between 22.5 and 24.5 us it is sigma_HEL within (h / l)^2 (the wave test's plateau
+    bound, l = c t_HEL the precursor's ramp length); at every output the probe's point
+    satisfies the yield condition sigma_out - sigma_yy <= sigma_y to round-off (64 EPS),
+    and it has flowed by the end."""
+    scene = tmp_path / "j2_strip.toml"
+    scene.write_text(J2_STRIP)
+    out = tmp_path / "n1"
+    proc = launch(["run", scene, "--out", out, "--quiet"], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    h = read_history(out)
+    sy, nu, E, rho, h_mesh = 4e6, 0.25, 200e9, 7850.0, 0.002
+    hel = sy * (1.0 - nu) / (1.0 - 2.0 * nu)
+    lam = mu = E / (2.0 * (1.0 + nu))  # nu = 1/4: lambda = G
+    c = ((lam + 2.0 * mu) / rho) ** 0.5
+    l_ramp = c * 5e-6 * hel / 10e6
+    plateau = (h["time"] >= 22.5e-6) & (h["time"] <= 24.5e-6)
+    assert plateau.sum() >= 3
+    err = float(np.max(np.abs(h["sigma_yy_mid"][plateau] + hel)))
+    print(f"precursor plateau: sigma_yy within {err:.4g} Pa of -sigma_HEL = {-hel:.4g} Pa "
+          f"(bound {(h_mesh / l_ramp) ** 2 * hel:.3g} Pa)")
+    assert err <= (h_mesh / l_ramp) ** 2 * hel
+    q = h["sigma_out_mid"] - h["sigma_yy_mid"]
+    print(f"largest sigma_out - sigma_yy {q.max()!r} Pa, sigma_y {sy!r} Pa; "
+          f"eps_p_eq at the end {h['eps_p_mid'][-1]:.3g}")
+    assert q.max() <= sy * (1.0 + 64 * 2.3e-16)
+    assert h["eps_p_mid"][-1] > 0.0
+    assert_ranks_agree(scene, str(tmp_path), h,
+                       ("sigma_yy_mid", "sigma_out_mid", "u_y_bottom", "eps_p_mid"))

@@ -486,7 +486,8 @@ def test_small_strain_j2_is_finite_strain_j2_at_low_strain(strain):
     model = DeformableModel(tm, [Body("cell", small_mat)])
     u = fem.Function(model.V)
     small = QuadratureForce(model, "cell", u, 1e-7, np.zeros(model.n_owned))
-    finite = FiniteStrainForce(model.V, model.node_xy, model.owned_cells("cell"), finite_mat, u)
+    finite = FiniteStrainForce(model.V, model.node_xy, model.owned_cells("cell"), finite_mat, u,
+                               model.geometry)
     xy = model.node_xy
     for k in range(1, 21):
         e = strain * k / 20

@@ -38,6 +38,16 @@ hyperelastic material), which gives per point the effective Kirchhoff stress
     tau_eff,q = dev tau_q + 1/3 J_q m_bar I,   m_bar = sum_q w_q tr tau_q / (J_bar V_0),
     f_int,a = sum_q w_q (tau_eff,q F_q^-T) : Grad N_a(X_q),
 
+**Plane strain** (x, y) (the kernels compiled per geometry, the axisymmetric branch as
+above): F_out = 1, J = det of the in-plane block, w_q = t |det dX/dxi| W_q, and
+
+    F_bar_q = (J_bar / J_q)^(1/2) F_q on the in-plane block, F_bar_out = 1,
+    tau_eff,q = tau_q - 1/2 tr2 tau_q I2 + 1/2 J_q m_bar2 I2,
+    m_bar2 = sum_q w_q (tau_xx + tau_yy)_q / (J_bar V_0),
+
+the exact gradient for the power 1/2 (tr2, I2: the in-plane trace and identity); the
+out-of-plane stress tau_out is the material's and does no work (no hoop term).
+
 tau_q = tau(F_bar_q) from the material's point update (:mod:`..materials.hencky`
 signature), w_q the Gauss weight times |det dX/dxi| 2 pi R_q (m^3): the Q1 geometry
 of :mod:`..q1`, shared with the small-strain (B-bar) forces.
@@ -62,6 +72,7 @@ from numba import njit
 
 from .. import compat
 from ..errors import UnstableRunError
+from ..geometry import Geometry
 from ..q1 import N_POINTS, QuadGeometry
 from .base import Booking
 
@@ -88,8 +99,9 @@ def cube_root(x: float) -> float:
 
 
 @njit(cache=True)
-def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F) -> float:
-    """F at point q of cell c into F = (F_rr, F_rz, F_zr, F_zz, F_tt); returns J."""
+def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F, plane) -> float:
+    """F at point q of cell c into F = (F_rr, F_rz, F_zr, F_zz, F_tt); returns J. In plane
+    strain (``plane``) the out-of-plane stretch F_tt is 1."""
     frr = frz = fzr = fzz = ur = 0.0
     for a in range(4):
         k = 2 * dofs[c, a]
@@ -99,6 +111,9 @@ def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F) -> float:
         fzr += gr * u[k + 1]
         fzz += gz * u[k + 1]
         ur += N[q, a] * u[k]
+    if plane:
+        F[0], F[1], F[2], F[3], F[4] = 1.0 + frr, frz, fzr, 1.0 + fzz, 1.0
+        return F[0] * F[3] - F[1] * F[2]
     F[0], F[1], F[2], F[3], F[4] = 1.0 + frr, frz, fzr, 1.0 + fzz, 1.0 + ur / R[c, q]
     return (F[0] * F[3] - F[1] * F[2]) * F[4]
 
@@ -106,13 +121,15 @@ def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F) -> float:
 _KERNELS: dict = {}
 
 
-def kernels(update, energy, n_state: int = 1, point_copy: bool = False):
+def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: bool = False):
     """The fused force pass and the stored-energy pass, specialised on a material (its point
     update, its energy, the length of a point's state (at least 1) and whether the update
-    runs on a copy of the point's state and stress, see ``force``)."""
+    runs on a copy of the point's state and stress, see ``force``) and on the geometry
+    (``plane``: plane strain, a compile-time constant; see the module's docstring)."""
     n_state = max(int(n_state), 1)
     point_copy = bool(point_copy)
-    key = (update, energy, n_state, point_copy)
+    plane = bool(plane)
+    key = (update, energy, n_state, point_copy, plane)
     if key in _KERNELS:
         return _KERNELS[key]
 
@@ -144,10 +161,14 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False):
                 frz = h0 * u0r + h1 * u1r + h2 * u2r + h3 * u3r
                 fzr = g0 * u0z + g1 * u1z + g2 * u2z + g3 * u3z
                 fzz = 1.0 + (h0 * u0z + h1 * u1z + h2 * u2z + h3 * u3z)
-                ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r
-                             + N[q, 3] * u3r) / R[c, q]
-                Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
-                Jq[q] = (frr * fzz - frz * fzr) * ftt
+                if plane:
+                    Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, 1.0
+                    Jq[q] = frr * fzz - frz * fzr
+                else:
+                    ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r
+                                 + N[q, 3] * u3r) / R[c, q]
+                    Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
+                    Jq[q] = (frr * fzz - frz * fzr) * ftt
                 jbar += w[c, q] * Jq[q]
                 if Jq[q] < j_min:
                     j_min = Jq[q]
@@ -157,9 +178,15 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False):
                 return wp, j_min, c_min
             m_bar = 0.0
             for q in range(4):
-                alpha = cube_root(jbar / Jq[q])
-                for i in range(5):
-                    fbar[i] = alpha * Fq[q, i]
+                if plane:  # the in-plane block scaled, F_bar_out = 1
+                    alpha = math.sqrt(jbar / Jq[q])
+                    for i in range(4):
+                        fbar[i] = alpha * Fq[q, i]
+                    fbar[4] = 1.0
+                else:
+                    alpha = cube_root(jbar / Jq[q])
+                    for i in range(5):
+                        fbar[i] = alpha * Fq[q, i]
                 if point_copy:
                     for i in range(n_state):
                         point_state[i] = state[c, q, i]
@@ -170,15 +197,23 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False):
                         tau[c, q, i] = point_tau[i]
                 else:
                     wp += w[c, q] * update(fbar, state[c, q], params, dt, tau[c, q], work)
-                m_bar += w[c, q] * (tau[c, q, 0] + tau[c, q, 1] + tau[c, q, 2])
+                if plane:
+                    m_bar += w[c, q] * (tau[c, q, 0] + tau[c, q, 2])
+                else:
+                    m_bar += w[c, q] * (tau[c, q, 0] + tau[c, q, 1] + tau[c, q, 2])
             m_bar /= jbar * volume[c]
             f0r = f1r = f2r = f3r = f0z = f1z = f2z = f3z = 0.0
             for q in range(4):
                 t0, t1, t2, t3 = tau[c, q, 0], tau[c, q, 1], tau[c, q, 2], tau[c, q, 3]
                 frr, frz, fzr, fzz, ftt = Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4]
-                p = (t0 + t1 + t2) / 3.0
-                shift = Jq[q] * m_bar / 3.0 - p  # tau_eff = tau - p I + J m_bar / 3 I
-                trr, ttt, tzz, trz = t0 + shift, t1 + shift, t2 + shift, t3
+                if plane:
+                    # tau_eff = tau - 1/2 tr2 tau I2 + 1/2 J m_bar2 I2 (in-plane block only)
+                    shift = 0.5 * Jq[q] * m_bar - 0.5 * (t0 + t2)
+                    trr, ttt, tzz, trz = t0 + shift, 0.0, t2 + shift, t3
+                else:
+                    p = (t0 + t1 + t2) / 3.0
+                    shift = Jq[q] * m_bar / 3.0 - p  # tau_eff = tau - p I + J m_bar / 3 I
+                    trr, ttt, tzz, trz = t0 + shift, t1 + shift, t2 + shift, t3
                 # w_q F^-1 of the (r, z) block; P = tau_eff F^-T, P_ij = sum_k tau_ik Finv_jk
                 wq = w[c, q]
                 scale = wq / (frr * fzz - frz * fzr)
@@ -187,7 +222,7 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False):
                 prz = trr * i10 + trz * i11
                 pzr = trz * i00 + tzz * i01
                 pzz = trz * i10 + tzz * i11
-                ptt = wq * ttt / (ftt * R[c, q])
+                ptt = 0.0 if plane else wq * ttt / (ftt * R[c, q])  # no hoop term in plane
                 g0, g1, g2, g3 = dNdR[c, q, 0], dNdR[c, q, 1], dNdR[c, q, 2], dNdR[c, q, 3]
                 h0, h1, h2, h3 = dNdZ[c, q, 0], dNdZ[c, q, 1], dNdZ[c, q, 2], dNdZ[c, q, 3]
                 f0r += prr * g0 + prz * h0 + ptt * N[q, 0]
@@ -216,13 +251,19 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False):
         for c in range(dofs.shape[0]):
             jbar = 0.0
             for q in range(4):
-                Jq[q] = deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q])
+                Jq[q] = deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q], plane)
                 jbar += w[c, q] * Jq[q]
             jbar /= volume[c]
             for q in range(4):
-                alpha = cube_root(jbar / Jq[q])
-                for i in range(5):
-                    fbar[i] = alpha * Fq[q, i]
+                if plane:
+                    alpha = math.sqrt(jbar / Jq[q])
+                    for i in range(4):
+                        fbar[i] = alpha * Fq[q, i]
+                    fbar[4] = 1.0
+                else:
+                    alpha = cube_root(jbar / Jq[q])
+                    for i in range(5):
+                        fbar[i] = alpha * Fq[q, i]
                 total += w[c, q] * energy(fbar, state[c, q], params, work)
         return total
 
@@ -276,13 +317,13 @@ def cell_length_min(dofs, X, u) -> float:
 
 @njit(cache=True)
 def cell_means(tau, state, w, volume, dofs, dNdR, dNdZ, N, R, u, Fq, Jq, out_sigma, out_eps, out_t,
-               i_temp) -> None:
+               i_temp, plane) -> None:
     """Per cell: Cauchy stress (rr, tt, zz, rz) = mean tau / J_bar (Pa), mean eps_bar_p and,
-    when ``i_temp`` >= 0, mean state[i_temp] (the temperature, K)."""
+    when ``i_temp`` >= 0, mean state[i_temp] (the temperature, K); ``plane``: plane strain."""
     for c in range(dofs.shape[0]):
         jbar = 0.0
         for q in range(4):
-            jbar += w[c, q] * deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q])
+            jbar += w[c, q] * deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q], plane)
         jbar /= volume[c]
         for i in range(4):
             s = 0.0
@@ -312,10 +353,10 @@ class FiniteStrainForce:
     identity's work booked and returned); :meth:`velocity_increment` runs both. A driver
     that writes the state at u^n with v^{n-1/2} calls the halves with its outputs between.
     The point updates take the step just taken, h_{n-1/2} (h_{1/2} at the first step),
-    from :meth:`set_step`."""
+    from :meth:`set_step`. ``geometry``: the model's (axisymmetric or plane strain)."""
 
     def __init__(self, V: fem.FunctionSpace, node_xy: np.ndarray, cells: np.ndarray, material,
-                 u: fem.Function):
+                 u: fem.Function, geometry: Geometry):
         self.V, self.material, self.u = V, material, u
         self.coef: np.ndarray | None = None
         self.h = self.h_avg = self.h_taken = None
@@ -323,7 +364,8 @@ class FiniteStrainForce:
         self.last_work = 0.0        # its term of the last step (J)
         self.trapezoid_local = 0.0  # sum 1/2 (f^{n-1} + f^n) . (u^n - u^{n-1}) (J)
         self.node_xy = np.ascontiguousarray(node_xy)
-        self.geometry = QuadGeometry(compat.cell_dofs(V), node_xy, cells)
+        self.plane = geometry.plane
+        self.geometry = QuadGeometry(compat.cell_dofs(V), node_xy, cells, geometry)
         n = cells.size
         self.params = material.params()
         self.state = np.empty((n, N_POINTS, max(material.n_state, 1)))
@@ -345,7 +387,7 @@ class FiniteStrainForce:
         self._u_prev = np.zeros(self.n_owned)
         self.wave_speed = material.wave_speed()  # c (m/s), elastic dilatational
         self._force, self._stored = kernels(material.update, material.energy, material.n_state,
-                                            getattr(material, "point_copy", False))
+                                            getattr(material, "point_copy", False), self.plane)
         self._load_kernels()
 
     def _load_kernels(self) -> None:
@@ -366,7 +408,7 @@ class FiniteStrainForce:
         load(velocity_update, self.f_owned, self.f_owned, self.f_owned, 1.0)
         n = g.dofs.shape[0]
         load(cell_means, self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
-             u, self._Fq, self._Jq, np.zeros((n, 4)), np.zeros(n), np.zeros(n), -1)
+             u, self._Fq, self._Jq, np.zeros((n, 4)), np.zeros(n), np.zeros(n), -1, self.plane)
 
     def compute(self, dt: float) -> np.ndarray:
         """f_int(u^n) (N), owned view; the state moves to the current u. Raises
@@ -384,7 +426,8 @@ class FiniteStrainForce:
             where = ""
             if j_min <= 0.0 and c_min >= 0:
                 xy = self.node_xy[g.dofs[c_min]].mean(axis=0)
-                where = f" (cell at R = {xy[0]:.4g} m, Z = {xy[1]:.4g} m)"
+                first, second = ("X", "Y") if self.plane else ("R", "Z")  # reference
+                where = f" (cell at {first} = {xy[0]:.4g} m, {second} = {xy[1]:.4g} m)"
             where = "".join(comm.allgather(where))
             raise UnstableRunError(f"an element inverted: J = det F = {j_all:.3g} <= 0{where}; "
                                    "the mesh is too coarse for this deformation or dt too large")
@@ -453,7 +496,8 @@ class FiniteStrainForce:
         sig, eps, temp = np.zeros((n, 4)), np.zeros(n), np.zeros(n)
         i_temp = getattr(self.material, "temperature_index", -1)
         cell_means(self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
-                   self.u.x.array if u is None else u, self._Fq, self._Jq, sig, eps, temp, i_temp)
+                   self.u.x.array if u is None else u, self._Fq, self._Jq, sig, eps, temp, i_temp,
+                   self.plane)
         return sig, eps, temp
 
 

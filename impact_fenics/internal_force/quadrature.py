@@ -15,6 +15,12 @@ n_state; ``state[..., 0]`` the equivalent plastic strain) and the stress
 
 the assembled vector of  int sigma : eps(w) 2 pi r dx  with the same rule.
 
+In plane strain (the model's geometry, :mod:`..geometry`) a P1 cell has one point, its
+centroid: its strain is constant and eps_out = 0, so three points would carry one state
+three times. There w = t |J| / 2 (m^3) and the point update sees (eps_xx, 0, eps_yy,
+eps_xy) and returns the full stress, sigma_out included (:func:`plane_kernel`); on Q1
+the B-bar kernel runs unchanged on the plane-strain geometry (inv_r = 0, w = t |J| / 4).
+
 Two implementations give the same f_int to round-off:
 
 * ``"fast"``: one fused compiled pass over the cells (strain at the three
@@ -78,11 +84,20 @@ class CellGeometry:
     ``dofs`` (n, 3) node (block) indices; ``dNdr``, ``dNdz`` (n, 3) P1 gradients
     (1/m); ``N`` (3 points, 3 nodes) shape values; ``r`` (n, 3) point radii (m) and
     ``inv_r`` their inverses (1/m);
-    ``w`` (n, 3) weights w_q |J| 2 pi r_q (m^3)."""
+    ``w`` (n, 3) weights w_q |J| 2 pi r_q (m^3).
+
+    In plane strain (the model's geometry) one point per cell, the centroid (the strain
+    of a P1 cell is constant and eps_out = 0): ``N`` (1, 3) = 1/3, ``r`` (n, 1) the
+    centroid's x, ``inv_r`` (n, 1) = 0 (the out-of-plane strain's factor) and ``w``
+    (n, 1) = t |J| / 2 = t A (m^3)."""
 
     def __init__(self, model: DeformableModel, cells: np.ndarray):
-        ref_points, ref_weights = reference_rule()
-        assert ref_points.shape[0] == N_POINTS
+        plane = model.geometry.plane
+        if plane:  # the one-point rule: the centroid, weight 1/2
+            ref_points, ref_weights = np.full((1, 2), 1.0 / 3.0), np.array([0.5])
+        else:
+            ref_points, ref_weights = reference_rule()
+            assert ref_points.shape[0] == N_POINTS
         self.cells = cells
         self.dofs = model.cell_dofs[cells].astype(np.int32)
         xy = model.node_xy[self.dofs]  # (n, 3, 2)
@@ -99,9 +114,14 @@ class CellGeometry:
         self.dNdr = np.ascontiguousarray(grad[:, :, 0])
         self.dNdz = np.ascontiguousarray(grad[:, :, 1])
         self.r = np.ascontiguousarray(np.einsum("qi,ni->nq", self.N, xy[:, :, 0]))
-        self.inv_r = 1.0 / self.r  # the kernel multiplies (a division per point costs more)
-        self.w = np.ascontiguousarray(ref_weights[None, :] * np.abs(det)[:, None]
-                                      * 2.0 * math.pi * self.r)
+        if plane:
+            self.inv_r = np.zeros_like(self.r)  # eps_out = 0
+            self.w = np.ascontiguousarray(ref_weights[None, :] * np.abs(det)[:, None]
+                                          * model.geometry.thickness)
+        else:
+            self.inv_r = 1.0 / self.r  # the kernel multiplies (a division per point costs more)
+            self.w = np.ascontiguousarray(ref_weights[None, :] * np.abs(det)[:, None]
+                                          * 2.0 * math.pi * self.r)
 
 
 class QuadPointGeometry:
@@ -113,7 +133,7 @@ class QuadPointGeometry:
     ``r``, ``inv_r`` (n, 4) (m, 1/m); ``w`` (n, 4) (m^3); ``quad`` the Q1 geometry."""
 
     def __init__(self, model: DeformableModel, cells: np.ndarray):
-        g = q1.QuadGeometry(model.cell_dofs, model.node_xy, cells)
+        g = q1.QuadGeometry(model.cell_dofs, model.node_xy, cells, model.geometry)
         self.quad = g
         self.cells, self.dofs, self.N, self.w = cells, g.dofs, g.N, g.w
         self.dNdr, self.dNdz, self.r, self.inv_r = g.dNdR, g.dNdZ, g.R, g.inv_R
@@ -308,6 +328,89 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
     return fused, points
 
 
+def plane_kernel(update, n_state: int = 1, point=None, screen=None):
+    """The fused cell kernel of P1 triangles in plane strain, one point per cell: the
+    strain of a P1 cell is constant and eps_out = 0, so its three points would carry the
+    same strain and state (docs/plane_strain.md). Same signature and results as
+    :func:`kernels`' ``fused`` with the one-point geometry of :class:`CellGeometry`
+    (``w`` (n, 1) = t |J| / 2, ``inv_r`` unread): the strain (eps_xx, 0, eps_yy,
+    eps_xy), the point update (behind the material's ``screen`` if it has one) and
+    f_i = w B_i' sigma (N); returns the plastic work increment (J)."""
+    if screen is not None and point is None:
+        raise ValueError("a screen needs the scalar point it screens for")
+    key = ("plane", update, max(int(n_state), 1), point, screen)
+    if key in _KERNELS:
+        return _KERNELS[key]
+    ns = key[2]
+    scalar, screened = point is not None, screen is not None  # constants of the kernel
+    point = bbar.no_point if point is None else point
+    screen = bbar.no_screen if screen is None else screen
+
+    @njit
+    def fused(params, dt, dofs, dNdr, dNdz, N, inv_r, w, u, f, eps_p, state, sigma, work):
+        """f += sum over cells of w_c B' sigma_c; returns the plastic work increment
+        sum_c w_c 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J)."""
+        if state.shape[2] != ns or eps_p.shape[1] != 1:
+            raise ValueError("state arrays: not one point per cell with the kernel's n_state")
+        eps, ep, s = work[0], work[1], work[2]
+        st = work[3, :ns]
+        dof, g_r, g_z = dofs.reshape(-1), dNdr.reshape(-1), dNdz.reshape(-1)
+        w_q, ep_q, st_q, sg_q = w.reshape(-1), eps_p.reshape(-1), state.reshape(-1), \
+            sigma.reshape(-1)
+        wp = 0.0
+        for c in range(dofs.shape[0]):
+            c3 = 3 * c  # the cell's first node
+            a0, a1, a2 = 2 * dof[c3], 2 * dof[c3 + 1], 2 * dof[c3 + 2]
+            ux0, ux1, ux2 = u[a0], u[a1], u[a2]
+            uy0, uy1, uy2 = u[a0 + 1], u[a1 + 1], u[a2 + 1]
+            gx0, gx1, gx2 = g_r[c3], g_r[c3 + 1], g_r[c3 + 2]
+            gy0, gy1, gy2 = g_z[c3], g_z[c3 + 1], g_z[c3 + 2]
+            e_xx = gx0 * ux0 + gx1 * ux1 + gx2 * ux2
+            e_yy = gy0 * uy0 + gy1 * uy1 + gy2 * uy2
+            e_xy = 0.5 * ((gy0 * ux0 + gy1 * ux1 + gy2 * ux2) + (gx0 * uy0 + gx1 * uy1 + gx2 * uy2))
+            j = 4 * c   # the point's first tensor component
+            k0 = ns * c  # its first state variable
+            p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
+            elastic = False
+            s0 = s1 = s2 = s3 = 0.0
+            if screened:  # the material's elastic test: the trial stress, no call
+                elastic, s0, s1, s2, s3 = screen(e_xx, 0.0, e_yy, e_xy, p0, p1, p2, p3, st_q,
+                                                 k0, params)
+            wq = w_q[c]
+            if not elastic:
+                if scalar:
+                    s0, s1, s2, s3, q0, q1, q2, q3 = point(e_xx, 0.0, e_yy, e_xy, p0, p1, p2,
+                                                           p3, st_q, k0, params, dt)
+                else:
+                    eps[0], eps[1], eps[2], eps[3] = e_xx, 0.0, e_yy, e_xy
+                    ep[0], ep[1], ep[2], ep[3] = p0, p1, p2, p3
+                    for k in range(ns):
+                        st[k] = st_q[k0 + k]
+                    update(eps, ep, st, params, dt, s)
+                    for k in range(ns):
+                        st_q[k0 + k] = st[k]
+                    s0, s1, s2, s3 = s[0], s[1], s[2], s[3]
+                    q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
+                d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
+                if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: its work
+                    o0, o1, o2, o3 = sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3]
+                    wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
+                                      + 2.0 * (o3 + s3) * d3)
+                    ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = q0, q1, q2, q3
+            sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3] = s0, s1, s2, s3
+            S_xx, S_yy, S_xy = wq * s0, wq * s2, wq * s3
+            f[a0] += gx0 * S_xx + gy0 * S_xy
+            f[a1] += gx1 * S_xx + gy1 * S_xy
+            f[a2] += gx2 * S_xx + gy2 * S_xy
+            f[a0 + 1] += gy0 * S_yy + gx0 * S_xy
+            f[a1 + 1] += gy1 * S_yy + gx1 * S_xy
+            f[a2 + 1] += gy2 * S_yy + gx2 * S_xy
+        return wp
+
+    _KERNELS[key] = fused
+    return fused
+
+
 @njit(cache=True)
 def velocity_update(coef, f, u, v, f_prev, u_prev) -> float:
     """v += coef * f (coef = -dt / m, 0 on fixed dofs) on the owned dofs; returns the
@@ -382,6 +485,9 @@ class QuadratureForce:
         if quad and path != "fast":
             raise InputError(f"f_int path '{path}' runs on triangles only: a body on "
                              "quadrilaterals takes the fused B-bar kernel (path 'fast')")
+        if model.geometry.plane and path != "fast":
+            raise InputError(f"f_int path '{path}' runs axisymmetric triangles only: a "
+                             "plane-strain body takes the fused kernel (path 'fast')")
         self.geometry = (QuadPointGeometry if quad else CellGeometry)(model, self.cells)
         n_points = self.geometry.w.shape[1]
         self.qs = QuadratureState(self.cells.size, self.material.n_state, n_points)
@@ -397,10 +503,15 @@ class QuadratureForce:
         self._started = False
         point, screen = (getattr(self.material, name, None) for name in ("point", "screen"))
         ahead = getattr(self.material, "screen_ahead", False)
-        self._fused, self._points = ((bbar.kernel(self.material.update, point, screen), None)
-                                     if quad else kernels(self.material.update,
-                                                          self.material.n_state, point, screen,
-                                                          ahead))
+        if quad:
+            self._fused, self._points = bbar.kernel(self.material.update, point, screen), None
+        elif model.geometry.plane:
+            self._fused = plane_kernel(self.material.update, self.material.n_state, point,
+                                       screen)
+            self._points = None
+        else:
+            self._fused, self._points = kernels(self.material.update, self.material.n_state,
+                                                point, screen, ahead)
         if path == "generic":
             self._setup_generic()
         self._setup_cell_fields()

@@ -433,6 +433,17 @@ def summary_lines(r: Result) -> list[str]:
     return lines
 
 
+def cut_warning(waves: Waves) -> str | None:
+    """A warning line naming the dispersion-corrected waves whose gauge record ends
+    before the wave has passed (``Waves.cut``); None when there are none."""
+    if not waves.cut:
+        return None
+    return (f"warning: the dispersion correction moves the cut at the end of the record into "
+            f"the {' and the '.join(waves.cut)} wave: the gauge's record ends before the "
+            "wave has passed it; run longer, with the incident gauge as far from the struck "
+            "end as from the specimen (docs/shpb.md, \"The dispersion-corrected curve\")")
+
+
 def time_lines(run_dir: str) -> list[str]:
     """The step's internal-force time split between the bars and the specimen (a line)."""
     split = time_split(run_dir)
@@ -451,6 +462,9 @@ def run_command(run_dir: str, dispersion: bool = False, quiet: bool = False) -> 
     run_dir = os.path.expanduser(run_dir)
     r = analyse_run(run_dir, dispersion)
     if MPI.COMM_WORLD.rank == 0:
+        line = cut_warning(r.waves)
+        if line is not None:
+            print(line, file=sys.stderr, flush=True)
         for path in write(run_dir, r):
             if not quiet:
                 print(path)

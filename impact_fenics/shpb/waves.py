@@ -28,7 +28,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .dispersion import correct
+from .dispersion import correct, slowest_group_velocity
+
+# A record the dispersion correction moves backwards is at rest at its end when its last
+# sample is within this fraction of its gauge's peak (the incident gauge's: the incident
+# wave's): the zero padding after a record cut at s makes a step of s, whose short waves
+# the backward move carries ahead of it as ringing of the order of s; at 1 % of the
+# incident wave that is about half the 2 % a 3-wave stress is held to (the stress is
+# E A_b (eps_I + eps_R + eps_T) / (2 A_s), and eps_I + eps_R + eps_T = 2 eps_T in
+# equilibrium, about eps_I when the specimen passes on about half the incident wave).
+REST_FRACTION = 0.01
 
 
 @dataclass(frozen=True)
@@ -76,6 +85,10 @@ class Waves:
     incident: np.ndarray
     reflected: np.ndarray
     transmitted: np.ndarray
+    cut: tuple[str, ...] = ()
+    """The dispersion-corrected waves ('reflected', 'transmitted') whose gauge record
+    ends before the wave has passed (not at rest to REST_FRACTION of the gauge's peak) within the
+    slowest group's lag after their window: the correction moves the cut into them."""
 
 
 def _shifted(t: np.ndarray, signal: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -136,14 +149,22 @@ def separate(t: np.ndarray, incident_gauge: np.ndarray, transmitter_gauge: np.nd
     before = np.where(t < switch, incident_gauge, 0.0)
     after = np.where(t >= switch, incident_gauge, 0.0)
     transmitted = np.asarray(transmitter_gauge, dtype=float)
+    cut: list[str] = []
     if dispersion is not None:
         a, nu = dispersion.radius, dispersion.nu
+        incident_peak = float(np.max(np.abs(incident_gauge)))
+        for name, record, d in (("reflected", after, d_i), ("transmitted", transmitted, d_t)):
+            reach = d / c0 * (1.0 / slowest_group_velocity(nu) - 1.0)
+            peak = incident_peak if name == "reflected" else float(np.max(np.abs(record)))
+            if (t[-1] - reach < face[-1] + d / c0
+                    and abs(float(record[-1])) > REST_FRACTION * peak):
+                cut.append(name)
         before = correct(t, before, d_i, a, nu, c0)
         after = correct(t, after, -d_i, a, nu, c0)
         transmitted = correct(t, transmitted, -d_t, a, nu, c0)
     return Waves(t=face, incident=_shifted(t, before, face - d_i / c0),
                  reflected=_shifted(t, after, face + d_i / c0),
-                 transmitted=_shifted(t, transmitted, face + d_t / c0))
+                 transmitted=_shifted(t, transmitted, face + d_t / c0), cut=tuple(cut))
 
 
 @dataclass

@@ -155,12 +155,15 @@ class FiniteRun:
 
     ``velocity`` (v_r, v_z) in m/s; ``wall`` 'film', 'dme' or 'penalty' (contact/plane.py) at
     z = ``z_wall`` (m), the penalty a stiffness in N/m or 'scaled' (beta = ``penalty_beta``
-    at every step); ``name`` the body's name in the fields."""
+    at every step), ``friction`` its Coulomb law (film and dme; contact/friction.py);
+    ``fixed_z``, ``fixed_r`` owned nodes held in z, in r; ``name`` the body's name in the
+    fields."""
 
     def __init__(self, mesh: dmesh.Mesh, material, settings: FiniteSettings,
                  velocity: tuple[float, float] = (0.0, 0.0), wall: str | None = None,
                  z_wall: float = 0.0, fixed_z: np.ndarray | None = None,
-                 penalty: float | str = "scaled", penalty_beta: float = 1.0, name: str = "body"):
+                 penalty: float | str = "scaled", penalty_beta: float = 1.0, name: str = "body",
+                 friction=None, fixed_r: np.ndarray | None = None):
         require(mesh.topology.cell_type == dmesh.CellType.quadrilateral,
                 f"the mesh's cells are {mesh.topology.cell_type.name}s: "
                 f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
@@ -183,6 +186,8 @@ class FiniteRun:
         fixed = model.axis_dofs()
         if fixed_z is not None:
             fixed = np.concatenate([fixed, 2 * np.asarray(fixed_z, dtype=np.int32) + 1])
+        if fixed_r is not None:  # (u_r = 0 on these nodes too: a face held in r and z)
+            fixed = np.concatenate([fixed, 2 * np.asarray(fixed_r, dtype=np.int32)])
         self.step_policy = FollowingStep(None, s.t_end, s.dt, s.safety, s.dt_interval)
         self.integrator = integ = Integrator(model, None, fixed, policy=self.step_policy)
         self.force = integ.finite[0]
@@ -210,7 +215,7 @@ class FiniteRun:
             self.wall = FixedPlane(self.comm, boundary_nodes(self.V, self.n_owned_nodes),
                                    self.node_xy, model.offset, self.mass, self.u_owned, self.v,
                                    wall, z_wall, penalty=penalty, beta_target=penalty_beta,
-                                   length=length)
+                                   length=length, friction=friction, fixed=fixed)
         self.name = name
         self.status = "set up"
         self.signal = 0
@@ -574,6 +579,8 @@ class FiniteRun:
                 summary["wall"]["penalty"] = self.wall.penalty
                 summary["wall"]["beta_max"] = getattr(self, "beta_max", None)
                 summary["wall"]["beta_bound"] = 4.0 / 3.0
+            if getattr(self.wall, "friction", None) is not None:  # D, L_t (J), peak force (N)
+                summary["wall"].update(self.wall.friction.summary())
         summary.update(provenance())
         summary["setup_time"] = dict(getattr(self, "setup_time", {}))
         if timers is not None and timers.n_steps > 0:

@@ -12,8 +12,9 @@ variable step re-estimated every ``dt_interval`` steps) and holds, for now:
   Hencky elasticity, linear hardening, rate-independent; ``"johnson_cook"``;
   ``"neo_hookean"``) or a class of one's own with ``strain = "finite"``
   (the kinematics is checked with the materials, :mod:`.scene_materials`);
-* optionally a ``[wall]``: the rigid frictionless plane z (m, default 0, at or
-  below the bar) with ``method`` = "film", "dme" or "penalty" and, for
+* optionally a ``[wall]``: the rigid plane z (m, default 0, at or below the bar),
+  frictionless or with ``friction`` (film and dme: contact/friction.py), with
+  ``method`` = "film", "dme" or "penalty" and, for
   penalty, ``penalty`` = a stiffness in N/m or "scaled" (the default: beta = 1
   at every step); a stiffness whose beta = p dt^2 / m exceeds 4/3 is refused
   unless forced (contact/plane.py); ``face`` = "contact" (default: every boundary
@@ -105,10 +106,11 @@ def check_kind(scene) -> None:
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
         raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
                          f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
-    if scene.wall is not None and scene.wall.friction is not None:
-        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: not built for a "
-                         "finite-strain body yet (built: a small-strain wall, node pairs and "
-                         "rigid faces, with film or dme)")
+    if scene.wall is not None and scene.wall.friction is not None \
+            and scene.wall.method == "penalty":
+        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
+                         "tangential spring is not built for a finite-strain body (use method "
+                         "= \"film\" or \"dme\")")
     for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
                       ("loads", "[[loads]]"), ("fixed", "[[fixed]]"), ("probes", "[[probes]]")):
         if getattr(scene, key):
@@ -186,7 +188,7 @@ def build(scene, overrides: dict[str, Any] | None = None, comm: MPI.Comm = MPI.C
         run = FiniteRun(mesh, material, settings, velocity=body.velocity,
                         wall=wall.method if wall else None, z_wall=wall.z if wall else 0.0,
                         penalty=wall.penalty if wall else "scaled", name=body.name,
-                        fixed_z=held)
+                        fixed_z=held, friction=wall.friction if wall else None)
     if wall is not None:
         # a held face stops at t = 0 (FiniteRun zeroes its u_z velocity): that loss is
         # outside the run's ledger, which starts from the rest of the bar

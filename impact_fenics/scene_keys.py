@@ -242,9 +242,10 @@ _FRICTION = Key("friction", "friction", "-", 0.0, "Coulomb friction: a coefficie
         "slip at all) or {static, dynamic, decay} (mu = dynamic + (static - dynamic) "
         "exp(-decay |w_t|), decay in s/m, w_t the previous step's slip speed)", default_text="0 "
         "(frictionless)", note="Built for film, dme and penalty on node pairs, a rigid face (not a button) "
-        "and a small-strain wall, and for film and dme on node to segment (a curved "
-        "master by the Tresca iteration, with e = 0); refused in one line elsewhere (the "
-        "penalty on node to segment, re-pairing, a finite-strain wall). "
+        "and a small-strain wall, for film and dme on node to segment (a curved "
+        "master by the Tresca iteration, with e = 0) and on a finite-strain wall; refused in "
+        "one line elsewhere (the penalty on node to segment and on a finite-strain wall, "
+        "re-pairing). "
         "[friction.md](friction.md).")
 _TANGENTIAL_PENALTY = Key("tangential_penalty", "stiffness", "N/m", "scaled", "penalty with "
                           "friction: the tangential spring k_t", choices=("scaled",),

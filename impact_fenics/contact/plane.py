@@ -84,11 +84,13 @@ class _Host:
     (``offset``) and their number, the communicator, the step's start time and index."""
 
     def __init__(self, comm: MPI.Comm, offset: int, mass: np.ndarray, u_owned: np.ndarray,
-                 v_owned: np.ndarray, dt: float):
+                 v_owned: np.ndarray, dt: float, fixed: np.ndarray | None = None):
         self.model = self  # (comm, offset, n_owned: what the gather reads of a model)
         self.comm, self.offset, self.n_owned = comm, int(offset), int(mass.size)
         self.mass, self.u_owned, self.v_owned = mass, u_owned, v_owned
         self.dt, self.t, self.n = float(dt), 0.0, 0
+        fixed = np.zeros(0, dtype=np.int64) if fixed is None else np.asarray(fixed, np.int64)
+        self.fixed = fixed[fixed < self.n_owned]  # owned dofs held by the body (the axis's r)
 
 
 class FixedPlane:
@@ -103,7 +105,8 @@ class FixedPlane:
     def __init__(self, comm: MPI.Comm, nodes: np.ndarray, node_xy: np.ndarray, offset: int,
                  mass: np.ndarray, u_owned: np.ndarray, v_owned: np.ndarray, method: str = "dme",
                  z_wall: float = 0.0, penalty: float | str = "scaled", beta_target: float = 1.0,
-                 dt: float = 1.0, length: float = 1.0):
+                 dt: float = 1.0, length: float = 1.0, friction=None,
+                 fixed: np.ndarray | None = None):
         if method not in METHODS:
             raise InputError(f"wall method = '{method}': use one of {', '.join(METHODS)}")
         if isinstance(penalty, str) and penalty != "scaled":
@@ -117,14 +120,30 @@ class FixedPlane:
         self.nodes = np.ascontiguousarray(nodes, dtype=np.int64)
         self.mass = mass[2 * self.nodes + 1].copy()  # kg, the owned candidates'
         cons = plane_below(comm, self.nodes, node_xy, offset, self.z_wall, length)
+        self._xy = node_xy[self.nodes].copy()  # m, the candidates' reference (r, z)
+        self._node_r = np.array(node_xy[:, 0])  # m, every local node's reference r
         chosen = {"film": lambda: FILM("fast"), "dme": lambda: DME(),
                   "penalty": lambda: Penalty(penalty, beta_target=beta_target)}[method]()
-        self._host = _Host(comm, offset, mass, u_owned, v_owned, dt)
+        self._host = _Host(comm, offset, mass, u_owned, v_owned, dt, fixed)
         self.set = ContactSet(cons, self._host, chosen, wall_part())
+        if friction is not None:
+            if method == "penalty":
+                raise InputError("[wall] friction with method = \"penalty\": the tangential "
+                                 "spring is not built for a finite-strain body (use film or dme)")
+            self.set.set_friction(friction)
+        self.friction = self.set.friction  # the tangential pass (contact/friction.py) or None
         self.set.initialize()
         from ..jit_watch import load
 
         load(kinetic_share, self.set._local, self.set._pos, mass, 1.0, *self._share_rows())
+        if self.friction is not None:
+            # the r slots' masses as they are (the pass keeps inf on a held r dof, which
+            # the kinetic share would multiply by its zero velocity change)
+            f = self.friction
+            self._r_mass = np.ones(f.mass.size)
+            f._gather(mass, mass, self._r_mass[:self.set.n_deformable],
+                      np.empty(self.set.n_deformable))
+            load(kinetic_share, f._local, f._pos, mass, 1.0, *self._r_share_rows())
         self.contact_loss_local = 0.0  # J, energy the plane took (cumulative, this rank)
         self.spring_energy_local = 0.0  # J, 1/2 p g~^2 of the active nodes (penalty)
         self.n_active_local = 0
@@ -133,6 +152,10 @@ class FixedPlane:
     def _share_rows(self) -> tuple:
         c = self.set
         return c.mass, c.u_pred, c.v_pred, c.v_now, c.b, c.lo, c.up, c.p, c.active
+
+    def _r_share_rows(self) -> tuple:
+        c, f = self.set, self.friction
+        return (self._r_mass, f.u_pred, f.v_pred, f.v_now, c.b, c.lo, c.up, c.p, c.active[:0])
 
     def beta_max_local(self, dt: float, dt_avg: float) -> float:
         """Largest beta_i = p_i dt dt_avg / m_i (-) of a penalty plane (0 for another
@@ -155,8 +178,30 @@ class FixedPlane:
         c.step()
         self._host.n += 1
         taken, w_fix, n, force, spring = c.kinetic_share(f_int)
+        if self.friction is not None:  # the r slots' share: the tangential pass's
+            f = self.friction
+            taken_r, w_fix_r, _, _, _ = kinetic_share(f._local, f._pos, f_int, dt_avg,
+                                                      *self._r_share_rows())
+            taken += taken_r
+            w_fix += w_fix_r
         self.contact_loss_local += taken
         self.spring_energy_local = spring
         self.n_active_local = n
         self.force_local = force
         return w_fix
+
+    def contact_radius(self, u: np.ndarray) -> float:
+        """The current r (m) of the outermost node in contact (active on the plane) over all
+        ranks, from the owned displacement ``u`` (m); 0 with none."""
+        c = self.set
+        z_dofs = c._local[c.active[c._pos]]  # owned z dofs of the active constraints
+        r = self._node_r[(z_dofs - 1) // 2] + u[z_dofs - 1]
+        return self._host.comm.allreduce(float(r.max(initial=0.0)), op=MPI.MAX)
+
+    def foot_radius(self, u: np.ndarray, h: float) -> float:
+        """The largest current r (m) of any candidate node within ``h`` (m) of the plane
+        (z - z_wall <= h) over all ranks, from the owned displacement ``u`` (m)."""
+        z = self._xy[:, 1] + u[2 * self.nodes + 1] - self.z_wall
+        r = self._xy[:, 0] + u[2 * self.nodes]
+        near = r[z <= h]
+        return self._host.comm.allreduce(float(near.max(initial=0.0)), op=MPI.MAX)

@@ -12,12 +12,15 @@ Also: the command writes shpb.csv and its pictures into the run and adds them to
 run's manifest (a later run may replace them; a second analysis replaces its own), it
 refuses a file of that name it did not write, and bad input is one line, exit 2.
 """
+import json
 import math
 import os
 
 import numpy as np
 import pytest
 from mpi4py import MPI
+
+from impact_fenics import rundir
 
 from scene_texts import ROOT, launch, replace, scene_on_every_rank
 
@@ -111,7 +114,6 @@ def test_the_equilibrium_time_and_the_time_split(matched_run):
 
 def test_the_analysis_is_recorded_in_the_run_and_replaces_only_its_own(matched_run):
     out, _ = matched_run
-    from impact_fenics import rundir
     from impact_fenics.shpb import run_analysis
 
     comm = MPI.COMM_WORLD
@@ -142,7 +144,7 @@ def test_a_file_it_did_not_write_is_refused(matched_run, tmp_path):
             assert f.read() == "my own notes\n"
 
 
-@pytest.mark.parametrize("case", ["missing", "not_shpb", "no_gauge"])
+@pytest.mark.parametrize("case", ["missing", "not_shpb", "no_gauge", "interrupted"])
 def test_bad_input_is_one_line(matched_run, tmp_path, case):
     import shutil
 
@@ -151,8 +153,15 @@ def test_bad_input_is_one_line(matched_run, tmp_path, case):
         return
     target = str(tmp_path / "run")
     expected = {"missing": "does not exist", "not_shpb": "is not an SHPB scene",
-                "no_gauge": "no strain_gauge probe named 'transmitter_gauge'"}[case]
-    if case != "missing":
+                "no_gauge": "no strain_gauge probe named 'transmitter_gauge'",
+                "interrupted": "is interrupted by SIGINT: its records end early"}[case]
+    if case == "interrupted":  # a run stopped by Ctrl-C: its marker says so
+        shutil.copytree(out, target)
+        marker = rundir.read_marker(target)
+        marker["status"] = "interrupted by SIGINT"
+        with open(os.path.join(target, rundir.MARKER), "w") as f:
+            json.dump(marker, f)
+    elif case != "missing":
         shutil.copytree(out, target)
         path = os.path.join(target, "scene.toml")
         with open(path) as f:

@@ -274,7 +274,12 @@ def time_split(run_dir: str) -> tuple[float, float] | None:
 
 def analyse_run(run_dir: str, dispersion: bool = False) -> Result:
     """Read and analyse the run in ``run_dir`` (nothing written)."""
+    from ..rundir import read_marker
+
     _need(os.path.isdir(run_dir), f"shpb: run directory '{run_dir}' does not exist")
+    status = (read_marker(run_dir) or {}).get("status", "completed")
+    _need(not isinstance(status, str) or status.startswith("completed"),
+          f"shpb: the run in '{run_dir}' is {status}: its records end early (run it to the end)")
     h = read_history(run_dir)
     setup = read_setup(run_dir, list(h))
     rows = uniform(h["time"])

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study study-taylor study-shpb docs clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor study-shpb study-upsetting docs clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -49,6 +49,11 @@ study-taylor: setup
 # (tests/test_shpb_study.py, docs/shpb.md; a few minutes on 2 cores)
 study-shpb: setup
 	N=$(NP) PY=$(PY) scripts/mpi_pytest.sh tests/test_shpb_study.py -m study -q -s
+
+# upsetting with Coulomb friction (small strain) against the slab estimate
+# (tests/test_upsetting_study.py, docs/friction.md; a few minutes on one core)
+study-upsetting: setup
+	$(PY) -m pytest tests/test_upsetting_study.py -m study -q -s
 
 # the generated pages: docs/scenes.md from the scene reader's table of keys, and
 # docs/performance.md from docs/bench.json (BENCH=results/bench.json takes a new benchmark

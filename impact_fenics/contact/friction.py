@@ -135,6 +135,15 @@ def _coefficient(mu_s, mu_d, decay, w_prev):
 
 
 @njit(cache=True)
+def _return_to_cone(trial, cap):
+    """Coulomb's return: the trial tangential force (N) where |trial| <= cap = μ λ_n (stick,
+    state 1), else cap sign(trial) on the cone (slip, state 2)."""
+    if abs(trial) <= cap:
+        return trial, 1
+    return (cap if trial > 0.0 else -cap), 2
+
+
+@njit(cache=True)
 def film_tangential(lo, up, active, force, a_inv, h_over_m, h, mu_s, mu_d, decay, stick,
                     v_now, u, v, lam, state):
     """FILM's tangential pass on the predicted r state (u, v; m, m/s) of the tangential
@@ -157,12 +166,7 @@ def film_tangential(lo, up, active, force, a_inv, h_over_m, h, mu_s, mu_d, decay
             state[i] = 1
         else:
             c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
-            if abs(lam_star) <= c:
-                f = lam_star
-                state[i] = 1
-            else:
-                f = c if lam_star > 0.0 else -c
-                state[i] = 2
+            f, state[i] = _return_to_cone(lam_star, c)
         lam[i] = f
         dv_q = f * h_over_m[q]
         dv_p = f * h_over_m[p]
@@ -198,22 +202,18 @@ def dme_tangential(lo, up, active, force, mass, m_over_h, h_over_m, h, mu_s, mu_
             v_star = (mass[p] * v[p] + mass[q] * v[q]) / (mass[p] + mass[q])
         lam_star = (m_over_h[q] * (v_star - v[q]) if free_q else
                     m_over_h[p] * (v[p] - v_star))
-        if stick:
-            sticks = True
-        else:
-            c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
-            sticks = abs(lam_star) <= c
-        if sticks:
-            lam[i] = lam_star
-            state[i] = 1
+        f, st = lam_star, 1
+        if not stick:
+            f, st = _return_to_cone(lam_star,
+                                    _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn)
+        lam[i] = f
+        state[i] = st
+        if st == 1:
             if free_p:
                 v[p] = v_star
             if free_q:
                 v[q] = v_star
         else:
-            f = c if lam_star > 0.0 else -c
-            lam[i] = f
-            state[i] = 2
             if free_q:
                 v[q] += f * h_over_m[q]
             if free_p:
@@ -255,13 +255,9 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
             state[i] = 1
         else:
             c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
-            if abs(trial) <= c:
-                f = trial
-                state[i] = 1
-            else:
-                f = c if trial > 0.0 else -c
+            f, state[i] = _return_to_cone(trial, c)
+            if state[i] == 2:
                 dsp = (f - trial) / k_t[i]  # -(|trial| - c) sign(trial) / k_t
-                state[i] = 2
                 d_slip[i] = c * abs(dsp)
                 ret += 0.5 * k_t[i] * dsp * dsp
         lam[i] = f
@@ -323,7 +319,30 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
 
 # ----------------------------------------------------------------------------- the pass
 
-class Tangential:
+class FrictionFigures:
+    """What a tangential pass reports from its ``stats`` and ``law``: D, L_t and the peak
+    tangential force (the node-pair and the segment passes alike)."""
+
+    stats: np.ndarray
+    law: FrictionLaw
+
+    @property
+    def slip_work(self) -> float:
+        """D (J) so far: Σ h_n |λ_t| |w_t^{n+1/2}| >= 0."""
+        return float(self.stats[SLIP_WORK])
+
+    @property
+    def tangential_loss(self) -> float:
+        """L_t (J) so far: -W_t - D, the tangential arrival loss."""
+        return float(self.stats[T_LOSS])
+
+    def figures(self) -> dict:
+        """The law, D and L_t (J), the peak |Σ λ_t| (N)."""
+        return {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
+                "tangential_loss": self.tangential_loss,
+                "peak_tangential_force": float(self.stats[T_PEAK])}
+
+class Tangential(FrictionFigures):
     """The tangential slots and pass of a node-pair or rigid-face contact set ``c``
     (:class:`~.interface.ContactSet`) with friction ``law`` (a :class:`FrictionLaw`, not
     zero); ``kernel`` FILM_T, DME_T or PENALTY_T, the last with the tangential
@@ -483,21 +502,9 @@ class Tangential:
         """(name, index into ``stats``) of the set's history columns."""
         return HISTORY + (PENALTY_HISTORY if self.kernel == PENALTY_T else ())
 
-    @property
-    def slip_work(self) -> float:
-        """D (J) so far: Σ h_n |λ_t| |w_t^{n+1/2}| >= 0."""
-        return float(self.stats[SLIP_WORK])
-
-    @property
-    def tangential_loss(self) -> float:
-        """L_t (J) so far: -W_t - D, the tangential arrival loss."""
-        return float(self.stats[T_LOSS])
-
     def summary(self) -> dict:
         """The run's friction figures: the law, D and L_t (J), the peak |Σ λ_t| (N)."""
-        out = {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
-               "tangential_loss": self.tangential_loss,
-               "peak_tangential_force": float(self.stats[T_PEAK])}
+        out = self.figures()
         if self.kernel == PENALTY_T:
             out.update(return_loss=float(self.stats[RETURN_LOSS]),
                        spring_energy=float(self.stats[STORED]), beta_t_max=self.beta_max,

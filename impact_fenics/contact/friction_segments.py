@@ -46,7 +46,7 @@ from ..errors import InputError
 from ..plausibility import warn
 from .banded import band_factor, band_matvec, band_of_s, band_solve, bandwidth, gap_of
 from .friction import HISTORY, N_SLIP, N_STICK, SLIP_WORK, T_FORCE, T_LOSS, T_PEAK, \
-    FrictionLaw, _coefficient
+    FrictionFigures, FrictionLaw, _coefficient
 
 OFF, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # a row's set: λ_t = 0, free, +c, -c
 COUPLING_TOL = 1e-12  # |G M^-1 T'| against the largest |G M^-1 G'|: round-off of the normals
@@ -235,7 +235,7 @@ def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_pre
     return work
 
 
-class SegmentTangential:
+class SegmentTangential(FrictionFigures):
     """The tangential pass of a node-to-segment set ``c`` (FILM or DME) with friction
     ``law`` (not zero). Made by ``ContactSet.set_friction``; :meth:`step` runs between
     the method's normal correction and the set's commit."""
@@ -391,22 +391,10 @@ class SegmentTangential:
     # outputs (as friction.Tangential's)
     history_columns = HISTORY
 
-    @property
-    def slip_work(self) -> float:
-        """D (J) so far: Σ h_n |λ_t| |w_t^{n+1/2}| >= 0."""
-        return float(self.stats[SLIP_WORK])
-
-    @property
-    def tangential_loss(self) -> float:
-        """L_t (J) so far: -W_t - D."""
-        return float(self.stats[T_LOSS])
-
     def summary(self) -> dict:
         """The law, D and L_t (J), the peak |Σ λ_t| (N), the pivoting's largest count."""
-        out = {"friction": self.law.text().strip('"'), "slip_work": self.slip_work,
-               "tangential_loss": self.tangential_loss,
-               "peak_tangential_force": float(self.stats[T_PEAK]),
-               "tangential_iterations_max": int(self.info["tangential_iterations_max"])}
+        out = self.figures()
+        out["tangential_iterations_max"] = int(self.info["tangential_iterations_max"])
         if self.coupled:
             out.update({k: int(self.info[k]) for k in ("tresca_passes_max",
                                                         "tresca_passes_total",

@@ -267,7 +267,7 @@ def test_dme_collision_obeys_newton_momentum_and_energy(e):
 def test_film_holds_the_gap_and_keeps_momentum():
     c, n = _one_slave_set(0.6, (-0.2, 1.0), v_slave=(0.0, -2.0), v_master=(0.1, 0.0, 0.0, 0.3))
     c.apply_forces = lambda lam: apply_multipliers(lam, c.cs, c.cc, c.mass, c.free, c.dt, c.u,
-                                                   c.v)
+                                                   c.v, c.dt)
     v0 = c.v.copy()
     m = FILM()
     m.setup(c)

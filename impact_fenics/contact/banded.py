@@ -36,8 +36,9 @@ def gap_of(g0, cs, cc, u, out):
 
 
 @njit(cache=True)
-def apply_multipliers(lam, cs, cc, mass, free, dt, u, v):
-    """Forces G' lam (N) over one step: v += dt M^-1 G' lam, u += dt (that change)."""
+def apply_multipliers(lam, cs, cc, mass, free, dt, u, v, dt_u):
+    """Forces G' lam (N) over one step: v += dt M^-1 G' lam, u += dt_u (that change)
+    (dt_u = dt at a constant step; the tangential pass: dt = h_n, dt_u = h_{n+1/2})."""
     for i in range(lam.size):
         f = lam[i]
         if f == 0.0:
@@ -47,7 +48,7 @@ def apply_multipliers(lam, cs, cc, mass, free, dt, u, v):
             if free[s] and cc[i, k] != 0.0:
                 dv = dt * (cc[i, k] * f) / mass[s]
                 v[s] += dv
-                u[s] += dt * dv
+                u[s] += dt_u * dv
 
 
 @njit(cache=True)

@@ -175,7 +175,7 @@ class FILM:
         if not is_banded(c):
             return []
         return self.pivoting.kernel_calls(c.gap) + [
-            (apply_multipliers, (c.force, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v))]
+            (apply_multipliers, (c.force, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v, c.dt))]
 
     def correct(self, c) -> None:
         if is_banded(c):

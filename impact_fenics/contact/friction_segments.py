@@ -44,7 +44,8 @@ from numba import njit
 
 from ..errors import InputError
 from ..plausibility import warn
-from .banded import band_factor, band_matvec, band_of_s, band_solve, bandwidth, gap_of
+from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, band_solve, \
+    bandwidth, gap_of
 from .friction import HISTORY, N_SLIP, N_STICK, SLIP_WORK, T_FORCE, T_LOSS, T_PEAK, \
     FrictionFigures, FrictionLaw, _coefficient
 
@@ -189,27 +190,13 @@ def _caps(active, force, no_free, mu_s, mu_d, decay, stick, w_prev, cap, state):
 
 
 @njit(cache=True)
-def _apply_tangential(lam, cs, ct, mass, free, h, h_avg, u, v):
-    """v += h_n M^-1 T' λ, u += h_{n+1/2} (that change)."""
-    for i in range(lam.size):
-        f = lam[i]
-        if f == 0.0:
-            continue
-        for k in range(cs.shape[1]):
-            s = cs[i, k]
-            if free[s] and ct[i, k] != 0.0:
-                dv = h_avg * (ct[i, k] * f) / mass[s]
-                v[s] += dv
-                u[s] += h * dv
-
-
-@njit(cache=True)
 def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_prev, w_next,
                     stats, apply):
-    """With ``apply``, :func:`_apply_tangential`; then the stats of the step (Σ λ_t,
-    counts, D and L_t cumulative, the peak) on λ and the corrected v. Returns W_t (J)."""
+    """With ``apply``, v += h_n M^-1 T' λ and u += h_{n+1/2} (that change)
+    (``banded.apply_multipliers``); then the stats of the step (Σ λ_t, counts, D and L_t
+    cumulative, the peak) on λ and the corrected v. Returns W_t (J)."""
     if apply:
-        _apply_tangential(lam, cs, ct, mass, free, h, h_avg, u, v)
+        apply_multipliers(lam, cs, ct, mass, free, h_avg, u, v, h)
     _tangential_gaps(cs, ct, v_now, w_prev)
     _tangential_gaps(cs, ct, v, w_next)
     total = 0.0
@@ -288,7 +275,7 @@ class SegmentTangential(FrictionFigures):
         load(_caps, *self._caps_args())
         load(box_bpp, *self._box_args())
         load(_apply_and_book, *self._apply_args(), True)
-        load(_apply_tangential, self.lam, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+        load(apply_multipliers, self.lam, c.cs, self.ct, c.mass, c.free, c.h_avg, c.u, c.v, c.dt)
 
     def _caps_args(self) -> tuple:
         c, law = self.c, self.law
@@ -347,7 +334,7 @@ class SegmentTangential(FrictionFigures):
             self.wt -= self.aw
             self._box()
             np.subtract(self.lam, applied, out=delta)
-            _apply_tangential(delta, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+            apply_multipliers(delta, c.cs, self.ct, c.mass, c.free, c.h_avg, c.u, c.v, c.dt)
             applied[:] = self.lam
             if passes > 1:
                 scale_t = np.abs(self.lam).max(initial=0.0)
@@ -366,7 +353,7 @@ class SegmentTangential(FrictionFigures):
             # the normal problem again, the tangential forces in its prediction
             c.u[:] = c.u_pred
             c.v[:] = c.v_pred
-            _apply_tangential(applied, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v)
+            apply_multipliers(applied, c.cs, self.ct, c.mass, c.free, c.h_avg, c.u, c.v, c.dt)
             gap_of(c.g0, c.cs, c.cc, c.u, c.gap)
             self._v_pred_saved[:] = c.v_pred
             c.v_pred[:] = c.v  # DME's velocity problem reads its prediction here

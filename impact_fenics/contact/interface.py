@@ -683,7 +683,7 @@ class ContactSet:
         """Apply compressive contact forces (N) to the predicted state."""
         if self.kind == SEGMENTS:
             apply_multipliers(force, self.cs, self.cc, self.mass, self.free, self.dt, self.u,
-                              self.v)
+                              self.v, self.dt)
             return
         apply_forces(force, self.lo, self.up, self.dt_over_m, self.dt, self.u, self.v)
 

@@ -212,4 +212,4 @@ def _penalty_banded(gap, p, force, active, cs, cc, mass, free, dt, u, v):
     for i in range(gap.size):
         active[i] = gap[i] < 0.0
         force[i] = -p[i] * gap[i] if active[i] else 0.0
-    apply_multipliers(force, cs, cc, mass, free, dt, u, v)
+    apply_multipliers(force, cs, cc, mass, free, dt, u, v, dt)

@@ -190,6 +190,21 @@ def _caps(active, force, no_free, mu_s, mu_d, decay, stick, w_prev, cap, state):
 
 
 @njit(cache=True)
+def _settled(lam, lam_last, force, force_last, state, state_last, active, active_last):
+    """The Tresca iteration has settled: the sets repeat and λ_t, λ_n (N) changed by at most
+    1e-13 of the largest |λ| of the pass."""
+    scale = 0.0
+    for i in range(lam.size):
+        scale = max(scale, abs(lam[i]), abs(force[i]))
+    tol = 1e-13 * scale
+    for i in range(lam.size):
+        if (state[i] != state_last[i] or active[i] != active_last[i]
+                or abs(lam[i] - lam_last[i]) > tol or abs(force[i] - force_last[i]) > tol):
+            return False
+    return True
+
+
+@njit(cache=True)
 def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_prev, w_next,
                     stats, apply):
     """With ``apply``, v += h_n M^-1 T' λ and u += h_{n+1/2} (that change)
@@ -266,6 +281,12 @@ class SegmentTangential(FrictionFigures):
         band_of_s(c.cs, self.ct, c.minv, np.sqrt(c.h_avg), self.bw, self.band)
         self.no_free = self.band[:, 0] <= 0.0  # a row moving no free slot: λ_t = 0
         self.factored[-1] = False
+        self._bind()
+
+    def _bind(self) -> None:
+        """The kernels' argument tuples, made once per step size (none in the loop)."""
+        self._caps_call, self._box_call = self._caps_args(), self._box_args()
+        self._apply_call = self._apply_args()
 
     def initialize(self) -> None:
         from ..jit_watch import load
@@ -276,6 +297,9 @@ class SegmentTangential(FrictionFigures):
         load(box_bpp, *self._box_args())
         load(_apply_and_book, *self._apply_args(), True)
         load(apply_multipliers, self.lam, c.cs, self.ct, c.mass, c.free, c.h_avg, c.u, c.v, c.dt)
+        load(_settled, self.lam, self.lam_last, c.force, self.force_last, self.state,
+             self.state_last, c.active, self.active_last)
+        self._bind()
 
     def _caps_args(self) -> tuple:
         c, law = self.c, self.law
@@ -294,9 +318,9 @@ class SegmentTangential(FrictionFigures):
     def _box(self) -> None:
         """The box problem on the caps of c.force and self.wt: λ_t into self.lam."""
         c = self.c
-        _caps(*self._caps_args())
+        _caps(*self._caps_call)
         if np.any(self.state):
-            it = box_bpp(*self._box_args())
+            it = box_bpp(*self._box_call)
             if it < 0:
                 raise RuntimeError(f"friction: the stick-set pivoting did not converge in "
                                    f"{self.max_iter} iterations ({c.n} constraints)")
@@ -318,7 +342,7 @@ class SegmentTangential(FrictionFigures):
         if not self.coupled:
             _tangential_gaps(c.cs, self.ct, c.v, self.wt)
             self._box()
-            return _apply_and_book(*self._apply_args(), True)
+            return _apply_and_book(*self._apply_call, True)
         return self._tresca()
 
     def _tresca(self) -> float:
@@ -337,13 +361,8 @@ class SegmentTangential(FrictionFigures):
             apply_multipliers(delta, c.cs, self.ct, c.mass, c.free, c.h_avg, c.u, c.v, c.dt)
             applied[:] = self.lam
             if passes > 1:
-                scale_t = np.abs(self.lam).max(initial=0.0)
-                scale_n = np.abs(c.force).max(initial=0.0)
-                tol = 1e-13 * max(scale_t, scale_n)
-                settled = (np.array_equal(self.state, self.state_last)
-                           and np.array_equal(c.active, self.active_last)
-                           and np.abs(self.lam - self.lam_last).max(initial=0.0) <= tol
-                           and np.abs(c.force - self.force_last).max(initial=0.0) <= tol)
+                settled = _settled(self.lam, self.lam_last, c.force, self.force_last,
+                                   self.state, self.state_last, c.active, self.active_last)
             if settled or passes == TRESCA_PASSES or not np.any(self.lam):
                 break
             self.lam_last[:] = self.lam
@@ -373,7 +392,7 @@ class SegmentTangential(FrictionFigures):
                      f"did not settle in {TRESCA_PASSES} passes at step {c.integrator.n} "
                      f"(residual penetration {max(-gap, 0.0):.3g} m); counted in the summary",
                      c.comm)
-        return _apply_and_book(*self._apply_args(), False)
+        return _apply_and_book(*self._apply_call, False)
 
     # outputs (as friction.Tangential's)
     history_columns = HISTORY

@@ -241,17 +241,18 @@ _RIGID = Section("rigid", "[rigid.NAME]", (
 _FRICTION = Key("friction", "friction", "-", 0.0, "Coulomb friction: a coefficient mu >= 0, \"stick\" (no "
         "slip at all) or {static, dynamic, decay} (mu = dynamic + (static - dynamic) "
         "exp(-decay |w_t|), decay in s/m, w_t the previous step's slip speed)", default_text="0 "
-        "(frictionless)", note="Built for film, dme and penalty on node pairs, a rigid face (not a button) "
-        "and a small-strain wall, for film and dme on node to segment (a curved "
-        "master by the Tresca iteration, with e = 0) and on a finite-strain wall; refused in "
-        "one line elsewhere (the penalty on node to segment and on a finite-strain wall, "
-        "re-pairing). "
+        "(frictionless)", note="Built for film, dme and penalty on node pairs, a rigid face (not a button), "
+        "a small-strain wall and node to segment (film and dme on a curved master by the "
+        "Tresca iteration, with e = 0; the penalty on a straight master), for film and dme "
+        "on a finite-strain wall; refused in one line elsewhere (the penalty on a curved "
+        "master and on a finite-strain wall, re-pairing). "
         "[friction.md](friction.md).")
 _TANGENTIAL_PENALTY = Key("tangential_penalty", "stiffness", "N/m", "scaled", "penalty with "
                           "friction: the tangential spring k_t", choices=("scaled",),
                           note="\"scaled\": beta_t = k_t h^2 (1/m_lo + 1/m_up) = 1 per row "
-                          "(the penalty's stick is FILM's); a stiffness whose beta_t passes "
-                          "4/3 is refused unless forced.")
+                          "(the penalty's stick is FILM's; node to segment: Gershgorin's "
+                          "bound of h^2 K^1/2 T M^-1 T' K^1/2 is 1); a stiffness whose beta_t "
+                          "passes 4/3 is refused unless forced.")
 
 _CONTACT = Section("contact", "[[contact]]", (
     "A contact between two facet groups, or between a facet group and a rigid body, "

@@ -14,7 +14,9 @@ normal multiplier would be tensile; the step is printed):
 * the contact run's extra loss is its activation loss: its contact work is
   -(E0 - E0_bonded), the energy the first step's merge takes, within the ledger's
   round-off (roundoff.ledger);
-* with μ = 0.3 instead, a pair slips (the bonded interface's shear is singular at the rim).
+* with μ = 0.3 instead, a pair slips (the bonded interface's shear is singular at the rim);
+* the penalty's stick (normal and tangential springs at beta) is FILM's at beta = 1 and
+  differs from it by a first-order term in |1 - beta| below (a halved sequence).
 """
 import numpy as np
 import pytest
@@ -22,7 +24,7 @@ from mpi4py import MPI
 
 from impact_fenics import meshing
 from impact_fenics.bodies import Body, DeformableModel
-from impact_fenics.contact import DME, FILM, pair_surfaces
+from impact_fenics.contact import DME, FILM, Penalty, pair_surfaces
 from impact_fenics.materials import STEEL, LinearElastic
 from impact_fenics.simulation import Settings, Simulation
 from roundoff import assert_within_spread, ledger, one_ulp
@@ -147,3 +149,77 @@ def test_finite_mu_slips_at_the_rim():
     at the rim, where the cone is cut first)."""
     h, _, _, masses = _contact_run(FILM(), 0.3)
     assert np.any(h["n_slip"] > 0)
+
+
+def _penalty_run(beta: float):
+    """The stick run with the penalty at beta: the normal spring scaled to beta
+    (Penalty(beta_target=beta), p = beta / d per pair) and the tangential one too (the
+    scaled k_t = m_red / (h h_n), beta_t = 1, times beta at every set_step)."""
+    orig_add = Simulation.add_contact
+
+    def add_contact(sim, *args, **kwargs):
+        c = orig_add(sim, *args, **kwargs)
+        set_friction = c.set_friction
+
+        def with_beta(*a, **k):
+            set_friction(*a, **k)
+            t = c.friction
+            set_step = t.set_step
+
+            def scaled_step():
+                set_step()
+                t.k_t *= beta  # in place: the kernels' bound arguments hold this array
+
+            t.set_step = scaled_step
+            scaled_step()
+
+        c.set_friction = with_beta
+        return c
+
+    Simulation.add_contact = add_contact
+    try:
+        return _contact_run(Penalty("scaled", beta_target=beta), "stick")
+    finally:
+        Simulation.add_contact = orig_add
+
+
+DELTAS = (0.4, 0.2, 0.1, 0.05)  # |1 - beta|, halved
+
+
+def test_penalty_bonding_converges_with_one_minus_beta():
+    """The penalty's stick (normal and tangential springs at beta <= 1) against exact
+    bonding (FILM's stick, which is the bonded bar: test_full_stick_is_bonding), up to the
+    step before FILM's first pair opens: at beta = 1 the penalty is FILM (p = 1 / d and
+    k_t = m_red / (h h_n) close the gap and the slip in one step), σ_zz at the two points
+    within the spread of a one-ulp change of v0; below it the largest difference of σ_zz
+    is first order in |1 - beta| (the springs' recurrences leave (1 - beta) of the step's
+    gap and slip). For δ = 0.4, 0.2, 0.1, 0.05 the observed order log2(d(2δ) / d(δ)) tends
+    to 1 with its excess over 1 falling (a δ + b δ^2: the excess is O(δ)); at the finest
+    pair it is within 0.1 of 1 (the δ^2 term's share at δ = 0.1, measured at about half
+    the excess of the pair before). No pair opens or slips in any of them."""
+    film, film_ulp = _contact_run(FILM(), "stick"), _contact_run(FILM(), "stick", one_ulp(V0))
+    h0, hu = film[0], film_ulp[0]
+    n_pairs = film[3][0].size
+    opened = np.flatnonzero(h0["n_active"] < n_pairs)
+    first = int(h0["step"][opened[0]]) if opened.size else int(h0["step"][-1]) + 1
+    keep = h0["step"] < first
+    n = int(keep.sum())
+    cols = ("szz_s", "szz_t")
+    scale = max(np.abs(h0[c][keep]).max() for c in cols)
+    h1 = _penalty_run(1.0)[0]
+    for c in cols:
+        assert_within_spread(h1[c][keep], h0[c][keep], hu[c][keep], n, c)
+    diffs = []
+    for delta in DELTAS:
+        h = _penalty_run(1.0 - delta)[0]
+        assert np.all(h["n_active"][keep] == n_pairs) and not np.any(h["n_slip"])
+        diffs.append(max(np.abs(h[c][keep] - h0[c][keep]).max() for c in cols) / scale)
+    orders = np.log2(np.array(diffs[:-1]) / np.array(diffs[1:]))
+    if COMM.rank == 0:
+        print("\npenalty bonding: |1 - beta| " + ", ".join(f"{d:g}" for d in DELTAS)
+              + "; max |Δσ_zz| / max |σ_zz| " + ", ".join(f"{d:.3e}" for d in diffs)
+              + "; observed orders " + ", ".join(f"{p:.3f}" for p in orders))
+    assert np.all(np.diff(diffs) < 0.0)
+    excess = orders - 1.0
+    assert np.all(excess > 0.0) and np.all(np.diff(excess) < 0.0)
+    assert excess[-1] <= 0.1

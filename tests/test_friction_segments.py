@@ -20,8 +20,14 @@ Oracles:
   solved by enumerating its sets, at every step with at most five candidate rows;
 * contact_pairs.h5 with friction: per pair the tangential force and the stick/slip flag,
   summing and counting to the history's columns;
+* the penalty (docs/friction.md 4) on node to segment: on matched faces it is the node
+  pairs' penalty (above); a block on an inclined straight face sticks below the cone
+  (s_e = -(1 - beta_t) F / k_t, beta_t = 1 and 0.5) and slides at the Coulomb limit
+  |λ_t| = μ λ_n above it, its slip speed, slide, slip work, return loss and tangential
+  work in closed form, the energy balance closing; on non-matching faces the cone holds
+  exactly, the plastic slip opposes the force and is zero in stick, the ledger closes;
 * the refusals of what is not built, one line each: a curved master with restitution
-  e > 0, the penalty on node to segment.
+  e > 0, the penalty on a curved master, a tangential stiffness past the bound.
 """
 from __future__ import annotations
 
@@ -36,6 +42,8 @@ from impact_fenics import cli
 from impact_fenics.contact.banded import band_of_s, bandwidth, dense_s
 from impact_fenics.contact.friction_segments import (OFF, SLIP_DOWN, SLIP_UP, STICK,
                                                      box_bpp)
+from impact_fenics.contact.friction import N_SLIP, N_STICK, RETURN_LOSS, STORED
+from impact_fenics.errors import InputError
 from roundoff import assert_within_spread, ledger, one_ulp, rounding
 from test_friction import SCENE, _run
 
@@ -111,12 +119,15 @@ def tmp(tmp_path_factory):
 
 
 @pytest.mark.parametrize("law", ["0.3", '"stick"'])
-@pytest.mark.parametrize("method", ["film", "dme"])
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
 def test_matched_faces_equal_node_pairs(tmp, method, law):
     """Node to segment on matched faces (each slave on a master node, xi = 0 or 1, a flat
     face: A diagonal, the rows decoupled) is node pairs with friction: every column within
     the steps x the spread of a one-ulp change of v0 of the pair run; the same stick and
-    slip counts; its ledger closes."""
+    slip counts; its ledger closes. The penalty too (scaled, normal and tangential): with
+    A diagonal, Gershgorin's bound of h h_n K^1/2 T M^-1 T' K^1/2 is its diagonal, the
+    node pairs' beta_t = k_t h h_n (1/m_s + 1/m_m), so the scaled k_t is theirs and the
+    bound is theirs, 4/3; its return loss and spring energy agree too."""
     f = f"friction = {law}"
     tag = f"{method}_{'stick' if 'stick' in law else 'mu'}"
     hp, ep = _run(tmp, f"pairs_{tag}", SCENE.format(method=method, friction=f, v0=5.0))
@@ -130,7 +141,9 @@ def test_matched_faces_equal_node_pairs(tmp, method, law):
     # merge gives w⁺ = 0 exactly and the band solve its round-off, so the step's roundings
     # are those of terms of size h |Σ λ_t| 2 v0, not of the (zero) column
     work = hp["dt"][0] * np.abs(hp["tangential_force"]).max() * 2 * 5.0
-    for col in ("slip_work", "tangential_loss"):
+    cols = ("slip_work", "tangential_loss") + (
+        ("return_loss", "spring_energy") if method == "penalty" else ())
+    for col in cols:
         assert_within_spread(hs[col], hp[col], hu[col], n, col,
                              max(work, np.abs(hp[col]).max()))
     assert np.array_equal(hs["n_stick"], hp["n_stick"])
@@ -254,6 +267,56 @@ def test_nonmatching_dme_equals_film(tmp):
     assert np.any(hf["n_slip"] > 0)
 
 
+def test_nonmatching_flat_faces_penalty(tmp):
+    """The penalty with μ = 0.3 on the 3:2 flat faces (slaves share master nodes: A is
+    banded): the scaled k_t puts Gershgorin's bound of h h_n K^1/2 A K^1/2 at 1 (the
+    coupled rows lower each k_t below 1 / (h A_ii)); at every step and loaded row the cone
+    holds exactly (the clip returns c), a row on it has a plastic slip opposing its force
+    (λ_t Δs_p <= 0) and a row inside it none (Δs_p = 0 exactly); the ledger closes and the
+    slip work and the return loss never fall."""
+    from impact_fenics.scene_file import build, read_scene
+
+    out = os.path.join(tmp, "nonmatching_penalty")
+    text = NONMATCHING.format(method="penalty", friction="friction = 0.3", v0=5.0).replace(
+        "[output]\n", f'[output]\ndir = "{out}"\n')
+    path = os.path.join(tmp, "nonmatching_penalty.toml")
+    if COMM.rank == 0:
+        with open(path, "w") as fh:
+            fh.write(text)
+    COMM.barrier()
+    sim = build(read_scene(path))
+    c = sim.contacts[0]
+    f = c.friction
+    assert c.bw > 0 and f.penalty
+    assert abs(f.beta_max - 1.0) <= rounding(4 * (f.bw + 1))
+    a = f.band[:, 0]
+    assert np.all(f.k_t[a > 0] < 1.0 / (c.dt * a[a > 0]))  # the coupling lowers each k_t
+    step, seen = f.step, {"stick": 0, "slip": 0}
+
+    def checked():
+        w_t = step()
+        on = f.state != OFF
+        assert np.all(f.lam[~on] == 0.0)
+        assert np.all(np.abs(f.lam[on]) <= f.cap[on])
+        slip = (f.state == SLIP_UP) | (f.state == SLIP_DOWN)
+        assert np.all(np.abs(f.lam[slip]) == f.cap[slip])
+        assert np.all(f.lam[slip] * f.dsp[slip] <= 0.0)
+        assert np.all(f.dsp[f.state == STICK] == 0.0)
+        seen["stick"] += int(np.sum(f.state == STICK))
+        seen["slip"] += int(slip.sum())
+        return w_t
+
+    f.step = checked
+    sim.run()
+    assert seen["stick"] > 0 and seen["slip"] > 0, seen
+    h, e = sim.history.data(), sim.energy.data()
+    scale = np.abs(np.asarray(e["total"])).max()
+    n_dofs = 2 * 13 * 19 * 2  # at most: the finer bar's nodes, twice, (r, z) each
+    assert np.abs(np.asarray(e["balance_error"])).max() <= ledger(sim.n_steps, n_dofs) * scale
+    for col in ("slip_work", "return_loss"):
+        assert np.all(np.diff(np.asarray(h[col])) >= 0.0)
+
+
 NOSE = """title = "nose on a block"
 [mesh]
 generator = "nosed_striker_on_block"
@@ -286,8 +349,12 @@ t_end = 1e-6
 @pytest.mark.parametrize("text, words", [
     (NOSE.format(method="dme").replace('method = "dme"', 'method = "dme"\nrestitution = 0.5'),
      "curved master face with restitution e > 0 is not built yet"),
-    (SCENE.format(method="penalty", friction="friction = 0.2", v0=5.0).replace(PAIRS, SEGMENTS),
-     "built for film and dme (not yet the penalty)")], ids=["curved-restitution", "penalty"])
+    (NOSE.format(method="penalty"),
+     "the penalty's friction on a curved master face (where normal and tangential rows "
+     "couple) is not built yet"),
+    (SCENE.format(method="penalty", friction="friction = 0.2\ntangential_penalty = 1e15",
+                  v0=5.0).replace(PAIRS, SEGMENTS), "passes the stable bound 4/3")],
+    ids=["curved-restitution", "penalty-curved", "penalty-past-bound"])
 def test_refused_in_one_line(tmp, text, words, capsys):
     """What is not built is refused in one line "error: ...", exit 2, nothing written."""
     path = os.path.join(tmp, "bad.toml")
@@ -501,3 +568,140 @@ def test_contact_pairs_file_with_friction(tmp, method, kind):
         assert np.array_equal((flag == 2).sum(axis=1), h["n_slip"][js])
         assert (flag == 2).any() and (flag == 1).any()
     COMM.barrier()
+
+
+# ----------------------------------------------------------------------------- the penalty
+
+def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int):
+    """A block (one slave node, m = 2 kg, both components free) resting on a fixed straight
+    master segment inclined at ``theta`` (rad) to r, under gravity g = 10 m/s^2 along -z,
+    h = 1e-3 s, the penalty with friction μ and tangential stiffness ``stiffness`` (N/m or
+    "scaled"). Returns the set, the per-step (λ_n, λ_t, w_t^{n+1/2}, slide along t, s_e)
+    and the kinetic energy and the gravity's work by the half-step kinetic identity
+    (rank 0's numbers, broadcast)."""
+    from impact_fenics.contact.plane import _Host
+    from impact_fenics.contact.segments import FACE, SegmentConstraints
+    from impact_fenics.contact import ContactSet, Penalty
+
+    m, g, h = 2.0, 10.0, 1e-3
+    tr, tz = np.cos(theta), np.sin(theta)  # the face's tangent t = (n_z, -n_r)
+    nr, nz = -tz, tr  # its outward (upward) normal
+    a_xy, b_xy = np.array([1.0, 0.0]), np.array([1.0 + 0.2 * tr, 0.2 * tz])
+    s_xy = 0.5 * (a_xy + b_xy)  # the block on the face, at mid-segment: g0 = 0
+    mine = COMM.rank == 0
+    mass = np.full(6, m) if mine else np.zeros(0)
+    u, v = np.zeros(mass.size), np.zeros(mass.size)
+    host = _Host(COMM, 0 if mine else 6, mass, u, v, h,
+                 fixed=np.array([2, 3, 4, 5]) if mine else None)
+    cons = SegmentConstraints(
+        slave_xy=s_xy[None, :], slave_dofs=np.array([[0, 1]]),
+        master_xy=np.stack([a_xy, b_xy]), master_dofs=np.array([[2, 3], [4, 5]]),
+        segments=np.array([[0, 1]]), seg=np.array([0]), a=np.array([0]), b=np.array([1]),
+        xi=np.array([0.5]), normal=np.array([[nr, nz]]), g0=np.array([0.0]),
+        kind=np.array([FACE]), names=("block", "incline"))
+    c = ContactSet(cons, host, Penalty("scaled"))
+    c.set_friction(mu, stiffness)
+    c.initialize()
+    rows, kinetic, gravity = [], 0.0, 0.0
+    for _ in range(n_steps):
+        if mine:
+            v_old = v[1]
+            v[1] += h * (-g)
+            u[:2] += h * v[:2]
+        c.step()
+        host.n += 1
+        f = c.friction
+        if mine:
+            # gravity's work by the kinetic identity of the step: f . (v^{n-1/2} + v^{n+1/2}) h / 2,
+            # its v^{n+1/2} the corrected one (the contact's share is booked by the set)
+            gravity += -m * g * 0.5 * (v_old + v[1]) * h
+            kinetic = 0.5 * m * (v[0] ** 2 + v[1] ** 2)
+            rows.append((c.force[0], f.lam[0], tr * v[0] + tz * v[1], tr * u[0] + tz * u[1],
+                         f.s_e[0]))
+    rows, kinetic, gravity = COMM.bcast((np.array(rows), kinetic, gravity))
+    return c, rows, kinetic, gravity, (m, g, h)
+
+
+@pytest.mark.parametrize("stiffness", ["scaled", "half"])
+def test_penalty_block_sticks_below_the_cone(stiffness):
+    """tan θ = 0.5 μ (μ = 0.5): the block sticks. The normal penalty (scaled, beta = 1)
+    carries λ_n = m g cos θ from the first step; the tangential spring holds the
+    down-slope load F = m g sin θ with λ_t = F (along +t, up the slope) and settles at
+    s_e = -(1 - beta_t) F / k_t with w = 0 (docs/friction.md 4): at once at beta_t = 1, as
+    sqrt(1 - beta_t)^n at beta_t = 0.5 (below 1e-30 after 300 steps; its transient
+    overshoots F by a quarter, so the cone is set at twice F to stay inside). Its bound on the
+    segment is the node pairs' (one row: Gershgorin's sum is the diagonal, beta_t =
+    k_t h h_n / m). Round-off: a step's roundings (32) on F, F / k_t and h g."""
+    mu, n = 0.5, 300
+    theta = np.arctan(0.5 * mu)
+    m, g, h = 2.0, 10.0, 1e-3
+    k = 0.5 * m / h ** 2 if stiffness == "half" else "scaled"
+    beta = 0.5 if stiffness == "half" else 1.0
+    c, rows, _, _, _ = _block_on_incline(theta, mu, k, n)
+    F, N = m * g * np.sin(theta), m * g * np.cos(theta)
+    k_t = m / h ** 2 * beta
+    assert abs(c.friction.beta_max - beta) <= rounding(8, beta)
+    ln, lt, w, _, s_e = rows.T
+    assert np.all(np.abs(ln - N) <= rounding(32, N))
+    assert np.all(np.abs(lt) < mu * ln)  # inside the cone: stick at every step
+    assert abs(lt[-1] - F) <= rounding(32, F)
+    assert abs(w[-1]) <= rounding(32, h * g)
+    # the load acts down the slope (along -t): the spring is stretched the other way
+    assert abs(s_e[-1] + (1.0 - beta) * F / k_t) <= rounding(32, F / k_t)
+    assert c.friction.stats[N_STICK] == 1 and c.friction.slip_work == 0.0
+
+
+@pytest.mark.parametrize("ratio", [1.25, 3.0])
+def test_penalty_block_slides_at_the_coulomb_limit(ratio):
+    """tan θ = ratio x μ (μ = 0.3): the block slides down the slope with the tangential
+    force on the cone, |λ_t| = μ λ_n at every step, λ_n = m g cos θ (the scaled normal
+    penalty, beta = 1), so its slip speed is the closed form w_k = -k h g (sin θ - μ cos θ)
+    (k = 1, 2, ...) and the slide h Σ w_k. The scaled spring (beta_t = 1) keeps s_e = 0,
+    so each step's plastic slip is the step's slip h w_k: the slip work D = μ N |slide|
+    and the return loss R = Σ 1/2 k_t (h w_k)^2 = 1/2 m Σ w_k^2 in closed form. The
+    energy balance closes to round-off: the kinetic energy equals gravity's work plus the
+    set's contact work (the one booking); its tangential share W_t (minus D + R + L_t +
+    the stored energy, zero here; docs/friction.md 5) is the closed form
+    -W_t = D - μ N h |w_n| / 2: the dissipation is the slip work, and the return loss R,
+    1/2 m w_k^2 a step at beta_t = 1, is given back by L_t. Round-off: the closed-form
+    sums over n steps, a step's roundings (32) on each term."""
+    mu, n = 0.3, 200
+    theta = np.arctan(ratio * mu)
+    c, rows, kinetic, gravity, (m, g, h) = _block_on_incline(theta, mu, "scaled", n)
+    N = m * g * np.cos(theta)
+    ln, lt, w, slide, s_e = rows.T
+    k = np.arange(1, n + 1)
+    w_exact = -k * h * g * (np.sin(theta) - mu * np.cos(theta))
+    # λ_n = p (-n . u~): the gap is a sum of terms of the size of the slide |u|, times the
+    # scaled p = m / h^2, on top of a step's roundings of N
+    assert np.all(np.abs(ln - N) <= rounding(32, N + m / h ** 2 * np.abs(slide)))
+    assert np.all(lt == mu * ln)  # on the cone exactly (the clip), opposing the slip (w < 0)
+    assert np.all(np.abs(w - w_exact) <= rounding(32 * k, h * g * k))
+    slide_exact = h * np.cumsum(w_exact)
+    assert np.all(np.abs(slide - slide_exact) <= rounding(32 * n, np.abs(slide_exact).max()))
+    assert np.all(np.abs(s_e) <= rounding(32 * n, h * np.abs(w_exact).max()))
+    f = c.friction
+    d_exact = mu * N * abs(slide_exact[-1])
+    r_exact = 0.5 * m * np.sum(w_exact ** 2)
+    assert abs(f.slip_work - d_exact) <= rounding(32 * n, d_exact)
+    assert abs(f.stats[RETURN_LOSS] - r_exact) <= rounding(32 * n, r_exact)
+    assert f.stats[N_SLIP] == 1 and f.stats[STORED] <= rounding(32 * n, r_exact)
+    # the one ledger: K = W_gravity + W_contact to the roundings of n steps of each
+    assert abs(kinetic - gravity - c.contact_work) <= rounding(32 * n, kinetic)
+    # the tangential work, W_t = -(D + R + E_s + L_t), is the trapezoid of λ_t = μ N over
+    # the slip speeds, -W_t = μ N h Σ (|w_(k-1)| + |w_k|) / 2 = D - μ N h |w_n| / 2: the
+    # dissipation is D, and R + L_t = -μ N h |w_n| / 2 (R is given back by L_t)
+    w_t = -(f.slip_work + f.stats[RETURN_LOSS] + f.stats[STORED] + f.tangential_loss)
+    assert abs(-w_t - (d_exact - 0.5 * mu * N * h * abs(w_exact[-1]))) <= rounding(
+        32 * n, r_exact + d_exact)
+    if COMM.rank == 0:
+        print(f"\nincline tan θ = {ratio} μ: D = {f.slip_work:.6g} J (μ N |slide| "
+              f"{d_exact:.6g}), R = {f.stats[RETURN_LOSS]:.6g} J, L_t = {f.tangential_loss:.4g}"
+              f" J, K = {kinetic:.6g} J")
+
+
+def test_penalty_segment_stiffness_past_the_bound_is_refused():
+    """A given k_t whose beta_t (Gershgorin's bound on h h_n K^1/2 T M^-1 T' K^1/2; one row:
+    k_t h^2 / m) passes 4/3 is refused in one line."""
+    with pytest.raises(InputError, match="passes the stable bound 4/3"):
+        _block_on_incline(0.1, 0.3, 1.5 * 2.0 / 1e-3 ** 2, 1)

@@ -16,6 +16,8 @@ contact   contact time per step (detection / solve / update) against the number 
           of constraints, for a rigid punch and for node pairs, per method.
 solvers   FILM's solve_fast (numba) and solve_dense (numpy, LAPACK) alone on      contact.py
           synthetic gaps, against an empty numba call with the same arguments.
+friction  the contact step at Sim3 (the punch, 610 constraints) with mu = 0 and    contact.py
+          mu = 0.3, per method, in one run, with the load average.
 scaling   step and MatMult time per dof from ~20k to ~1M dofs.                    scaling.py
 stream    a STREAM-like bandwidth (VecCopy, VecAXPY, VecWAXPY, VecDot) in GB/s.   scaling.py
 ranks     the scaling and stream parts again on 2 ranks (launched with            scaling.py

@@ -1,5 +1,6 @@
 """Parts 2 and 2b: contact time per step against the number of constraints (rigid punch
-and node pairs, every method), and FILM's solvers alone.
+and node pairs, every method), and FILM's solvers alone; part friction: the contact step
+with and without Coulomb friction at Sim3 (the punch, 610 constraints), every method.
 
 The phases are those ContactSet.step times (impact_fenics/contact/interface.py).
 Penalty, FILM fast and DME run the whole step as one compiled call
@@ -15,6 +16,8 @@ whole contact step is booked as solve (the whole-run part measures that path).
 Part 2b times a solver against an empty compiled call with the same arguments.
 """
 from __future__ import annotations
+
+import os
 
 import numpy as np
 from numba import njit
@@ -168,3 +171,68 @@ def part_solvers(ctx) -> dict:
               "solve_dense numpy/LAPACK, and an empty compiled call with the same arguments",
               ["n", "case", "solve_fast", "solve_dense", "empty numba call"], rows)
     return {"cases": out, "dense_cap": mode.dense_cap}
+
+
+# the punch Sim3 of the whole-run part (R_z = 6 m on punch_block: 610 constraints), its step
+SIM3_DT = 3.64e-7
+FRICTION_MU = 0.3
+
+
+def _sim3_contact(comm, tmesh, method: str, mu: float, steps: int) -> dict:
+    """One run of the punch Sim3 with ``method`` and friction μ (0: none), the Python step
+    (a set with friction runs it, so the frictionless one does too here), no outputs:
+    medians (s per step) of the contact step and of the whole step, and the sets' counts."""
+    from .. import scenes
+    from ..simulation import Settings
+
+    settings = Settings(dt=SIM3_DT, n_steps=steps, out=None, fields=False, quiet=True,
+                        plots=False, history_every=1, output_every=BIG, compiled_steps=False)
+    sim = scenes.punch_indentation(settings, scenes.make_method(method),
+                                   radius=scenes.PUNCH_RADII[6], tmesh=tmesh, comm=comm)
+    c = sim.contacts[0]
+    if mu > 0.0:
+        c.set_friction(mu)
+    s = sim.run()
+    h = sim.history.data()
+    rec = {"method": method, "mu": mu, "n_constraints": c.n, "steps": steps,
+           "contact": s["contact_cpu_time_per_step_median"], "step": s["step_time_median"],
+           "n_active_median": float(np.median(np.asarray(h["n_active"], dtype=float)))}
+    if mu > 0.0:
+        rec["n_slip_median"] = float(np.median(np.asarray(h["n_slip"], dtype=float)))
+        rec["n_stick_median"] = float(np.median(np.asarray(h["n_stick"], dtype=float)))
+    return rec
+
+
+def part_friction(ctx) -> dict:
+    """Friction's cost at Sim3: the contact step (and the whole step) with μ = 0 and
+    μ = 0.3 for each method, in one run, medians, with the load average before and after
+    (os.getloadavg: the other processes on the cores)."""
+    from .. import meshing
+
+    mode = ctx.mode
+    steps = max(20, 4 * mode.contact_steps)
+    load_before = os.getloadavg()
+    tmesh = meshing.punch_block(comm=ctx.comm)
+    out = {"steps": steps, "mu": FRICTION_MU, "runs": []}
+    rows = []
+    for method in ("penalty", "film", "dme"):
+        pair = [_sim3_contact(ctx.comm, tmesh, method, mu, steps) for mu in (0.0, FRICTION_MU)]
+        out["runs"].extend(pair)
+        off, on = pair
+        on["contact_ratio"] = on["contact"] / off["contact"]
+        on["step_ratio"] = on["step"] / off["step"]
+        rows.append([method, off["n_constraints"], f"{on['n_active_median']:.0f}",
+                     f"{on['n_stick_median']:.0f}/{on['n_slip_median']:.0f}",
+                     f"{1e6 * off['contact']:.1f}", f"{1e6 * on['contact']:.1f}",
+                     f"{100 * (on['contact_ratio'] - 1):+.0f} %",
+                     f"{1e6 * off['step']:.1f}", f"{1e6 * on['step']:.1f}",
+                     f"{100 * on['contact'] / on['step']:.1f} %"])
+    out["loadavg_before"], out["loadavg_after"] = list(load_before), list(os.getloadavg())
+    ctx.table(f"Friction at Sim3 (punch R_z = 6 m, {steps} steps, the Python step, no "
+              f"outputs): the contact step with mu = 0 and mu = {FRICTION_MU}; medians in us",
+              ["method", "constraints", "active", "stick/slip", "contact mu=0",
+               f"contact mu={FRICTION_MU}", "friction adds", "step mu=0",
+               f"step mu={FRICTION_MU}", "contact share"], rows)
+    ctx.log(f"   load average (1, 5, 15 min) before {', '.join(f'{x:.2f}' for x in load_before)}"
+            f", after {', '.join(f'{x:.2f}' for x in out['loadavg_after'])}")
+    return out

@@ -20,7 +20,7 @@ from .tables import summary_lines
 
 PART_FUNCTIONS = {
     "step": step.part_step, "contact": contact.part_contact, "solvers": contact.part_solvers,
-    "nts": nts.part_nts,
+    "nts": nts.part_nts, "friction": contact.part_friction,
     "scaling": scaling.part_scaling, "stream": scaling.part_stream, "ranks": scaling.part_ranks,
     "format": matrix_format.part_format, "matfree": peers.part_matfree, "akantu": peers.part_akantu,
     "j2": plastic.part_j2, "finite": finite.part_finite, "taylor": finite.part_taylor,

@@ -1,5 +1,5 @@
-"""Coulomb friction on node to segment (FILM, DME): the box problem of the stick set and
-the Tresca iteration on a curved master.
+"""Coulomb friction on node to segment (FILM, DME, penalty): the box problem of the stick
+set, the Tresca iteration on a curved master, and the penalty's tangential spring.
 
 Derived in docs/friction.md (sections 1.1, 2 and 3). Constraint i of a segment set has
 the normal row G_i (the slave's (r, z) slots with n, the master nodes' with -N_a n and
@@ -36,6 +36,15 @@ W_t = 1/2 h_n Σ λ_t,i (w_i^{n-1/2} + w_i^{n+1/2}), is returned so that the act
 loss takes the normal share only, and the slip work D = Σ h_n |λ_t| |w^{n+1/2}| and
 L_t = -W_t - D are kept with the stats of :mod:`.friction` (same indices and columns).
 Every rank holds the set's gathered slots and takes the same decisions.
+
+The penalty (docs/friction.md 4) solves nothing: each loaded row's spring k_t (N/m) on its
+committed elastic slip s_e (m) gives the trial λ_tr = -k_t (s_e + h_{n+1/2} w~_t), which is
+returned to the cone row by row, and the rows' forces are applied together. Its
+recurrence is the normal penalty's with s_e in place of the gap and A in place of S, so it
+is stable for beta_t = λ_max(h_{n+1/2} K^1/2 A K^1/2) < 4/3, bounded by Gershgorin's row
+sums on A's band (``"scaled"`` puts that bound at 1). On a straight master the normal and
+tangential rows decouple, so the two bounds hold apart; on a curved master (coupled rows)
+the penalty with friction is refused until the joint bound is derived.
 """
 from __future__ import annotations
 
@@ -45,9 +54,10 @@ from numba import njit
 from ..errors import InputError
 from ..plausibility import warn
 from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, band_solve, \
-    bandwidth, gap_of
-from .friction import HISTORY, N_SLIP, N_STICK, SLIP_WORK, T_FORCE, T_LOSS, T_PEAK, \
-    FrictionFigures, FrictionLaw, _coefficient
+    bandwidth, gap_of, gershgorin_beta
+from .friction import HISTORY, N_SLIP, N_STICK, PENALTY_HISTORY, RETURN_LOSS, SLIP_WORK, \
+    STORED, T_FORCE, T_LOSS, T_PEAK, FrictionFigures, FrictionLaw, _coefficient, \
+    _return_to_cone
 
 OFF, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # a row's set: λ_t = 0, free, +c, -c
 COUPLING_TOL = 1e-12  # |G M^-1 T'| against the largest |G M^-1 G'|: round-off of the normals
@@ -237,18 +247,114 @@ def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_pre
     return work
 
 
+@njit(cache=True)
+def _penalty_pass(active, force, no_free, k_t, mu_s, mu_d, decay, stick, cs, ct, mass, free,
+                  h, h_avg, u, v, v_now, w_prev, wt, w_next, lam, state, cap, s_e, dsp,
+                  stats):
+    """The penalty's tangential spring on node to segment (docs/friction.md 4), on the
+    velocities the normal penalty left (``wt`` = T v, m/s): per loaded row the trial
+    λ_tr = -k_t (s_e + h w~_t) (``k_t``: N/m; ``s_e``: the committed elastic slip, m),
+    returned to the cone c = μ λ_n where it lies outside it (the plastic slip
+    Δs_p = (λ_t - λ_tr) / k_t into ``dsp``); a row without a compressive λ_n is released
+    (λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 booked as return loss). The rows' forces
+    are then applied together, v += h_n M^-1 T' λ_t and u += h (that change), and
+    s_e += h w_t^{n+1/2} - Δs_p with the corrected w (``w_next``). Books the step's stats
+    (D = Σ c |Δs_p|, the return loss Σ 1/2 k_t Δs_p^2, the stored energy Σ 1/2 k_t s_e^2,
+    L_t = -W_t - D - the change of those two) and returns W_t (J)."""
+    n = force.size
+    ret = 0.0
+    slip = 0.0
+    for i in range(n):
+        lam[i] = 0.0
+        dsp[i] = 0.0
+        if not active[i] or not force[i] > 0.0 or no_free[i] or k_t[i] == 0.0:
+            state[i] = OFF
+            cap[i] = 0.0
+            if s_e[i] != 0.0:  # released: the spring's energy is returned as loss
+                ret += 0.5 * k_t[i] * s_e[i] * s_e[i]
+                s_e[i] = 0.0
+            continue
+        trial = -k_t[i] * (s_e[i] + h * wt[i])
+        if stick:
+            cap[i] = np.inf
+            f, st = trial, 1
+        else:
+            cap[i] = _coefficient(mu_s, mu_d, decay, w_prev[i]) * force[i]
+            f, st = _return_to_cone(trial, cap[i])
+        if st == 1:
+            state[i] = STICK
+        else:
+            state[i] = SLIP_UP if f > 0.0 else SLIP_DOWN
+            d = (f - trial) / k_t[i]  # -(|trial| - c) sign(trial) / k_t
+            dsp[i] = d
+            slip += cap[i] * abs(d)
+            ret += 0.5 * k_t[i] * d * d
+        lam[i] = f
+    apply_multipliers(lam, cs, ct, mass, free, h_avg, u, v, h)
+    _tangential_gaps(cs, ct, v, w_next)
+    total = 0.0
+    work = 0.0
+    stored = 0.0
+    n_stick = 0
+    n_slip = 0
+    for i in range(n):
+        if state[i] == OFF:
+            continue
+        f = lam[i]
+        total += f
+        work += 0.5 * h_avg * f * (w_prev[i] + w_next[i])
+        s_e[i] += h * w_next[i] - dsp[i]
+        stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
+        if state[i] == STICK:
+            n_stick += 1
+        else:
+            n_slip += 1
+    change = ret + stored - stats[STORED]
+    stats[T_FORCE] = total
+    stats[N_STICK] = n_stick
+    stats[N_SLIP] = n_slip
+    stats[SLIP_WORK] += slip
+    stats[RETURN_LOSS] += ret
+    stats[STORED] = stored
+    stats[T_LOSS] += -work - slip - change
+    stats[T_PEAK] = max(stats[T_PEAK], abs(total))
+    return work
+
+
+def scaled_stiffness(band: np.ndarray, bw: int, h: float) -> np.ndarray:
+    """The penalty's ``"scaled"`` tangential stiffnesses (N/m) on A's band (``band``:
+    A = h_n T M^-1 T', m/(N s); ``h``: h_{n+1/2}, s): k_t,i = c / (h A_ii) with c from
+    Gershgorin's row sums of h K^1/2 A K^1/2, so that its bound is 1 (the normal
+    penalty's choice on S); 0 on a row moving no free slot."""
+    a = band[:, 0]
+    k = np.zeros(a.size)
+    np.divide(1.0, h * a, out=k, where=a > 0.0)
+    bound = gershgorin_beta(band, bw, h * k)
+    if bound > 0.0:
+        k /= bound
+    return k
+
+
 class SegmentTangential(FrictionFigures):
     """The tangential pass of a node-to-segment set ``c`` (FILM or DME) with friction
     ``law`` (not zero). Made by ``ContactSet.set_friction``; :meth:`step` runs between
-    the method's normal correction and the set's commit."""
+    the method's normal correction and the set's commit. With ``stiffness`` (N/m, or
+    ``"scaled"``) the pass is the penalty's tangential spring (:func:`_penalty_pass`) on
+    a straight master face, its stability bound ``beta_max`` (Gershgorin's, of
+    h K^1/2 A K^1/2) checked by the caller against 4/3."""
 
     max_iter = 1000
 
-    def __init__(self, c, law: FrictionLaw, what: str):
+    def __init__(self, c, law: FrictionLaw, what: str, stiffness: float | str | None = None):
         self.c, self.law = c, law
+        self.penalty, self.stiffness = stiffness is not None, stiffness
         self.ct = tangent_rows(c.cc)
         # normal and tangential rows couple (a curved master face): the Tresca iteration
         self.coupled = coupling(c.cs, c.cc, self.ct, c.minv) > COUPLING_TOL
+        if self.coupled and self.penalty:
+            raise InputError(f"{what}: the penalty's friction on a curved master face (where "
+                             "normal and tangential rows couple) is not built yet; a straight "
+                             "master face is, and film and dme are on a curved one")
         if self.coupled and getattr(c.method, "e", 0.0) > 0.0:
             raise InputError(f"{what}: friction on a curved master face with restitution "
                              "e > 0 is not built yet (e = 0 is)")
@@ -273,26 +379,51 @@ class SegmentTangential(FrictionFigures):
         self.active_last = np.zeros(n, dtype=np.bool_)
         self.passes = 0
         self._v_pred_saved = np.zeros(c.n_slots)
+        # the penalty's springs: k_t (N/m), the committed elastic slips s_e and the step's
+        # plastic slips Δs_p (m)
+        self.k_t, self.s_e, self.dsp = np.zeros((3, n))
+        self.beta_max = 0.0
         self.set_step()
 
     def set_step(self) -> None:
-        """A's band, h_n T M^-1 T' (band_of_s with sqrt(h_n) for its dt^2)."""
+        """A's band, h_n T M^-1 T' (band_of_s with sqrt(h_n) for its dt^2); the penalty's
+        k_t at this step and its bound beta_max = Gershgorin's row sums of
+        h_{n+1/2} K^1/2 A K^1/2 (on matched faces A is diagonal and this is the node
+        pairs' beta_t = k_t h h_n (1/m_s + 1/m_m) exactly)."""
         c = self.c
         band_of_s(c.cs, self.ct, c.minv, np.sqrt(c.h_avg), self.bw, self.band)
         self.no_free = self.band[:, 0] <= 0.0  # a row moving no free slot: λ_t = 0
         self.factored[-1] = False
+        if self.penalty:
+            if isinstance(self.stiffness, str):
+                self.k_t[:] = scaled_stiffness(self.band, self.bw, c.dt)
+            else:
+                self.k_t[:] = np.where(self.no_free, 0.0, float(self.stiffness))
+            self.beta_max = gershgorin_beta(self.band, self.bw, c.dt * self.k_t)
         self._bind()
 
     def _bind(self) -> None:
         """The kernels' argument tuples, made once per step size (none in the loop)."""
         self._caps_call, self._box_call = self._caps_args(), self._box_args()
         self._apply_call = self._apply_args()
+        self._penalty_call = self._penalty_args()
+
+    def _penalty_args(self) -> tuple:
+        c, law = self.c, self.law
+        return (c.active, c.force, self.no_free, self.k_t, law.static, law.dynamic, law.decay,
+                law.stick, c.cs, self.ct, c.mass, c.free, c.dt, c.h_avg, c.u, c.v, c.v_now,
+                self.w_prev, self.wt, self.w_next, self.lam, self.state, self.cap, self.s_e,
+                self.dsp, self.stats)
 
     def initialize(self) -> None:
         from ..jit_watch import load
 
         c = self.c
         load(_tangential_gaps, c.cs, self.ct, c.v_now, self.w_prev)
+        if self.penalty:
+            load(_penalty_pass, *self._penalty_args())
+            self._bind()
+            return
         load(_caps, *self._caps_args())
         load(box_bpp, *self._box_args())
         load(_apply_and_book, *self._apply_args(), True)
@@ -339,6 +470,9 @@ class SegmentTangential(FrictionFigures):
         Returns W_t (J)."""
         c = self.c
         _tangential_gaps(c.cs, self.ct, c.v_now, self.w_prev)  # the decaying μ's speed
+        if self.penalty:
+            _tangential_gaps(c.cs, self.ct, c.v, self.wt)
+            return _penalty_pass(*self._penalty_call)
         if not self.coupled:
             _tangential_gaps(c.cs, self.ct, c.v, self.wt)
             self._box()
@@ -395,11 +529,20 @@ class SegmentTangential(FrictionFigures):
         return _apply_and_book(*self._apply_call, False)
 
     # outputs (as friction.Tangential's)
-    history_columns = HISTORY
+    @property
+    def history_columns(self) -> tuple:
+        """(name, index into ``stats``) of the set's history columns."""
+        return HISTORY + (PENALTY_HISTORY if self.penalty else ())
 
     def summary(self) -> dict:
-        """The law, D and L_t (J), the peak |Σ λ_t| (N), the pivoting's largest count."""
+        """The law, D and L_t (J), the peak |Σ λ_t| (N), the pivoting's largest count (the
+        penalty: its return loss, stored energy, beta_t bound and stiffness instead)."""
         out = self.figures()
+        if self.penalty:
+            out.update(return_loss=float(self.stats[RETURN_LOSS]),
+                       spring_energy=float(self.stats[STORED]), beta_t_max=self.beta_max,
+                       tangential_penalty=self.stiffness)
+            return out
         out["tangential_iterations_max"] = int(self.info["tangential_iterations_max"])
         if self.coupled:
             out.update({k: int(self.info[k]) for k in ("tresca_passes_max",

@@ -369,8 +369,9 @@ class ContactSet:
         :class:`.friction.FrictionLaw`. μ = 0 makes nothing: the set's step stays the
         frictionless one. Built for FILM, DME and the penalty (its tangential spring
         ``tangential_penalty``: N/m, or ``"scaled"``, beta_t = 1 per row; one whose
-        beta_t passes 4/3 is refused unless ``force``) on node pairs and a flat rigid or
-        fixed face (the wall); refused in one line elsewhere. Call before the run."""
+        beta_t passes 4/3 is refused unless ``force``) on node pairs, a flat rigid or
+        fixed face (the wall) and node to segment (the penalty on a straight master);
+        refused in one line elsewhere. Call before the run."""
         from .friction import (DME_T, FILM_T, PENALTY_T, STABILITY_BOUND, Tangential,
                                friction_law)
 
@@ -379,23 +380,28 @@ class ContactSet:
             self.friction = None
             return
         what = f"friction = {law.text()}"
-        if self.kind == SEGMENTS:
-            from .friction_segments import SegmentTangential
-
-            if not isinstance(self.method, (FILM, DME)):
-                raise InputError(f"{what}: friction on node-to-segment contact is built for "
-                                 "film and dme (not yet the penalty)")
-            if self.repair_every:
-                raise InputError(f"{what}: friction with re-pairing (node to segment at "
-                                 "finite strain) is not built yet")
-            self.friction = SegmentTangential(self, law, what)
-            return
         if isinstance(tangential_penalty, str):
             if tangential_penalty != "scaled":
                 raise InputError(f"tangential_penalty = '{tangential_penalty}': give a "
                                  "stiffness in N/m or 'scaled'")
         elif not (isinstance(tangential_penalty, (int, float)) and tangential_penalty > 0):
             raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: must be > 0")
+        if self.kind == SEGMENTS:
+            from .friction_segments import SegmentTangential
+
+            if not isinstance(self.method, (FILM, DME, Penalty)):
+                raise InputError(f"{what}: friction needs method film, dme or penalty")
+            if self.repair_every:
+                raise InputError(f"{what}: friction with re-pairing (node to segment at "
+                                 "finite strain) is not built yet")
+            spring = tangential_penalty if isinstance(self.method, Penalty) else None
+            self.friction = SegmentTangential(self, law, what, spring)
+            if spring is not None and self.friction.beta_max > STABILITY_BOUND and not force:
+                raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t <= "
+                                 f"{self.friction.beta_max:.3g} (Gershgorin bound on h h_n "
+                                 "K^1/2 T M^-1 T' K^1/2) passes the stable bound 4/3; lower it, "
+                                 "use 'scaled' or force")
+            return
         if isinstance(self.method, Penalty):
             kernel = PENALTY_T
         elif isinstance(self.method, FILM):

@@ -144,7 +144,7 @@ def test_a_file_it_did_not_write_is_refused(matched_run, tmp_path):
             assert f.read() == "my own notes\n"
 
 
-@pytest.mark.parametrize("case", ["missing", "not_shpb", "no_gauge", "interrupted"])
+@pytest.mark.parametrize("case", ["missing", "not_run", "not_shpb", "no_gauge", "interrupted"])
 def test_bad_input_is_one_line(matched_run, tmp_path, case):
     import shutil
 
@@ -152,7 +152,8 @@ def test_bad_input_is_one_line(matched_run, tmp_path, case):
     if MPI.COMM_WORLD.rank != 0:
         return
     target = str(tmp_path / "run")
-    expected = {"missing": "does not exist", "not_shpb": "is not an SHPB scene",
+    expected = {"missing": "does not exist", "not_run": "is not a run directory",
+                "not_shpb": "is not an SHPB scene",
                 "no_gauge": "no strain_gauge probe named 'transmitter_gauge'",
                 "interrupted": "is interrupted by SIGINT: its records end early"}[case]
     if case == "interrupted":  # a run stopped by Ctrl-C: its marker says so
@@ -161,6 +162,10 @@ def test_bad_input_is_one_line(matched_run, tmp_path, case):
         marker["status"] = "interrupted by SIGINT"
         with open(os.path.join(target, rundir.MARKER), "w") as f:
             json.dump(marker, f)
+    elif case == "not_run":  # a folder of the user's own files, no run in it
+        os.makedirs(target)
+        with open(os.path.join(target, "notes.txt"), "w") as f:
+            f.write("my own notes\n")
     elif case != "missing":
         shutil.copytree(out, target)
         path = os.path.join(target, "scene.toml")
@@ -177,6 +182,8 @@ def test_bad_input_is_one_line(matched_run, tmp_path, case):
     assert "Traceback" not in proc.stderr + proc.stdout
     if case != "missing":
         assert not os.path.exists(os.path.join(target, "shpb.csv.tmp"))
+    if case == "not_run":  # nothing written beside the user's file
+        assert os.listdir(target) == ["notes.txt"]
 
 
 def test_bar_stress_warning():

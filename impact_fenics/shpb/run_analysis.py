@@ -277,6 +277,10 @@ def analyse_run(run_dir: str, dispersion: bool = False) -> Result:
     from ..rundir import read_marker
 
     _need(os.path.isdir(run_dir), f"shpb: run directory '{run_dir}' does not exist")
+    _need(os.path.isfile(os.path.join(run_dir, "history.csv"))
+          and os.path.isfile(os.path.join(run_dir, "scene.toml")),
+          f"shpb: '{run_dir}' is not a run directory (no history.csv and scene.toml): give "
+          "the --out folder of an SHPB scene's run")
     status = (read_marker(run_dir) or {}).get("status", "completed")
     _need(not isinstance(status, str) or status.startswith("completed"),
           f"shpb: the run in '{run_dir}' is {status}: its records end early (run it to the end)")

@@ -358,6 +358,22 @@ def _matfree(mf: dict, bench: dict) -> list[str]:
             f"against {mf['ns_per_dof']['K_matmult']:.2f} ns/dof): the assembled matrix stays."]
 
 
+def _friction(fr: dict, bench: dict) -> list[str]:
+    """The contact step at Sim3 without and with Coulomb friction (part friction)."""
+    on = [r for r in fr["runs"] if r["mu"] > 0]
+    off = {r["method"]: r for r in fr["runs"] if r["mu"] == 0}
+    out = ["## Friction's cost", "",
+           f"The punch Sim3 ({on[0]['n_constraints'] if on else '–'} constraints, all closed), "
+           f"{fr['steps']} steps through the Python step, no outputs: the contact step and the "
+           f"whole step with μ = 0 and μ = {fr['mu']} (µs, medians). Load average before "
+           f"{fr['loadavg_before'][0]:.2f}, after {fr['loadavg_after'][0]:.2f}.", ""]
+    rows = [[r["method"].replace("_", " "), _us(off[r["method"]]["contact"]), _us(r["contact"]),
+             f"{100 * (r['contact_ratio'] - 1):+.0f} %", _us(off[r["method"]]["step"]),
+             _us(r["step"]), f"{100 * (r['step_ratio'] - 1):+.0f} %"] for r in on]
+    return out + _table(["method", "contact μ=0", f"contact μ={fr['mu']}", "friction adds",
+                         "step μ=0", f"step μ={fr['mu']}", "step grows"], rows)
+
+
 def _contact(ct: dict, bench: dict) -> list[str]:
     out = ["## Contact per step", "",
            "The contact's time per step (detection + solve + update, µs, median) against the "
@@ -555,7 +571,7 @@ _PROSE = """## What this rests on
 def performance_page(bench: dict) -> str:
     """docs/performance.md, from the benchmark's JSON ``bench``."""
     renderers = [("step", _step), ("scaling", _scaling), ("ranks", _ranks), ("format", _format),
-                 ("matfree", _matfree), ("contact", _contact), ("nts", _nts), ("j2", _j2),
+                 ("matfree", _matfree), ("contact", _contact), ("friction", _friction), ("nts", _nts), ("j2", _j2),
                  ("finite", _finite), ("taylor", _taylor), ("gain", _gain), ("akantu", _akantu),
                  ("whole", _whole)]
     out = [_banner("docs/bench.json, the JSON of `python -m impact_fenics.bench` "

@@ -18,7 +18,7 @@ from impact_fenics.bench.step import scipy_equivalence
 from roundoff import rounding
 
 # akantu needs a venv of its own that CI does not have: left out here
-PARTS = "step,contact,solvers,scaling,stream,ranks,format,matfree,j2,finite,gain,shpb"
+PARTS = "step,contact,friction,solvers,scaling,stream,ranks,format,matfree,j2,finite,gain,shpb"
 TIMING_KEYS = ("median", "gbs", "step", "matmult", "multadd", "axpy", "contact", "fast", "force",
                "numba_call_floor")
 
@@ -189,3 +189,21 @@ def test_smoke_shpb_splits_the_scene_into_bars_and_specimen(smoke):
               r["bars"]["ns_per_element_cycle"], r["specimen"]["ns_per_element_cycle"]):
         assert math.isfinite(v) and v > 0
     assert 0.0 < r["specimen_share"] < 1.0
+
+
+def test_smoke_friction_times_each_method_with_and_without_friction(smoke):
+    """The friction part: for each method a run with mu = 0 and one with mu > 0 on the same
+    constraints, every time positive, the ratios those of the medians, and the page renders
+    it (docs_pages)."""
+    from impact_fenics import docs_pages
+
+    r = smoke["friction"]
+    assert r["mu"] > 0
+    runs = {(x["method"], x["mu"] > 0): x for x in r["runs"]}
+    for method in ("penalty", "film", "dme"):
+        off, on = runs[method, False], runs[method, True]
+        assert off["n_constraints"] == on["n_constraints"] > 0
+        for v in (off["contact"], on["contact"], off["step"], on["step"]):
+            assert math.isfinite(v) and v > 0
+        assert on["contact_ratio"] == on["contact"] / off["contact"]
+    assert any(line.startswith("## Friction") for line in docs_pages._friction(r, smoke))

@@ -244,17 +244,21 @@ def _read_geometry(top: Table) -> Geometry:
 
 def _check_plane_strain(scene: Scene) -> None:
     """Refuse, in one line each, what plane strain does not run yet: finite-strain
-    bodies, contact, rigid bodies and the wall (docs/plane_strain.md)."""
-    not_yet = "plane strain runs small-strain bodies without contact so far"
+    bodies, rigid bodies and friction (docs/plane_strain.md). Node pairs (paired by x),
+    node to segment and the wall run as in axisymmetry: the masses carry the measure."""
+    not_yet = "plane strain runs small-strain bodies only so far"
     for b in scene.bodies:
         if b.strain == "finite":
             raise InputError(f'[bodies.{b.name}] strain = "finite": {not_yet}')
-    if scene.contacts:
-        raise InputError(f"{scene.contacts[0].where} contact: {not_yet}")
     if scene.rigid:
-        raise InputError(f"[rigid.{next(iter(scene.rigid))}] a rigid body: {not_yet}")
-    if scene.wall is not None:
-        raise InputError(f"[wall] a wall is contact: {not_yet}")
+        raise InputError(f"[rigid.{next(iter(scene.rigid))}] a rigid body: plane strain runs "
+                         "node pairs, node to segment and the wall so far, no rigid body")
+    for c in scene.contacts:
+        if c.friction is not None:
+            raise InputError(f"{c.where} friction: plane strain runs frictionless contact "
+                             "so far")
+    if scene.wall is not None and scene.wall.friction is not None:
+        raise InputError("[wall] friction: plane strain runs frictionless contact so far")
 
 
 def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:

@@ -8,6 +8,10 @@ Oracles:
   structured with alternating diagonals, mirror symmetric): the same displacement at
   every node of the half, the full model's contact force twice the half's, node pairs
   and node to segment, FILM and DME;
+* the rigid twin of the half model: a flat rigid punch of half-width b (the nodes with
+  |x| <= b) pushed into a block, half (x >= 0, half the punch's mass and force) against
+  full, FILM and DME: the same displacements, the punch's too, and the energy ledger
+  closing to round-off in both;
 * the symmetry-plane rule of node to segment: a slave on x = 0 over a master tip on
   x = 0 takes the axial normal with a declared plane, the segment's without one.
 """
@@ -17,13 +21,14 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from impact_fenics import meshing
+from impact_fenics import loads, meshing
 from impact_fenics.bodies import Body, DeformableModel
-from impact_fenics.contact import DME, FILM, pair_surfaces
+from impact_fenics.contact import DME, FILM, RigidBody, pair_surfaces, rigid_face
 from impact_fenics.contact.segments import build, node_to_segment
 from impact_fenics.geometry import PLANE_STRAIN, Geometry
 from impact_fenics.materials import LinearElastic
 from impact_fenics.simulation import Settings, Simulation
+from roundoff import ledger
 
 EPS = float(np.finfo(float).eps)
 STEEL = LinearElastic(E=200e9, nu=0.3, density=7850.0)
@@ -106,6 +111,63 @@ def test_half_model_equals_the_full_one(kind, method):
     assert err <= 72 * N_STEPS ** 2 * EPS * scale
     assert f_err <= 72 * N_STEPS ** 2 * EPS * f_scale
     assert abs(m_f - 2 * m_h) <= 64 * EPS * m_f
+
+
+B, PUNCH_MASS, PEAK = 0.005, 0.02, 200e6  # m, kg (the full punch's), Pa
+
+
+def _punch(method: str, half: bool):
+    """A rigid flat punch of half-width B on a block 2 W x W (x in [-W, W], or the half
+    x in [0, W] with symmetry = "x=0", half the punch's mass and force), bottom held in
+    y, pushed by -PEAK 2 B t (N) rising over 2 us: (node x, y, node u, punch u, summary,
+    the number of constraints)."""
+    comm = MPI.COMM_WORLD
+    share = 0.5 if half else 1.0
+    tmesh = meshing.block(W * (1 if half else 2), W, h=W / 8, comm=comm)
+    if not half:
+        tmesh.mesh.geometry.x[:, 0] -= W
+    t = 0.01
+    model = DeformableModel(tmesh, [Body("block", STEEL)],
+                            geometry=Geometry(PLANE_STRAIN, t, "x=0" if half else None))
+    pulse = loads.Trapezoid(peak=1.0, t_rise=2e-6, t_fall=1.0, t_end=2.0)
+    punch = RigidBody("punch", share * PUNCH_MASS,
+                      force=lambda time: -share * PEAK * 2 * B * t * pulse(time))
+    dt = 0.3 * (W / 8) / C_L
+    sim = Simulation(model, Settings(dt=dt, n_steps=N_STEPS, out=None, quiet=True),
+                     fixed=[model.facet_dofs("bottom", 1)])
+    cons = rigid_face(model, "top", B, "punch")
+    sim.add_contact(cons, FILM() if method == "film" else DME(restitution=0.0), rigid=punch)
+    summary = sim.run()
+    xy = model.node_xy[: model.n_owned // 2]
+    u = sim.integrator.u_vec.array.reshape(-1, 2)
+    nodes = comm.allgather((xy, u))
+    return (np.concatenate([a for a, _ in nodes]), np.concatenate([b for _, b in nodes]),
+            punch.u, summary, cons.n)
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_rigid_punch_half_model_equals_the_full_one(method):
+    """The half against the full model under a rigid punch, round-off as for the two
+    bodies (72 n^2 eps of the largest u, the punch's displacement included); the faces:
+    the 5 nodes of x in [0, B] and the 9 of [-B, B]; each run's ledger within
+    tests/roundoff.py's bound (the steps' roundings summed)."""
+    xy_h, u_h, p_h, s_h, n_h = _punch(method, half=True)
+    xy_f, u_f, p_f, s_f, n_f = _punch(method, half=False)
+    assert (n_h, n_f) == (5, 9)
+    assert p_h < 0.0, "the punch did not move down"
+    key = lambda xy: np.lexsort((np.round(xy[:, 0] / 1e-7), np.round(xy[:, 1] / 1e-7)))
+    right = xy_f[:, 0] >= -1e-12
+    xy_f, u_f = xy_f[right], u_f[right]
+    a, b = key(xy_h), key(xy_f)
+    assert np.allclose(xy_h[a], xy_f[b], rtol=0, atol=1e-12)
+    scale = max(float(np.abs(u_f).max()), abs(p_f))
+    err = max(float(np.abs(u_h[a] - u_f[b]).max()), abs(p_h - p_f))
+    print(f"rigid punch, {method}: half against full, u differs by {err:.3g} m of "
+          f"{scale:.3g} m (punch {p_h!r}, {p_f!r} m); ledgers "
+          f"{s_h['energy_balance_error_rel']:.3g}, {s_f['energy_balance_error_rel']:.3g}")
+    assert err <= 72 * N_STEPS ** 2 * EPS * scale
+    for s in (s_h, s_f):
+        assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
 
 
 def _tip_on_x0(axis: bool):

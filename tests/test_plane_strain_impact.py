@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from impact_fenics import scene_file
-from roundoff import ledger
+from roundoff import LIBM, ledger, rounding
 from scene_texts import ROOT, replace
 
 SCENE = os.path.join(ROOT, "scenes", "plane_strain_impact.toml")
@@ -161,3 +161,86 @@ def test_strip_on_the_wall_presses_at_rho_c_v(method, tmp_path):
     assert abs(stress / (RHO * C * V0) - 1) <= 0.01
     assert abs(duration - 2 * L_S / C) <= 2 * H / C
     assert summary["energy_balance_error_rel"] <= ledger(summary["n_steps"], summary["n_dofs"])
+
+
+# A rigid punch of half-width 5 mm (the half model: x in [0, 5 mm], 11 surface nodes of
+# 0.5 mm) pushed into a block by 200 MPa on the half face (area b t), its bottom held in y.
+PUNCH = """\
+title = "plane-strain punch"
+geometry = "plane_strain"
+thickness = 0.01
+symmetry = "x=0"
+
+[mesh]
+generator = "punch_block"
+width = 0.02
+depth = 0.01
+h_surface = 0.0005
+grading = 0.3
+h_max = 0.002
+breaks = [[0.005, 10]]
+
+[materials.steel]
+E = 200e9
+nu = 0.3
+density = 7850.0
+
+[bodies.block]
+material = "steel"
+
+[rigid.punch]
+mass = 0.01
+
+[[fixed]]
+facet = "bottom"
+components = ["y"]
+
+[[contact]]
+surface = "surface"
+rigid = "punch"
+half_width = 0.005
+method = "film"
+
+[[loads]]
+rigid = "punch"
+peak = 200e6
+area = 5e-5
+t_rise = 2e-6
+t_fall = 1.0
+t_end = 2.0
+
+[time]
+cfl = 0.9
+n_steps = 60
+"""
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_rigid_punch_scene(method, tmp_path):
+    """half_width in a scene: the 11 nodes of x in [0, b] constrained, the punch moving
+    down along y, the ledger closing within its round-off bound."""
+    summary, hist, energy, dt = _run(PUNCH, _shared_tmp(tmp_path), method)
+    print(f"punch scene, {method}: {summary['contact']}, ledger "
+          f"{summary['energy_balance_error_rel']:.3g}")
+    assert summary["energy_balance_error_rel"] <= ledger(summary["n_steps"], summary["n_dofs"])
+    assert float(hist["n_active"].max()) == 11
+
+
+def test_cylinder_button_gaps(tmp_path):
+    """button = R_s in plane strain: a cylinder, the gap R_s - sqrt(R_s^2 - x^2) under each
+    node of |x| <= b (x^2, R_s^2, -, sqrt, -: 4 + LIBM roundings, the last subtraction
+    cancelling R_s / gap of its digits)."""
+    text = replace(PUNCH, "half_width = 0.005\n", "half_width = 0.005\nbutton = 0.02\n")
+    path = _shared_tmp(tmp_path) / "button.toml"
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(text)
+    MPI.COMM_WORLD.barrier()
+    sim = scene_file.build(scene_file.read_scene(str(path)),
+                           {"out": None, "quiet": True, "plots": False})
+    c = sim.contacts[0]
+    x = np.linspace(0.0, 0.005, 11)
+    gap = 0.02 - np.sqrt(0.02 ** 2 - x ** 2)
+    assert c.b.shape == gap.shape and c.b[0] == 0.0
+    assert np.allclose(c.b[1:], gap[1:], rtol=rounding((4 + LIBM) * 0.02 / gap[1]), atol=0)

@@ -221,6 +221,10 @@ def read_scene(path: str) -> Scene:
     if geometry.plane:
         _check_plane_strain(scene)
     else:
+        for c in contacts:
+            if "half_width" in c.given:
+                raise InputError(f"{c.where} half_width: an axisymmetric rigid face has a "
+                                 "radius (m) instead")
         for spec in materials.values():
             if spec.params.get("match") == "plane_strain":
                 raise InputError(f'{spec.where} match = "plane_strain": the plane-strain match '
@@ -243,18 +247,23 @@ def _read_geometry(top: Table) -> Geometry:
 
 
 def _check_plane_strain(scene: Scene) -> None:
-    """Refuse, in one line each, what plane strain does not run yet: finite-strain
-    bodies, contact, rigid bodies and the wall (docs/plane_strain.md)."""
-    not_yet = "plane strain runs small-strain bodies without contact so far"
+    """Refuse, in one line each, what plane strain does not run yet: finite-strain bodies
+    and friction (docs/plane_strain.md), and a rigid face's radius (its half_width). Node
+    pairs (paired by x), node to segment, rigid faces (moving along y) and the wall run as
+    in axisymmetry: the masses carry the measure."""
+    not_yet = "plane strain runs small-strain bodies only so far"
     for b in scene.bodies:
         if b.strain == "finite":
             raise InputError(f'[bodies.{b.name}] strain = "finite": {not_yet}')
-    if scene.contacts:
-        raise InputError(f"{scene.contacts[0].where} contact: {not_yet}")
-    if scene.rigid:
-        raise InputError(f"[rigid.{next(iter(scene.rigid))}] a rigid body: {not_yet}")
-    if scene.wall is not None:
-        raise InputError(f"[wall] a wall is contact: {not_yet}")
+    for c in scene.contacts:
+        if c.rigid is not None and "radius" in c.given:
+            raise InputError(f"{c.where} radius: a plane-strain rigid face has a half_width "
+                             "(m; |x| <= half_width) instead")
+        if c.friction is not None:
+            raise InputError(f"{c.where} friction: plane strain runs frictionless contact "
+                             "so far")
+    if scene.wall is not None and scene.wall.friction is not None:
+        raise InputError("[wall] friction: plane strain runs frictionless contact so far")
 
 
 def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:
@@ -344,10 +353,14 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
         if c.rigid not in rigid:
             raise t.error("rigid", f"no table [rigid.{c.rigid}] "
                                    f"(rigid bodies: {', '.join(rigid) or 'none'})")
-        c.radius = t.value("radius")
+        size = "half_width" if "half_width" in t.data else "radius"
+        if size not in t.data:
+            raise InputError(f"{where} radius is missing: give the rigid face's radius (m; "
+                             "half_width in plane strain)")
+        c.radius = t.value(size)
         c.button = t.value("button")
         if c.button is not None and c.button < c.radius:
-            raise t.error("button", f"must be >= the face radius {toml_text(t.data['radius'])} m")
+            raise t.error("button", f"must be >= the face {size} {toml_text(t.data[size])} m")
     elif is_segment:
         c.slave = t.value("slave")
         c.master = t.value("master")

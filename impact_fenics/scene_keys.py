@@ -228,8 +228,8 @@ _BODIES = Section("bodies", "[bodies.NAME]", (
 ))
 
 _RIGID = Section("rigid", "[rigid.NAME]", (
-    "A rigid body with one z degree of freedom (a punch, a drill bit), in exactly one "
-    "[[contact]]."), (
+    "A rigid body with one z degree of freedom (a punch, a drill bit; y in plane strain, "
+    "its mass, forces and impedance those of the slab t), in exactly one [[contact]]."), (
     Key("mass", "positive", "kg", REQUIRED, "mass"),
     Key("velocity", "number", "m/s", 0.0, "initial z velocity"),
     Key("impedance", "positive", "kg/s", None, "impedance Z = rho c A of a rod driving the body "
@@ -261,15 +261,19 @@ _CONTACT = Section("contact", "[[contact]]", (
     Key("lower", "text", "", REQUIRED, "node pairs: the facet group of the body below",
         groups=("pairs",)),
     Key("upper", "text", "", REQUIRED, "node pairs: the facet group of the body above (its "
-        "nodes pair with the lower ones by radius)", groups=("pairs",)),
+        "nodes pair with the lower ones by radius; by x in plane strain)", groups=("pairs",)),
     Key("surface", "text", "", REQUIRED, "rigid face: the facet group under the rigid body",
         groups=("rigid",)),
     Key("rigid", "text", "", REQUIRED, "rigid face: the name of a [rigid.NAME] body",
         groups=("rigid",)),
-    Key("radius", "positive", "m", REQUIRED, "rigid face: the radius of its flat face",
-        groups=("rigid",)),
-    Key("button", "positive", "m", None, "rigid face: a spherical button of this radius "
-        "R_s >= radius instead of the flat face (initial gaps R_s - sqrt(R_s^2 - r^2))",
+    Key("radius", "positive", "m", None, "rigid face: the radius of its flat face (r <= radius)",
+        groups=("rigid",), default_text="required (axisymmetric)"),
+    Key("half_width", "positive", "m", None, "rigid face in plane strain: the half-width b of "
+        "its flat face (|x| <= b)", groups=("rigid",),
+        default_text="required (plane strain)"),
+    Key("button", "positive", "m", None, "rigid face: a spherical button (in plane strain a "
+        "cylinder) of this radius R_s >= radius (half_width) instead of the flat face "
+        "(initial gaps R_s - sqrt(R_s^2 - r^2), x for r in plane strain)",
         groups=("rigid",), default_text="flat face"),
     Key("slave", "text", "", REQUIRED, "node to segment: the facet group of the slave nodes "
         "(the finer face)", groups=("segment",)),
@@ -409,7 +413,8 @@ _PROBES = Section("probes", "[[probes]]", (
 ))
 
 _WALL = Section("wall", "[wall]", (
-    "A fixed rigid plane z = const (normal +z) at or below the body: every "
+    "A fixed rigid plane z = const (normal +z; in plane strain y = z, normal +y) at or "
+    "below the body: every "
     "boundary node a unilateral candidate (a side node that folds onto it joins as it "
     "reaches it); its contact columns are named boundary/wall."), (
     Key("z", "number", "m", 0.0, "height of the plane"),
@@ -437,8 +442,10 @@ TOP = Section("top", "top level", "Keys outside every table.", (
         "sigma_out (out of the plane, eps_out = 0), sigma_xy, the displacements u_x, u_y, "
         "and nothing is held on x = 0 unless `symmetry` says so. It runs small-strain "
         "bodies, linear elastic and path-dependent (J2, Drucker-Prager: the plastic "
-        "strain's out-of-plane component evolves), without finite strain, contact, rigid "
-        "bodies or a wall, for now ([plane_strain.md](plane_strain.md))."),
+        "strain's out-of-plane component evolves), with frictionless contact (node pairs "
+        "paired by x, node to segment, a rigid face of a `half_width` moving along y, the "
+        "wall), without finite strain or friction, for now "
+        "([plane_strain.md](plane_strain.md))."),
     Key("thickness", "positive", "m", None, "plane strain: the slab's thickness t",
         default_text="1 (per metre)"),
     Key("symmetry", "text", "", None, "plane strain: a symmetry plane of a half model, u_x = 0 "

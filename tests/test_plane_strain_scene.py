@@ -12,7 +12,7 @@ import pytest
 from mpi4py import MPI
 
 from pvbatch_run import pvbatch_json
-from scene_texts import (PAIR, ROOT, assert_ranks_agree, assert_refused, launch,
+from scene_texts import (PAIR, RIGID, ROOT, assert_ranks_agree, assert_refused, launch,
                          read_history, replace)
 
 SCENE = os.path.join(ROOT, "scenes", "plane_strain_strip.toml")
@@ -101,12 +101,29 @@ def test_refused(tmp_path, old, new, expected):
     assert_refused(["run", scene, "--out", tmp_path / "out"], expected, tmp_path / "out")
 
 
-def test_contact_refused(tmp_path):
-    scene = tmp_path / "pair.toml"
-    scene.write_text('geometry = "plane_strain"\n' + PAIR.replace("sigma_zz", "sigma_yy"))
+@pytest.mark.parametrize("text, expected", [
+    (replace(RIGID, 'components = ["z"]', 'components = ["y"]'),
+     "error: [contact #1] radius: a plane-strain rigid face has a half_width (m; |x| <= "
+     "half_width) instead"),
+    (replace(PAIR.replace("sigma_zz", "sigma_yy"), 'method = "film"\n',
+             'method = "film"\nfriction = 0.3\n'),
+     "error: [contact #1] friction: plane strain runs frictionless contact so far"),
+])
+def test_radius_and_friction_refused(tmp_path, text, expected):
+    """Node pairs, node to segment, rigid faces and the wall run in plane strain
+    (tests/test_plane_strain_contact.py, tests/test_plane_strain_impact.py); a rigid face
+    is sized by its half_width, and friction is not there yet."""
+    scene = tmp_path / "contact.toml"
+    scene.write_text('geometry = "plane_strain"\n' + text)
+    assert_refused(["run", scene, "--out", tmp_path / "out"], expected, tmp_path / "out")
+
+
+def test_half_width_refused_in_axisymmetry(tmp_path):
+    scene = tmp_path / "punch.toml"
+    scene.write_text(replace(RIGID, "radius = 0.1\n", "half_width = 0.1\n"))
     assert_refused(["run", scene, "--out", tmp_path / "out"],
-                   "error: [contact #1] contact: plane strain runs small-strain bodies "
-                   "without contact so far", tmp_path / "out")
+                   "error: [contact #1] half_width: an axisymmetric rigid face has a radius "
+                   "(m) instead", tmp_path / "out")
 
 
 def test_symmetry_refused_in_axisymmetry(tmp_path):

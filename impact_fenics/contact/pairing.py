@@ -94,7 +94,9 @@ def pair_surfaces(model: DeformableModel, lower: str, upper: str,
 
 def rigid_face(model: DeformableModel, surface: str, radius: float, body_name: str = "punch",
                profile: Callable[[np.ndarray], np.ndarray] | None = None) -> Constraints:
-    """Constraints between a rigid body above and the nodes of ``surface`` with r <= radius (m).
+    """Constraints between a rigid body above and the nodes of ``surface`` with |r| <= radius
+    (m): in axisymmetry the face's radius (r >= 0), in plane strain its half-width b about
+    x = 0 (|x| <= b; a half model's face is x in [0, b]).
 
     ``profile(r)`` gives the initial gap b(r) >= 0 (m) under each node; a flat
     face touching the surface (b = 0) by default.
@@ -103,9 +105,9 @@ def rigid_face(model: DeformableModel, surface: str, radius: float, body_name: s
         raise InputError(f"rigid face radius = {radius} m: must be > 0")
     xy, dofs = _surface_nodes(model, surface)
     tol = 1e-9 * max(model.length_scale, radius)
-    keep = xy[:, 0] <= radius + tol
+    keep = np.abs(xy[:, 0]) <= radius + tol
     if not np.any(keep):
-        raise InputError(f"no node of '{surface}' lies within r <= {radius} m")
+        raise InputError(f"no node of '{surface}' lies within |r| <= {radius} m")
     r = xy[keep, 0]
     b = np.zeros_like(r) if profile is None else np.asarray(profile(r), dtype=float)
     if b.shape != r.shape or np.any(b < 0) or not np.all(np.isfinite(b)):
@@ -116,14 +118,15 @@ def rigid_face(model: DeformableModel, surface: str, radius: float, body_name: s
 
 def spherical_button(sphere_radius: float) -> Callable[[np.ndarray], np.ndarray]:
     """Initial gaps b(r) = R_s - sqrt(R_s^2 - r^2) (m) under a spherical button of radius
-    R_s (m) touching the surface at r = 0: a ``profile`` for :func:`rigid_face`, whose
-    face radius must not exceed R_s."""
+    R_s (m) touching the surface at r = 0 (in plane strain a cylinder along the slab's
+    thickness, touching at x = 0, the same formula in x): a ``profile`` for
+    :func:`rigid_face`, whose face radius (half-width) must not exceed R_s."""
     if not sphere_radius > 0:
         raise InputError(f"button radius = {sphere_radius} m: must be > 0")
 
     def profile(r: np.ndarray) -> np.ndarray:
-        if np.any(r > sphere_radius):
-            raise InputError(f"rigid face reaches r = {float(np.max(r)):.6g} m beyond the "
+        if np.any(np.abs(r) > sphere_radius):
+            raise InputError(f"rigid face reaches |r| = {float(np.max(np.abs(r))):.6g} m beyond the "
                              f"button radius {sphere_radius} m")
         return sphere_radius - np.sqrt(sphere_radius ** 2 - r * r)
 

@@ -27,7 +27,9 @@ Edge cases (each tested):
 * the axis r = 0: a slave on the axis whose contact point is a master node
   on the axis (a tip, or a face starting there) gets n = (0, +-1) exactly,
   whatever the tilt of the segment chosen (by symmetry; both u_r are fixed there
-  and the methods never move a fixed dof).
+  and the methods never move a fixed dof). In plane strain the same rule holds on
+  a declared symmetry plane x = 0 only (``axis``; without one x = 0 is no
+  different from any other x).
 
 Initial gaps below -``gap_tol`` are refused (one line naming the node); gaps
 within +-``gap_tol`` are set to zero. A slave farther than ``reach`` from every
@@ -103,6 +105,9 @@ class SegmentConstraints:
     reach: float = np.inf
     xi_tol: float = 1e-6
     tie_tol: float = 0.0
+    # whether x = 0 is a symmetry line (the axis r = 0, or a plane-strain half model's
+    # declared plane): the axis rules apply there
+    axis: bool = True
 
     @property
     def n(self) -> int:
@@ -405,12 +410,15 @@ def default_reach(slave_xy: np.ndarray, master_xy: np.ndarray, longest: float) -
 def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
           master_dofs: np.ndarray, segments: np.ndarray, inside: np.ndarray,
           names: tuple[str, str] = ("slave", "master"), reach: float | None = None,
-          gap_tol: float | None = None, xi_tol: float = 1e-6) -> SegmentConstraints:
+          gap_tol: float | None = None, xi_tol: float = 1e-6,
+          axis: bool = True) -> SegmentConstraints:
     """Constraints from replicated arrays (any order: sorted here into the global order).
 
     ``segments`` (k, 2) index ``master_xy``; ``inside`` (k, 2) a point inside the
     master body behind each segment. ``reach`` (m) defaults to :func:`default_reach`,
-    ``gap_tol`` (m) to 1e-6 of the shortest segment; ``xi_tol`` is relative."""
+    ``gap_tol`` (m) to 1e-6 of the shortest segment; ``xi_tol`` is relative. ``axis``:
+    x = 0 is a symmetry line (the axis of axisymmetry, a declared symmetry plane) and
+    its rules apply."""
     slave_xy = np.asarray(slave_xy, dtype=float)
     master_xy = np.asarray(master_xy, dtype=float)
     # sort keys rounded to 1e-9 of the extent: dof coordinates differ by round-off
@@ -449,7 +457,8 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
                              normal, g0, kind, dist)
     # the axis: a slave on r = 0 whose contact point is a master node on r = 0 (a tip)
     # takes the axial normal, whatever the tilt of the segment chosen
-    _axis_normals(slave_xy, segments, master_xy, seg, xi, tie_tol, normal, g0)
+    if axis:
+        _axis_normals(slave_xy, segments, master_xy, seg, xi, tie_tol, normal, g0)
     far = seg < 0
     if np.any(far):
         k = np.flatnonzero(far)[0]
@@ -472,7 +481,8 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
                               master_dofs=master_dofs, segments=segments, seg=seg,
                               a=segments[seg, 0].copy(), b=segments[seg, 1].copy(), xi=xi,
                               normal=normal, g0=g0, kind=kind, names=names,
-                              seg_normal=normals, reach=reach, xi_tol=xi_tol, tie_tol=tie_tol)
+                              seg_normal=normals, reach=reach, xi_tol=xi_tol, tie_tol=tie_tol,
+                              axis=axis)
 
 
 # ----------------------------------------------------------------------------- re-pairing
@@ -592,7 +602,7 @@ class Repairing:
         self.side = np.where(c.seg_normal[:, 0] * t[:, 1] - c.seg_normal[:, 1] * t[:, 0] >= 0.0,
                              1.0, -1.0)
         valence = np.bincount(c.segments.ravel(), minlength=c.master_xy.shape[0])
-        self.end = (valence == 1) & (np.abs(c.master_xy[:, 0]) > c.tie_tol)
+        self.end = (valence == 1) & ((np.abs(c.master_xy[:, 0]) > c.tie_tol) | (not c.axis))
         self.seg_normal = np.empty_like(c.seg_normal)
         self.pairs = Pairs.empty(c.n)
 
@@ -603,7 +613,9 @@ class Repairing:
         _oriented_normals(master_x, c.segments, self.side, self.seg_normal)
         self.search.pair(slave_x, c.segments, master_x, self.seg_normal, c.xi_tol, c.tie_tol,
                          p.seg, p.xi, p.normal, p.gap, p.kind, p.dist)
-        _axis_normals(slave_x, c.segments, master_x, p.seg, p.xi, c.tie_tol, p.normal, p.gap)
+        if c.axis:
+            _axis_normals(slave_x, c.segments, master_x, p.seg, p.xi, c.tie_tol, p.normal,
+                          p.gap)
         _face_ends(slave_x, master_x, self.seg_normal, self.end_tol, p.seg, p.xi, p.kind,
                    p.normal, p.gap, c.segments, self.end, p.a, p.b, p.active)
         return p
@@ -754,4 +766,4 @@ def node_to_segment(model: DeformableModel, slave: str, master: str, reach: floa
     if slave_xy.shape[0] == 0:
         raise InputError(f"facet group '{slave}' has no node")
     return build(slave_xy, slave_dofs, master_xy, master_dofs, segments, inside,
-                 (slave, master), reach, gap_tol, xi_tol)
+                 (slave, master), reach, gap_tol, xi_tol, axis=model.geometry.held_first)

@@ -16,7 +16,6 @@ It writes docs/figures/shpb_friction_curves.png, shpb_friction_profile.png and
 shpb_friction.json. The suite runs one short friction scene end to end.
 """
 import json
-import math
 import os
 
 import numpy as np

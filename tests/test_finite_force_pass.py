@@ -3,9 +3,10 @@ to round-off.
 
 The pass computes each point's F-bar factor (J_bar / J_q)^(1/3) (plane strain: ^(1/2))
 for the cell's four points in a loop of their own, from one reciprocal 1 / J_q a point
-(ratio J_bar (1 / J_q), and 1 / det of the (r, z) block = F_tt / J_q in P), where the
-previous pass took the quotient J_bar / J_q, its root inside the loop of the point updates
-and the block's determinant again in P. The same quantities, other roundings: class (b)
+(ratio J_bar (1 / J_q), and 1 / det of the (r, z) block = F_tt / J_q in P) and one
+1 / R (F_tt and the hoop term), where the previous pass took the quotient J_bar / J_q, its
+root inside the loop of the point updates, the block's determinant again in P and two
+quotients by R. The same quantities, other roundings: class (b)
 of tests/roundoff.py. The previous pass is kept below, as it was, as the oracle.
 
 Cases: a distorted Q1 mesh touching the axis (cells with an axis edge), for every finite
@@ -203,8 +204,9 @@ def bounds(material, g, u, tau):
     tests/test_hencky_split.py). The return only shrinks a difference of trial stresses
     (the factor 1 - 3 mu dgamma / q <= 1, dgamma moves by dq / (3 mu + H)). The force
     P : Grad N_a sums 4 points of w (tau F^-T) per cell and at most 4 cells per node: P's
-    factor w / det of the block takes 3 roundings where it took 1, and the products and
-    sums 16 more, on the node's scale sum |w| |F^-1| |Grad N| (|tau| + the stress bound)."""
+    factor w / det of the block takes 3 roundings where it took 1, the hoop term's
+    w tau_tt / (F_tt R) 6 (with F_tt's own 2) where it took 3, and the products and sums
+    16 more, on the node's scale sum |w| |F^-1| |Grad N| (|tau| + the stress bound)."""
     lam, mu = material.lmbda, material.mu
     n_eps = 18 + LIBM
     tau_scale = float(np.abs(tau).max())
@@ -214,7 +216,7 @@ def bounds(material, g, u, tau):
         for q in range(4):
             grad = np.abs(g.dNdR[c, q]) + np.abs(g.dNdZ[c, q]) + np.abs(g.N[q]) / g.R[c, q]
             node_scale[g.dofs[c]] += g.w[c, q] * grad * 1.1  # |F^-1| <= 1.1 in these cases
-    d_f = rounding(16 + 3, float(node_scale.max()) * (tau_scale + d_tau)) + float(
+    d_f = rounding(16 + 6, float(node_scale.max()) * (tau_scale + d_tau)) + float(
         node_scale.max()) * d_tau
     d_b = rounding(2 * n_eps + 2 * LIBM + 2 * 16, 1.0)  # b_e = F a F' ~ 1: as in bounds of
     # tests/test_hencky_split.py, the exp of the returned strains on top of the trial's error

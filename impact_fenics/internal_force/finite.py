@@ -56,7 +56,8 @@ One fused compiled pass over the owned cells reads a cell's nodal displacements
 once, computes F at its four points, J_bar, the four F-bar factors (in a loop of their
 own: four independent chains of the cube root's divisions, which inside the loop of the
 point updates stood on each point's critical path; one reciprocal 1 / J_q a point serves
-the factor's ratio J_bar / J_q and P's 1 / det = F_tt / J_q), the point updates, tau_eff
+the factor's ratio J_bar / J_q and P's 1 / det = F_tt / J_q, one 1 / R_q F_tt and the
+hoop term w_q tau_tt / (F_tt R_q)), the point updates, tau_eff
 and the element force (summed over the points, then added once per node into the local
 owned + ghost array), then one reverse scatter sums the ghosts. It is compiled
 with numpy's error model (no test and exception per division; float64, no
@@ -141,7 +142,7 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
               point_state, point_tau):
         """f += f_int (N) over the cells; state and tau (Kirchhoff, Pa) updated in place.
         Returns (plastic work increment (J), smallest J, cell of the smallest J). ``Fq``
-        (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q and the F-bar factor.
+        (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q, the F-bar factor and 1 / R_q.
 
         The point update works on the views state[c, q] and tau[c, q], or, with
         ``point_copy`` (a material whose update has a loop: Johnson-Cook's return), on the
@@ -170,8 +171,10 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                     ftt = 1.0
                     jq = det2
                 else:
+                    inv_r = 1.0 / R[c, q]
+                    Fq[q, 7] = inv_r
                     ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r
-                                 + N[q, 3] * u3r) / R[c, q]
+                                 + N[q, 3] * u3r) * inv_r
                     jq = det2 * ftt
                 Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
                 Jq[q] = jq
@@ -230,7 +233,8 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                 prz = trr * i10 + trz * i11
                 pzr = trz * i00 + tzz * i01
                 pzz = trz * i10 + tzz * i11
-                ptt = 0.0 if plane else wq * ttt / (ftt * R[c, q])  # no hoop term in plane
+                # w_q tau_tt / (F_tt R) with 1 / F_tt = det / J_q; no hoop term in plane
+                ptt = 0.0 if plane else wq * ttt * (frr * fzz - frz * fzr) * Fq[q, 5] * Fq[q, 7]
                 g0, g1, g2, g3 = dNdR[c, q, 0], dNdR[c, q, 1], dNdR[c, q, 2], dNdR[c, q, 3]
                 h0, h1, h2, h3 = dNdZ[c, q, 0], dNdZ[c, q, 1], dNdZ[c, q, 2], dNdZ[c, q, 3]
                 f0r += prr * g0 + prz * h0 + ptt * N[q, 0]

@@ -26,7 +26,7 @@ from impact_fenics.geometry import Geometry, PLANE_STRAIN
 from impact_fenics.internal_force.finite import WORK, cube_root, kernels
 from impact_fenics.materials import FiniteJ2, JohnsonCook, NeoHookean
 from impact_fenics.q1 import QuadGeometry
-from roundoff import EPS, LIBM, rounding
+from roundoff import LIBM, rounding
 from test_johnson_cook_return import root_tolerance
 
 _PREVIOUS: dict = {}
@@ -139,7 +139,6 @@ def previous_kernel(update, n_state: int, point_copy: bool, plane: bool):
             f[k2 + 1] += f2z
             f[k3 + 1] += f3z
         return wp, j_min, c_min
-
 
     _PREVIOUS[key] = force
     return force

@@ -53,8 +53,12 @@ signature), w_q the Gauss weight times |det dX/dxi| 2 pi R_q (m^3): the Q1 geome
 of :mod:`..q1`, shared with the small-strain (B-bar) forces.
 
 One fused compiled pass over the owned cells reads a cell's nodal displacements
-once, computes F at its four points, J_bar, the point updates, tau_eff and the
-element force (summed over the points, then added once per node into the local
+once, computes F at its four points, J_bar, the four F-bar factors (in a loop of their
+own: four independent chains of the cube root's divisions, which inside the loop of the
+point updates stood on each point's critical path; one reciprocal 1 / J_q a point serves
+the factor's ratio J_bar / J_q and P's 1 / det = F_tt / J_q, one 1 / R_q F_tt and the
+hoop term w_q tau_tt / (F_tt R_q)), the point updates, tau_eff
+and the element force (summed over the points, then added once per node into the local
 owned + ghost array), then one reverse scatter sums the ghosts. It is compiled
 with numpy's error model (no test and exception per division; float64, no
 fast-math). It
@@ -137,7 +141,8 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
     def force(params, dt, dofs, dNdR, dNdZ, N, R, w, volume, u, f, state, tau, Fq, Jq, fbar, work,
               point_state, point_tau):
         """f += f_int (N) over the cells; state and tau (Kirchhoff, Pa) updated in place.
-        Returns (plastic work increment (J), smallest J, cell of the smallest J).
+        Returns (plastic work increment (J), smallest J, cell of the smallest J). ``Fq``
+        (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q, the F-bar factor and 1 / R_q.
 
         The point update works on the views state[c, q] and tau[c, q], or, with
         ``point_copy`` (a material whose update has a loop: Johnson-Cook's return), on the
@@ -161,32 +166,38 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                 frz = h0 * u0r + h1 * u1r + h2 * u2r + h3 * u3r
                 fzr = g0 * u0z + g1 * u1z + g2 * u2z + g3 * u3z
                 fzz = 1.0 + (h0 * u0z + h1 * u1z + h2 * u2z + h3 * u3z)
+                det2 = frr * fzz - frz * fzr
                 if plane:
-                    Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, 1.0
-                    Jq[q] = frr * fzz - frz * fzr
+                    ftt = 1.0
+                    jq = det2
                 else:
+                    inv_r = 1.0 / R[c, q]
+                    Fq[q, 7] = inv_r
                     ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r
-                                 + N[q, 3] * u3r) / R[c, q]
-                    Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
-                    Jq[q] = (frr * fzz - frz * fzr) * ftt
-                jbar += w[c, q] * Jq[q]
-                if Jq[q] < j_min:
-                    j_min = Jq[q]
+                                 + N[q, 3] * u3r) * inv_r
+                    jq = det2 * ftt
+                Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
+                Jq[q] = jq
+                Fq[q, 5] = 1.0 / jq
+                jbar += w[c, q] * jq
+                if jq < j_min:
+                    j_min = jq
                     c_min = c
             jbar /= volume[c]
             if jbar <= 0.0 or j_min <= 0.0:
                 return wp, j_min, c_min
+            # the four points' F-bar factors, independent of each other
+            for q in range(4):
+                if plane:
+                    Fq[q, 6] = math.sqrt(jbar * Fq[q, 5])
+                else:
+                    Fq[q, 6] = cube_root(jbar * Fq[q, 5])
             m_bar = 0.0
             for q in range(4):
-                if plane:  # the in-plane block scaled, F_bar_out = 1
-                    alpha = math.sqrt(jbar / Jq[q])
-                    for i in range(4):
-                        fbar[i] = alpha * Fq[q, i]
-                    fbar[4] = 1.0
-                else:
-                    alpha = cube_root(jbar / Jq[q])
-                    for i in range(5):
-                        fbar[i] = alpha * Fq[q, i]
+                alpha = Fq[q, 6]
+                fbar[0], fbar[1], fbar[2], fbar[3] = (alpha * Fq[q, 0], alpha * Fq[q, 1],
+                                                      alpha * Fq[q, 2], alpha * Fq[q, 3])
+                fbar[4] = 1.0 if plane else alpha * Fq[q, 4]
                 if point_copy:
                     for i in range(n_state):
                         point_state[i] = state[c, q, i]
@@ -216,13 +227,14 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                     trr, ttt, tzz, trz = t0 + shift, t1 + shift, t2 + shift, t3
                 # w_q F^-1 of the (r, z) block; P = tau_eff F^-T, P_ij = sum_k tau_ik Finv_jk
                 wq = w[c, q]
-                scale = wq / (frr * fzz - frz * fzr)
+                scale = wq * ftt * Fq[q, 5]  # w_q / det of the (r, z) block = w_q F_tt / J_q
                 i00, i01, i10, i11 = fzz * scale, -frz * scale, -fzr * scale, frr * scale
                 prr = trr * i00 + trz * i01
                 prz = trr * i10 + trz * i11
                 pzr = trz * i00 + tzz * i01
                 pzz = trz * i10 + tzz * i11
-                ptt = 0.0 if plane else wq * ttt / (ftt * R[c, q])  # no hoop term in plane
+                # w_q tau_tt / (F_tt R) with 1 / F_tt = det / J_q; no hoop term in plane
+                ptt = 0.0 if plane else wq * ttt * (frr * fzz - frz * fzr) * Fq[q, 5] * Fq[q, 7]
                 g0, g1, g2, g3 = dNdR[c, q, 0], dNdR[c, q, 1], dNdR[c, q, 2], dNdR[c, q, 3]
                 h0, h1, h2, h3 = dNdZ[c, q, 0], dNdZ[c, q, 1], dNdZ[c, q, 2], dNdZ[c, q, 3]
                 f0r += prr * g0 + prz * h0 + ptt * N[q, 0]
@@ -371,7 +383,7 @@ class FiniteStrainForce:
         self.state = np.empty((n, N_POINTS, max(material.n_state, 1)))
         self.state[:] = material.initial_state()
         self.tau = np.zeros((n, N_POINTS, 4))
-        self._Fq = np.zeros((N_POINTS, 5))
+        self._Fq = np.zeros((N_POINTS, 8))
         self._Jq = np.zeros(N_POINTS)
         self._fbar = np.zeros(5)
         self._work = np.zeros(WORK)

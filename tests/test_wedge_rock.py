@@ -26,7 +26,6 @@ The runs are the shipped scene shortened to T_END (about 200 steps): the blow's 
 """
 import math
 import os
-import sys
 
 import numpy as np
 import pytest
@@ -36,11 +35,10 @@ from mpi4py import MPI
 from impact_fenics import meshing
 from impact_fenics.compat import geometry_dofs, scalar_space
 from impact_fenics.errors import InputError
+from conftest import load_demo
 from roundoff import ledger, rounding
-from scene_texts import ROOT
 
-sys.path.insert(0, os.path.join(ROOT, "demos"))
-import wedge_indentation as demo  # noqa: E402
+demo = load_demo("wedge_indentation")
 
 T_END = 4e-6  # s
 # gmsh places a node within Geometry.Tolerance (1e-8 of the model's size) by its own

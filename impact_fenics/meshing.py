@@ -790,3 +790,76 @@ def punch_on_block(punch_radius: float = 1.0, punch_height: float = 0.05, width:
     return _to_dolfinx(comm, build, {"scene": "punch_on_block", "width": width, "depth": depth,
                                      "h_surface": h_surface, "grading": grading,
                                      "punch_radius": punch_radius, "punch_height": punch_height})
+
+
+def wedge_half_width(wedge_angle: float, tip_radius: float, wedge_height: float) -> float:
+    """The half width (m) at the top of the wedge of :func:`wedge_on_block`: the flank,
+    tangent to the tip's circle at x = R cos(a), y = R (1 - sin a) (a the half angle),
+    rises to y = wedge_height at x = R cos a + (wedge_height - R (1 - sin a)) tan a."""
+    a = math.radians(0.5 * wedge_angle)
+    return tip_radius * math.cos(a) + (wedge_height - tip_radius * (1.0 - math.sin(a))) * math.tan(a)
+
+
+def wedge_on_block(wedge_angle: float = 90.0, tip_radius: float = 0.0005,
+                   wedge_height: float = 0.01, block_width: float = 0.02,
+                   block_depth: float = 0.01, h_wedge: float = 0.00025,
+                   h_block: float = 0.00025, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """The half section (x >= 0, a symmetry plane on x = 0) of a deformable wedge bit of
+    included angle ``wedge_angle`` (deg) whose round tip (radius ``tip_radius``, m)
+    touches a block at the origin, for a plane-strain scene with ``symmetry = "x=0"``.
+
+    The wedge: the tip's arc, centred at (0, R), from the tip (0, 0) to where the flank
+    (at half the angle from the y axis) is tangent to it, the flank up to y =
+    ``wedge_height`` (half width :func:`wedge_half_width` there), its top and x = 0. The
+    block x in [0, block_width], y in [-block_depth, 0], its top split at the wedge's half
+    width. Triangles (P1) of sizes h_wedge and h_block (m), unstructured.
+
+    Groups: cells "wedge", "block"; facets "wedge_face" (the arc and the flank),
+    "wedge_top" (y = wedge_height), "block_contact" (the top under the wedge),
+    "block_top" (the rest of the top), "block_side" (x = block_width), "block_bottom"
+    (y = -block_depth), "axis" (x = 0, both bodies).
+    """
+    require(0.0 < wedge_angle < 180.0, f"wedge_on_block: wedge_angle = {wedge_angle} deg must "
+            "be in (0, 180)")
+    require(tip_radius > 0 and wedge_height > 0 and block_depth > 0 and h_wedge > 0
+            and h_block > 0, "wedge_on_block: tip_radius, wedge_height, block_depth and the "
+                             "sizes must be > 0 (m)")
+    a = math.radians(0.5 * wedge_angle)
+    require(wedge_height > tip_radius * (1.0 - math.sin(a)), "wedge_on_block: wedge_height "
+            f"= {wedge_height} m must reach above the tip's arc, R (1 - sin(angle/2)) = "
+            f"{tip_radius * (1.0 - math.sin(a)):.6g} m")
+    half = wedge_half_width(wedge_angle, tip_radius, wedge_height)
+    require(block_width > half, f"wedge_on_block: block_width = {block_width} m must exceed "
+            f"the wedge's half width {half:.6g} m")
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        R = tip_radius
+        tip, centre = geo.addPoint(0, 0, 0, h_wedge), geo.addPoint(0, R, 0, h_wedge)
+        tangent = geo.addPoint(R * math.cos(a), R * (1.0 - math.sin(a)), 0, h_wedge)
+        shoulder = geo.addPoint(half, wedge_height, 0, h_wedge)
+        crown = geo.addPoint(0, wedge_height, 0, h_wedge)
+        arc = geo.addCircleArc(tip, centre, tangent)
+        flank, top = geo.addLine(tangent, shoulder), geo.addLine(shoulder, crown)
+        axis_w = geo.addLine(crown, tip)
+        wedge = geo.addPlaneSurface([geo.addCurveLoop([arc, flank, top, axis_w])])
+        b = [geo.addPoint(0, 0, 0, h_block), geo.addPoint(half, 0, 0, h_block),
+             geo.addPoint(block_width, 0, 0, h_block),
+             geo.addPoint(block_width, -block_depth, 0, h_block),
+             geo.addPoint(0, -block_depth, 0, h_block)]
+        lines = [geo.addLine(b[(k + 1) % 5], b[k]) for k in range(5)]  # counter-clockwise
+        block = geo.addPlaneSurface([geo.addCurveLoop(lines[::-1])])
+        geo.synchronize()
+        _group(gmsh, 2, [wedge], "wedge", 1)
+        _group(gmsh, 2, [block], "block", 2)
+        for name, curves, tag in (("wedge_face", [arc, flank], 11), ("wedge_top", [top], 12),
+                                  ("block_contact", [lines[0]], 13),
+                                  ("block_top", [lines[1]], 14), ("block_side", [lines[2]], 15),
+                                  ("block_bottom", [lines[3]], 16),
+                                  ("axis", [axis_w, lines[4]], 17)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "wedge_on_block", "wedge_angle": wedge_angle,
+                                     "tip_radius": tip_radius, "wedge_height": wedge_height,
+                                     "half_width": half, "h_wedge": h_wedge, "h_block": h_block})

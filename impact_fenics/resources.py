@@ -166,6 +166,15 @@ def generator_regions(generator: str, p: dict) -> list[Region]:
         if p["quadrilaterals"]:
             region = Region("block", 0.5 * region.cells, region.nodes, p["h"], "quad")
         return [region]
+    if generator == "wedge_on_block":  # the half wedge (a trapezoid with a round tip), the block
+        from .meshing import wedge_half_width
+
+        half = wedge_half_width(p["wedge_angle"], p["tip_radius"], p["wedge_height"])
+        sides = (2 * p["wedge_height"] + half + math.hypot(half, p["wedge_height"])) / p["h_wedge"]
+        cells = 0.5 * half * p["wedge_height"] / (EQUILATERAL * p["h_wedge"] ** 2)
+        wedge = Region("wedge", cells, 1.0 + 0.5 * (cells + sides), p["h_wedge"], "unstructured")
+        return [wedge, _rectangle("block", p["block_width"], p["block_depth"], p["h_block"],
+                                  False)]
     raise ValueError(generator)
 
 
@@ -181,6 +190,8 @@ def generator_size(generator: str, p: dict) -> float:
         return max(p["block_width"], p["block_depth"] + p["nose_radius"] + p["shank_length"])
     if generator == "punch_block":
         return max(p["width"], p["depth"])
+    if generator == "wedge_on_block":
+        return max(p["block_width"], p["block_depth"] + p["wedge_height"])
     if generator == "shpb":
         return (p["striker_length"] + p["incident_length"] + p["specimen_length"]
                 + p["transmitter_length"])

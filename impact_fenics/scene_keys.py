@@ -90,7 +90,7 @@ ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 # the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
 # (impact_fenics.finite_run: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
-              "nosed_striker_on_block", "shpb", "block")
+              "nosed_striker_on_block", "shpb", "block", "wedge_on_block")
 # parameters a generator has no default for (quad_bar: impact_fenics.finite_run.quad_bar)
 REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
 _BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
@@ -139,9 +139,20 @@ _MESH = Section("mesh", "[mesh]", (
     Key("shank_length", "positive", "m", _GEN, "striker length above the nose",
         groups=("nosed_striker_on_block",)),
     Key("block_width", "positive", "m", _GEN, "block radius", groups=("nosed_striker_on_block",)),
-    Key("block_depth", "positive", "m", _GEN, "block depth", groups=("nosed_striker_on_block",)),
+    Key("block_depth", "positive", "m", _GEN, "block depth",
+        groups=("nosed_striker_on_block", "wedge_on_block")),
     Key("h_block", "positive", "m", _GEN, "element size of the block",
-        groups=("nosed_striker_on_block",)),
+        groups=("nosed_striker_on_block", "wedge_on_block")),
+    Key("wedge_angle", "positive", "deg", _GEN, "the wedge's included angle, below 180",
+        groups=("wedge_on_block",)),
+    Key("tip_radius", "positive", "m", _GEN, "radius of the wedge's round tip",
+        groups=("wedge_on_block",)),
+    Key("wedge_height", "positive", "m", _GEN, "height of the wedge above its tip (y = 0)",
+        groups=("wedge_on_block",)),
+    Key("block_width", "positive", "m", _GEN, "the block's half width (x in [0, block_width])",
+        groups=("wedge_on_block",)),
+    Key("h_wedge", "positive", "m", _GEN, "element size of the wedge",
+        groups=("wedge_on_block",)),
     Key("bar_diameter", "positive", "m", _GEN, "shpb: diameter of the striker and the bars",
         groups=("shpb",)),
     Key("incident_length", "positive", "m", _GEN, "shpb: incident bar length (z in [0, "

@@ -311,6 +311,8 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
             params[spec.name] = t.value(spec.name)
         elif spec.name in REQUIRED_PARAMS.get(generator, ()):
             params[spec.name] = t.value(spec.name, MISSING)
+    if generator == "wedge_on_block" and params.get("wedge_angle", 0.0) >= 180.0:
+        raise t.error("wedge_angle", "must be below 180 deg (the wedge's included angle)")
     return MeshSpec(generator, params, None)
 
 

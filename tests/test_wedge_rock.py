@@ -101,6 +101,22 @@ def test_wedge_on_block_refuses_a_flat_angle():
         meshing.wedge_on_block(wedge_angle=180.0)
 
 
+def test_the_scene_reader_refuses_a_flat_angle_before_any_estimate(tmp_path):
+    """A scene with wedge_angle >= 180 is refused when it is read (one line naming the
+    key), before the run's estimate is printed or its directory made."""
+    from impact_fenics.scene_file import read_scene
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    with open(os.path.join(here, "..", "scenes", "wedge_rock.toml")) as f:
+        text = f.read()
+    lines = [("wedge_angle = 200.0" if ln.startswith("wedge_angle") else ln)
+             for ln in text.splitlines()]
+    path = tmp_path / "bad.toml"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match="wedge_angle.*must be below 180"):
+        read_scene(str(path))
+
+
 @pytest.fixture(scope="module")
 def blow(tmp_path_factory):
     out = os.path.join(_shared(tmp_path_factory.mktemp("wedge")), "run")

@@ -248,9 +248,10 @@ def _read_geometry(top: Table) -> Geometry:
 
 def _check_plane_strain(scene: Scene) -> None:
     """Refuse, in one line each, what plane strain does not run yet: finite-strain bodies
-    and friction (docs/plane_strain.md), and a rigid face's radius (its half_width). Node
-    pairs (paired by x), node to segment, rigid faces (moving along y) and the wall run as
-    in axisymmetry: the masses carry the measure."""
+    (docs/plane_strain.md), and a rigid face's radius (its half_width). Node pairs (paired
+    by x), node to segment, rigid faces (moving along y) and the wall run as in
+    axisymmetry, friction too (along x, the in-plane tangent): the masses carry the
+    measure."""
     not_yet = "plane strain runs small-strain bodies only so far"
     for b in scene.bodies:
         if b.strain == "finite":
@@ -259,11 +260,6 @@ def _check_plane_strain(scene: Scene) -> None:
         if c.rigid is not None and "radius" in c.given:
             raise InputError(f"{c.where} radius: a plane-strain rigid face has a half_width "
                              "(m; |x| <= half_width) instead")
-        if c.friction is not None:
-            raise InputError(f"{c.where} friction: plane strain runs frictionless contact "
-                             "so far")
-    if scene.wall is not None and scene.wall.friction is not None:
-        raise InputError("[wall] friction: plane strain runs frictionless contact so far")
 
 
 def _check_contact_surfaces(contacts: list[ContactSpec]) -> None:

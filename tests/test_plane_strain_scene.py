@@ -105,14 +105,11 @@ def test_refused(tmp_path, old, new, expected):
     (replace(RIGID, 'components = ["z"]', 'components = ["y"]'),
      "error: [contact #1] radius: a plane-strain rigid face has a half_width (m; |x| <= "
      "half_width) instead"),
-    (replace(PAIR.replace("sigma_zz", "sigma_yy"), 'method = "film"\n',
-             'method = "film"\nfriction = 0.3\n'),
-     "error: [contact #1] friction: plane strain runs frictionless contact so far"),
 ])
-def test_radius_and_friction_refused(tmp_path, text, expected):
-    """Node pairs, node to segment, rigid faces and the wall run in plane strain
-    (tests/test_plane_strain_contact.py, tests/test_plane_strain_impact.py); a rigid face
-    is sized by its half_width, and friction is not there yet."""
+def test_radius_refused(tmp_path, text, expected):
+    """Node pairs, node to segment, rigid faces and the wall run in plane strain, friction
+    too (tests/test_plane_strain_contact.py, tests/test_plane_strain_impact.py,
+    tests/test_plane_strain_friction.py); a rigid face is sized by its half_width."""
     scene = tmp_path / "contact.toml"
     scene.write_text('geometry = "plane_strain"\n' + text)
     assert_refused(["run", scene, "--out", tmp_path / "out"], expected, tmp_path / "out")

@@ -376,9 +376,10 @@ class CellPoints:
         n_points, n_comp = force.qs.eps_p.shape[1:]
         ns = force.qs.state.shape[2]
         self.u, self.f = np.zeros(2 * n_nodes), np.zeros(2 * n_nodes)
-        self.eps_p = np.zeros((1, n_points, n_comp))
-        self.state = np.zeros((1, n_points, ns))
-        self.sigma = np.zeros((1, n_points, n_comp))
+        # one cell's state in the layout of the force's (the kernel's arrays)
+        one = type(force.qs)(1, ns, n_points, force.qs.by_component)
+        self.eps_p, self.state, self.sigma = one.eps_p, one.state, one.sigma
+        self._kernel_arrays = one.kernel_arrays
         self.work = np.zeros_like(force.work)
         self.size = n_points * (2 * n_comp + ns)  # raw floats of the state
         self._cells = np.zeros(1, dtype=np.int64)
@@ -387,7 +388,7 @@ class CellPoints:
 
     def _arguments(self) -> tuple:
         return (self.params, self.dt, self.dofs, self.dNdr, self.dNdz, self.N, self.inv_r, self.w,
-                self.u, self.f, self.eps_p, self.state, self.sigma, self.work)
+                self.u, self.f, *self._kernel_arrays, self.work)
 
     def value(self, row: np.ndarray, u_start: int, start: int, code: int) -> float:
         """Probe value ``code`` of a summed raw row: the nodal displacements at

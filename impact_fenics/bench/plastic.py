@@ -50,7 +50,7 @@ def _split(ctx, integ) -> dict:
         out["zero_f"] = ctx.median(lambda: f.fill(0.0))
         out["fused_kernel"] = ctx.median(lambda: force._fused(
             force.params, force.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, integ._u_fn.x.array,
-            f, qs.eps_p, qs.state, qs.sigma, force._work))
+            f, *qs.kernel_arrays, force._work))
         out["ghost_reverse"] = ctx.median(lambda: compat.scatter_add(force.f.x))
         # the point updates alone (state in and out, the update) on the same strains: the
         # generic path's point loop

@@ -140,12 +140,34 @@ class QuadPointGeometry:
 
 
 class QuadratureState:
-    """Internal variables at the points of owned cells: eps_p, state, sigma (see module)."""
+    """Internal variables at the points of owned cells: eps_p, state, sigma (see module).
 
-    def __init__(self, n_cells: int, n_state: int, n_points: int = N_POINTS):
-        self.eps_p = np.zeros((n_cells, n_points, N_COMP))
+    ``by_component``: eps_p and sigma are stored one array per component, ``eps_p_c`` and
+    ``sigma_c`` (4, cells x points), and ``eps_p``, ``sigma`` (cells, points, 4) are views
+    of them (the layout of the axisymmetric triangles' cell kernel, :func:`kernels`, whose
+    loads of a component at a cell's three points are then contiguous); otherwise they
+    are stored as shown. ``kernel_arrays`` is what the cell kernel takes: (eps_p_c,
+    state, sigma_c) or (eps_p, state, sigma)."""
+
+    def __init__(self, n_cells: int, n_state: int, n_points: int = N_POINTS,
+                 by_component: bool = False):
+        self.by_component = by_component
         self.state = np.zeros((n_cells, n_points, max(n_state, 1)))
-        self.sigma = np.zeros((n_cells, n_points, N_COMP))
+        if by_component:
+            self.eps_p_c = np.zeros((N_COMP, n_cells * n_points))
+            self.sigma_c = np.zeros((N_COMP, n_cells * n_points))
+            self.eps_p = self.eps_p_c.reshape(N_COMP, n_cells, n_points).transpose(1, 2, 0)
+            self.sigma = self.sigma_c.reshape(N_COMP, n_cells, n_points).transpose(1, 2, 0)
+            self.kernel_arrays = (self.eps_p_c, self.state, self.sigma_c)
+        else:
+            self.eps_p = np.zeros((n_cells, n_points, N_COMP))
+            self.sigma = np.zeros((n_cells, n_points, N_COMP))
+            self.kernel_arrays = (self.eps_p, self.state, self.sigma)
+
+    def copy_from(self, other: "QuadratureState") -> None:
+        """This state := ``other``'s (the same layout), in place."""
+        for mine, theirs in zip(self.kernel_arrays, other.kernel_arrays):
+            np.copyto(mine, theirs)
 
 
 # ---------------------------------------------------------------- compiled kernels
@@ -162,7 +184,9 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
     it runs the screen at a cell's three points before it updates any (three
     independent chains of arithmetic the core overlaps: J2's step, whose ``point`` is
     inlined, is faster so; a material whose ``point`` is a call would keep the three
-    trial stresses across it)."""
+    trial stresses across it), and a cell whose three points it finds elastic takes a
+    straight-line block without the point loop. The kernel reads eps_p and sigma by
+    component (``QuadratureState(by_component=True).kernel_arrays``)."""
     if screen is not None and point is None:
         raise ValueError("a screen needs the scalar point it screens for")
     ahead = bool(ahead) and screen is not None
@@ -180,7 +204,10 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
         """f += sum_q w_q B_q' sigma_q over the cells; returns the plastic work increment
         sum_q w_q 1/2 (sigma_n + sigma_{n+1}) : (eps_p,{n+1} - eps_p,n) (J).
 
-        Every array is C-contiguous (the force's are). The arrays are read through flat
+        ``eps_p`` and ``sigma`` (4, cells x points): one array per component, so that
+        a component's loads at a cell's three points are contiguous (with the elastic
+        cells' straight-line block, the step of a J2 body is faster so). Every array is
+        C-contiguous (the force's are). The arrays are read through flat
         views with the cell and point offsets computed once (a 2- or 3-d index multiplies
         by run-time strides at every access) and the rule's shape values are hoisted out
         of the cell loop (they are the same for every cell). A material's scalar
@@ -200,7 +227,9 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
         st = work[3, :ns]
         dof, g_r, g_z = dofs.reshape(-1), dNdr.reshape(-1), dNdz.reshape(-1)
         ir_q, w_q = inv_r.reshape(-1), w.reshape(-1)
-        ep_q, st_q, sg_q = eps_p.reshape(-1), state.reshape(-1), sigma.reshape(-1)
+        st_q = state.reshape(-1)
+        ep0, ep1, ep2, ep3 = eps_p[0], eps_p[1], eps_p[2], eps_p[3]  # by component
+        sg0, sg1, sg2, sg3 = sigma[0], sigma[1], sigma[2], sigma[3]
         n00, n01, n02 = N[0, 0], N[0, 1], N[0, 2]
         n10, n11, n12 = N[1, 0], N[1, 1], N[1, 2]
         n20, n21, n22 = N[2, 0], N[2, 1], N[2, 2]
@@ -222,16 +251,60 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
             if ahead:
                 # the material's elastic test at the cell's three points before any update:
                 # straight-line code whose three chains the core runs side by side
-                j = 4 * c3
                 e_tt0 = (n00 * ur0 + n01 * ur1 + n02 * ur2) * ir_q[c3]
                 e_tt1 = (n10 * ur0 + n11 * ur1 + n12 * ur2) * ir_q[c3 + 1]
                 e_tt2 = (n20 * ur0 + n21 * ur1 + n22 * ur2) * ir_q[c3 + 2]
-                tr0 = screen(e_rr, e_tt0, e_zz, e_rz, ep_q[j], ep_q[j + 1], ep_q[j + 2],
-                             ep_q[j + 3], st_q, ns * c3, params)
-                tr1 = screen(e_rr, e_tt1, e_zz, e_rz, ep_q[j + 4], ep_q[j + 5], ep_q[j + 6],
-                             ep_q[j + 7], st_q, ns * (c3 + 1), params)
-                tr2 = screen(e_rr, e_tt2, e_zz, e_rz, ep_q[j + 8], ep_q[j + 9], ep_q[j + 10],
-                             ep_q[j + 11], st_q, ns * (c3 + 2), params)
+                tr0 = screen(e_rr, e_tt0, e_zz, e_rz, ep0[c3], ep1[c3], ep2[c3],
+                             ep3[c3], st_q, ns * c3, params)
+                tr1 = screen(e_rr, e_tt1, e_zz, e_rz, ep0[c3 + 1], ep1[c3 + 1],
+                             ep2[c3 + 1], ep3[c3 + 1], st_q, ns * (c3 + 1), params)
+                tr2 = screen(e_rr, e_tt2, e_zz, e_rz, ep0[c3 + 2], ep1[c3 + 2],
+                             ep2[c3 + 2], ep3[c3 + 2], st_q, ns * (c3 + 2), params)
+                if tr0[0] and tr1[0] and tr2[0]:
+                    # the cell is elastic (most cells, most steps): its three trial stresses
+                    # are the result, and this straight-line block does what the point loop
+                    # below does for them, in its order (the same sums, bit for bit), without
+                    # the loop's selections and branches and the inlined return beside them
+                    _, s0, s1, s2, s3 = tr0
+                    i = c3 + 0
+                    wq = w_q[i]
+                    sg0[i], sg1[i], sg2[i], sg3[i] = s0, s1, s2, s3
+                    S_rr += wq * s0
+                    S_zz += wq * s2
+                    S_rz += wq * s3
+                    t = wq * s1 * ir_q[i]
+                    h0 += t * n00
+                    h1 += t * n01
+                    h2 += t * n02
+                    _, s0, s1, s2, s3 = tr1
+                    i = c3 + 1
+                    wq = w_q[i]
+                    sg0[i], sg1[i], sg2[i], sg3[i] = s0, s1, s2, s3
+                    S_rr += wq * s0
+                    S_zz += wq * s2
+                    S_rz += wq * s3
+                    t = wq * s1 * ir_q[i]
+                    h0 += t * n10
+                    h1 += t * n11
+                    h2 += t * n12
+                    _, s0, s1, s2, s3 = tr2
+                    i = c3 + 2
+                    wq = w_q[i]
+                    sg0[i], sg1[i], sg2[i], sg3[i] = s0, s1, s2, s3
+                    S_rr += wq * s0
+                    S_zz += wq * s2
+                    S_rz += wq * s3
+                    t = wq * s1 * ir_q[i]
+                    h0 += t * n20
+                    h1 += t * n21
+                    h2 += t * n22
+                    f[a0] += gr0 * S_rr + gz0 * S_rz + h0
+                    f[a1] += gr1 * S_rr + gz1 * S_rz + h1
+                    f[a2] += gr2 * S_rr + gz2 * S_rz + h2
+                    f[a0 + 1] += gz0 * S_zz + gr0 * S_rz
+                    f[a1 + 1] += gz1 * S_zz + gr1 * S_rz
+                    f[a2 + 1] += gz2 * S_zz + gr2 * S_rz
+                    continue
             else:
                 e_tt0 = e_tt1 = e_tt2 = 0.0
                 tr0 = tr1 = tr2 = (False, 0.0, 0.0, 0.0, 0.0)
@@ -246,7 +319,6 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
                     n0, n1, n2 = n20, n21, n22
                     e_tt, trial = e_tt2, tr2
                 i = c3 + q  # the point
-                j = 4 * i   # its first tensor component
                 k0 = ns * i  # its first state variable
                 ir = ir_q[i]
                 if not ahead:
@@ -254,11 +326,11 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
                 wq = w_q[i]
                 elastic, s0, s1, s2, s3 = trial  # ahead: the trial stress if elastic
                 if screened and not ahead:  # the material's elastic test: no call
-                    elastic, s0, s1, s2, s3 = screen(e_rr, e_tt, e_zz, e_rz, ep_q[j],
-                                                     ep_q[j + 1], ep_q[j + 2], ep_q[j + 3],
+                    elastic, s0, s1, s2, s3 = screen(e_rr, e_tt, e_zz, e_rz, ep0[i],
+                                                     ep1[i], ep2[i], ep3[i],
                                                      st_q, k0, params)
                 if not elastic:
-                    p0, p1, p2, p3 = ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3]
+                    p0, p1, p2, p3 = ep0[i], ep1[i], ep2[i], ep3[i]
                     if scalar:
                         s0, s1, s2, s3, q0, q1, q2, q3 = point(e_rr, e_tt, e_zz, e_rz, p0, p1,
                                                                p2, p3, st_q, k0, params, dt)
@@ -274,11 +346,11 @@ def kernels(update, n_state: int = 1, point=None, screen=None, ahead: bool = Fal
                         q0, q1, q2, q3 = ep[0], ep[1], ep[2], ep[3]
                     d0, d1, d2, d3 = q0 - p0, q1 - p1, q2 - p2, q3 - p3
                     if d0 != 0.0 or d1 != 0.0 or d2 != 0.0 or d3 != 0.0:  # plastic: its work
-                        o0, o1, o2, o3 = sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3]
+                        o0, o1, o2, o3 = sg0[i], sg1[i], sg2[i], sg3[i]
                         wp += 0.5 * wq * ((o0 + s0) * d0 + (o1 + s1) * d1 + (o2 + s2) * d2
                                           + 2.0 * (o3 + s3) * d3)
-                        ep_q[j], ep_q[j + 1], ep_q[j + 2], ep_q[j + 3] = q0, q1, q2, q3
-                sg_q[j], sg_q[j + 1], sg_q[j + 2], sg_q[j + 3] = s0, s1, s2, s3
+                        ep0[i], ep1[i], ep2[i], ep3[i] = q0, q1, q2, q3
+                sg0[i], sg1[i], sg2[i], sg3[i] = s0, s1, s2, s3
                 S_rr += wq * s0
                 S_zz += wq * s2
                 S_rz += wq * s3
@@ -490,7 +562,10 @@ class QuadratureForce:
                              "plane-strain body takes the fused kernel (path 'fast')")
         self.geometry = (QuadPointGeometry if quad else CellGeometry)(model, self.cells)
         n_points = self.geometry.w.shape[1]
-        self.qs = QuadratureState(self.cells.size, self.material.n_state, n_points)
+        # the axisymmetric triangles' kernel reads eps_p and sigma by component
+        self._by_component = not quad and not model.geometry.plane
+        self.qs = QuadratureState(self.cells.size, self.material.n_state, n_points,
+                                  self._by_component)
         self.coef = coef
         self.f = fem.Function(model.V)  # f_int (N), owned + ghost entries
         n = model.n_owned
@@ -517,7 +592,8 @@ class QuadratureForce:
         self._setup_cell_fields()
         # the points at an output's displacement (point_stresses): their own state and a
         # force array that is written, never read
-        self.frame = QuadratureState(self.cells.size, self.material.n_state, n_points)
+        self.frame = QuadratureState(self.cells.size, self.material.n_state, n_points,
+                                     self._by_component)
         self._frame_f = np.zeros_like(self.f.x.array)
         self._load_kernels()
 
@@ -531,7 +607,7 @@ class QuadratureForce:
         g, qs, n = self.geometry, self.qs, self.model.n_owned
         # the fused kernel on either path: point_stresses runs it
         load(self._fused, self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
-             self.u.x.array, self.f.x.array, qs.eps_p, qs.state, qs.sigma, self._work)
+             self.u.x.array, self.f.x.array, *qs.kernel_arrays, self._work)
         if self.path == "generic":
             load(self._points, self.params, self.dt, self._eps_buf, g.w, qs.eps_p, qs.state,
                  qs.sigma, self._qdofs, self._sigma_q.x.array, self._work)
@@ -571,7 +647,7 @@ class QuadratureForce:
             arr = self.f.x.array
             arr[:] = 0.0
             wp = self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w,
-                             self.u.x.array, arr, qs.eps_p, qs.state, qs.sigma, self._work)
+                             self.u.x.array, arr, *qs.kernel_arrays, self._work)
             compat.scatter_add(self.f.x)
         else:
             compat.eval_expression_into(self._eps_expr, self.model.mesh, self.cells, self._eps_buf)
@@ -670,10 +746,8 @@ class QuadratureForce:
         the material computes for the displacement written with them, and satisfy its
         yield condition. One pass over the body's cells."""
         qs, fr, g = self.qs, self.frame, self.geometry
-        np.copyto(fr.eps_p, qs.eps_p)
-        np.copyto(fr.state, qs.state)
-        np.copyto(fr.sigma, qs.sigma)
+        fr.copy_from(qs)
         self._frame_f.fill(0.0)
         self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, u,
-                    self._frame_f, fr.eps_p, fr.state, fr.sigma, self._work)
+                    self._frame_f, *fr.kernel_arrays, self._work)
         return fr

@@ -327,6 +327,10 @@ class DruckerPrager(IsotropicConstants):
     linear: ClassVar[bool] = False
     n_state: ClassVar[int] = N_STATE
     strain: ClassVar[str] = "small"
+    # the triangles' cell kernel runs the exact :func:`screen` at a cell's three points
+    # before it updates any, and a cell found elastic skips the point loop
+    # (:func:`..internal_force.quadrature.kernels`)
+    screen_ahead: ClassVar[bool] = True
     parameters: ClassVar[tuple[Parameter, ...]] = (
         positive("ucs", "Pa", "uniaxial compressive strength"),
         Parameter("friction_angle", "deg", "friction angle phi", low=0.0, high=90.0,

@@ -121,7 +121,8 @@ class J2(IsotropicConstants):
     n_state: int = 1
     strain: ClassVar[str] = "small"
     # the triangles' cell kernel runs the exact :func:`screen` at a cell's three points
-    # before it updates any (:func:`..internal_force.quadrature.kernels`)
+    # before it updates any, and a cell found elastic skips the point loop
+    # (:func:`..internal_force.quadrature.kernels`)
     screen_ahead: ClassVar[bool] = True
     parameters: ClassVar[tuple[Parameter, ...]] = (
         YIELD, LINEAR_HARDENING,

@@ -490,7 +490,9 @@ class Tangential(FrictionFigures):
             self.warned = True
             c = self.c
             s = self.u_now[self.up[far]] - self.u_now[self.lo[far]]
-            warn(f"contact {'/'.join(c.constraints.names)}: the node pair at r = {c.r[far]:.6g} "
+            first = c.integrator.model.geometry.axes[0]  # r, or x in plane strain
+            warn(f"contact {'/'.join(c.constraints.names)}: the node pair at {first} = "
+                 f"{c.r[far]:.6g} "
                  f"m has slipped {s:.3g} m, past half its facet ({self.slip_limit[far]:.3g} m): "
                  "node pairs keep their partner, so the force acts at the wrong place; use "
                  "node to segment (slave/master) for faces that slide", c.comm)

@@ -30,6 +30,7 @@ from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from ..errors import InputError
+from ..geometry import AXISYMMETRIC_GEOMETRY
 from .dme import DME
 from .film import FILM
 from .interface import ContactSet, RigidBody
@@ -86,6 +87,7 @@ class _Host:
     def __init__(self, comm: MPI.Comm, offset: int, mass: np.ndarray, u_owned: np.ndarray,
                  v_owned: np.ndarray, dt: float, fixed: np.ndarray | None = None):
         self.model = self  # (comm, offset, n_owned: what the gather reads of a model)
+        self.geometry = AXISYMMETRIC_GEOMETRY  # the finite-strain wall's bodies: (r, z)
         self.comm, self.offset, self.n_owned = comm, int(offset), int(mass.size)
         self.mass, self.u_owned, self.v_owned = mass, u_owned, v_owned
         self.dt, self.t, self.n = float(dt), 0.0, 0

@@ -112,13 +112,10 @@ def check_kind(scene) -> None:
                          "tangential spring is not built for a finite-strain body (use method "
                          "= \"film\" or \"dme\")")
     for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
-                      ("loads", "[[loads]]"), ("fixed", "[[fixed]]"), ("probes", "[[probes]]")):
+                      ("loads", "[[loads]]"), ("probes", "[[probes]]")):
         if getattr(scene, key):
             raise InputError(f"{what}: not available with finite strain yet ({where} runs "
                              "against a [wall] only)")
-    if scene.output["energy_every"] is not None:
-        raise InputError("[output] energy_every: a finite-strain run books its energies in "
-                         "every history row (history_every)")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "

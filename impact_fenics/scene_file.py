@@ -27,7 +27,7 @@ from mpi4py import MPI
 from . import plausibility, resources, rundir
 from .errors import InputError
 from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
-from .scene_keys import (ENERGY_EVERY, GENERATORS, METHODS, PLANE_QUANTITIES, PULSES,
+from .scene_keys import (DT_INTERVAL, ENERGY_EVERY, GENERATORS, METHODS, PLANE_QUANTITIES, PULSES,
                          QUANTITIES, REQUIRED, REQUIRED_PARAMS)
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
@@ -622,9 +622,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     with within("[mesh]"):
         if scene.mesh.file is not None:
             tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
-        elif scene.mesh.generator == "quad_bar":  # Q1 small strain (finite_scene.py)
-            from .finite_scene import quad_bar_mesh
-
+        elif scene.mesh.generator == "quad_bar":  # Q1: a finite-strain or small-strain bar
             tmesh = quad_bar_mesh(scene, comm)
         else:
             generate = getattr(meshing, scene.mesh.generator)
@@ -635,6 +633,10 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         model = DeformableModel(tmesh, [Body(b.name, scene.materials[b.material].material(b.strain))
                                         for b in scene.bodies], geometry=scene.geometry)
     fixed = []
+    wall = scene.wall
+    held = wall is not None and wall.face == "held"
+    if held:  # the impact face Z = 0 held in z from t = 0 (its velocity zeroed there)
+        fixed.append(model.facet_dofs("bottom", 1))
     components = PLANE_COMPONENTS if scene.geometry.plane else COMPONENTS
     for f in scene.fixed:
         with within(f.where):
@@ -652,6 +654,13 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             with within(spec.where):
                 surface_loads.append(ld.SurfaceLoad(model, spec.facet, pulse, spec.traction))
     t, o = scene.time, scene.output
+    policy = None
+    if scene.finite:  # the step follows the finite cells: re-estimated, or a fixed dt checked
+        from .stepping import FollowingStep
+
+        policy = FollowingStep(None, t["t_end"], t["dt"],
+                               t["cfl"] if t["cfl"] is not None else 0.5,
+                               t["dt_interval"] or DT_INTERVAL)
     settings = Settings(dt=t["dt"], cfl=t["cfl"], t_end=t["t_end"], n_steps=t["n_steps"],
                         force_dt=t["force_dt"] or scene.force, force=scene.force,
                         converged_dt=t["converged_dt"], out=o["dir"],
@@ -665,10 +674,14 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     velocity = {b.name: b.velocity for b in scene.bodies if b.velocity != (0.0, 0.0)}
     try:
         sim = Simulation(model, settings, fixed=fixed, loads=surface_loads,
-                         initial_velocity=velocity)
+                         initial_velocity=velocity, policy=policy)
     except InputError as exc:  # (with the implausible units that may cause it)
         hint = " with force_dt = true" if "stable limit" in str(exc) else ""
         raise InputError(plausibility.explained_refusal(f"[time] {exc}{hint}", scene, size)) from None
+    if policy is not None and t["dt"] is not None and t["dt"] > policy.limit:
+        raise InputError(plausibility.explained_refusal(
+            f"[time] dt = {t['dt']!r} s is above the stable limit {policy.limit:.4g} s "
+            "of the undeformed cells; use cfl or a smaller dt", scene, size))
     for c in scene.contacts:
         _warn_ignored_keys(c, comm)
         with within(c.where):
@@ -697,12 +710,17 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         from .contact.plane import boundary_nodes, plane_below, wall_part
 
         w = scene.wall
+        if scene.finite and w.method != "penalty" and "penalty" in w.given:
+            plausibility.warn(f'[wall] penalty = {w.penalty!r} is ignored by method = '
+                              f'"{w.method}" (only penalty reads it)', comm)
         with within("[wall]"):
             cons = plane_below(comm, boundary_nodes(model.V, model.n_owned // 2), model.node_xy,
                                model.offset, w.z, model.length_scale)
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
             if w.friction is not None:
                 sim.contacts[-1].set_friction(w.friction, w.tangential_penalty, scene.force)
+    if scene.finite:
+        _track_the_bar(sim, scene, held)
     for p in scene.probes:
         with within(p.where):
             if p.quantity == "section":  # its plane checked now (Probes builds it in run)
@@ -736,6 +754,44 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
                                               **plausibility.mesh_sizes(scene, size)), scene.warned, comm)
     return sim
+
+
+def quad_bar_mesh(scene: Scene, comm: MPI.Comm):
+    """The TaggedMesh of a scene on ``quad_bar``: every cell in its one body's group, the
+    facet groups axis (r = 0), outer, bottom (z = 0) and top."""
+    from .quad_meshes import quad_bar, quad_bar_cells_along, tag_rectangle
+
+    p = scene.mesh.params
+    mesh = quad_bar(comm, p["radius"], p["length"], p["n_r"], quad_bar_cells_along(p))
+    return tag_rectangle(mesh, scene.bodies[0].name)
+
+
+def _track_the_bar(sim, scene: Scene, held: bool) -> None:
+    """A finite-strain bar's figures (:func:`.scenes.track_bar`: probes at its tracked
+    nodes, its final length, face radius and energies at u^N) into
+    ``sim.scene_figures``, with the scene's mesh, body and material and, with a [wall],
+    its face and, for a held face, the face's stop at t = 0, 1/2 m_face v0^2 (J) as
+    ``impact_face_loss`` (outside the run's ledger, which starts from the rest of the
+    bar)."""
+    import numpy as np
+
+    from .scenes import track_bar
+
+    p, model, comm = scene.mesh.params, sim.model, sim.comm
+    figures = track_bar(sim, p["radius"], p["length"])
+    body = scene.bodies[0]
+    n_cells = model.mesh.topology.index_map(2).size_global
+    extra = {"mesh": f"{p['n_r']} x {n_cells // p['n_r']} quadrilaterals", "body": body.name,
+             "material": scene.materials[body.material].model}
+    if scene.wall is not None:
+        extra["wall_face"] = scene.wall.face
+        m_face = 0.0
+        if held:
+            xy = model.node_xy[: model.n_owned // 2]
+            face = np.flatnonzero(np.abs(xy[:, 1]) <= 1e-9 * p["length"])
+            m_face = float(np.sum(sim.integrator.mass[2 * face + 1]))
+        extra["impact_face_loss"] = comm.allreduce(0.5 * m_face * float(body.velocity[1]) ** 2)
+    sim.scene_figures = lambda s: {**figures(s), **extra}
 
 
 # contact keys that only one method reads

@@ -31,6 +31,7 @@ from .scene_keys import (DT_INTERVAL, ENERGY_EVERY, GENERATORS, METHODS, PLANE_Q
                          QUANTITIES, REQUIRED, REQUIRED_PARAMS)
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
+from .scene_wall import check_kind, read_wall
 
 COMPONENTS = {"r": 0, "z": 1}
 PLANE_COMPONENTS = {"x": 0, "y": 1}
@@ -127,13 +128,13 @@ class Scene:
     output: dict[str, Any]
     probes: list[ProbeSpec] = field(default_factory=list)
     force: bool = False  # run what the checks refuse (dt, penalty bound, memory, disk)
-    wall: Any = None     # finite_scene.WallSpec of a [wall] table, or None
+    wall: Any = None     # scene_wall.WallSpec of a [wall] table, or None
     warned: set[str] = field(default_factory=set)  # the plausibility findings said so far
     geometry: Geometry = AXISYMMETRIC_GEOMETRY  # the section: axisymmetric or plane strain
 
     @property
     def finite(self) -> bool:
-        """A finite-strain scene ([bodies.NAME] strain = "finite"): run by finite_run.py."""
+        """A finite-strain scene ([bodies.NAME] strain = "finite"): its step follows the cells."""
         return any(b.strain == "finite" for b in self.bodies)
 
     @property
@@ -213,10 +214,8 @@ def read_scene(path: str) -> Scene:
     force = top.value("force")
     scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
                   fixed, time, output, probes, force)
-    from . import finite_scene
-
     if "wall" in top:
-        scene.wall = finite_scene.read_wall(top.data["wall"])
+        scene.wall = read_wall(top.data["wall"])
     scene.geometry = geometry
     if geometry.plane:
         _check_plane_strain(scene)
@@ -226,7 +225,7 @@ def read_scene(path: str) -> Scene:
                 raise InputError(f'{spec.where} match = "plane_strain": the plane-strain match '
                                  'to Mohr-Coulomb needs geometry = "plane_strain" (this scene '
                                  "is axisymmetric)")
-    finite_scene.check_kind(scene)
+    check_kind(scene)
     return scene
 
 
@@ -536,7 +535,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
     if scene.wall is not None and not scene.finite:  # its set: every boundary node
         pairs.append(4 * math.sqrt(cells))
     if scene.finite:
-        columns, cell_fields = 19, 6  # finite_run.HISTORY_COLUMNS, CELL_FIELDS
+        columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
         energy_columns = 0
     else:
         columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)

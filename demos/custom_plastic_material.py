@@ -53,7 +53,6 @@ from numba import njit
 from impact_fenics import loads, meshing
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.errors import require, user_errors
-from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials import J2, FiniteJ2, IsotropicConstants, hencky
 from impact_fenics.simulation import Settings, Simulation
 
@@ -264,13 +263,18 @@ FINITE_KEYS = ("final_length", "final_face_radius", "eps_p_max", "plastic_work",
 
 def taylor(material, n_r: int = 2, t_end: float = 10e-6, v0: float = V_BAR,
            comm=MPI.COMM_WORLD) -> dict:
-    """The summary of a Taylor bar of ``material`` (FiniteRun, the wall by FILM)."""
-    n_z = max(1, round(n_r * L_BAR / R_BAR))
-    run = FiniteRun(quad_bar(comm, R_BAR, L_BAR, n_r, n_z), material,
-                    FiniteSettings(t_end=t_end, safety=0.5, dt_interval=10, history_every=5,
-                                   output_every=100),
-                    velocity=(0.0, -v0), wall="film", name="bar")
-    return run.run()
+    """The summary of a Taylor bar of ``material`` (scenes.taylor_bar, the wall by FILM),
+    with its shape and energies at the end."""
+    from impact_fenics.scene_keys import ENERGY_EVERY
+    from impact_fenics.scenes import taylor_bar
+
+    settings = Settings(quiet=True, plots=False, fields=False, history_every=5,
+                        output_every=100, energy_every=ENERGY_EVERY)
+    sim = taylor_bar(settings, material, R_BAR, L_BAR, n_r, v0, "film", t_end=t_end,
+                     comm=comm)
+    summary = sim.run(extra=sim.scene_figures)
+    summary["kinetic"] = summary["energy"]["kinetic"]  # (J, at the last half step)
+    return summary
 
 
 def finite_reduction_check(comm=MPI.COMM_WORLD) -> float:
@@ -292,10 +296,11 @@ SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "custom_plastic
 
 def scene_check(out: str | None = None, comm=MPI.COMM_WORLD) -> tuple[dict, dict]:
     """(the scene file's summary, the Python route's summary)."""
-    from impact_fenics import finite_scene, scene_file
+    from impact_fenics import scene_file
 
     sc = scene_file.read_scene(SCENE)
-    from_file = finite_scene.build(sc, {"out": out, "quiet": True}, comm).run()
+    sim = scene_file.build(sc, {"out": out, "quiet": True}, comm)
+    from_file = sim.run(extra=sim.scene_figures)
     from_python = taylor(FiniteVoceJ2(**FINITE_VOCE, **COPPER), comm=comm)
     return from_file, from_python
 

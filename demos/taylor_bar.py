@@ -32,7 +32,7 @@ import argparse
 import numpy as np
 from mpi4py import MPI
 
-from impact_fenics.finite_scene import face_nodes
+from impact_fenics.quad_meshes import face_nodes
 from impact_fenics.errors import require, user_errors
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials.finite_j2 import FiniteJ2

@@ -18,9 +18,9 @@ import tempfile
 import numpy as np
 from mpi4py import MPI
 
-from impact_fenics import finite_scene
+from impact_fenics.contact.plane import boundary_nodes, contact_radius, foot_radius
 from impact_fenics.errors import user_errors
-from impact_fenics.scene_file import read_scene
+from impact_fenics.scene_file import build, read_scene
 
 SCENE = pathlib.Path(__file__).resolve().parent.parent / "scenes" / "taylor_bar.toml"
 MUS = ("0.0", "0.1", "0.2", "0.5", '"stick"')
@@ -38,21 +38,25 @@ def run(method: str, friction: str, n_r: int, comm: MPI.Comm = MPI.COMM_WORLD) -
         comm.Barrier()
         scene = read_scene(str(path))
         comm.Barrier()
-    bar = finite_scene.build(scene, {"out": None, "quiet": True}, comm)
-    s = bar.run()
+    sim = build(scene, {"out": None, "quiet": True, "plots": False, "fields": False}, comm)
+    s = sim.run(extra=sim.scene_figures)
+    model = sim.model
+    u = sim.integrator.u_owned
     radius = scene.mesh.params["radius"]
     h = radius / n_r
-    xy = bar.node_xy[: bar.n_owned_nodes]
-    now = xy + bar.u_owned.reshape(-1, 2)
-    tol = 1e-9 * bar.length0
+    xy = model.node_xy[: model.n_owned // 2]
+    now = xy + u.reshape(-1, 2)
+    tol = 1e-9 * scene.mesh.params["length"]
     face = np.abs(xy[:, 1]) <= tol
     side = np.abs(xy[:, 0] - radius) <= tol
     parts = comm.gather((xy[face, 0], now[face], xy[side, 1], now[side]))
-    out = {"foot": bar.wall.foot_radius(bar.u_owned, h),
-           "contact": bar.wall.contact_radius(bar.u_owned),
+    nodes = boundary_nodes(model.V, model.n_owned // 2)
+    friction = s.get("friction", [{}])[0]
+    out = {"foot": foot_radius(nodes, model.node_xy, u, scene.wall.z, h, comm),
+           "contact": contact_radius(sim.contacts[-1], model.node_xy, u, comm),
            "face": s["final_face_radius"], "length": s["final_length"],
-           "slip_work": s["wall"].get("slip_work", 0.0),
-           "identity": s["kinetic_identity_error"]}
+           "slip_work": friction.get("slip_work", 0.0),
+           "identity": s["energy_balance_error_rel"]}
     if comm.rank == 0:
         f_key = np.concatenate([p[0] for p in parts])
         f_now = np.concatenate([p[1] for p in parts])[np.argsort(f_key)]

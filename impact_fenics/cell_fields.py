@@ -57,6 +57,7 @@ from numba import njit
 
 from .compat import eval_expression
 from .jit_watch import contiguous_float64, direct
+from .materials import is_finite
 
 STRESS_NAMES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises")
 # the output components in the point notation (rr, tt, zz, rz)
@@ -356,7 +357,7 @@ class CellStress:
     ring-weighted mean strain (:func:`.q1.mean_strain`), the weighted mean of the B-bar
     point stresses."""
 
-    def __init__(self, model, plastic_forces=()):
+    def __init__(self, model, plastic_forces=(), finite_forces=()):
         V = model.V
         mesh = model.mesh
         self.model = model
@@ -377,6 +378,16 @@ class CellStress:
         # (first, end) or None as above)
         self._points = [(f.cells.astype(np.int64), f, _range(f.cells)) for f in plastic_forces]
         plastic = {f.body for f in plastic_forces}
+        # finite-strain bodies: each cell's mean Cauchy stress (force.cell_values), by body
+        # (the integrator's order: the bodies'; their owned cells sorted, as the forces')
+        finite = [name for name, b in model.bodies.items() if is_finite(b.material)]
+        self._finite = [(model.owned_cells(name).astype(np.int64), force)
+                        for name, force in zip(finite, finite_forces)]
+        plastic |= set(finite)
+        # their cells' mean eps_bar_p (-) and temperature (K, a material with one) of the last
+        # evaluation, zero on the other cells
+        self.finite_eps_p = np.zeros(self.n_cells)
+        self.finite_temperature = np.zeros(self.n_cells)
         by_d = []  # (D, [cells of the bodies of that D])
         self._quads = []  # Q1 linear bodies: (owned cells, their geometry, D, the mean strains)
         for body in model.bodies.values():
@@ -411,7 +422,7 @@ class CellStress:
         self._u_fn = None
         # the whole evaluation in one call of isotropic_stress_range (peaks included)?
         one = (self._kernel[0] if len(self._kernel) == 1 and not self._ufl and not self._points
-               else None)
+               and not self._finite else None)
         self._single = one is not None and one[4] is not None and one[5] is not None
         self._bound = None  # (u, out, compiled entry, its arguments) once bound
 
@@ -466,6 +477,11 @@ class CellStress:
         for cells, force, run in self._points:
             point_mean_stress(force.point_stresses(u).sigma, force.geometry.w, cells, values)
             _von_mises(values, cells, run)
+        for cells, force in self._finite:  # (stress columns rr, tt, zz, rz)
+            sig, self.finite_eps_p[cells], self.finite_temperature[cells] = force.cell_values(u)
+            values[0, cells], values[1, cells] = sig[:, 0], sig[:, 2]
+            values[2, cells], values[3, cells] = sig[:, 1], sig[:, 3]
+            von_mises_cells(values, cells)
         for cells, g, D, eps in self._quads:
             from .q1 import mean_strain
 

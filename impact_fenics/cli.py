@@ -172,8 +172,6 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
 
     comm = MPI.COMM_WORLD
     scene, out_dir = _checked(path, method, out, force, quiet)
-    if scene.finite:
-        return _run_finite(scene, out_dir, quiet, comm)
     sim = scene_file.build(scene, {"out": out_dir, "quiet": quiet}, comm)
     try:
         summary = sim.run(extra=lambda s: _scene_checks(s, scene.path))
@@ -197,7 +195,7 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
 
 
 def _exit_code(run, at: str, out_dir: str, comm) -> int:
-    """0, or 128 + the signal that stopped ``run`` (a Simulation or a FiniteRun, stopped
+    """0, or 128 + the signal that stopped ``run`` (a Simulation, stopped
     ``at`` a step) after one line on rank 0."""
     from . import interrupts
 
@@ -213,37 +211,8 @@ def _exit_code(run, at: str, out_dir: str, comm) -> int:
     return 128 + run.signal
 
 
-def _run_finite(scene, out_dir: str, quiet: bool, comm) -> int:
-    """A finite-strain scene (finite_scene.py): build, run, report; returns the exit code."""
-    from . import finite_scene
-
-    run = finite_scene.build(scene, {"out": out_dir, "quiet": quiet}, comm)
-    try:
-        s = run.run()
-    except UnstableRunError as exc:
-        raise UnstableRunError(f"{exc}; the output so far is in {_where(run, out_dir)}") from None
-    if comm.rank == 0 and not quiet:
-        from .report import console_lines
-
-        print(f"{scene.title}: {s['status']}, {s['n_steps']} steps of {s['dt_min']:.4g} to "
-              f"{s['dt_max']:.4g} s to t = {s['t_end']:.6g} s, {s['n_cells']} quadrilaterals "
-              f"({s['n_dofs']} dofs) on {s['n_ranks']} rank(s), {s['wall_time']:.1f} s")
-        print(f"shape: length {s['final_length'] * 1e3:.4f} mm, impact-face radius "
-              f"{s['final_face_radius'] * 1e3:.4f} mm, max eps_p {s['eps_p_max']:.4f}")
-        print(f"energy (J): initial kinetic {s['initial_kinetic']:.6g}, kinetic {s['kinetic']:.6g}, "
-              f"stored {s['stored_elastic']:.6g}, plastic {s['plastic_work']:.6g}, wall "
-              f"{s['activation_loss']:.6g} lost + {s['penalty_energy']:.6g} in springs; kinetic "
-              f"identity {s['kinetic_identity_error']:.1e} (relative)")
-        for line in console_lines(s):
-            print(line)
-        shown = _shown(run, out_dir)
-        print(_results_line(shown, "Warp By Vector at scale 1 shows the deformed body; "
-                                   f"impact-fenics plot {shown} renders it"))
-    return _exit_code(run, f"t = {s['t_end']:.6g} s (step {s['n_steps']})", out_dir, comm)
-
-
 def _shown(run, out_dir: str) -> str:
-    """Where ``run`` (a Simulation or a FiniteRun) published its directory, said as the
+    """Where ``run`` (a Simulation) published its directory, said as the
     user gave ``out_dir`` (without the final separator)."""
     from .rundir import expand
 
@@ -264,6 +233,9 @@ def _where(run, out_dir: str) -> str:
 def _scene_checks(sim, scene_path: str) -> dict:
     """Summary entries of any scene: the scene file and the contact duration (s)."""
     extra = {"scene_file": scene_path}
+    figures = getattr(sim, "scene_figures", None)  # a finite-strain bar's shape
+    if figures is not None:
+        extra.update(figures(sim))
     contact = sim.summary.get("contact")
     if contact is not None:
         first, last = contact["first_contact_step"], contact["last_contact_step"]
@@ -274,10 +246,16 @@ def _scene_checks(sim, scene_path: str) -> dict:
 
 def _report(title: str, s: dict, out_dir: str) -> None:
     """A few lines on rank 0 after the run."""
+    steps = (f"{s['dt_range'][0]:.4g} to {s['dt_range'][1]:.4g} s to t = {s['t_end']:.6g} s"
+             if "dt_range" in s else f"{s['dt']:.4g} s")
     print(f"{title}: {s['status']}, {s['stopped_at_step']} of {s['n_steps']} steps of "
-          f"{s['dt']:.4g} s (stable limit {s['dt_critical']:.4g} s), {s['n_dofs']} dofs on "
+          f"{steps} (stable limit {s['dt_critical']:.4g} s), {s['n_dofs']} dofs on "
           f"{s['n_ranks']} rank(s), {s['wall_time']:.1f} s")
     from .report import console_lines, energy_line
+
+    if "final_length" in s:  # a finite-strain bar
+        print(f"shape: length {s['final_length'] * 1e3:.4f} mm, impact-face radius "
+              f"{s['final_face_radius'] * 1e3:.4f} mm, max eps_p {s['eps_p_max']:.4f}")
 
     if "energy" in s:
         print(energy_line(s))

@@ -106,7 +106,7 @@ def _generator_rows() -> list[str]:
     for gen in GENERATORS:
         params = [k.name for k in mesh.keys if gen in k.groups]
         if gen == "quad_bar":
-            where = "`impact_fenics.finite_run.quad_bar`"
+            where = "`impact_fenics.quad_meshes.quad_bar`"
             defaults = {}
         else:
             where = f"`impact_fenics.meshing.{gen}`"
@@ -167,17 +167,22 @@ or smaller than 1 mm across (a mesh drawn in millimetres), more than 10⁷ steps
 
 ## Finite-strain scenes
 
-A body with `strain = "finite"` runs on its own driver (total Lagrangian, Q1
-quadrilaterals with mean dilatation, the step re-estimated every `dt_interval` steps,
-{dt_interval} by default). Such a scene holds, for now, one body on `generator =
-"quad_bar"` with a material that has a finite-strain form (`"j2"`, rate-independent;
-`"johnson_cook"`; `"neo_hookean"`; or a class of your own with `strain = "finite"`),
-optionally a `[wall]`, and `t_end`; `[[contact]]`, `[rigid]`, `[[loads]]`, `[[fixed]]`,
-`[[probes]]`, `n_steps`, `force_dt` and `converged_dt` are refused there, as are
-`[wall]` and `dt_interval` in a small-strain scene. A material at a
-kinematics it lacks is refused in one line naming the one it has.
-`scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the examples;
-[materials.md](materials.md) describes the element and the materials.
+A body with `strain = "finite"` runs in the loop of every scene (total Lagrangian, Q1
+quadrilaterals with mean dilatation), under a step that follows its cells: `cfl` (<= 1)
+x the current limit, re-estimated every `dt_interval` steps ({dt_interval} by default),
+or a fixed `dt` checked against it (the run stops, exit 3, once the limit falls below
+it); the last step is clipped to `t_end`. Its outputs are every scene's (history.csv
+with displacement probes at the bar's tracked nodes, energy.csv with the ledger's
+columns, summary.json with the final length and face radius, fields.xdmf with the
+Cauchy stress and eps_p_eq per cell, contact_pairs.h5). Such a scene holds, for now,
+one body on `generator = "quad_bar"` with a material that has a finite-strain form
+(`"j2"`, rate-independent; `"johnson_cook"`; `"neo_hookean"`; or a class of your own
+with `strain = "finite"`), optionally a `[wall]` and `[[fixed]]` faces, and `t_end`;
+`[[contact]]`, `[rigid]`, `[[loads]]`, `[[probes]]`, `n_steps`, `force_dt` and
+`converged_dt` are refused there, as are `[wall] face = "held"` and `dt_interval` in a
+small-strain scene. A material at a kinematics it lacks is refused in one line naming
+the one it has. `scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the
+examples; [materials.md](materials.md) describes the element and the materials.
 
 ## Small strain on quadrilaterals
 

@@ -63,7 +63,7 @@ from .contact.plane import FixedPlane, boundary_nodes
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError, UnstableRunError, require
 from .integrator import Integrator
 from .materials import is_finite
-from .quad_meshes import one_body
+from .quad_meshes import one_body, quad_bar  # noqa: F401 (quad_bar: its users')
 from .stepping import FollowingStep
 from .jit_watch import gained, signature_counts
 from .timers import PhaseTimers
@@ -74,14 +74,6 @@ HISTORY_COLUMNS = ("step", "time", "dt", "dt_limit", "kinetic", "internal_work",
                    "velocity_z")
 PHASES = ("f_int", "wall", "history", "output")  # f_int: the integrator's step
 CELL_FIELDS = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises", "eps_p_eq")
-
-
-def quad_bar(comm: MPI.Comm, radius: float, length: float, n_r: int, n_z: int) -> dmesh.Mesh:
-    """A cylinder 0 <= r <= radius, 0 <= z <= length (m) of n_r x n_z bilinear quadrilaterals."""
-    require(radius > 0 and length > 0, "bar radius and length must be > 0 (m)")
-    require(n_r >= 1 and n_z >= 1, "n_r and n_z must be >= 1")
-    return dmesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([radius, length])],
-                                  [n_r, n_z], cell_type=dmesh.CellType.quadrilateral)
 
 
 @dataclass

@@ -1,8 +1,8 @@
 """Structured quadrilateral meshes with named groups, for small-strain bodies on Q1.
 
 A rectangle r0 <= r <= r1, z0 <= z <= z1 (m) of n_r x n_z bilinear quadrilaterals
-(dolfinx's ``create_rectangle``, as :func:`.finite_run.quad_bar` builds the
-finite-strain bar), one cell group and the facet groups of its four sides, so that a
+(dolfinx's ``create_rectangle``, as :func:`quad_bar` builds the bar of a scene's
+``generator = "quad_bar"``), one cell group and the facet groups of its four sides, so that a
 :class:`~.bodies.DeformableModel` addresses it by name as a gmsh mesh.
 """
 from __future__ import annotations
@@ -16,6 +16,30 @@ from .meshing import TaggedMesh
 
 # the facet groups of the four sides; "axis" is the side r = r0 when r0 = 0, "inner" otherwise
 SIDES = ("inner", "outer", "bottom", "top")
+
+
+def quad_bar(comm: MPI.Comm, radius: float, length: float, n_r: int, n_z: int) -> dmesh.Mesh:
+    """A cylinder 0 <= r <= radius, 0 <= z <= length (m) of n_r x n_z bilinear quadrilaterals."""
+    require(radius > 0 and length > 0, "bar radius and length must be > 0 (m)")
+    require(n_r >= 1 and n_z >= 1, "n_r and n_z must be >= 1")
+    return dmesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([radius, length])],
+                                  [n_r, n_z], cell_type=dmesh.CellType.quadrilateral)
+
+
+def quad_bar_cells_along(p: dict) -> int:
+    """n_z of the quad_bar mesh of [mesh] parameters ``p``: square cells, round(n_r length /
+    radius) along the bar."""
+    return max(1, round(p["n_r"] * p["length"] / p["radius"]))
+
+
+def face_nodes(mesh: dmesh.Mesh, z_face: float, tol: float) -> np.ndarray:
+    """Owned nodes of the face Z = z_face (m) of a quadrilateral mesh, numbered as the dofs
+    of a P1 vector space on ``mesh`` (a DeformableModel's nodes)."""
+    from . import compat
+
+    V = compat.vector_space(mesh, "Lagrange", 1)
+    xy = V.tabulate_dof_coordinates()[: V.dofmap.index_map.size_local, :2]
+    return np.flatnonzero(np.abs(xy[:, 1] - z_face) <= tol)
 
 
 def one_body(mesh: dmesh.Mesh, body: str = "body") -> TaggedMesh:

@@ -27,10 +27,11 @@ from mpi4py import MPI
 from . import plausibility, resources, rundir
 from .errors import InputError
 from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
-from .scene_keys import (ENERGY_EVERY, GENERATORS, METHODS, PLANE_QUANTITIES, PULSES,
+from .scene_keys import (DT_INTERVAL, ENERGY_EVERY, GENERATORS, METHODS, PLANE_QUANTITIES, PULSES,
                          QUANTITIES, REQUIRED, REQUIRED_PARAMS)
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
+from .scene_wall import check_kind, read_wall
 
 COMPONENTS = {"r": 0, "z": 1}
 PLANE_COMPONENTS = {"x": 0, "y": 1}
@@ -127,13 +128,13 @@ class Scene:
     output: dict[str, Any]
     probes: list[ProbeSpec] = field(default_factory=list)
     force: bool = False  # run what the checks refuse (dt, penalty bound, memory, disk)
-    wall: Any = None     # finite_scene.WallSpec of a [wall] table, or None
+    wall: Any = None     # scene_wall.WallSpec of a [wall] table, or None
     warned: set[str] = field(default_factory=set)  # the plausibility findings said so far
     geometry: Geometry = AXISYMMETRIC_GEOMETRY  # the section: axisymmetric or plane strain
 
     @property
     def finite(self) -> bool:
-        """A finite-strain scene ([bodies.NAME] strain = "finite"): run by finite_run.py."""
+        """A finite-strain scene ([bodies.NAME] strain = "finite"): its step follows the cells."""
         return any(b.strain == "finite" for b in self.bodies)
 
     @property
@@ -213,10 +214,8 @@ def read_scene(path: str) -> Scene:
     force = top.value("force")
     scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
                   fixed, time, output, probes, force)
-    from . import finite_scene
-
     if "wall" in top:
-        scene.wall = finite_scene.read_wall(top.data["wall"])
+        scene.wall = read_wall(top.data["wall"])
     scene.geometry = geometry
     if geometry.plane:
         _check_plane_strain(scene)
@@ -230,7 +229,7 @@ def read_scene(path: str) -> Scene:
                 raise InputError(f'{spec.where} match = "plane_strain": the plane-strain match '
                                  'to Mohr-Coulomb needs geometry = "plane_strain" (this scene '
                                  "is axisymmetric)")
-    finite_scene.check_kind(scene)
+    check_kind(scene)
     return scene
 
 
@@ -547,7 +546,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
     if scene.wall is not None and not scene.finite:  # its set: every boundary node
         pairs.append(4 * math.sqrt(cells))
     if scene.finite:
-        columns, cell_fields = 19, 6  # finite_run.HISTORY_COLUMNS, CELL_FIELDS
+        columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
         energy_columns = 0
     else:
         columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
@@ -633,9 +632,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     with within("[mesh]"):
         if scene.mesh.file is not None:
             tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
-        elif scene.mesh.generator == "quad_bar":  # Q1 small strain (finite_scene.py)
-            from .finite_scene import quad_bar_mesh
-
+        elif scene.mesh.generator == "quad_bar":  # Q1: a finite-strain or small-strain bar
             tmesh = quad_bar_mesh(scene, comm)
         else:
             generate = getattr(meshing, scene.mesh.generator)
@@ -646,6 +643,10 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         model = DeformableModel(tmesh, [Body(b.name, scene.materials[b.material].material(b.strain))
                                         for b in scene.bodies], geometry=scene.geometry)
     fixed = []
+    wall = scene.wall
+    held = wall is not None and wall.face == "held"
+    if held:  # the impact face Z = 0 held in z from t = 0 (its velocity zeroed there)
+        fixed.append(model.facet_dofs("bottom", 1))
     components = PLANE_COMPONENTS if scene.geometry.plane else COMPONENTS
     for f in scene.fixed:
         with within(f.where):
@@ -663,6 +664,13 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             with within(spec.where):
                 surface_loads.append(ld.SurfaceLoad(model, spec.facet, pulse, spec.traction))
     t, o = scene.time, scene.output
+    policy = None
+    if scene.finite:  # the step follows the finite cells: re-estimated, or a fixed dt checked
+        from .stepping import FollowingStep
+
+        policy = FollowingStep(None, t["t_end"], t["dt"],
+                               t["cfl"] if t["cfl"] is not None else 0.5,
+                               t["dt_interval"] or DT_INTERVAL)
     settings = Settings(dt=t["dt"], cfl=t["cfl"], t_end=t["t_end"], n_steps=t["n_steps"],
                         force_dt=t["force_dt"] or scene.force, force=scene.force,
                         converged_dt=t["converged_dt"], out=o["dir"],
@@ -676,10 +684,14 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     velocity = {b.name: b.velocity for b in scene.bodies if b.velocity != (0.0, 0.0)}
     try:
         sim = Simulation(model, settings, fixed=fixed, loads=surface_loads,
-                         initial_velocity=velocity)
+                         initial_velocity=velocity, policy=policy)
     except InputError as exc:  # (with the implausible units that may cause it)
         hint = " with force_dt = true" if "stable limit" in str(exc) else ""
         raise InputError(plausibility.explained_refusal(f"[time] {exc}{hint}", scene, size)) from None
+    if policy is not None and t["dt"] is not None and t["dt"] > policy.limit:
+        raise InputError(plausibility.explained_refusal(
+            f"[time] dt = {t['dt']!r} s is above the stable limit {policy.limit:.4g} s "
+            "of the undeformed cells; use cfl or a smaller dt", scene, size))
     for c in scene.contacts:
         _warn_ignored_keys(c, comm)
         with within(c.where):
@@ -708,12 +720,17 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
         from .contact.plane import boundary_nodes, plane_below, wall_part
 
         w = scene.wall
+        if scene.finite and w.method != "penalty" and "penalty" in w.given:
+            plausibility.warn(f'[wall] penalty = {w.penalty!r} is ignored by method = '
+                              f'"{w.method}" (only penalty reads it)', comm)
         with within("[wall]"):
             cons = plane_below(comm, boundary_nodes(model.V, model.n_owned // 2), model.node_xy,
                                model.offset, w.z, model.length_scale)
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
             if w.friction is not None:
                 sim.contacts[-1].set_friction(w.friction, w.tangential_penalty, scene.force)
+    if scene.finite:
+        _track_the_bar(sim, scene, held)
     for p in scene.probes:
         with within(p.where):
             if p.quantity == "section":  # its plane checked now (Probes builds it in run)
@@ -747,6 +764,44 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
                                               **plausibility.mesh_sizes(scene, size)), scene.warned, comm)
     return sim
+
+
+def quad_bar_mesh(scene: Scene, comm: MPI.Comm):
+    """The TaggedMesh of a scene on ``quad_bar``: every cell in its one body's group, the
+    facet groups axis (r = 0), outer, bottom (z = 0) and top."""
+    from .quad_meshes import quad_bar, quad_bar_cells_along, tag_rectangle
+
+    p = scene.mesh.params
+    mesh = quad_bar(comm, p["radius"], p["length"], p["n_r"], quad_bar_cells_along(p))
+    return tag_rectangle(mesh, scene.bodies[0].name)
+
+
+def _track_the_bar(sim, scene: Scene, held: bool) -> None:
+    """A finite-strain bar's figures (:func:`.scenes.track_bar`: probes at its tracked
+    nodes, its final length, face radius and energies at u^N) into
+    ``sim.scene_figures``, with the scene's mesh, body and material and, with a [wall],
+    its face and, for a held face, the face's stop at t = 0, 1/2 m_face v0^2 (J) as
+    ``impact_face_loss`` (outside the run's ledger, which starts from the rest of the
+    bar)."""
+    import numpy as np
+
+    from .scenes import track_bar
+
+    p, model, comm = scene.mesh.params, sim.model, sim.comm
+    figures = track_bar(sim, p["radius"], p["length"])
+    body = scene.bodies[0]
+    n_cells = model.mesh.topology.index_map(2).size_global
+    extra = {"mesh": f"{p['n_r']} x {n_cells // p['n_r']} quadrilaterals", "body": body.name,
+             "material": scene.materials[body.material].model}
+    if scene.wall is not None:
+        extra["wall_face"] = scene.wall.face
+        m_face = 0.0
+        if held:
+            xy = model.node_xy[: model.n_owned // 2]
+            face = np.flatnonzero(np.abs(xy[:, 1]) <= 1e-9 * p["length"])
+            m_face = float(np.sum(sim.integrator.mass[2 * face + 1]))
+        extra["impact_face_loss"] = comm.allreduce(0.5 * m_face * float(body.velocity[1]) ** 2)
+    sim.scene_figures = lambda s: {**figures(s), **extra}
 
 
 # contact keys that only one method reads

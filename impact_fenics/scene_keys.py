@@ -88,10 +88,10 @@ DT_INTERVAL = 10  # finite strain: steps between re-estimates of the stable step
 ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 
 # the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
-# (impact_fenics.finite_run: quadrilaterals, a finite-strain body or a small-strain Q1 one)
+# (impact_fenics.quad_meshes: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
               "nosed_striker_on_block", "shpb", "block", "wedge_on_block")
-# parameters a generator has no default for (quad_bar: impact_fenics.finite_run.quad_bar)
+# parameters a generator has no default for (quad_bar: impact_fenics.quad_meshes.quad_bar)
 REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
 _BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
 _TWO_BARS = ("coaxial_bars", "coaxial_bars_sized")
@@ -383,8 +383,7 @@ _OUTPUT = Section("output", "[output]", (
         "(`--out` replaces it)", default_text="results/<scene file name>"),
     Key("output_every", "count", "-", 50, "steps between field outputs (fields.xdmf)"),
     Key("energy_every", "count", "-", None, "steps between energy rows (energy.csv) and their "
-        "check of the energy's growth (small strain; a finite-strain run has its energies in "
-        "every history row)", default_text=str(ENERGY_EVERY)),
+        "check of the energy's growth", default_text=str(ENERGY_EVERY)),
     Key("history_every", "count", "-", 1, "steps between history.csv rows"),
     Key("pairs_every", "count", "-", 10, "steps between the per-pair rows of contact_pairs.h5 "
         "(24 B a pair each)"),

@@ -202,3 +202,75 @@ def nosed_striker(settings: Settings, method, v0: float = 5.0, nose_radius: floa
     sim.add_contact(node_to_segment(model, "block_contact", "nose", reach=1.01 * nose_radius),
                     method)
     return sim
+
+
+def taylor_bar(settings: Settings, material, radius: float = 3.2e-3, length: float = 32.4e-3,
+               n_r: int = 4, v0: float = 227.0, method: str | None = "film",
+               face: str = "contact", t_end: float = 80e-6, dt: float | None = None,
+               cfl: float = 0.5, dt_interval: int = 10, friction=None,
+               comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """The Taylor bar: a finite-strain ``material`` cylinder (radius, length in m, n_r x
+    round(n_r length / radius) square Q1 cells, the body "bar") at ``v0`` (m/s) onto the
+    fixed plane z = 0 under every boundary node, contact by ``method`` (None: no wall),
+    ``face`` "contact" or "held" (u_z = 0 on the face Z = 0 from t = 0), Coulomb
+    ``friction`` on the plane (film, dme); the step follows the cells (cfl x the current
+    limit re-estimated every dt_interval steps, or a fixed ``dt`` checked), to ``t_end``
+    (s). Its summary's shape and energies at u^N: ``sim.run(extra=sim.scene_figures)``
+    (:func:`track_bar`), as the scene file's run gives them."""
+    from .contact.plane import boundary_nodes, plane_below, wall_part
+    from .quad_meshes import quad_bar, tag_rectangle
+    from .stepping import FollowingStep
+
+    n_z = max(1, round(n_r * length / radius))
+    model = DeformableModel(tag_rectangle(quad_bar(comm, radius, length, n_r, n_z), "bar"),
+                            [Body("bar", material)])
+    fixed = [model.facet_dofs("bottom", 1)] if face == "held" else []
+    sim = Simulation(model, settings, fixed=fixed, initial_velocity={"bar": (0.0, -v0)},
+                     policy=FollowingStep(None, t_end, dt, cfl, dt_interval))
+    if method is not None:
+        nodes = boundary_nodes(model.V, model.n_owned // 2)
+        sim.add_contact(plane_below(comm, nodes, model.node_xy, model.offset, 0.0,
+                                    model.length_scale), make_method(method), rigid=wall_part())
+        if friction is not None:
+            sim.contacts[-1].set_friction(friction)
+    sim.scene_figures = track_bar(sim, radius, length)
+    return sim
+
+
+def track_bar(sim: Simulation, radius: float, length: float):
+    """A bar's shape (0 <= r <= radius, 0 <= z <= length, m): displacement probes at the
+    ends of its axis and at the corner of its impact face (history.csv: u_z_top,
+    u_z_bottom, u_r_corner), and the function of the run's end that gives
+    ``final_length`` (m, z of the node that started at (0, L) less z of the one that
+    started at (0, 0)), ``final_face_radius`` (m, r of the node that started at (R, 0)),
+    from those nodes' displacements, and the stored energy psi(u^N) ``stored_elastic``
+    and the plastic work ``plastic_work`` (J) of the finite-strain bodies' points at u^N
+    (the summary's evaluation there; the last energy row's are of the step before)."""
+    model, comm = sim.model, sim.comm
+    tracked = (("u_z_top", (0.0, length), "u_z"), ("u_z_bottom", (0.0, 0.0), "u_z"),
+               ("u_r_corner", (radius, 0.0), "u_r"))
+    for name, point, quantity in tracked:
+        sim.add_probe(name, point, quantity)
+    xy = model.node_xy[: model.n_owned // 2]
+    tol = 1e-9 * length  # m: far above round-off, far below a cell
+    nodes = [np.flatnonzero(np.hypot(xy[:, 0] - r, xy[:, 1] - z) <= tol)
+             for _, (r, z), _ in tracked]
+
+    def figures(s: Simulation) -> dict:
+        u = s.integrator.u_owned
+        vals = np.full(3, -np.inf)  # top z, -bottom z, corner r (one MAX reduction)
+        for k, (sign, column) in enumerate(((1.0, 1), (-1.0, 1), (1.0, 0))):
+            if nodes[k].size:
+                i = int(nodes[k][0])
+                vals[k] = sign * (xy[i, column] + u[2 * i + column])
+        comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.MAX)
+        forces = s.integrator.finite
+        shares = np.array([sum(f.stored_energy_local() for f in forces),
+                           sum(f.plastic_work_local for f in forces)])
+        comm.Allreduce(MPI.IN_PLACE, shares)
+        return {"final_length": float(vals[0] + vals[1]), "final_face_radius": float(vals[2]),
+                "stored_elastic": float(shares[0]), "plastic_work": float(shares[1]),
+                "length_definition": "final_length: the axis length, z of the node that "
+                "started at (0, L) minus z of the one that started at (0, 0) (m); "
+                "final_face_radius: r of the node that started at (R, 0) (m)"}
+    return figures

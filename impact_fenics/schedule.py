@@ -47,8 +47,12 @@ class Progress:
     line is due every 0.5 s, so the next look is about 0.1 s of steps ahead at the rate
     so far; never when disabled (due past the last step)."""
 
-    def __init__(self, n_steps: int, dt: float, quiet: bool):
+    def __init__(self, n_steps: int, dt: float, quiet: bool, t_end: float | None = None,
+                 time_of=None):
+        """A run whose steps follow a limit gives ``t_end`` (s) and ``time_of()``, the time
+        reached (s): its line shows the time of t_end and an ETA by the time left."""
         self.n_steps, self.dt = n_steps, dt
+        self.t_end, self.time_of = t_end, time_of
         self.enabled = (not quiet) and console.on_terminal()
         self.t0 = time.perf_counter()
         self.last = self.t0
@@ -60,6 +64,13 @@ class Progress:
             return self.n_steps + 1
         now = time.perf_counter()
         rate = n / max(now - self.t0, 1e-9)
+        if self.t_end is not None:  # (the count of steps is not known: the time is)
+            self.due = n + max(1, int(0.1 * rate))
+            t = self.time_of()
+            if now - self.last >= 0.5 or t >= self.t_end * (1.0 - 1e-12):  # the last always
+                self.last = now
+                self._line(n, t, rate, now)
+            return self.due
         self.due = min(self.n_steps, n + max(1, int(0.1 * rate)))
         if now - self.last < 0.5 and n < self.n_steps:
             return self.due
@@ -70,8 +81,19 @@ class Progress:
         sys.stdout.flush()
         return self.due
 
-    def done(self) -> None:
+    def _line(self, n: int, t: float, rate: float, now: float) -> None:
+        frac = t / self.t_end
+        eta = (now - self.t0) * (1.0 - frac) / max(frac, 1e-12)
+        sys.stdout.write(f"\rt = {t:.4e} of {self.t_end:.4e} s  step {n}  "
+                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
+        sys.stdout.flush()
+
+    def done(self, n: int | None = None) -> None:
+        """End the line; a run that follows the time shows its last step's (``n``)."""
         if self.enabled:
+            if self.t_end is not None and n is not None:
+                now = time.perf_counter()
+                self._line(n, self.time_of(), n / max(now - self.t0, 1e-9), now)
             sys.stdout.write("\n")
             sys.stdout.flush()
 

@@ -220,7 +220,9 @@ class Simulation:
         self.contacts: list[ContactSet] = []
         self._probe_specs: list[tuple[str, tuple[float, float], str, float]] = []
         self._cell_field_providers: list = []
-        if self.plastic_fields is not None:  # eps_p_eq and yielded of the frame's stresses
+        if self.integrator.finite:  # the finite-strain cells' eps_p_eq (and temperature)
+            self.add_cell_fields(self._finite_cell_fields)
+        elif self.plastic_fields is not None:  # eps_p_eq and yielded of the frame's stresses
             self.add_cell_fields(self.plastic_fields.frame_arrays)
         self._peaks = np.zeros(len(PEAK_NAMES) + 1)  # cell_fields.track_peaks' state
         self._varying = False  # a varying step (set by run)
@@ -331,8 +333,12 @@ class Simulation:
         if comm.rank == 0 and not s.quiet:
             from .report import stable_step_line
 
-            print(stable_step_line(self.stable_dt, self.stable_dt_limiting,
-                                   f"every body steps dt = {s.dt:.3g} s"), flush=True)
+            policy = self.step_policy
+            shared = f"every body steps dt = {s.dt:.3g} s"
+            if isinstance(policy, FollowingStep) and policy.dt is None:
+                shared = (f"every body steps {policy.safety:g} x the current limit, re-estimated "
+                          f"every {policy.interval} steps (first dt = {s.dt:.3g} s)")
+            print(stable_step_line(self.stable_dt, self.stable_dt_limiting, shared), flush=True)
         self._v_start = mean_velocities(integ, self._body_z, self.body_mass, self.contacts, comm)
         # the set-up made many Python objects (forms, compiled kernels): collect them now
         # and keep them out of later collections, so no collection of them lands in a step
@@ -344,7 +350,9 @@ class Simulation:
         load_work = LoadWork(self.loads, s.dt, comm, integ.v_owned)
         varying = self._varying = not integ.step.constant
         if varying:  # the multiply-touched dofs D (contact slots too) and the step's terms
-            slots = [c._local for c in self.contacts]  # (each set's owned slot dofs)
+            slots = [c._local for c in self.contacts]  # (each set's owned slot dofs, and
+            slots += [c.friction._local for c in self.contacts  # its tangential pass's)
+                      if getattr(c, "friction", None) is not None]
             integ.track_increments(np.concatenate(slots) if slots else None)
             self._gap_local = 0.0  # the small-strain bodies' 1/4 dh terms (J, this rank)
             self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms
@@ -369,7 +377,9 @@ class Simulation:
             if c not in integ.step.stepped:
                 integ.step.add(c)
         self.track = track = ContactTrack(self.contacts)
-        progress = Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0)
+        progress = (Progress(n_steps, s.dt, quiet=s.quiet or comm.rank != 0,
+                             t_end=self.step_policy.t_end, time_of=lambda: integ.t)
+                    if self._ends_at_t else Progress(n_steps, s.dt, s.quiet or comm.rank != 0))
         self.status = "running"
         stopped_at = n_steps
         # The common step is short: the schedules are step counters (the next step of
@@ -613,7 +623,7 @@ class Simulation:
             if times is not None:
                 times.book(pos)  # the steps of the last, partial block
             gc.unfreeze()
-            progress.done()
+            progress.done(integ.n)
             # kernels compiled inside the loop (a signature not loaded at set-up): none
             self.compiled_in_loop = gained(jit_before, signature_counts())
             for tbl in tables.values():
@@ -938,8 +948,23 @@ class Simulation:
         this rank's owned cells} (the same names at every call), e.g. a plastic strain."""
         self._cell_field_providers.append(provider)
 
+    def _finite_cell_fields(self) -> dict[str, np.ndarray]:
+        """The finite-strain cells' mean eps_p_eq (-) of the frame's stresses (added to the
+        path-dependent bodies' when there are both) and, for a material with one, their
+        temperature (K)."""
+        stress = self._cell_stress
+        eps = stress.finite_eps_p
+        out = {"eps_p_eq": eps}
+        if self.plastic_fields is not None:  # (and their yielded)
+            out = dict(self.plastic_fields.frame_arrays())
+            out["eps_p_eq"] = out["eps_p_eq"] + eps
+        if any(getattr(f.material, "temperature_index", -1) >= 0 for f in self.integrator.finite):
+            out["temperature"] = stress.finite_temperature
+        return out
+
     def _field_writer(self, staging: str) -> FieldWriter:
-        self._cell_stress = CellStress(self.model, self.integrator.nonlinear)
+        self._cell_stress = CellStress(self.model, self.integrator.nonlinear,
+                                       self.integrator.finite)
         self._peak_buf = np.empty(3)  # the peaks reduced over the ranks
         self._track = direct(track_peaks, self._peak_buf, 0.0, self._peaks)
         extra = [name for p in self._cell_field_providers for name in p()]

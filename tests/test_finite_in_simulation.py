@@ -29,9 +29,8 @@ from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact.plane import boundary_nodes, plane_below, wall_part
 from impact_fenics.errors import InputError, UnstableRunError
 from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
-from impact_fenics.finite_scene import face_nodes
 from impact_fenics.materials import FiniteJ2, NeoHookean
-from impact_fenics.quad_meshes import one_body
+from impact_fenics.quad_meshes import face_nodes, one_body
 from impact_fenics.simulation import Settings, Simulation
 from impact_fenics.stepping import FollowingStep
 from roundoff import ledger

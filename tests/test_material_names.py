@@ -9,9 +9,9 @@ Oracles, none taken from the reader under test:
 * a value out of the range its class states, a key of another model, a missing one:
   one exact line naming the table and the key;
 * exact equivalence of two routes through the same code: the Johnson-Cook Taylor bar
-  of scenes/taylor_johnson_cook.toml (coarsened, shortened) and the same FiniteRun
-  built in Python; the Drucker-Prager rock of demos/bit_rock.py by name in the bit-rock
-  scene and built in Python; the demo's finite-strain material of its own by import
+  of scenes/taylor_johnson_cook.toml (coarsened, shortened) and the same run built in
+  Python (scenes.taylor_bar); the Drucker-Prager rock of demos/bit_rock.py by name in
+  the bit-rock scene and built in Python; the demo's finite-strain material of its own by import
   path (demos/custom_plastic_material.toml) and built in Python. Same mesh, same
   material parameters, same arithmetic: the summaries and histories are equal (==), on
   any number of ranks (both routes partition alike);
@@ -197,9 +197,8 @@ def _short(text: str) -> str:
     return replace(text, "output_every = 100", "output_every = 100\nfields = false\nplots = false")
 
 
-SUMMARY = ("n_steps", "dt_min", "dt_max", "final_length", "final_face_radius", "eps_p_max",
-           "initial_kinetic", "kinetic", "stored_elastic", "plastic_work", "internal_work",
-           "activation_loss", "kinetic_identity_error")
+SUMMARY = ("n_steps", "dt_range", "t_end", "final_length", "final_face_radius", "eps_p_max",
+           "j_min", "energy_initial", "energy", "stored_elastic", "plastic_work")
 
 
 def _run_scene(text: str, tmp_path, name: str, where: str | None = None) -> dict:
@@ -216,20 +215,22 @@ def _run_scene(text: str, tmp_path, name: str, where: str | None = None) -> dict
 
 
 def test_johnson_cook_taylor_bar_from_the_scene_is_the_python_route(tmp_path):
-    """scenes/taylor_johnson_cook.toml (on 2 x 20 cells, 10 us) and FiniteRun(quad_bar,
+    """scenes/taylor_johnson_cook.toml (on 2 x 20 cells, 10 us) and scenes.taylor_bar(...,
     JohnsonCook(...)) with the same numbers: the same summary, exactly (the scene builds
     the same objects; summary.json keeps every double by its repr)."""
-    from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+    from impact_fenics.scene_keys import ENERGY_EVERY
+    from impact_fenics.scenes import taylor_bar
+    from impact_fenics.simulation import Settings
 
     with open(os.path.join(ROOT, "scenes", "taylor_johnson_cook.toml")) as f:
         text = _short(f.read())
     a = _run_scene(text, tmp_path, "jc.toml")
     copper = JohnsonCook(E=124e9, nu=0.34, density=8960.0, A=90e6, B=292e6, n=0.31, C=0.025,
                          rate0=1.0, m=1.09, t_room=293.0, t_melt=1356.0, chi=0.9, c_p=383.0)
-    run = FiniteRun(quad_bar(COMM, 3.2e-3, 32.4e-3, 2, 20), copper,
-                    FiniteSettings(t_end=10e-6, safety=0.5, dt_interval=10),
-                    velocity=(0.0, -227.0), wall="film")
-    b = run.run()
+    sim = taylor_bar(Settings(quiet=True, plots=False, fields=False, history_every=5,
+                              output_every=100, energy_every=ENERGY_EVERY), copper,
+                     3.2e-3, 32.4e-3, 2, 227.0, "film", t_end=10e-6, comm=COMM)
+    b = sim.run(extra=sim.scene_figures)
     assert a["material"] == "johnson_cook" and a["eps_p_max"] > 0.5  # the face flows
     for key in SUMMARY:
         assert a[key] == b[key], key

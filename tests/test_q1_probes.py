@@ -31,7 +31,7 @@ from test_small_strain_q1 import (E, P0, PROBE_R, RHO, STATIONS, T_END, T_RISE, 
 
 from impact_fenics import cli, q1
 from impact_fenics.bodies import Body, DeformableModel
-from impact_fenics.finite_run import quad_bar
+from impact_fenics.quad_meshes import quad_bar
 from impact_fenics.integrator import Integrator
 from impact_fenics.internal_force.quadrature import QuadPointGeometry
 from impact_fenics.loads import SurfaceLoad, Trapezoid

@@ -149,7 +149,7 @@ def momentum_bound(sim, n_steps: int, v_max: float) -> float:
 
 def struck_mesh(kind: str):
     """The struck bar's mesh: triangles (``p1``) or quadrilaterals (``q1``), h = 1.25 cm."""
-    from impact_fenics.finite_run import quad_bar
+    from impact_fenics.quad_meshes import quad_bar
     from impact_fenics.quad_meshes import tag_rectangle
 
     return (meshing.bar(radius=0.05, length=LENGTH, h=0.0125, structured=True, comm=COMM)

@@ -38,7 +38,7 @@ from impact_fenics import compat, q1
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.cell_fields import CellStress
 from impact_fenics.errors import InputError
-from impact_fenics.finite_run import quad_bar
+from impact_fenics.quad_meshes import quad_bar
 from impact_fenics.forms import stiffness_form, traction_form
 from impact_fenics.integrator import Integrator
 from impact_fenics.internal_force.finite import FiniteStrainForce

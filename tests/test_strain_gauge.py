@@ -129,7 +129,7 @@ def test_gauge_reads_the_wave_plateau_and_arrival(wave_bars, h):
 def test_gauges_in_compiled_steps_equal_python_steps(tmp_path_factory):
     """A P1 bar and a Q1 bar struck by an initial velocity (no loads: the loop runs compiled
     blocks), with gauges on the surface and inside: everything written is identical."""
-    from impact_fenics.finite_run import quad_bar
+    from impact_fenics.quad_meshes import quad_bar
     from impact_fenics.quad_meshes import tag_rectangle
     from test_step_block import _same, _settings
 

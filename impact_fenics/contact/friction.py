@@ -303,7 +303,7 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
             slip += d_slip[i]
         elif f != 0.0:
             slip += h_avg * abs(f) * abs(v[up[i]] - v[lo[i]])
-    w_t, _ = _book(h, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, False,
+    w_t, _ = _book(h_avg, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, False,
                    False)
     stats[0] = total
     stats[1] = n_stick

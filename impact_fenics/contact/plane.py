@@ -207,3 +207,22 @@ class FixedPlane:
         r = self._xy[:, 0] + u[2 * self.nodes]
         near = r[z <= h]
         return self._host.comm.allreduce(float(near.max(initial=0.0)), op=MPI.MAX)
+
+
+def contact_radius(cset, node_xy: np.ndarray, u: np.ndarray, comm: MPI.Comm) -> float:
+    """The current r (m) of the outermost node in contact (active) with the plane of the
+    set ``cset`` (:func:`plane_below`'s constraints) over all ranks, from the owned
+    displacement ``u`` (m) and the local nodes' reference ``node_xy`` (m); 0 with none."""
+    z_dofs = cset._local[cset.active[cset._pos]]  # owned z dofs of the active constraints
+    r = node_xy[(z_dofs - 1) // 2, 0] + u[z_dofs - 1]
+    return comm.allreduce(float(r.max(initial=0.0)), op=MPI.MAX)
+
+
+def foot_radius(nodes: np.ndarray, node_xy: np.ndarray, u: np.ndarray, z_wall: float, h: float,
+                comm: MPI.Comm) -> float:
+    """The largest current r (m) of the owned ``nodes`` within ``h`` (m) of the plane
+    z = ``z_wall`` (m) (z - z_wall <= h) over all ranks, from the owned displacement ``u``
+    (m) and the reference ``node_xy`` (m)."""
+    z = node_xy[nodes, 1] + u[2 * nodes + 1] - z_wall
+    r = node_xy[nodes, 0] + u[2 * nodes]
+    return comm.allreduce(float(r[z <= h].max(initial=0.0)), op=MPI.MAX)

@@ -1,0 +1,127 @@
+"""The [wall] table of a scene file, and what a finite-strain scene may hold.
+
+A scene chooses finite strain per body, ``strain = "finite"`` in [bodies.NAME]
+(default ``"small"``). Finite-strain bodies are Q1 mean-dilatation quadrilaterals
+(internal_force/finite.py) and run in the one loop (:class:`~.simulation.Simulation`,
+built by :func:`.scene_file.build`) under a step that follows their cells
+(:class:`~.stepping.FollowingStep`: cfl x the current limit re-estimated every
+``dt_interval`` steps, or a fixed dt checked against it). Such a scene holds, for now:
+
+* one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
+  across the radius, square cells; the bar spans 0 <= z <= length);
+* its material: a model with a finite-strain form (``"j2"``: multiplicative J2,
+  Hencky elasticity, linear hardening, rate-independent; ``"johnson_cook"``;
+  ``"neo_hookean"``) or a class of one's own with ``strain = "finite"``
+  (the kinematics is checked with the materials, :mod:`.scene_materials`);
+* optionally a ``[wall]``: the rigid plane z (m, default 0, at or below the bar), a fixed
+  rigid part under every boundary node with its contact set (:mod:`.contact.plane`),
+  frictionless or with ``friction`` (film and dme: contact/friction.py), with
+  ``method`` = "film", "dme" or "penalty" and, for penalty, ``penalty`` = a stiffness
+  in N/m or "scaled"; ``face`` = "contact" (default: every boundary node a unilateral
+  candidate, so the rim of the impact face may lift off) or "held" (u_z = 0 on the face
+  Z = 0 from t = 0, free to slide radially: the condition of the converged Taylor-bar
+  references; needs z = 0; the face's stop, 1/2 m_face v0^2 in J, is reported as
+  impact_face_loss);
+* [[fixed]] faces (the groups axis, outer, bottom, top);
+* ``[time]`` t_end (s) and either cfl (<= 1) or dt (a fixed step, s); dt_interval
+  (steps, default 10);
+* no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line).
+
+A small-strain scene may not use dt_interval; its [wall] is the same plane, with
+``face = "contact"`` only (a held face is a [[fixed]] u_z). On ``quad_bar`` it has one
+body, Q1 with mean dilatation, in contact with rigid bodies only.
+Every refusal is an InputError naming the table and the key (exit 2).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError
+from .scene_table import Table
+
+
+@dataclass
+class WallSpec:
+    z: float                      # m, the plane z = const (normal +z)
+    method: str                   # film, dme or penalty
+    penalty: float | str = "scaled"  # N/m, or "scaled" (beta = 1 each step)
+    face: str = "contact"         # the impact face: unilateral contact, or held (u_z = 0)
+    friction: Any = None          # contact.friction.FrictionLaw (small strain), None: none
+    tangential_penalty: float | str = "scaled"  # N/m, penalty with friction
+    given: tuple[str, ...] = ()
+
+
+def read_wall(data: Any) -> WallSpec:
+    """The [wall] table."""
+    t = Table(data, "[wall]", "wall")
+    wall = WallSpec(t.value("z"), t.value("method"), given=tuple(t.data), face=t.value("face"))
+    if wall.face == "held" and wall.z != 0.0:
+        raise t.error("face", f"it keeps the bar's face Z = 0 on the wall and needs z = 0 "
+                      f"(got z = {wall.z!r} m)")
+    wall.penalty = t.value("penalty")
+    if "friction" in t.data:
+        from .contact.friction import friction_law
+
+        law = friction_law(t.data["friction"], "[wall] friction")
+        wall.friction = None if law.is_zero else law
+    wall.tangential_penalty = t.value("tangential_penalty")
+    return wall
+
+
+def check_kind(scene) -> None:
+    """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
+    kinds = {b.strain for b in scene.bodies}
+    if not scene.finite:
+        if scene.wall is not None and scene.wall.face == "held":
+            raise InputError('[wall] face = "held": a finite-strain body\'s condition; hold a '
+                             "small-strain body's face with [[fixed]] (components = [\"z\"])")
+        if scene.mesh.generator == "quad_bar":
+            if len(scene.bodies) > 1:
+                raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
+                                 f"{len(scene.bodies)} ([bodies])")
+            for c in scene.contacts:
+                if c.rigid is None:
+                    raise InputError(f'{c.where} a contact between deformable faces needs two '
+                                     'bodies: [mesh] generator = "quad_bar" makes one (a rigid '
+                                     "body's [[contact]] runs on it)")
+        if scene.time["dt_interval"] is not None:
+            raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
+        return
+    body = next(b for b in scene.bodies if b.strain == "finite")
+    where = f'[bodies.{body.name}] strain = "finite":'
+    if len(scene.bodies) > 1 or len(kinds) > 1:
+        raise InputError(f"{where} a finite-strain scene has one body for now (the mesh is "
+                         "quadrilateral and no body-to-body contact runs on it)")
+    if scene.mesh.generator != "quad_bar":
+        given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
+                 else f'file = "{scene.mesh.file}"')
+        file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
+        raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
+                         f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+    if scene.wall is not None and scene.wall.friction is not None \
+            and scene.wall.method == "penalty":
+        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
+                         "tangential spring is not built for a finite-strain body (use method "
+                         "= \"film\" or \"dme\")")
+    for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
+                      ("loads", "[[loads]]"), ("probes", "[[probes]]")):
+        if getattr(scene, key):
+            raise InputError(f"{what}: not available with finite strain yet ({where} runs "
+                             "against a [wall] only)")
+    t = scene.time
+    if t["n_steps"] is not None:
+        raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "
+                         "give t_end (s)")
+    if t["cfl"] is not None and t["cfl"] > 1.0:
+        raise InputError(f"[time] cfl = {t['cfl']!r}: must be <= 1 (the fraction of the current "
+                         "element limit min(A / max diagonal) / c)")
+    for key in ("force_dt", "converged_dt"):
+        if t[key]:
+            raise InputError(f"[time] {key}: not available with finite strain (a fixed dt above "
+                             "the current limit stops the run; the limit is re-estimated)")
+    if scene.wall is not None and scene.wall.method != "penalty" and "penalty" in scene.wall.given:
+        from .plausibility import warn
+
+        warn(f'[wall] penalty = {scene.wall.penalty!r} is ignored by method = '
+             f'"{scene.wall.method}" (only penalty reads it)')

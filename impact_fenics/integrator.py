@@ -130,6 +130,7 @@ class Integrator:
                                       model.bodies[name].material, self._u_fn,
                                       model.geometry)
             force.coef = inverse
+            force.body = name  # the body it serves (the summary's per-body figures)
             self.finite.append(force)
         if isinstance(policy, FollowingStep) and not policy.bound:
             require(self.finite, "a following step needs a finite-strain body (its cells "

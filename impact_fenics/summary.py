@@ -86,7 +86,7 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         summary["geometry"] = {"kind": geometry.kind, "thickness": geometry.thickness,
                                "symmetry": geometry.symmetry}
     summary["bodies"] = body_figures(model, sim.integrator, sim.body_mass, sim._v_start,
-                                      _velocities(sim), comm)
+                                      _velocities(sim), comm, getattr(sim, "_finite_u", None))
     element_cycle_figures(summary, {name: model.owned_cells(name).size for name in model.bodies},
                           comm, sim.integrator)
     if sim.contacts:
@@ -232,12 +232,13 @@ def _velocities(sim) -> dict[str, float]:
 
 
 def body_figures(model, integ, body_mass: dict[str, float], v_start: dict[str, float],
-                 v_end: dict[str, float], comm: MPI.Comm) -> dict:
+                 v_end: dict[str, float], comm: MPI.Comm, finite_u: list | None = None) -> dict:
     """Per body: mass (kg), mean z velocity (m/s) at the start and at the end,
     and at the end kinetic 1/2 sum m v^2 and strain energy (J): 1/2 u . K u over its dofs,
-    or the stored elastic energy psi_e of a path-dependent body, which also gets its
-    plastic work (J). ``integ``: the run's integrator (its state now); ``v_start``, ``v_end``:
-    :func:`mean_velocities` at the start and now. Collective."""
+    or the stored elastic energy psi_e of a path-dependent or finite-strain body, which
+    also gets its plastic work (J). ``integ``: the run's integrator (its state now); ``v_start``, ``v_end``:
+    :func:`mean_velocities` at the start and now; ``finite_u``: the finite-strain forces'
+    kept u^n (every local entry, m), or None. Collective."""
     Ku = integ.u_vec.duplicate()
     if integ.K is not None:  # the linear bodies' stiffness
         integ.K.mult(integ.u_vec, Ku)
@@ -245,7 +246,11 @@ def body_figures(model, integ, body_mass: dict[str, float], v_start: dict[str, f
         Ku.set(0.0)
     ku = Ku.array
     psi = {f.body: f.elastic_energy_local() for f in integ.nonlinear}  # path-dependent
-    plastic = {f.body: f.plastic_work_local for f in integ.nonlinear}
+    # a finite-strain body's psi(F_bar) at the u^n its state was last updated at (the
+    # energy rows' u^n, kept by the run), else at the current u
+    kept = finite_u if finite_u is not None else [None] * len(integ.finite)
+    psi.update({f.body: f.stored_energy_local(u) for f, u in zip(integ.finite, kept)})
+    plastic = {f.body: f.plastic_work_local for f in integ.nonlinear + integ.finite}
     out = {}
     for name in model.bodies:
         dofs = np.concatenate([model.body_dofs(name, 0), model.body_dofs(name, 1)])

@@ -190,8 +190,12 @@ def run_scene(path: str, method: str | None = None, out: str | None = None,
                       f"{exc}", file=sys.stderr, flush=True)
     if comm.rank == 0 and sim.status.startswith("completed ("):
         print(f"warning: {sim.status}", file=sys.stderr, flush=True)
-    return _exit_code(sim, f"step {summary['stopped_at_step']} of {summary['n_steps']}",
-                      out_dir, comm)
+    at = f"step {summary['stopped_at_step']} of {summary['n_steps']}"
+    t_end = getattr(sim.step_policy, "t_end", None)
+    if t_end is not None and not sim.integrator.step.constant:  # the steps are not known
+        at = (f"step {summary['stopped_at_step']}, t = {1e6 * sim.integrator.t:.5g} us of "
+              f"{1e6 * t_end:.5g} us")
+    return _exit_code(sim, at, out_dir, comm)
 
 
 def _exit_code(run, at: str, out_dir: str, comm) -> int:

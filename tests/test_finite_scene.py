@@ -311,9 +311,11 @@ def test_a_users_folder_is_refused(tmp_path, capsys):
         assert os.listdir(out) == ["thesis.tex"] and not os.path.exists(out + ".partial")
 
 
-def test_a_signal_in_the_loop_leaves_a_complete_directory(tmp_path, monkeypatch):
+def test_a_signal_in_the_loop_leaves_a_complete_directory(tmp_path, monkeypatch, capsys):
     """SIGINT at step 5: serially the run stops after that step, under MPI at the next
-    agreement (step 64) or the end; the directory is published with its summary."""
+    agreement (step 64) or the end; the directory is published with its summary, and the
+    one line says where it stopped in time of t_end (the steps of a run whose step follows
+    its cells are not known ahead)."""
     base = COMM.bcast(str(tmp_path), root=0)
     scene, out = os.path.join(base, "s.toml"), os.path.join(base, "run")
     if COMM.rank == 0:
@@ -335,6 +337,10 @@ def test_a_signal_in_the_loop_leaves_a_complete_directory(tmp_path, monkeypatch)
     assert s["status"] == "interrupted by SIGINT"
     assert s["n_steps"] == (7 if COMM.size == 1 else 64)
     assert not os.path.exists(out + ".partial")
+    if COMM.rank == 0:
+        lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("stopped:")]
+        assert len(lines) == 1 and f"at step {s['n_steps']}, t = " in lines[0], lines
+        assert lines[0].split(", t = ")[1].startswith(f"{1e6 * s['t_end']:.5g} us of 8 us")
 
 
 # bad input: (id, (old, new) edit of TAYLOR, the start of the message after "error: ")

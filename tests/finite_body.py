@@ -23,7 +23,8 @@ def finite_body(mesh, material, velocity: tuple[float, float] = (0.0, 0.0),
     v0[0::2], v0[1::2] = velocity
     integ.set_initial(None, v0)
     return SimpleNamespace(mesh=mesh, comm=mesh.comm, V=model.V, model=model, integrator=integ,
-                           force=integ.finite[0], u_fn=integ.u_function,
+                           force=integ.finite[0], coef=integ.finite[0].coef,
+                           u_fn=integ.u_function, u_vec=integ.u_vec, v_vec=integ.v_vec,
                            u=integ.u_function.x.array, u_owned=integ.u_owned,
                            v=integ.v_owned, mass=integ.mass, free=integ.free,
                            node_xy=model.node_xy, n_owned=model.n_owned,

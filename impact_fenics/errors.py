@@ -20,7 +20,7 @@ EXIT_INPUT = 2
 EXIT_UNSTABLE = 3
 EXIT_OUTPUT = 4
 
-# why a finite-strain body is refused on triangles (FiniteRun, the scene reader,
+# why a finite-strain body is refused on triangles (the scene reader,
 # DeformableModel): one reason, one wording
 FINITE_STRAIN_NEEDS_QUADRILATERALS = ("finite strain needs quadrilaterals: constant-strain "
                                       "triangles lock under isochoric plastic flow")

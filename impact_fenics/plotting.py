@@ -64,48 +64,6 @@ def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
         return []
 
 
-def write_finite_plots(run_dir: str, h: dict[str, np.ndarray], title: str | None = None) -> list[str]:
-    """history.png of a finite-strain run (finite_run.HISTORY_COLUMNS): length and
-    impact-face radius (mm), the largest eps_bar_p, the energies (J) and dt with its
-    limit (s) against time, under ``title`` (default: the directory's name); returns the
-    paths written (a failure is one warning line)."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        t = h["time"] * 1e6
-        fig, ax = plt.subplots(2, 2, figsize=(10, 7))
-        ax[0, 0].plot(t, h["length"] * 1e3, label="length")
-        ax[0, 0].plot(t, h["face_radius"] * 1e3, label="impact-face radius")
-        ax[0, 0].set_ylabel("mm")
-        ax[0, 0].legend()
-        ax[0, 1].plot(t, h["eps_p_max"])
-        ax[0, 1].set_ylabel("max equivalent plastic strain")
-        for k in ("kinetic", "plastic_work", "stored", "activation_loss", "penalty_energy"):
-            if np.any(h[k]):
-                ax[1, 0].plot(t, h[k], label=k)
-        ax[1, 0].set_ylabel("J")
-        ax[1, 0].legend()
-        stepped = h["dt"] > 0.0  # (the first row, the start, had no step)
-        ax[1, 1].semilogy(t[stepped], h["dt"][stepped], label="dt")
-        ax[1, 1].semilogy(t, h["dt_limit"], label="limit estimate")
-        ax[1, 1].set_ylabel("s")
-        ax[1, 1].legend()
-        for a in ax.ravel():
-            a.set_xlabel("t (µs)")
-        fig.suptitle(f"{title or _run_name(run_dir)}: histories")
-        fig.tight_layout()
-        path = os.path.join(run_dir, "history.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        return [path]
-    except Exception as exc:  # a picture must not cost the results
-        print(f"warning: history plot not written: {exc}", file=sys.stderr, flush=True)
-        return []
-
-
 def _finite(y: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(y), y, np.nan)
 

@@ -49,7 +49,7 @@ class BodySpec:
     name: str
     material: str
     velocity: tuple[float, float]  # (v_r, v_z), m/s
-    strain: str = "small"  # "small" or "finite" (total Lagrangian, finite_run.py)
+    strain: str = "small"  # "small" or "finite" (total Lagrangian, internal_force/finite.py)
 
 
 @dataclass

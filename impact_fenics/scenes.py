@@ -205,13 +205,14 @@ def nosed_striker(settings: Settings, method, v0: float = 5.0, nose_radius: floa
 
 
 def taylor_bar(settings: Settings, material, radius: float = 3.2e-3, length: float = 32.4e-3,
-               n_r: int = 4, v0: float = 227.0, method: str | None = "film",
+               n_r: int = 4, v0: float = 227.0, method="film",
                face: str = "contact", t_end: float = 80e-6, dt: float | None = None,
                cfl: float = 0.5, dt_interval: int = 10, friction=None,
                comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
     """The Taylor bar: a finite-strain ``material`` cylinder (radius, length in m, n_r x
     round(n_r length / radius) square Q1 cells, the body "bar") at ``v0`` (m/s) onto the
-    fixed plane z = 0 under every boundary node, contact by ``method`` (None: no wall),
+    fixed plane z = 0 under every boundary node, contact by ``method`` (a name of
+    :func:`make_method` or a method; None: no wall),
     ``face`` "contact" or "held" (u_z = 0 on the face Z = 0 from t = 0), Coulomb
     ``friction`` on the plane (film, dme); the step follows the cells (cfl x the current
     limit re-estimated every dt_interval steps, or a fixed ``dt`` checked), to ``t_end``
@@ -230,7 +231,9 @@ def taylor_bar(settings: Settings, material, radius: float = 3.2e-3, length: flo
     if method is not None:
         nodes = boundary_nodes(model.V, model.n_owned // 2)
         sim.add_contact(plane_below(comm, nodes, model.node_xy, model.offset, 0.0,
-                                    model.length_scale), make_method(method), rigid=wall_part())
+                                    model.length_scale),
+                        make_method(method) if isinstance(method, str) else method,
+                        rigid=wall_part())
         if friction is not None:
             sim.contacts[-1].set_friction(friction)
     sim.scene_figures = track_bar(sim, radius, length)

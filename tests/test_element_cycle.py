@@ -65,15 +65,19 @@ def test_bodies_with_forces_of_their_own_are_timed_apart(tmp_path):
 
 
 def test_a_finite_strain_run_reports_the_time_per_element_per_cycle():
-    from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+    """The Taylor bar (2 x 20 Q1 cells, no wall, 2 us under the step that follows its
+    cells) through Simulation: its body's figure is its force's time over cells x steps."""
+    from impact_fenics import scenes
     from impact_fenics.materials import FiniteJ2
 
     copper = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
-    mesh = quad_bar(MPI.COMM_WORLD, 3.2e-3, 32.4e-3, 2, 20)
-    s = FiniteRun(mesh, copper, FiniteSettings(t_end=2e-6, quiet=True, plots=False),
-                  velocity=(0.0, -227.0)).run()
-    assert s["n_steps"] > 0
-    ns = s["ns_per_element_cycle"]
-    assert ns > 0 and _close(ns, 1e9 * s["wall_time"] / (s["n_cells"] * s["n_steps"]))
-    # the same figure as the summary's element-steps per second, inverted
-    assert _close(ns, 1e9 / s["element_steps_per_second"])
+    sim = scenes.taylor_bar(Settings(quiet=True, plots=False, fields=False), copper, n_r=2,
+                            method=None, t_end=2e-6)
+    s = sim.run()
+    steps, cells = s["stopped_at_step"], s["n_cells"]
+    assert steps > 0 and cells == 2 * 20
+    whole = s["ns_per_element_cycle"]
+    assert whole > 0 and _close(whole, 1e9 * s["wall_time"] / (cells * steps))
+    b = s["bodies"]["bar"]
+    assert b["f_int_seconds"] > 0 and b["n_cells"] == 2 * 20
+    assert _close(b["ns_per_element_cycle"], 1e9 * b["f_int_seconds"] / (b["n_cells"] * steps))

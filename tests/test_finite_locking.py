@@ -18,10 +18,13 @@ from mpi4py import MPI
 from impact_fenics import forms
 from impact_fenics.geometry import AXISYMMETRIC_GEOMETRY
 from impact_fenics.compat import vector_space
-from impact_fenics.finite_run import FiniteRun, FiniteSettings
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.integrator import Integrator
 from impact_fenics.materials import LinearElastic
 from impact_fenics.materials.neo_hookean import NeoHookean
 from impact_fenics.operators import compile_form
+from impact_fenics.quad_meshes import one_body
+from impact_fenics.stepping import FollowingStep
 
 A, B, P, E, NU = 0.1, 0.2, 1e6, 1e9, 0.499
 
@@ -54,21 +57,24 @@ def q1_inner_displacement(n):
     comm = MPI.COMM_SELF
     mesh = dmesh.create_rectangle(comm, [np.array([A, 0.0]), np.array([B, (B - A) / n])], [n, 1],
                                   cell_type=dmesh.CellType.quadrilateral)
-    run = FiniteRun(mesh, NeoHookean(E=E, nu=NU, density=1000.0), FiniteSettings())
-    N = run.n_owned
+    model = DeformableModel(one_body(mesh), [Body("body", NeoHookean(E=E, nu=NU, density=1000.0))])
+    integ = Integrator(model, None, np.zeros(0, dtype=np.int32),
+                       policy=FollowingStep(None, 1.0, None, 0.5, 10))
+    force, u_fn, u_owned = integ.finite[0], integ.u_function, integ.u_owned
+    N = model.n_owned
     K = np.zeros((N, N))
     h = 1e-9
     for j in range(0, N, 2):  # u_r columns only (u_z = 0)
         e = np.zeros(N)
         e[j] = h
-        run.u_owned[:] = e
-        run.u_fn.x.scatter_forward()
-        fp = run.force.compute(1.0).copy()
-        run.u_owned[:] = -e
-        run.u_fn.x.scatter_forward()
-        fm = run.force.compute(1.0).copy()
+        u_owned[:] = e
+        u_fn.x.scatter_forward()
+        fp = force.compute(1.0).copy()
+        u_owned[:] = -e
+        u_fn.x.scatter_forward()
+        fm = force.compute(1.0).copy()
         K[:, j] = (fp - fm) / (2 * h)
-    xy = run.node_xy
+    xy = model.node_xy
     f, inner = inner_loads(xy, N)
     u = solve(K, f, xy)
     return float(u[inner].mean())

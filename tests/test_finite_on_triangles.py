@@ -1,7 +1,7 @@
 """A finite-strain body on triangles is refused in one line that says why: constant-strain
 triangles lock under isochoric plastic flow (tests/test_finite_locking.py measures it),
-so finite strain runs on Q1 with mean dilatation. From Python (FiniteRun,
-DeformableModel) and from a scene file (a triangle generator, a .msh file of
+so finite strain runs on Q1 with mean dilatation. From Python (DeformableModel,
+Simulation) and from a scene file (a triangle generator, a .msh file of
 triangles): an InputError of one line; from the command line exit 2, one line
 "error: ...", no traceback, nothing written."""
 import numpy as np
@@ -12,7 +12,6 @@ from mpi4py import MPI
 from impact_fenics import cli
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.errors import InputError
-from impact_fenics.finite_run import FiniteRun, FiniteSettings
 from impact_fenics.materials.finite_j2 import FiniteJ2
 from impact_fenics.meshing import TaggedMesh
 from impact_fenics.simulation import Settings, Simulation
@@ -36,12 +35,6 @@ def one_line(error: pytest.ExceptionInfo) -> str:
     text = str(error.value)
     assert "\n" not in text
     return text
-
-
-def test_finite_run_on_triangles_is_refused():
-    with pytest.raises(InputError) as error:
-        FiniteRun(triangles(), MATERIAL, FiniteSettings())
-    assert one_line(error) == f"the mesh's cells are triangles: {REASON}"
 
 
 def _tagged(mesh: dmesh.Mesh) -> TaggedMesh:

@@ -1,4 +1,5 @@
-"""Finite-strain element, variable step, wall and the Taylor bar (serial and mpirun -n 2).
+"""Finite-strain element, variable step, wall and the Taylor bar (serial and mpirun -n 2),
+the force driven by hand (tests/finite_body.py) and the runs through Simulation.
 
 Round-off bounds count roundings, whole runs compare within the spread of a one-ulp
 change of the initial velocity, ledgers within roundoff.ledger (tests/roundoff.py)."""
@@ -8,7 +9,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+from finite_body import bar_simulation, finite_body
+from impact_fenics.quad_meshes import quad_bar
 from impact_fenics.materials.finite_j2 import FiniteJ2
 from impact_fenics.materials.neo_hookean import NeoHookean
 from roundoff import LIBM, assert_runs_agree, assert_within_spread, ledger, one_ulp, rounding
@@ -17,12 +19,15 @@ RUBBERY = NeoHookean(E=1e9, nu=0.3, density=1000.0)
 
 
 def set_field(run, fn):
-    """u or v on the owned dofs from fn(R, Z) -> (a_r, a_z); u_r = 0 kept on the axis."""
-    xy = run.node_xy[: run.n_owned_nodes]
+    """u or v on the owned dofs from fn(R, Z) -> (a_r, a_z); u_r = 0 kept on the axis.
+    ``run``: a finite_body or a Simulation."""
+    model = getattr(run, "model", run)
+    free = run.integrator.free
+    xy = model.node_xy[: model.n_owned // 2]
     a_r, a_z = fn(xy[:, 0], xy[:, 1])
-    out = np.zeros(run.n_owned)
+    out = np.zeros(model.n_owned)
     out[0::2], out[1::2] = a_r, a_z
-    out[~run.free] = 0.0
+    out[~free] = 0.0
     return out
 
 
@@ -42,7 +47,7 @@ def test_rigid_translation_and_homogeneous_stretch(comm):
     round-off (a point's stress, about 40 roundings and a log, in both; f.w sums the 48
     dofs' terms, all of one sign here)."""
     R, L = 0.01, 0.03
-    run = FiniteRun(quad_bar(comm, R, L, 3, 5), RUBBERY, FiniteSettings())
+    run = finite_body(quad_bar(comm, R, L, 3, 5), RUBBERY)
     f = force_at(run, set_field(run, lambda r, z: (0 * r, 0 * r + 3.7)))
     bound = rounding(10, 3.7 * RUBBERY.mu * 2 * math.pi * R)
     assert comm.allreduce(np.abs(f).max(), op=MPI.MAX) < bound
@@ -78,25 +83,25 @@ def test_constant_step_is_modified_euler_and_kinetic_identity(comm):
     mesh = quad_bar(comm, R, L, 3, 6)
     vel = lambda r, z: (300 * r / R * z / L, -150 * np.sin(math.pi * z / L))  # noqa: E731
     dt, n = 5e-8, 120
-    run = FiniteRun(mesh, RUBBERY, FiniteSettings(dt=dt, t_end=n * dt, history_every=1))
-    v0 = set_field(run, vel)
-    run.v[:] = v0
-    s = run.run()
+    sim = bar_simulation(mesh, RUBBERY, n * dt, dt=dt)
+    v0 = set_field(sim, vel)
+    sim.integrator.v_owned[:] = v0
+    s = sim.run()
     assert s["n_steps"] == n
-    ref = FiniteRun(mesh, RUBBERY, FiniteSettings())
-    u_ref, v_ref = modified_euler_reference(ref, np.zeros(run.n_owned), v0, dt, n)
-    u_ulp, _ = modified_euler_reference(ref, np.zeros(run.n_owned), np.nextafter(v0, np.inf),
+    ref = finite_body(mesh, RUBBERY)
+    u_ref, v_ref = modified_euler_reference(ref, np.zeros(ref.n_owned), v0, dt, n)
+    u_ulp, _ = modified_euler_reference(ref, np.zeros(ref.n_owned), np.nextafter(v0, np.inf),
                                         dt, n)
     gather = lambda x: np.concatenate(comm.allgather(x))  # noqa: E731
-    assert_within_spread(gather(run.u_owned), gather(u_ref), gather(u_ulp), n, "u")
+    assert_within_spread(gather(sim.integrator.u_owned), gather(u_ref), gather(u_ulp), n, "u")
     # adaptive: the step varies (the bar deforms), the identity still closes
-    run = FiniteRun(mesh, RUBBERY, FiniteSettings(t_end=n * dt, dt_interval=3, history_every=1))
-    run.v[:] = v0
-    s = run.run()
-    assert s["dt_max"] > s["dt_min"]
+    sim = bar_simulation(mesh, RUBBERY, n * dt, interval=3, energy_every=1)
+    sim.integrator.v_owned[:] = v0
+    s = sim.run()
+    assert s["dt_range"][1] > s["dt_range"][0]
     bound = ledger(s["n_steps"], s["n_dofs"])
-    assert abs(s["kinetic_identity_error"]) <= bound
-    assert np.abs(run.history["balance_error"]).max() <= bound * s["initial_kinetic"]
+    assert abs(s["energy_balance_error_rel"]) <= bound
+    assert np.abs(sim.energy.data()["balance_error"]).max() <= bound * s["energy_initial"]
 
 
 @pytest.mark.parametrize("material", [RUBBERY, FiniteJ2(E=1e9, nu=0.3, density=1000.0,
@@ -114,11 +119,11 @@ def test_stored_energy_plus_dissipation_equals_internal_work(comm, material):
     vel = lambda r, z: (200 * r / R, -300 * z / L)  # noqa: E731
     gaps = []
     for dt in (1e-7, 5e-8):
-        run = FiniteRun(mesh, material, FiniteSettings(dt=dt, t_end=8e-6))
-        run.v[:] = set_field(run, vel)
-        s = run.run()
-        gaps.append(abs(s["work_gap"]) / (s["stored_elastic"] + s["plastic_work"]))
-        assert abs(s["kinetic_identity_error"]) <= ledger(s["n_steps"], s["n_dofs"])
+        sim = bar_simulation(mesh, material, 8e-6, dt=dt)
+        sim.integrator.v_owned[:] = set_field(sim, vel)
+        s = sim.run(extra=summary_energies)
+        gaps.append(abs(s["energy"]["work_gap"]) / (s["stored_elastic"] + s["plastic_work"]))
+        assert abs(s["energy_balance_error_rel"]) <= ledger(s["n_steps"], s["n_dofs"])
     if material is not RUBBERY:
         assert s["plastic_work"] > 0.25 * s["stored_elastic"]  # a third of the work dissipated
     print("relative work gaps at dt, dt/2:", gaps)
@@ -132,12 +137,11 @@ def test_fixed_step_stops_when_the_limit_falls(comm):
     from impact_fenics.errors import UnstableRunError
 
     mesh = quad_bar(comm, 3.2e-3, 32.4e-3, 2, 20)
-    probe = FiniteRun(mesh, FiniteJ2(), FiniteSettings())
-    dt = 0.9 * probe.dt_limit()
-    run = FiniteRun(mesh, FiniteJ2(), FiniteSettings(dt=dt, t_end=80e-6), velocity=(0, -227.0),
-                    wall="film")
+    dt = 0.9 * finite_body(mesh, FiniteJ2()).force.stable_dt()
+    sim = bar_simulation(mesh, FiniteJ2(), 80e-6, (0.0, -227.0), "film", dt=dt)
     with pytest.raises(UnstableRunError, match="above the current stable limit"):
-        run.run()
+        sim.run()
+    assert sim.status == "diverged"
 
 
 def test_stable_step_estimate_is_below_the_converged_limit():
@@ -148,7 +152,7 @@ def test_stable_step_estimate_is_below_the_converged_limit():
     comm = MPI.COMM_SELF
     for n_r, n_z in ((4, 8), (3, 12)):
         mesh = quad_bar(comm, 0.01, 0.03, n_r, n_z)
-        run = FiniteRun(mesh, NeoHookean(E=117e9, nu=0.35, density=8930.0), FiniteSettings())
+        run = finite_body(mesh, NeoHookean(E=117e9, nu=0.35, density=8930.0))
         rng = np.random.default_rng(1)
         x = rng.standard_normal(run.n_owned) * run.free
         eps = 1e-9
@@ -163,16 +167,30 @@ def test_stable_step_estimate_is_below_the_converged_limit():
                 break
             lam = lam_new
         dt_true = 2.0 / math.sqrt(lam_new)
-        assert 0.5 * run.dt_limit() < dt_true
-        assert 0.5 * run.dt_limit() > 0.3 * dt_true  # and not needlessly small
+        assert 0.5 * run.force.stable_dt() < dt_true
+        assert 0.5 * run.force.stable_dt() > 0.3 * dt_true  # and not needlessly small
+
+
+def summary_energies(sim) -> dict:
+    """The finite body's stored energy and plastic work at u^N (J) for the summary."""
+    shares = np.array([sum(f.stored_energy_local() for f in sim.integrator.finite),
+                       sum(f.plastic_work_local for f in sim.integrator.finite)])
+    sim.comm.Allreduce(MPI.IN_PLACE, shares)
+    return {"stored_elastic": float(shares[0]), "plastic_work": float(shares[1])}
 
 
 def taylor(comm, n_r, t_end=80e-6, method="film", v0=227.0):
-    mesh = quad_bar(comm, 3.2e-3, 32.4e-3, n_r, 10 * n_r)
-    run = FiniteRun(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6,
-                                   hardening=100e6),
-                    FiniteSettings(t_end=t_end, history_every=50), velocity=(0.0, -v0), wall=method)
-    return run.run()
+    """The Taylor bar's summary, with its energy's last row's terms at the top level."""
+    from impact_fenics import scenes
+    from impact_fenics.simulation import Settings
+
+    sim = scenes.taylor_bar(Settings(quiet=True, plots=False, fields=False, history_every=50),
+                            FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6,
+                                     hardening=100e6),
+                            n_r=n_r, v0=v0, method=method, t_end=t_end, comm=comm)
+    s = sim.run(extra=sim.scene_figures)
+    return {**s, "kinetic": s["energy"]["kinetic"],
+            "activation_loss": s["energy"]["activation_loss"]}
 
 
 def test_taylor_bar_coarse(comm):
@@ -185,9 +203,9 @@ def test_taylor_bar_coarse(comm):
     docs/taylor_bar.md measures 2-4 % at h = R/2, less on finer meshes."""
     s = taylor(comm, 2)
     K0 = 0.5 * 8930.0 * math.pi * 3.2e-3 ** 2 * 32.4e-3 * 227.0 ** 2
-    assert s["initial_kinetic"] == pytest.approx(K0, rel=rounding(40 + 2 * 3 * 21))
+    assert s["energy_initial"] == pytest.approx(K0, rel=rounding(40 + 2 * 3 * 21))
     assert K0 == pytest.approx(239.8, abs=0.05)
-    assert abs(s["kinetic_identity_error"]) <= ledger(s["n_steps"], s["n_dofs"])
+    assert abs(s["energy_balance_error_rel"]) <= ledger(s["n_steps"], s["n_dofs"])
     total = s["kinetic"] + s["stored_elastic"] + s["plastic_work"] + s["activation_loss"]
     assert total == pytest.approx(K0, rel=5e-3)
     assert s["plastic_work"] > 0.9 * K0
@@ -219,17 +237,18 @@ def test_johnson_cook_bar_heats_by_its_plastic_work(comm):
 
     jc = JohnsonCook()
     mesh = quad_bar(comm, 3.2e-3, 32.4e-3, 2, 20)
-    run = FiniteRun(mesh, jc, FiniteSettings(t_end=10e-6), velocity=(0.0, -227.0), wall="dme")
-    s = run.run()
-    g = run.force.geometry
-    temp = run.force.state[..., 5]
+    sim = bar_simulation(mesh, jc, 10e-6, (0.0, -227.0), "dme")
+    s = sim.run(extra=summary_energies)
+    force = sim.integrator.finite[0]
+    g = force.geometry
+    temp = force.state[..., 5]
     heat = comm.allreduce(float((g.w * jc.density * jc.c_p * (temp - jc.t_room)).sum()))
     capacity = comm.allreduce(float((g.w * jc.density * jc.c_p).sum()))  # J/K
     t_max = comm.allreduce(float(temp.max(initial=0.0)), op=MPI.MAX)
     assert s["plastic_work"] > 10.0
     assert heat == pytest.approx(jc.chi * s["plastic_work"], rel=0,
                                  abs=rounding(2 * s["n_steps"], capacity * t_max))
-    _, eps, temp = run.force.cell_values()
+    _, eps, temp = force.cell_values()
     hot = comm.allreduce(float(temp.max(initial=0.0)), op=MPI.MAX)
     assert hot > jc.t_room + 20.0  # tens of kelvin at the impact face
     assert np.all((temp >= jc.t_room - 1e-9) | (eps == 0))
@@ -240,7 +259,7 @@ def test_inverted_element_is_diagnosed(comm):
     UnstableRunError naming J and a cell position, on every rank alike."""
     from impact_fenics.errors import UnstableRunError
 
-    run = FiniteRun(quad_bar(comm, 0.01, 0.03, 2, 4), RUBBERY, FiniteSettings())
+    run = finite_body(quad_bar(comm, 0.01, 0.03, 2, 4), RUBBERY)
     with pytest.raises(UnstableRunError, match=r"inverted: J = det F = .* <= 0 \(cell at R"):
         force_at(run, set_field(run, lambda r, z: (0 * r, -2.0 * z)))
 
@@ -273,15 +292,14 @@ def test_cell_stress_is_the_mean_of_the_point_stresses(comm):
     return's logarithms and principal axes, the mean and the von Mises)."""
     sy0, H = 400e6, 100e6
     mesh = quad_bar(comm, 3.2e-3, 32.4e-3, 4, 40)
-    run = FiniteRun(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=sy0,
-                                   hardening=H),
-                    FiniteSettings(t_end=10e-6, history_every=50), velocity=(0.0, -227.0),
-                    wall="film")
-    run.run()  # ends with the force at the final u: tau and the state are of that u
-    f, g = run.force, run.force.geometry
+    sim = bar_simulation(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=sy0,
+                                        hardening=H), 10e-6, (0.0, -227.0), "film")
+    sim.run()  # ends with the force at the final u: tau and the state are of that u
+    f = sim.integrator.finite[0]
+    g = f.geometry
     sig, _, _ = f.cell_values()  # (rr, tt, zz, rz), Pa: the cell output
-    X = run.node_xy[g.dofs]
-    u = run.u_fn.x.array.reshape(-1, 2)[g.dofs]
+    X = sim.model.node_xy[g.dofs]
+    u = sim.integrator.u_function.x.array.reshape(-1, 2)[g.dofs]
     j_bar = _ring_volumes(X + u) / _ring_volumes(X)
     mean_tau = np.einsum("nq,nqi->ni", g.w, f.tau) / g.volume[:, None]
     assert np.abs(sig * j_bar[:, None] - mean_tau).max() <= \
@@ -305,11 +323,13 @@ def test_final_length_after_a_rebound_is_the_length_of_the_bar(comm):
     the flight (several millimetres here)."""
     R, L, v0 = 0.01, 0.03, 10.0
     c0 = math.sqrt(RUBBERY.E / RUBBERY.density)
-    run = FiniteRun(quad_bar(comm, R, L, 2, 6), RUBBERY, FiniteSettings(t_end=600e-6),
-                    velocity=(0.0, -v0), wall="film")
-    s = run.run()
-    x0 = run.node_xy[: run.n_owned_nodes]
-    z = x0[:, 1] + run.u_owned[1::2]
+    from impact_fenics.scenes import track_bar
+
+    sim = bar_simulation(quad_bar(comm, R, L, 2, 6), RUBBERY, 600e-6, (0.0, -v0), "film")
+    figures = track_bar(sim, R, L)
+    s = sim.run(extra=figures)
+    x0 = sim.model.node_xy[: sim.model.n_owned // 2]
+    z = x0[:, 1] + sim.integrator.u_owned[1::2]
     axis = np.abs(x0[:, 0]) < 1e-12
     top = comm.allreduce(float(z[axis & (x0[:, 1] > L * (1 - 1e-12))].max(initial=-np.inf)),
                          op=MPI.MAX)
@@ -318,4 +338,5 @@ def test_final_length_after_a_rebound_is_the_length_of_the_bar(comm):
     assert bottom > 10 * v0 / c0 * L  # off the wall, far beyond a vibration of the length
     assert s["final_length"] == top - bottom
     assert abs(s["final_length"] / L - 1) <= v0 / c0
-    assert s["activation_loss"] >= 0 and s["kinetic"] > 0.5 * s["initial_kinetic"]
+    e = s["energy"]
+    assert e["activation_loss"] >= 0 and e["kinetic"] > 0.5 * s["energy_initial"]

@@ -6,9 +6,9 @@ Oracles:
   lands: the small-strain step as the Integrator made it before (A = -dt M^-1 K built and
   multiplied here, the quadrature force's own increment with coef = -dt / m computed
   here), on a linear and a J2 body sharing one mesh, triangles and Q1; the finite-strain
-  step as FiniteRun made it before (the force's compute at the step just taken, then the
-  trapezoid and the velocity passes: its kernels, moved unchanged, called here in its
-  order), with a step that changes. u, v and
+  step as the former finite-strain driver made it (the force's compute at the step just
+  taken, then the trapezoid and the velocity passes: its kernels, moved unchanged,
+  called here in its order), with a step that changes. u, v and
   every booked work are compared with array_equal / ==.
 * A step change through set_step gives the force a fresh run at that step would have,
   bit for bit (A, coef).
@@ -33,7 +33,8 @@ from petsc4py import PETSc
 
 from impact_fenics import compat
 from impact_fenics.bodies import Body, DeformableModel
-from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
+from finite_body import finite_body
+from impact_fenics.quad_meshes import quad_bar
 from impact_fenics.integrator import Integrator
 from impact_fenics.internal_force import QuadratureForce
 from impact_fenics.internal_force.finite import trapezoid_work, velocity_update
@@ -159,17 +160,17 @@ def test_small_strain_step_is_the_previous_path_bit_for_bit(quadrilateral):
 
 # ---------------------------------------------------------------- bit for bit, finite strain
 def test_finite_strain_step_is_the_previous_path_bit_for_bit():
-    """FiniteRun's step before the protocol (kept here) and the force's set_step, evaluate
+    """The finite-strain driver's step before the protocol (kept here) and the force's set_step, evaluate
     and add_increment, over steps that change (the points' step is the one just taken)."""
     def bar():
         mesh = quad_bar(COMM, 2.0 ** -8, 10 * 2.0 ** -8, 2, 20)
-        run = FiniteRun(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=40e6,
-                                       hardening=100e6), FiniteSettings())
+        run = finite_body(mesh, FiniteJ2(E=117e9, nu=0.35, density=8930.0,
+                                         yield_stress=40e6, hardening=100e6))
         z = run.node_xy[: run.n_owned_nodes, 1]
         run.v[1::2] = -5000.0 * z / (10 * 2.0 ** -8)  # a compression that yields
         return run
     old, new = bar(), bar()
-    lim = old.dt_limit()
+    lim = old.force.stable_dt()
     steps = [0.5 * lim] * 3 + [0.3 * lim] * 2 + [0.45 * lim, 0.2 * lim]
     f_prev, u_prev = np.zeros(old.n_owned), np.zeros(old.n_owned)
     w_old = trap_old = 0.0
@@ -297,12 +298,11 @@ def test_finite_strain_stable_dt_is_min_L_over_c_of_the_current_cells():
     E_, nu, rho = 117e9, 0.35, 8930.0
     h = 2.0 ** -9
     mesh = quad_bar(COMM, 2 * h, 20 * h, 2, 20)
-    run = FiniteRun(mesh, FiniteJ2(E=E_, nu=nu, density=rho, yield_stress=400e6,
-                                   hardening=100e6), FiniteSettings())
+    run = finite_body(mesh, FiniteJ2(E=E_, nu=nu, density=rho, yield_stress=400e6,
+                                     hardening=100e6))
     c = math.sqrt(E_ * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu) * rho))
     # A and the diagonals exact; L = A / sqrt(2 h^2) rounds twice, c about 8 times on each
     # side and its sqrt once, L / c once: 2 x 12
     assert run.force.stable_dt() == pytest.approx(h / (math.sqrt(2.0) * c), rel=rounding(24))
     run.u[1::2] = -0.25 * run.node_xy[:, 1]  # owned and ghost nodes: z -> 3/4 z
     assert run.force.stable_dt() == pytest.approx(0.6 * h / c, rel=rounding(24))
-    assert run.dt_limit() == run.force.stable_dt()

@@ -16,16 +16,15 @@ Oracles:
   by z_max / h.
 * The run's limit (``dt_critical``) is the smallest body's limit, exactly: it is a
   maximum over a partition of the cells, so it is the same number.
-* Finite strain: at the start, the body's stable step is h / (√2 c) for square cells of
-  side h (L = A / diagonal). Here c = √((λ + 2μ)/ρ), computed by hand from E, ν and ρ.
+* Finite strain: at the start, the limit the step follows is h / (√2 c) for square cells
+  of side h (L = A / diagonal). Here c = √((λ + 2μ)/ρ), computed by hand from E, ν and ρ.
 * history.csv's ``dt``. At small strain it equals the summary's dt in every row, with
   the compiled blocks and with the Python steps (17 digits read back exactly). At
-  finite strain (a row every step), row 0 is the start with ``dt`` = 0. From then on,
-  each row's time minus the previous row's equals its ``dt`` to within half an ulp of
-  its time: t_n = fl(t_{n-1} + Δt) rounds once, and the subtraction t_n - t_{n-1} is
-  exact (Sterbenz: t_n <= 2 t_{n-1} from row 2 on; row 1 is t_1 = Δt exactly).
-  ``stable_dt_smallest`` is the smallest ``dt_limit`` in the rows. This is exact,
-  because with a row every step the rows hold every re-estimate.
+  finite strain (a row every step), row 1 is t_1 = Δt = 0.5 x the start's limit exactly.
+  From then on, each row's time minus the previous row's equals its ``dt`` to within
+  half an ulp of its time: t_n = fl(t_{n-1} + Δt) rounds once, and the subtraction
+  t_n - t_{n-1} is exact (Sterbenz: t_n <= 2 t_{n-1} from row 2 on). The limit the step
+  follows falls below the start's as the cells flatten.
 """
 import math
 import os
@@ -34,8 +33,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from impact_fenics import scenes
 from impact_fenics.bodies import Body, DeformableModel
-from impact_fenics.finite_run import FiniteRun, FiniteSettings, quad_bar
 from impact_fenics.materials import LinearElastic
 from impact_fenics.materials.finite_j2 import FiniteJ2
 from impact_fenics.simulation import Settings, Simulation
@@ -121,34 +120,34 @@ COPPER = dict(E=117e9, nu=0.35, density=8930.0)
 
 def test_finite_strain_stable_step_and_history_dt(tmp_path):
     out = COMM.bcast(str(tmp_path / "taylor"), root=0)
-    mesh = quad_bar(COMM, R_BAR, 10 * R_BAR, N_BAR, 10 * N_BAR)
-    run = FiniteRun(mesh, FiniteJ2(yield_stress=400e6, hardening=100e6, **COPPER),
-                    FiniteSettings(t_end=3e-6, history_every=1, dt_interval=3, out=out,
-                                   fields=False, plots=False),
-                    velocity=(0.0, -227.0), wall="film", name="bar")
-    s = run.run()
+    sim = scenes.taylor_bar(Settings(history_every=1, out=out, fields=False, plots=False,
+                                     quiet=True),
+                            FiniteJ2(yield_stress=400e6, hardening=100e6, **COPPER),
+                            radius=R_BAR, length=10 * R_BAR, n_r=N_BAR, method="film",
+                            t_end=3e-6, dt_interval=3)
+    policy = sim.step_policy
     # at the start: h / (sqrt 2 c), c from E, nu, rho by hand
     E_, nu, rho = COPPER["E"], COPPER["nu"], COPPER["density"]
     c = math.sqrt(E_ * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu) * rho))
     h = R_BAR / N_BAR
     # A and the diagonals are exact on the dyadic mesh; L = A / sqrt(2 h^2) rounds twice,
     # c about 8 times on each side and its sqrt once, L / c once: 2 x 12
-    assert s["stable_dt"]["bar"] == pytest.approx(h / (math.sqrt(2.0) * c), rel=rounding(24))
-    assert s["stable_dt_limiting"] == "bar"
+    assert policy.start == pytest.approx(h / (math.sqrt(2.0) * c), rel=rounding(24))
+    assert sim.stable_dt_limiting == "bar"
+    s = sim.run()
     with open(os.path.join(out, "history.csv")) as f:
         head = f.readline().strip().split(",")
     rows = np.loadtxt(os.path.join(out, "history.csv"), delimiter=",", skiprows=1, ndmin=2)
     col = {name: rows[:, k] for k, name in enumerate(head)}
-    assert col["step"].tolist() == list(range(s["n_steps"] + 1))
-    assert col["dt"][0] == 0.0 and col["time"][0] == 0.0
-    assert col["dt_limit"][0] == s["stable_dt"]["bar"]
+    assert col["step"].tolist() == list(range(1, s["n_steps"] + 1))
+    # the first step is the safety factor (0.5) times the start's limit, exactly
+    assert col["dt"][0] == col["time"][0] == 0.5 * policy.start  # t_1 = 0 + dt exactly
     # the steps vary as the cells flatten; the last one is clipped to t_end
-    assert s["stable_dt_smallest"]["bar"] == col["dt_limit"].min() < s["stable_dt"]["bar"]
-    assert col["dt"][1:].min() < col["dt"][1:].max()
+    assert policy.smallest < policy.start
+    assert col["dt"].min() < col["dt"].max()
     assert col["time"][-1] == s["t_end"] == pytest.approx(3e-6, rel=rounding(s["n_steps"]))
     step = np.diff(col["time"])
     half_ulp = 0.5 * np.spacing(col["time"][1:])
     assert np.all(np.abs(step - col["dt"][1:]) <= half_ulp)
-    assert step[0] == col["dt"][1]  # t_1 = 0 + dt exactly
     # the run's own rows in memory are the file's
-    assert np.array_equal(run.history["dt"], col["dt"])
+    assert np.array_equal(sim.history.data()["dt"], col["dt"])

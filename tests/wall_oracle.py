@@ -1,8 +1,8 @@
 """The oracle of the fixed plane (impact_fenics/contact/plane.py): the former rigid wall.
 
-Until the finite-strain runs move into the one loop, the tests of the fixed plane
-compare it with this wall's own kernel, kept here unchanged (its arithmetic is
-RigidWall's: one node at a time, each method a closed form on the node's z):
+The tests of the fixed plane compare one correction of it with this wall's own kernel,
+kept here unchanged (its arithmetic is RigidWall's: one node at a time, each method a
+closed form on the node's z):
 
 Contact with a fixed rigid frictionless wall, the plane z = z_wall (normal +z): FILM, DME, penalty.
 
@@ -45,20 +45,6 @@ from numba import njit
 _CODE = {"film": 0, "dme": 1, "penalty": 2}
 
 
-def plug_into(run, method: str | None = None, penalty=None, beta_target=None) -> "RigidWall":
-    """Replace ``run``'s fixed plane (a FiniteRun made with a wall) by this oracle on the
-    same candidates (the owned boundary nodes), method and stiffness; returns it."""
-    plane = run.wall
-    nodes = plane.nodes
-    wall = RigidWall(nodes, run.node_xy[nodes, 1], run.mass[2 * nodes + 1],
-                     method or plane.method, plane.z_wall,
-                     penalty=plane.penalty if penalty is None else penalty,
-                     beta_target=plane.beta_target if beta_target is None else beta_target)
-    run.wall = wall
-    return wall
-
-
-@njit(cache=True)
 def correct(nodes, Z, mass, z_wall, dt, dt_avg, method, p, f_int, u, v, force) -> tuple:
     """Correct the predicted penetrations of ``nodes`` (method 0 FILM, 1 DME, 2 penalty of
     stiffness ``p`` (N/m) per node). Returns (the energy the wall took from the body (J),

@@ -5,15 +5,15 @@ finite   On the benchmark's bar (r in [0, 0.5], z in [0, 1] m, h = dofs^-1/2), i
          mesh, the small-strain J2 step (fused kernel, 3 points per triangle), and the
          finite-strain J2 step (Q1 mean dilatation, 2x2 points, Hencky J2) on the
          quadrilateral mesh of the same nodes (so the same dofs), both in a random
-         state that yields most points. The finite step is what the loop of
-         finite_run.py does each step: ghost update of u, the fused kernel (F, J_bar,
-         the return mapping, P and the element force at every point), the reverse
+         state that yields most points. The finite step is what the one loop does
+         for a finite-strain body each step: ghost update of u, the fused kernel (F,
+         J_bar, the return mapping, P and the element force at every point), the reverse
          ghost sum and the min-J allreduce, the trapezoid of the internal work, the
          velocity and the position updates; each piece is timed alone. Goal (issue
          11): finite J2 at most 1.5 x the small-strain J2 step.
 taylor   The Taylor bar (scenes/taylor_bar.toml's copper, FILM wall) run whole through
-         FiniteRun without outputs: element-steps per second and microseconds per
-         element-step, with the loop's phases; serially the part also launches
+         Simulation (scenes.taylor_bar) without outputs: element-steps per second and
+         microseconds per element-step, with the loop's phases; serially the part also launches
          itself on 2 ranks (scripts/mpirun.sh). For scale: Carina.jl's J2 Taylor bar,
          0.65-1.43 us per element-step on 12-64 CPU threads.
 
@@ -22,6 +22,7 @@ taylor   The Taylor bar (scenes/taylor_bar.toml's copper, FILM wall) run whole t
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 from numba import njit
@@ -38,17 +39,27 @@ TAYLOR = {"smoke": (2, 4e-6), "quick": (4, 80e-6), "full": (8, 80e-6)}
 CARINA_US_PER_ELEMENT_STEP = (0.65, 1.43)  # 12-64 CPU threads
 
 
-def finite_bar(comm, h: float, yield_stress: float, material=None):
-    """A FiniteRun of the benchmark's bar on square quadrilaterals of side h (the nodes of the
-    triangle bar), J2 steel yielding at ``yield_stress`` (Pa) or ``material``, in a random
-    state."""
-    from ..finite_run import FiniteRun, FiniteSettings, quad_bar
+def finite_bar(comm, h: float, yield_stress: float, material=None) -> SimpleNamespace:
+    """The benchmark's bar on square quadrilaterals of side h (the nodes of the triangle
+    bar), J2 steel yielding at ``yield_stress`` (Pa) or ``material``, in a random state:
+    its finite-strain force and the integrator's state (u, v and their vectors), as the
+    one loop holds them."""
+    from ..bodies import Body, DeformableModel
+    from ..integrator import Integrator
     from ..materials.finite_j2 import FiniteJ2
+    from ..quad_meshes import one_body, quad_bar
+    from ..stepping import FollowingStep
 
     steel = material or FiniteJ2(E=200e9, nu=0.3, density=7850.0, yield_stress=yield_stress,
                                  hardening=2e9)
     mesh = quad_bar(comm, 0.5, 1.0, max(1, round(0.5 / h)), max(1, round(1.0 / h)))
-    run = FiniteRun(mesh, steel, FiniteSettings())
+    model = DeformableModel(one_body(mesh), [Body("body", steel)])
+    integ = Integrator(model, None, model.axis_dofs(), policy=FollowingStep(None, 1.0))
+    force = integ.finite[0]
+    run = SimpleNamespace(comm=comm, force=force, coef=force.coef, n_owned=model.n_owned,
+                          u_fn=integ.u_function, u=integ.u_function.x.array,
+                          u_owned=integ.u_owned, v=integ.v_owned, u_vec=integ.u_vec,
+                          v_vec=integ.v_vec, free=integ.free, dt_limit=force.stable_dt)
     rng = np.random.default_rng(11 + 7919 * comm.rank)
     run.u_owned[:] = np.where(run.free, 1e-6 * rng.standard_normal(run.n_owned), 0.0)
     run.v[:] = np.where(run.free, 1e-3 * rng.standard_normal(run.n_owned), 0.0)
@@ -82,7 +93,8 @@ def other_finite_materials(steel):
 
 
 def finite_step(run, dt: float):
-    """One step of finite_run's loop (no wall, no history): see the module docstring."""
+    """One step of a finite-strain body in the one loop (no wall, no history): see the
+    module docstring."""
     force = run.force
     force.set_step(dt, dt)
 
@@ -224,17 +236,19 @@ def part_finite(ctx) -> dict:
 
 
 def taylor_rate(comm, n_r: int, t_end: float) -> dict:
-    """The Taylor bar (n_r x 10 n_r, FILM) to t_end without outputs: its rate and phases."""
-    from ..finite_run import FiniteRun, FiniteSettings, quad_bar
+    """The Taylor bar (n_r x 10 n_r, FILM; scenes.taylor_bar) to t_end without outputs: its
+    rate and phases."""
     from ..materials.finite_j2 import FiniteJ2
+    from ..scenes import taylor_bar
+    from ..simulation import Settings
 
     copper = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
-    mesh = quad_bar(comm, 3.2e-3, 32.4e-3, n_r, 10 * n_r)
-    run = FiniteRun(mesh, copper, FiniteSettings(t_end=t_end, history_every=20),
-                    velocity=(0.0, -227.0), wall="film")
-    s = run.run()
-    rate = s["element_steps_per_second"]
-    return {"n_r": n_r, "t_end": t_end, "n_cells": s["n_cells"], "n_steps": s["n_steps"],
+    sim = taylor_bar(Settings(quiet=True, plots=False, fields=False, history_every=20),
+                     copper, n_r=n_r, method="film", t_end=t_end, comm=comm)
+    s = sim.run(extra=sim.scene_figures)
+    n_steps = s["stopped_at_step"]
+    rate = s["n_cells"] * n_steps / s["wall_time"]
+    return {"n_r": n_r, "t_end": t_end, "n_cells": s["n_cells"], "n_steps": n_steps,
             "n_ranks": comm.size, "wall_time": s["wall_time"], "element_steps_per_second": rate,
             "us_per_element_step": 1e6 / rate,
             "ns_per_element_cycle": s["ns_per_element_cycle"],

@@ -29,8 +29,8 @@ Souza Neto et al. 1996). Why this one here:
 
 An F-bar patch on triangles was the alternative (keeps today's meshes); it
 needs a patch data structure across ranks. Quadrilaterals make every body of a
-mesh quadrilateral, so this force runs in its own driver
-(:mod:`..finite_run`), not through the triangle-based Integrator.
+mesh quadrilateral: the Integrator holds this force for the quadrilateral bodies
+of a mesh beside the triangle-based forms.
 
 The internal force is the exact derivative of sum_q w_q psi(F_bar_q) (for a
 hyperelastic material), which gives per point the effective Kirchhoff stress

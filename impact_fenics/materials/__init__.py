@@ -37,7 +37,7 @@ MODELS: dict[str, dict[str, type]] = {
 # strain, linear: the stress as a UFL expression, K assembled once; small strain,
 # path-dependent: the compiled point update of .axisym at the quadrature points
 # (internal_force/quadrature.py); finite strain: the compiled point update of .hencky
-# (internal_force/finite.py, finite_run.py), ``temperature_index`` optional.
+# (internal_force/finite.py), ``temperature_index`` optional.
 INTERFACE: dict[str, tuple[str, ...]] = {
     "small linear": ("density", "wave_speed", "linear", "stress"),
     "small": ("density", "wave_speed", "linear", "lmbda", "mu", "n_state", "params", "update"),

@@ -119,6 +119,15 @@ class Penalty:
         self.info: dict[str, float | str] = {}
 
     def setup(self, c) -> None:
+        """p from the set's S at its current steps; ``info["beta_max"]`` is the largest
+        beta_max of every step the set was set up for so far (a step that follows the cells
+        sets it up again at each re-estimate: the summary reports the run's largest, not the
+        last, clipped step's)."""
+        before = float(self.info.get("beta_max", 0.0))
+        self._setup_pairs_or_band(c)
+        self.info["beta_max"] = max(float(self.info["beta_max"]), before)
+
+    def _setup_pairs_or_band(self, c) -> None:
         if is_banded(c):
             self._setup_banded(c)
             return

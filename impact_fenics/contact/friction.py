@@ -489,23 +489,23 @@ class Tangential(FrictionFigures):
         nd = self.c.n_deformable
         self._gather(integ.u_owned, integ.v_owned, self.u_now[:nd], self.v_now[:nd])
 
-    def _pass_args(self) -> tuple:
-        law, c, integ = self.law, self.c, self.c.integrator
+    def _bind(self) -> None:
+        """The step's one compiled call: its scalars (the steps, the law, the kernel)
+        rewritten in place at each change of the step; its arguments, the same arrays for
+        the run, bound to its compiled entry once."""
+        law, c = self.law, self.c
+        if not hasattr(self, "scalars"):
+            self.scalars = np.zeros(8)
+            integ = c.integrator
+            self._args = (integ.u_owned, integ.v_owned, self._own, self._recv, self._unpack,
+                          self.slots, self.rows, self.pairs, c.active, c.force, self.state,
+                          self.stats, self.scalars)
+            self._pass = direct(_tangential_pass, *self._args)
         x = self.scalars
         x[X_DT], x[X_H_AVG] = c.dt, c.h_avg
         x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] = (law.static, law.dynamic, law.decay,
                                                         float(law.stick))
         x[X_KERNEL], x[X_GATHERED] = float(self.kernel), float(c.comm.size > 1)
-        return (integ.u_owned, integ.v_owned, self._own, self._recv, self._unpack, self.slots,
-                self.rows, self.pairs, c.active, c.force, self.state, self.stats, x)
-
-    def _bind(self) -> None:
-        """The step's one compiled call with its arguments (fixed between changes of the
-        step), bound to its compiled entry."""
-        if not hasattr(self, "scalars"):
-            self.scalars = np.zeros(8)
-        self._args = self._pass_args()
-        self._pass = direct(_tangential_pass, *self._args)
 
     def step(self) -> float:
         """The tangential pass of the step, after the set's normal step: gather the

@@ -52,7 +52,9 @@ from mpi4py import MPI
 from numba import njit
 
 from ..errors import InputError
+from ..jit_watch import direct, drop_stale_cache
 from ..plausibility import warn
+from . import state as _state
 from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
 
 # the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
@@ -317,6 +319,58 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     return w_t, -1
 
 
+# the rows of Tangential.slots (per tangential slot), of .rows (per constraint) and the
+# entries of .scalars, packed so that the step's pass is one compiled call of few arguments
+(S_U, S_V, S_U_PRED, S_V_PRED, S_U_NOW, S_V_NOW, S_F_PREV, S_KU_PREV, S_JUMP, S_MASS,
+ S_H_OVER_M, S_M_OVER_H) = range(12)
+R_LAM, R_A_INV, R_K_T, R_S_E, R_D_SLIP, R_SLIP_LIMIT = range(6)
+X_DT, X_H_AVG, X_MU_S, X_MU_D, X_DECAY, X_STICK, X_KERNEL, X_GATHERED = range(8)
+
+
+@njit(cache=True)
+def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active, force,
+                     state, stats, x):
+    """The tangential pass of a step as one call: take the predicted r state of the slots
+    (``own``: the owned dofs' local indices and slots; or, where ``x[X_GATHERED]``, unpack
+    the Allgatherv's ``recv`` with ``unpack``: its u and v positions and the slots), run
+    the method's kernel (``x[X_KERNEL]``) and :func:`_commit_tangential`. The arrays are
+    the packed rows above (``pairs``: lo, up). Returns what the commit returns."""
+    u, v, u_pred, v_pred = slots[S_U], slots[S_V], slots[S_U_PRED], slots[S_V_PRED]
+    u_now, v_now, mass = slots[S_U_NOW], slots[S_V_NOW], slots[S_MASS]
+    h_over_m, m_over_h = slots[S_H_OVER_M], slots[S_M_OVER_H]
+    lo, up = pairs[0], pairs[1]
+    lam, d_slip = rows[R_LAM], rows[R_D_SLIP]
+    if x[X_GATHERED] != 0.0:
+        _unpack(recv, unpack[0], unpack[1], unpack[2], u_pred, v_pred)
+    else:
+        _take(src_u, src_v, own[0], own[1], u_pred, v_pred)
+    for k in range(u.size):
+        u[k] = u_pred[k]
+        v[k] = v_pred[k]
+    h = x[X_DT]
+    mu_s, mu_d, decay, stick = x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] != 0.0
+    kernel = int(x[X_KERNEL])
+    before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
+    if kernel == FILM_T:
+        film_tangential(lo, up, active, force, rows[R_A_INV], h_over_m, h, mu_s, mu_d, decay,
+                        stick, v_now, u, v, lam, state)
+    elif kernel == DME_T:
+        dme_tangential(lo, up, active, force, mass, m_over_h, h_over_m, h, mu_s, mu_d, decay,
+                       stick, u_now, v_now, u, v, lam, state)
+    else:
+        penalty_tangential(lo, up, active, force, rows[R_K_T], h_over_m, h, mu_s, mu_d, decay,
+                           stick, v_now, u, v, lam, state, rows[R_S_E], d_slip, stats)
+    change = stats[RETURN_LOSS] + stats[STORED] - before
+    return _commit_tangential(own[0], own[1], src_u, src_v, h, x[X_H_AVG], m_over_h, u, v,
+                              v_pred, u_now, v_now, slots[S_F_PREV], slots[S_KU_PREV],
+                              slots[S_JUMP], lo, up, lam, state, stats, rows[R_SLIP_LIMIT],
+                              kernel == PENALTY_T, d_slip, change)
+
+
+# numba checks a cached kernel against its own file only: the pass compiles state's in
+drop_stale_cache(_tangential_pass, (_state,))
+
+
 # ----------------------------------------------------------------------------- the pass
 
 class FrictionFigures:
@@ -362,27 +416,29 @@ class Tangential(FrictionFigures):
         self._recv_u, self._recv_v = gathered_order(self._counts, self._displs)
         self._send = np.empty(2 * local.size)
         self._recv = np.empty(2 * nd)
+        self._own = np.vstack([local, pos]).astype(np.int64)
+        self._unpack = np.vstack([self._recv_u, self._recv_v, all_pos]).astype(np.int64)
         # per tangential slot (a rigid part's: zero inverse mass, never moved)
+        self.slots = np.zeros((12, ns))
         (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.f_prev,
-         self.ku_prev, self.jump, self.mass, self.h_over_m,
-         self.m_over_h) = np.zeros((12, ns))
+         self.ku_prev, self.jump, self.mass, self.h_over_m, self.m_over_h) = self.slots
         free_owned = np.ones(model.n_owned)
         free_owned[np.asarray(getattr(integ, "fixed", []), dtype=np.int64)] = 0.0
         free = np.zeros(ns)
         self._gather(integ.mass, free_owned, self.mass[:nd], free[:nd])
         self.free = free > 0.5
         self.mass[~self.free] = np.inf
-        self.lo, self.up = c.lo.astype(np.int64), c.up.astype(np.int64)
-        self.lam = np.zeros(c.n)  # λ_t (N) of the last step
+        self.pairs = np.vstack([c.lo, c.up]).astype(np.int64)
+        self.lo, self.up = self.pairs
         self.state = np.zeros(c.n, dtype=np.int8)  # 0 none, 1 stick, 2 slip
-        self.a_inv = np.zeros(c.n)
         self.stats = np.zeros(8)
-        self.k_t = np.zeros(c.n)  # N/m, the penalty's tangential stiffnesses
-        self.s_e = np.zeros(c.n)  # m, the penalty's committed elastic slips
-        self.d_slip = np.zeros(c.n)  # J, the penalty's c |Δs_p| of the step
+        # per constraint: λ_t (N) of the last step, 1/A_ii, the penalty's tangential
+        # stiffness k_t (N/m), committed elastic slip s_e (m) and c |Δs_p| of the step (J)
+        self.rows = np.zeros((6, c.n))
+        self.lam, self.a_inv, self.k_t, self.s_e, self.d_slip, self.slip_limit = self.rows
         # a node pair keeps its partner (docs/friction.md 6): past half the smaller facet
         # at the pair the slave is nearer another master node, and the run says so once
-        self.slip_limit = np.full(c.n, np.inf)
+        self.slip_limit[:] = np.inf
         if c.rigid is None and c.n > 1:
             r = np.asarray(c.r, dtype=float)
             order = np.argsort(r, kind="stable")
@@ -432,60 +488,35 @@ class Tangential(FrictionFigures):
         integ = self.c.integrator
         nd = self.c.n_deformable
         self._gather(integ.u_owned, integ.v_owned, self.u_now[:nd], self.v_now[:nd])
-        from ..jit_watch import load
-
-        load(film_tangential, *self._film_args())
-        load(dme_tangential, *self._dme_args())
-        load(penalty_tangential, *self._penalty_args())
-        load(_commit_tangential, *self._commit_args(), 0.0)
-
-    def _film_args(self) -> tuple:
-        law, c = self.law, self.c
-        return (self.lo, self.up, c.active, c.force, self.a_inv, self.h_over_m, c.dt,
-                law.static, law.dynamic, law.decay, law.stick, self.v_now, self.u, self.v,
-                self.lam, self.state)
-
-    def _dme_args(self) -> tuple:
-        law, c = self.law, self.c
-        return (self.lo, self.up, c.active, c.force, self.mass, self.m_over_h, self.h_over_m,
-                c.dt, law.static, law.dynamic, law.decay, law.stick, self.u_now, self.v_now,
-                self.u, self.v, self.lam, self.state)
-
-    def _penalty_args(self) -> tuple:
-        law, c = self.law, self.c
-        return (self.lo, self.up, c.active, c.force, self.k_t, self.h_over_m, c.dt,
-                law.static, law.dynamic, law.decay, law.stick, self.v_now, self.u, self.v,
-                self.lam, self.state, self.s_e, self.d_slip, self.stats)
-
-    def _commit_args(self) -> tuple:
-        c, integ = self.c, self.c.integrator
-        return (self._local, self._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg,
-                self.m_over_h, self.u, self.v, self.v_pred, self.u_now, self.v_now,
-                self.f_prev, self.ku_prev, self.jump, self.lo, self.up, self.lam, self.state,
-                self.stats, self.slip_limit, self.kernel == PENALTY_T, self.d_slip)
 
     def _bind(self) -> None:
-        """The step's calls with their arguments (fixed between changes of the step)."""
-        nd = self.c.n_deformable
-        self._pred = (self.u_pred[:nd], self.v_pred[:nd])
-        self._kernel_call = {FILM_T: (film_tangential, self._film_args()),
-                             DME_T: (dme_tangential, self._dme_args()),
-                             PENALTY_T: (penalty_tangential, self._penalty_args())}[self.kernel]
-        self._commit_call = self._commit_args()
+        """The step's one compiled call: its scalars (the steps, the law, the kernel)
+        rewritten in place at each change of the step; its arguments, the same arrays for
+        the run, bound to its compiled entry once."""
+        law, c = self.law, self.c
+        if not hasattr(self, "scalars"):
+            self.scalars = np.zeros(8)
+            integ = c.integrator
+            self._args = (integ.u_owned, integ.v_owned, self._own, self._recv, self._unpack,
+                          self.slots, self.rows, self.pairs, c.active, c.force, self.state,
+                          self.stats, self.scalars)
+            self._pass = direct(_tangential_pass, *self._args)
+        x = self.scalars
+        x[X_DT], x[X_H_AVG] = c.dt, c.h_avg
+        x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] = (law.static, law.dynamic, law.decay,
+                                                        float(law.stick))
+        x[X_KERNEL], x[X_GATHERED] = float(self.kernel), float(c.comm.size > 1)
 
     def step(self) -> float:
         """The tangential pass of the step, after the set's normal step: gather the
-        predicted r state, correct, write back, book. Returns W_t (J)."""
-        integ = self.c.integrator
-        self._gather(integ.u_owned, integ.v_owned, *self._pred)
-        self.u[:] = self.u_pred
-        self.v[:] = self.v_pred
-        stats = self.stats
-        before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
-        kernel, args = self._kernel_call
-        kernel(*args)
-        change = stats[RETURN_LOSS] + stats[STORED] - before
-        w_t, far = _commit_tangential(*self._commit_call, change)
+        predicted r state, correct, write back, book (one compiled call, after the
+        Allgatherv under MPI). Returns W_t (J)."""
+        if self.c.comm.size > 1:
+            integ = self.c.integrator
+            _pack(integ.u_owned, integ.v_owned, self._local, self._send)
+            self.c.comm.Allgatherv(self._send,
+                                   [self._recv, self._counts, self._displs, MPI.DOUBLE])
+        w_t, far = self._pass(*self._args)
         if far >= 0 and not self.warned:
             self.warned = True
             c = self.c

@@ -59,12 +59,19 @@ DT = 2.0 ** -24  # s (6e-8: 0.3 of the 6-interval face's cells' limit at set-up)
 EVERY = 5  # steps between re-pairings
 
 
-def _bodies(n_striker, n_target, v0, n_steps, method, nu=0.35, finite=True, repair=True):
+def _mesh(n_striker, n_target):
+    return meshing.coaxial_bars_sized(radius=R, striker_length=4 * R, target_length=4 * R,
+                                      h_striker=R / n_striker, h_target=R / n_target,
+                                      quadrilaterals=True, comm=COMM)
+
+
+def _bodies(n_striker, n_target, v0, n_steps, method, nu=0.35, finite=True, repair=True,
+            tmesh=None):
     """The striker at v0 (m/s, +z) onto the target, n_steps of DT; node to segment with the
-    finer face the slave, re-paired every EVERY steps (``repair``)."""
-    tmesh = meshing.coaxial_bars_sized(radius=R, striker_length=4 * R, target_length=4 * R,
-                                       h_striker=R / n_striker, h_target=R / n_target,
-                                       quadrilaterals=True, comm=COMM)
+    finer face the slave, re-paired every EVERY steps (``repair``); ``tmesh``: the mesh
+    built already (runs compared dof by dof share it: one partition, one numbering)."""
+    if tmesh is None:
+        tmesh = _mesh(n_striker, n_target)
     material = (FiniteJ2 if finite else J2)(E=E, nu=nu, density=RHO, yield_stress=400e6,
                                             hardening=100e6)
     model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
@@ -127,9 +134,7 @@ def test_momentum_ledger_and_repairing(faces, method):
 def test_a_varying_step_is_refused_with_segments():
     """The segment kind's kernels hold one step (S = dt^2 G M^-1 G', u and v moved with
     the same dt): a step that follows the cells is refused in one line."""
-    tmesh = meshing.coaxial_bars_sized(radius=R, striker_length=4 * R, target_length=4 * R,
-                                       h_striker=R / 4, h_target=R / 4, quadrilaterals=True,
-                                       comm=COMM)
+    tmesh = _mesh(4, 4)
     material = FiniteJ2(E=E, nu=0.35, density=RHO)
     model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
     sim = Simulation(model, Settings(quiet=True, plots=False, timers=False, fields=False),
@@ -145,10 +150,10 @@ def test_a_varying_step_is_refused_with_segments():
 def test_matched_faces_film_equals_dme():
     """Matched 4/4 faces, 100 m/s, 200 steps: DME (e = 0) against FILM within the spread
     of a one-ulp change of v0, the same active set at every step."""
-    runs = {}
+    runs, tmesh = {}, _mesh(4, 4)
     for key, method, v0 in (("film", "film", 100.0), ("dme", "dme", 100.0),
                             ("ulp", "film", one_ulp(100.0))):
-        sim = _bodies(4, 4, v0, 200, method)
+        sim = _bodies(4, 4, v0, 200, method, tmesh=tmesh)
         sim.run()
         runs[key] = sim
     assert runs["film"].active_counts == runs["dme"].active_counts
@@ -168,9 +173,9 @@ def test_low_speed_finite_equals_small_strain(faces):
     difference halves with v0 within the same factor."""
     n_steps, h = 200, R / max(faces)
     amplification = C0 * n_steps * DT / h  # fronts' travel over a cell (about 80)
-    rel = {}
+    rel, tmesh = {}, _mesh(*faces)
     for v0 in (1.0, 0.5):
-        (uf, vf), (us, vs) = (_gathered(_run(faces, v0, n_steps, finite))
+        (uf, vf), (us, vs) = (_gathered(_run(faces, v0, n_steps, finite, tmesh))
                               for finite in (True, False))
         eps = v0 / C0
         rel[v0] = (np.abs(uf - us).max() / np.abs(us).max(),
@@ -182,8 +187,8 @@ def test_low_speed_finite_equals_small_strain(faces):
         assert abs(rel[1.0][k] / rel[0.5][k] / 2.0 - 1.0) <= eps * amplification
 
 
-def _run(faces, v0, n_steps, finite):
-    sim = _bodies(*faces, v0, n_steps, "film", nu=0.0, finite=finite)
+def _run(faces, v0, n_steps, finite, tmesh):
+    sim = _bodies(*faces, v0, n_steps, "film", nu=0.0, finite=finite, tmesh=tmesh)
     sim.run()
     assert sim.n_steps == n_steps
     e = sim.energy.data()

@@ -532,14 +532,20 @@ def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length
 
 
 def _two_bars(gmsh, radius: float, striker_length: float, target_length: float,
-              h_striker: float, h_target: float, structured: bool) -> None:
+              h_striker: float, h_target: float, structured: bool,
+              quadrilaterals: bool = False) -> None:
     """The striker [-striker_length, 0] and the target [0, target_length] (m) of radius
     ``radius``, each face with round(radius / h) equal intervals of its body's size h,
-    and the groups of :func:`coaxial_bars`; meshed."""
+    and the groups of :func:`coaxial_bars`; meshed (``quadrilaterals``: each structured
+    surface recombined into quadrilaterals)."""
     s1, c1 = _rectangle(gmsh, 0.0, -striker_length, radius, 0.0, h_striker,
                         n_r=max(1, int(round(radius / h_striker))), structured=structured)
     s2, c2 = _rectangle(gmsh, 0.0, 0.0, radius, target_length, h_target,
                         n_r=max(1, int(round(radius / h_target))), structured=structured)
+    if quadrilaterals:
+        for s in (s1, s2):
+            gmsh.model.geo.mesh.setRecombine(2, s)
+        gmsh.model.geo.synchronize()
     _group(gmsh, 2, [s1], "striker", 1)
     _group(gmsh, 2, [s2], "target", 2)
     for name, curves, tag in (("striker_end", [c1[0]], 11), ("striker_lateral", [c1[1]], 12),
@@ -553,18 +559,23 @@ def _two_bars(gmsh, radius: float, striker_length: float, target_length: float,
 def coaxial_bars_sized(radius: float = 0.05, striker_length: float = 0.2,
                        target_length: float = 0.2, h_striker: float = 0.01,
                        h_target: float = 0.01 * 2 / 3, structured: bool = True,
+                       quadrilaterals: bool = False,
                        comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     """Two coaxial bars touching at z = 0 with their own element sizes (m): the striker
     in z in [-striker_length, 0] (size h_striker), the target in [0, target_length]
     (size h_target). Each face has round(radius/h) equal intervals, so with unequal
     sizes (e.g. 3:2) the contact faces do not match node to node (node-to-segment
-    contact). Groups as :func:`coaxial_bars`.
+    contact). Groups as :func:`coaxial_bars`. ``quadrilaterals`` (with ``structured``):
+    Q1 cells, for finite-strain bodies.
     """
     require(radius > 0 and striker_length > 0 and target_length > 0 and h_striker > 0
             and h_target > 0, "coaxial_bars_sized: radius, lengths and sizes must be > 0 (m)")
+    require(structured or not quadrilaterals,
+            "coaxial_bars_sized: quadrilaterals need the structured mesh")
 
     def build(gmsh):
-        _two_bars(gmsh, radius, striker_length, target_length, h_striker, h_target, structured)
+        _two_bars(gmsh, radius, striker_length, target_length, h_striker, h_target, structured,
+                  quadrilaterals)
 
     return _to_dolfinx(comm, build, {"scene": "coaxial_bars_sized", "radius": radius,
                                      "h_striker": h_striker, "h_target": h_target,

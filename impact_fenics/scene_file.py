@@ -729,7 +729,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
             if w.friction is not None:
                 sim.contacts[-1].set_friction(w.friction, w.tangential_penalty, scene.force)
-    if scene.finite:
+    if scene.finite and scene.mesh.generator == "quad_bar":
         _track_the_bar(sim, scene, held)
     for p in scene.probes:
         with within(p.where):

@@ -25,7 +25,10 @@ built by :func:`.scene_file.build`) under a step that follows their cells
 * [[fixed]] faces (the groups axis, outer, bottom, top);
 * ``[time]`` t_end (s) and either cfl (<= 1) or dt (a fixed step, s); dt_interval
   (steps, default 10);
-* no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line).
+* no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line);
+* or two finite-strain bodies on ``generator = "coaxial_bars_sized"`` with
+  ``quadrilaterals = true``, in node-to-segment [[contact]], no [wall], a fixed ``dt``
+  that divides t_end (the segment kind takes one step).
 
 A small-strain scene may not use dt_interval; its [wall] is the same plane, with
 ``face = "contact"`` only (a held face is a [[fixed]] u_z). On ``quad_bar`` it has one
@@ -90,10 +93,22 @@ def check_kind(scene) -> None:
         return
     body = next(b for b in scene.bodies if b.strain == "finite")
     where = f'[bodies.{body.name}] strain = "finite":'
-    if len(scene.bodies) > 1 or len(kinds) > 1:
+    # two finite-strain bars in node-to-segment contact on Q1 coaxial bars
+    two = (scene.mesh.generator == "coaxial_bars_sized"
+           and scene.mesh.params.get("quadrilaterals") and len(kinds) == 1)
+    if not two and (len(scene.bodies) > 1 or len(kinds) > 1):
         raise InputError(f"{where} a finite-strain scene has one body for now (the mesh is "
-                         "quadrilateral and no body-to-body contact runs on it)")
-    if scene.mesh.generator != "quad_bar":
+                         "quadrilateral and no body-to-body contact runs on it), or every body "
+                         'finite on generator = "coaxial_bars_sized" with quadrilaterals = true')
+    if two:
+        for c in scene.contacts:
+            if c.slave is None or c.rigid is not None:
+                raise InputError(f"{c.where} two finite-strain bodies meet node to segment "
+                                 "(give slave and master)")
+        if scene.time["dt"] is None:
+            raise InputError("[time] dt: node-to-segment contact takes a constant step: give a "
+                             "fixed dt (s) that divides t_end")
+    elif scene.mesh.generator != "quad_bar":
         given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
                  else f'file = "{scene.mesh.file}"')
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
@@ -104,11 +119,15 @@ def check_kind(scene) -> None:
         raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
                          "tangential spring is not built for a finite-strain body (use method "
                          "= \"film\" or \"dme\")")
-    for key, what in (("contacts", "[[contact]]"), ("rigid", "[rigid.NAME]"),
-                      ("loads", "[[loads]]"), ("probes", "[[probes]]")):
+    refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"), ("probes", "[[probes]]"))
+    if not two:
+        refused = (("contacts", "[[contact]]"),) + refused
+    elif scene.wall is not None:
+        refused = (("wall", "[wall]"),) + refused
+    for key, what in refused:
         if getattr(scene, key):
             raise InputError(f"{what}: not available with finite strain yet ({where} runs "
-                             "against a [wall] only)")
+                             "against a [wall], or two finite bodies node to segment)")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "

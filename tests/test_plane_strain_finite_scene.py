@@ -64,7 +64,7 @@ RHO, E, V0 = 7850.0, 200e9, 5.0
 C = math.sqrt(E / RHO)
 EPS_V = V0 / C  # the strain of the 1D impact
 W, T, H, L = 0.01, 0.01, 0.0025, 0.05  # m: half width, thickness, cell, length
-DT = 3e-7  # s, a fixed step for both kinematics (below the limit h / c = 4.95e-7 s)
+DT = 3e-7  # s, the scene's fixed step for both kinematics (the limit h / c is 4.95e-7 s)
 
 
 def _shared(tmp_path):
@@ -95,10 +95,12 @@ def _plateau(hist, one_d):
     return float(hist["wall_force"][window].mean()), (pressing[-1] + 1) * DT - t0
 
 
-FIXED_STEP = replace(TEXT, "cfl = 0.9\n", f"dt = {DT!r}\n")
+FIXED_STEP = TEXT  # (the scene's dt is DT)
 SMALL = replace(replace(replace(FIXED_STEP, 'strain = "finite"\n', ""),
                         'model = "neo_hookean"\n', ""),
-                "dt_interval = 10        # steps between re-estimates of the step\n", "")
+                "dt_interval = 10        # steps between checks of the step against the "
+                "cells' limit\n", "")
+FOLLOWING = replace(TEXT, "dt = 3e-7 ", "cfl = 0.9 ")  # the step following the cells
 
 
 @pytest.mark.parametrize("method", ["film", "dme"])
@@ -128,8 +130,8 @@ def test_ranks_agree_with_one(tmp_path):
     """The scene on every rank against each rank's own run on one (COMM_SELF), the step
     following the cells (cfl): the same steps, the wall force and the tracked nodes within
     1e-10 of their largest values (the sums reorder across ranks; round-off is ~1e-15)."""
-    _, world = _run(TEXT, tmp_path / "world")
-    _, one = _run(TEXT, tmp_path / "one", comm=MPI.COMM_SELF)
+    _, world = _run(FOLLOWING, tmp_path / "world")
+    _, one = _run(FOLLOWING, tmp_path / "one", comm=MPI.COMM_SELF)
     assert np.array_equal(world["step"], one["step"])
     # (u_x at the corner is zero at nu = 0 but for round-off: scaled by the displacement)
     for name, of in (("dt", "dt"), ("wall_force", "wall_force"), ("u_y_top", "u_y_top"),
@@ -138,6 +140,47 @@ def test_ranks_agree_with_one(tmp_path):
         gap = float(np.abs(world[name] - one[name]).max())
         print(f"{name}: {COMM.size} ranks against 1 within {gap:.2e} of {scale:.4g}")
         assert gap <= 1e-10 * scale
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_wall_with_friction_and_a_held_face(method, tmp_path):
+    """The other wall conditions of a finite-strain body (nu = 0.3, so the face spreads):
+    Coulomb friction (mu = 0.2) on the contact face, and the held face (u_y = 0 on y = 0
+    from t = 0, free in x): the ledger, friction's dissipation included, within its bound;
+    the slipping face does positive slip work."""
+    spread = replace(TEXT, "nu = 0.0                # the strip stays one-dimensional\n",
+                     "nu = 0.3\n")
+    rubbing = replace(spread, "[wall]\n", "[wall]\nfriction = 0.2\n")
+    s, _ = _run(rubbing, tmp_path / "friction", method)
+    print(f"{method}: friction ledger {s['energy_balance_error_rel']:.2e}")
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+    assert s["friction"][0]["slip_work"] > 0.0
+    held = replace(rubbing, "[wall]\n", '[wall]\nface = "held"\n')
+    s, _ = _run(held, tmp_path / "held", method)
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+
+
+def test_two_finite_bodies_node_to_segment(tmp_path):
+    """Two finite-strain J2 strips node to segment in plane strain (the axisymmetric
+    scene of tests/test_two_finite_bodies.py as a half model): only the contact acts, so
+    the y momentum is constant, and the ledger closes, each within the ledger's bound."""
+    from test_two_finite_bodies import TWO_BODIES
+
+    text = 'geometry = "plane_strain"\nthickness = 0.01\nsymmetry = "x=0"\n' + TWO_BODIES
+    path = _shared(tmp_path) / "scene.toml"
+    if COMM.rank == 0:
+        path.write_text(text)
+    COMM.barrier()
+    sim = scene_file.build(scene_file.read_scene(str(path)),
+                           {"out": None, "quiet": True, "plots": False})
+    s = sim.run()
+    p = sim.energy.data()["momentum_z"]
+    bound = ledger(s["n_steps"], s["n_dofs"])
+    drift = float(np.abs(p - p[0]).max() / abs(p[0]))
+    print(f"two finite strips: momentum drift {drift:.2e}, ledger "
+          f"{s['energy_balance_error_rel']:.2e} (bound {bound:.2e})")
+    assert drift <= bound
+    assert s["energy_balance_error_rel"] <= bound
 
 
 # ----------------------------------------------------------------- the J2 block, platens

@@ -243,7 +243,8 @@ def taylor_bar(settings: Settings, material, radius: float = 3.2e-3, length: flo
 def track_bar(sim: Simulation, radius: float, length: float):
     """A bar's shape (0 <= r <= radius, 0 <= z <= length, m): displacement probes at the
     ends of its axis and at the corner of its impact face (history.csv: u_z_top,
-    u_z_bottom, u_r_corner; in plane strain, (x, y): u_y_top, u_y_bottom, u_x_corner), and the function of the run's end that gives
+    u_z_bottom, u_r_corner; in plane strain, (x, y): u_y_top, u_y_bottom, u_x_corner),
+    and the function of the run's end that gives
     ``final_length`` (m, z of the node that started at (0, L) less z of the one that
     started at (0, 0)), ``final_face_radius`` (m, r of the node that started at (R, 0)),
     from those nodes' displacements, and the stored energy psi(u^N) ``stored_elastic``
@@ -261,10 +262,11 @@ def track_bar(sim: Simulation, radius: float, length: float):
     nodes = [np.flatnonzero(np.hypot(xy[:, 0] - r, xy[:, 1] - z) <= tol)
              for _, (r, z), _ in tracked]
 
-    r, z = ("x", "y") if plane else ("r", "z")
-    definition = (f"final_length: the {'length on x = 0' if plane else 'axis length'}, {z} of "
-                  f"the node that started at (0, L) minus {z} of the one that started at "
-                  f"(0, 0) (m); final_face_radius: {r} of the node that started at (R, 0) (m)")
+    first, second = ("x", "y") if plane else ("r", "z")
+    definition = (f"final_length: the {'length on x = 0' if plane else 'axis length'}, "
+                  f"{second} of the node that started at (0, L) minus {second} of the one that "
+                  f"started at (0, 0) (m); final_face_radius: {first} of the node that started "
+                  "at (R, 0) (m)")
 
     def figures(s: Simulation) -> dict:
         u = s.integrator.u_owned

@@ -63,16 +63,6 @@ def check_quadrilateral_material(body: Body) -> None:
                          "needs (its B-bar stiffness is built from that map)")
 
 
-def check_plane_strain_material(body: Body) -> None:
-    """Refuse, in one line, a body plane strain does not run yet: finite-strain materials
-    (their kernel carries the ring weights and the hoop term)."""
-    m = body.material
-    if is_finite(m):
-        raise InputError(f"body '{body.name}': plane strain runs small-strain bodies only "
-                         f"so far ({type(m).__name__} is finite-strain): use geometry = "
-                         "\"axisymmetric\" or a small-strain material")
-
-
 class DeformableModel:
     """The space, the parts and the dof maps of the deformable bodies of a scene, on a
     mesh of triangles or of quadrilaterals (:attr:`quadrilateral`), in the section's
@@ -82,9 +72,6 @@ class DeformableModel:
                  geometry: Geometry = AXISYMMETRIC_GEOMETRY):
         require(len(bodies) > 0, "a scene needs at least one deformable body")
         self.geometry = geometry
-        if geometry.plane:
-            for b in bodies:
-                check_plane_strain_material(b)
         for b in bodies:  # a match to Mohr-Coulomb in plane strain means nothing elsewhere
             require(geometry.plane or getattr(b.material, "match", None) != "plane_strain",
                     f"body '{b.name}': match = \"plane_strain\" (the plane-strain match to "

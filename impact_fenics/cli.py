@@ -258,7 +258,9 @@ def _report(title: str, s: dict, out_dir: str) -> None:
     from .report import console_lines, energy_line
 
     if "final_length" in s:  # a finite-strain bar
-        print(f"shape: length {s['final_length'] * 1e3:.4f} mm, impact-face radius "
+        face = ("x of the impact face's corner" if s.get("geometry", {}).get("kind")
+                == "plane_strain" else "impact-face radius")
+        print(f"shape: length {s['final_length'] * 1e3:.4f} mm, {face} "
               f"{s['final_face_radius'] * 1e3:.4f} mm, max eps_p {s['eps_p_max']:.4f}")
 
     if "energy" in s:

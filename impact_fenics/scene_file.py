@@ -246,15 +246,13 @@ def _read_geometry(top: Table) -> Geometry:
 
 
 def _check_plane_strain(scene: Scene) -> None:
-    """Refuse, in one line each, what plane strain does not run yet: finite-strain bodies
-    (docs/plane_strain.md), and a rigid face's radius (its half_width). Node pairs (paired
-    by x), node to segment, rigid faces (moving along y) and the wall run as in
-    axisymmetry, friction too (along x, the in-plane tangent): the masses carry the
-    measure."""
-    not_yet = "plane strain runs small-strain bodies only so far"
-    for b in scene.bodies:
-        if b.strain == "finite":
-            raise InputError(f'[bodies.{b.name}] strain = "finite": {not_yet}')
+    """Refuse, in one line, a rigid face's radius (in plane strain its half_width). Node
+    pairs (paired by x), node to segment, rigid faces (moving along y) and the wall run as
+    in axisymmetry, friction too (along x, the in-plane tangent): the masses carry the
+    measure. A finite-strain body runs as in axisymmetry (scene_wall.check_kind says on
+    what): on ``quad_bar`` the rectangle x in [0, radius], y in [0, length] (with
+    ``symmetry = "x=0"`` the half of a strip 2 radius wide), its kernel compiled for plane
+    strain (docs/plane_strain.md)."""
     for c in scene.contacts:
         if c.rigid is not None and "radius" in c.given:
             raise InputError(f"{c.where} radius: a plane-strain rigid face has a half_width "

@@ -243,21 +243,30 @@ def taylor_bar(settings: Settings, material, radius: float = 3.2e-3, length: flo
 def track_bar(sim: Simulation, radius: float, length: float):
     """A bar's shape (0 <= r <= radius, 0 <= z <= length, m): displacement probes at the
     ends of its axis and at the corner of its impact face (history.csv: u_z_top,
-    u_z_bottom, u_r_corner), and the function of the run's end that gives
+    u_z_bottom, u_r_corner; in plane strain, (x, y): u_y_top, u_y_bottom, u_x_corner),
+    and the function of the run's end that gives
     ``final_length`` (m, z of the node that started at (0, L) less z of the one that
     started at (0, 0)), ``final_face_radius`` (m, r of the node that started at (R, 0)),
     from those nodes' displacements, and the stored energy psi(u^N) ``stored_elastic``
     and the plastic work ``plastic_work`` (J) of the finite-strain bodies' points at u^N
     (the summary's evaluation there; the last energy row's are of the step before)."""
     model, comm = sim.model, sim.comm
-    tracked = (("u_z_top", (0.0, length), "u_z"), ("u_z_bottom", (0.0, 0.0), "u_z"),
-               ("u_r_corner", (radius, 0.0), "u_r"))
+    plane = model.geometry.plane  # plane strain: (x, y), the names u_x, u_y
+    across, along = ("u_x", "u_y") if plane else ("u_r", "u_z")
+    tracked = ((f"{along}_top", (0.0, length), along), (f"{along}_bottom", (0.0, 0.0), along),
+               (f"{across}_corner", (radius, 0.0), across))
     for name, point, quantity in tracked:
         sim.add_probe(name, point, quantity)
     xy = model.node_xy[: model.n_owned // 2]
     tol = 1e-9 * length  # m: far above round-off, far below a cell
     nodes = [np.flatnonzero(np.hypot(xy[:, 0] - r, xy[:, 1] - z) <= tol)
              for _, (r, z), _ in tracked]
+
+    first, second = ("x", "y") if plane else ("r", "z")
+    definition = (f"final_length: the {'length on x = 0' if plane else 'axis length'}, "
+                  f"{second} of the node that started at (0, L) minus {second} of the one that "
+                  f"started at (0, 0) (m); final_face_radius: {first} of the node that started "
+                  "at (R, 0) (m)")
 
     def figures(s: Simulation) -> dict:
         u = s.integrator.u_owned
@@ -273,7 +282,5 @@ def track_bar(sim: Simulation, radius: float, length: float):
         comm.Allreduce(MPI.IN_PLACE, shares)
         return {"final_length": float(vals[0] + vals[1]), "final_face_radius": float(vals[2]),
                 "stored_elastic": float(shares[0]), "plastic_work": float(shares[1]),
-                "length_definition": "final_length: the axis length, z of the node that "
-                "started at (0, L) minus z of the one that started at (0, 0) (m); "
-                "final_face_radius: r of the node that started at (R, 0) (m)"}
+                "length_definition": definition}
     return figures

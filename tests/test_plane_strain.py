@@ -267,13 +267,6 @@ def test_no_axis_dofs_and_the_symmetry_plane(block):
     assert n_left == round(HEIGHT / 0.005) + 1
 
 
-def test_finite_strain_body_refused(block):
-    from impact_fenics.materials.neo_hookean import NeoHookean
-
-    with pytest.raises(InputError, match="plane strain runs small-strain bodies only"):
-        DeformableModel(block, [Body("block", NeoHookean())], geometry=plane())
-
-
 @pytest.mark.parametrize("args, expected", [
     ((PLANE_STRAIN, 0.0), "thickness = 0.0: must be finite and > 0"),
     ((PLANE_STRAIN, math.inf), "thickness = inf: must be finite and > 0"),

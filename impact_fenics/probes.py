@@ -106,8 +106,10 @@ def nearest_node(model, body: str, point: tuple[float, float]) -> tuple[int, np.
     return -1, None
 
 
-def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
-    """Local index of the cell holding ``point`` (r, z) in m, and whether this rank owns it.
+def locate_cell(mesh, point: tuple[float, float],
+                axes: tuple[str, str] = ("r", "z")) -> tuple[int, bool]:
+    """Local index of the cell holding ``point`` (r, z) in m, and whether this rank owns it
+    (``axes`` name the coordinates in the message of a point outside the mesh).
 
     A point on a cell boundary belongs to the touching cell whose midpoint is
     smallest in (r, z): the same choice for every partition."""
@@ -123,7 +125,8 @@ def locate_cell(mesh, point: tuple[float, float]) -> tuple[int, bool]:
         cell = int(cells[k])
     winner = min(mesh.comm.allgather(best))
     if not np.isfinite(winner[0]):
-        raise InputError(f"probe point (r={point[0]}, z={point[1]}) m lies outside the mesh")
+        raise InputError(f"probe point ({axes[0]}={point[0]}, {axes[1]}={point[1]}) m lies "
+                         "outside the mesh")
     mine = cells.size > 0 and best == winner
     return (cell if mine else -1), mine
 
@@ -459,7 +462,7 @@ class Probes:
                 sections.append((k, *section_row(model, body, float(point[1]))))
                 unused[width * k: width * (k + 1)] = True
                 continue
-            cell, mine = locate_cell(mesh, point)
+            cell, mine = locate_cell(mesh, point, model.geometry.axes)
             if mine:
                 nodes = cell_nodes[cell].astype(np.int32)
                 self.midpoints[k] = model.node_xy[nodes].mean(axis=0)
@@ -555,9 +558,10 @@ class Probes:
         held = []
         for j, z in enumerate((point[1] - 0.5 * length, point[1] + 0.5 * length)):
             try:
-                cell, mine = locate_cell(model.mesh, (point[0], z))
+                cell, mine = locate_cell(model.mesh, (point[0], z), model.geometry.axes)
             except InputError:
-                raise InputError(f"probe '{name}': the gauge's end (r={point[0]!r}, z={z!r}) m "
+                a, b = model.geometry.axes
+                raise InputError(f"probe '{name}': the gauge's end ({a}={point[0]!r}, {b}={z!r}) m "
                                  "lies outside the mesh") from None
             body = -1
             if mine:

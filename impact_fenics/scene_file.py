@@ -748,11 +748,12 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             held = []
             for point in ends:
                 try:
-                    locate_cell(model.mesh, point)
+                    locate_cell(model.mesh, point, model.geometry.axes)
                 except InputError:
                     if len(ends) == 1:
                         raise
-                    raise InputError(f"the gauge's end (r={point[0]!r}, z={point[1]!r}) m lies "
+                    a, b = model.geometry.axes
+                    raise InputError(f"the gauge's end ({a}={point[0]!r}, {b}={point[1]!r}) m lies "
                                      "outside the mesh") from None
                 held.append(_one_body_at(tmesh, point, comm))
             if len(set(held)) > 1:

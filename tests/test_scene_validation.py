@@ -8,6 +8,7 @@ The oracle is the specification of the message: it must name the table and
 the key (or the argument) that is wrong.
 """
 import os
+from pathlib import Path
 
 import pytest
 from mpi4py import MPI
@@ -26,6 +27,11 @@ def _garbage_mesh(tmp):
     (tmp / "garbage.msh").write_text("this is not a mesh\n$MeshFormat\n4.1 0 8\n")
     return replace(PAIR, 'generator = "coaxial_bars"\nradius = 0.02\nstriker_length = 0.04\n'
                          'target_length = 0.04\nh = 0.01\n', 'file = "garbage.msh"\n'), []
+
+
+def _plane_probe_outside(tmp):
+    text = (Path(__file__).parent.parent / "scenes" / "plane_strain_impact.toml").read_text()
+    return replace(text, "point = [0.005, 0.05]", "point = [0.5, 0.05]"), []
 
 
 def _out_under_file(tmp):
@@ -98,6 +104,8 @@ CASES = [
      '[probes #1] quantity = "sigma_xx": use one of'),
     ("probe outside the mesh", _edit(PAIR, "point = [0.01, 0.02]", "point = [0.5, 0.02]"),
      "[probes #1] probe point (r=0.5, z=0.02) m lies outside the mesh"),
+    ("plane-strain probe outside the mesh", _plane_probe_outside,
+     "[probes #1] probe point (x=0.5, y=0.05) m lies outside the mesh"),
     ("fixed component", _edit(RIGID, 'components = ["z"]', 'components = ["x"]'),
      '[fixed #1] components = ["x"]: must be a list'),
     ("unknown generator", _edit(PAIR, 'generator = "coaxial_bars"', 'generator = "cylinder"'),

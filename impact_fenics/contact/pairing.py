@@ -44,8 +44,10 @@ def _surface_nodes(model: DeformableModel, facet_name: str) -> tuple[np.ndarray,
     return all_xy[order], all_dofs[order]
 
 
-def _describe(xy: np.ndarray, limit: int = 5) -> str:
-    pts = ", ".join(f"(r={p[0]:.6g}, z={p[1]:.6g})" for p in xy[:limit])
+def _describe(xy: np.ndarray, axes: tuple[str, str], limit: int = 5) -> str:
+    """The first ``limit`` points, named by the geometry's ``axes`` ((r, z) or (x, y))."""
+    a, b = axes
+    pts = ", ".join(f"({a}={p[0]:.6g}, {b}={p[1]:.6g})" for p in xy[:limit])
     more = f" and {len(xy) - limit} more" if len(xy) > limit else ""
     return pts + more
 
@@ -78,16 +80,18 @@ def pair_surfaces(model: DeformableModel, lower: str, upper: str,
     if len(unmatched_lo) or len(unmatched_up):
         parts = []
         if len(unmatched_lo):
-            parts.append(f"'{lower}' nodes without a partner: {_describe(unmatched_lo)}")
+            parts.append(f"'{lower}' nodes without a partner: "
+                         f"{_describe(unmatched_lo, model.geometry.axes)}")
         if len(unmatched_up):
-            parts.append(f"'{upper}' nodes without a single partner: {_describe(unmatched_up)}")
+            parts.append(f"'{upper}' nodes without a single partner: "
+                         f"{_describe(unmatched_up, model.geometry.axes)}")
         raise InputError(f"contact surfaces '{lower}' and '{upper}' do not pair node to node "
                          f"within {tol:.3g} m; " + "; ".join(parts))
     b = up_xy[partner, 1] - lo_xy[:, 1]
     if np.any(b < -tol):
         bad = lo_xy[b < -tol]
         raise InputError(f"contact surfaces '{lower}' and '{upper}' overlap initially "
-                         f"(negative gap) at {_describe(bad)}")
+                         f"(negative gap) at {_describe(bad, model.geometry.axes)}")
     return Constraints(r=lo_xy[:, 0].copy(), b=np.maximum(b, 0.0), lower=lo_dofs.copy(),
                        upper=up_dofs[partner].copy(), names=(lower, upper))
 

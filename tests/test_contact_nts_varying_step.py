@@ -20,6 +20,8 @@ Oracles:
   balance (the kinetic identity, exact for any sequence of steps) within
   roundoff.ledger at every row and z momentum (no external z force: the axis holds u_r
   only) within the same relative bound; FILM, DME and the penalty.
+* The penalty's beta under the steps: a stiffness in N/m checked at every step the run
+  takes (refused in one line above 4/3), a scaled one keeping its beta.
 
 Every test runs unchanged on 1, 2 and 3 ranks.
 """
@@ -32,9 +34,11 @@ from mpi4py import MPI
 
 from impact_fenics import meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.contact import Penalty
 from impact_fenics.contact.banded import dense_s
 from impact_fenics.contact.pairing import pair_surfaces
 from impact_fenics.contact.segments import node_to_segment
+from impact_fenics.errors import InputError
 from impact_fenics.materials import STEEL
 from impact_fenics.simulation import Settings, Simulation
 from impact_fenics.stepping import StepSequence
@@ -164,3 +168,30 @@ def test_non_matching_faces_keep_the_ledger_and_momentum_under_varying_steps(met
     assert np.abs(e["balance_error_rel"]).max() <= bound
     p = e["momentum_z"]
     assert np.abs(p - p[0]).max() <= bound * abs(p[0])
+
+
+def _penalty_bars(p, factors):
+    model = _model(6, 9)
+    limit = _limit(model)
+    sim = Simulation(model, Settings(quiet=True, plots=False, fields=False),
+                     initial_velocity={"striker": (0.0, V0)},
+                     policy=StepSequence([f * limit for f in factors]))
+    sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"), Penalty(p))
+    return sim
+
+
+def test_a_given_penalty_is_checked_at_every_step_the_run_takes():
+    """beta = the Gershgorin bound of P^1/2 S P^1/2 grows with h h_n: a p in N/m that gives
+    beta = 1 at 0.4 x the limit is accepted under that step alone and refused at set-up,
+    in one line, when the sequence later takes 0.9 x the limit (beta about 5); a 'scaled'
+    p keeps beta at its target under every step."""
+    beta_1 = _penalty_bars(1e9, [0.4] * 5).contacts[0].method.info["beta_max"]
+    p = 1e9 / beta_1  # beta is linear in p
+    assert _penalty_bars(p, [0.4] * 5).contacts[0].method.info["beta_max"] <= 4.0 / 3.0
+    with pytest.raises(InputError, match="beta_max = .* is above the stable bound"):
+        _penalty_bars(p, [0.4] * 3 + [0.9] * 3)
+    c = _penalty_bars("scaled", [0.4] * 3 + [0.9] * 3).contacts[0]
+    # beta = 1 at set-up, to the roundings of Gershgorin's row sums (2 bw + 1 terms of 4
+    # roundings each, bw <= 3 here) and of p's scaling (2); at another step p h h_n is the
+    # set-up's but for the rescaling's and the band's roundings (4 more a term): 64 in all
+    assert abs(c.method.info["beta_max"] - 1.0) <= rounding(64)

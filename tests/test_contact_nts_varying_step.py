@@ -19,7 +19,8 @@ Oracles:
 * The ledger and momentum: on non-matching faces (6/9) under the same steps, the energy
   balance (the kinetic identity, exact for any sequence of steps) within
   roundoff.ledger at every row and z momentum (no external z force: the axis holds u_r
-  only) within the same relative bound; FILM, DME and the penalty.
+  only) within the same relative bound; FILM, DME and the penalty; the same with
+  Coulomb friction (mu = 0.3, nu = 0.3 bars whose faces slide radially).
 * The penalty's beta under the steps: a stiffness in N/m checked at every step the run
   takes (refused in one line above 4/3), a scaled one keeping its beta.
 
@@ -52,11 +53,11 @@ V0, L, A = 5.0, 0.2, 0.05
 T_END = 3 * L / C0  # s: the contact lasts 2 L / c0, then the bars part
 
 
-def _model(n_striker, n_target, comm=COMM):
+def _model(n_striker, n_target, comm=COMM, nu=0.0):
     tmesh = meshing.coaxial_bars_sized(radius=A, striker_length=L, target_length=L,
                                        h_striker=A / n_striker, h_target=A / n_target,
                                        structured=True, comm=comm)
-    steel = replace(STEEL, nu=0.0)
+    steel = replace(STEEL, nu=nu)
     return DeformableModel(tmesh, [Body("striker", steel), Body("target", steel)])
 
 
@@ -72,10 +73,11 @@ def _steps(limit: float) -> list[float]:
     return steps
 
 
-def _bars(method, n_striker, n_target, node_to_node=False, v0=V0):
-    """The nu = 0 bars (striker below at v0 in +z) under _steps, node to segment with the
-    finer face the slave, or node pairs on matching faces."""
-    model = _model(n_striker, n_target)
+def _bars(method, n_striker, n_target, node_to_node=False, v0=V0, nu=0.0, friction=None):
+    """The bars (striker below at v0 in +z; nu = 0 unless given) under _steps, node to
+    segment with the finer face the slave, or node pairs on matching faces; Coulomb
+    ``friction`` on the set if given."""
+    model = _model(n_striker, n_target, nu=nu)
     steps = _steps(_limit(model))
     sim = Simulation(model, Settings(energy_every=1, output_every=len(steps), quiet=True,
                                      plots=False, fields=False),
@@ -86,7 +88,9 @@ def _bars(method, n_striker, n_target, node_to_node=False, v0=V0):
         constraints = node_to_segment(model, "target_contact", "striker_contact")
     else:
         constraints = node_to_segment(model, "striker_contact", "target_contact")
-    sim.add_contact(constraints, scenes.make_method(method))
+    c = sim.add_contact(constraints, scenes.make_method(method))
+    if friction is not None:
+        c.set_friction(friction)
     return sim
 
 
@@ -150,17 +154,21 @@ def test_matching_faces_reproduce_node_pairs_under_varying_steps(method):
 
 # ----------------------------------------------------------------------------- the ledger
 
+@pytest.mark.parametrize("friction", [None, 0.3], ids=["frictionless", "mu=0.3"])
 @pytest.mark.parametrize("method", ["film", "dme", "penalty"])
-def test_non_matching_faces_keep_the_ledger_and_momentum_under_varying_steps(method):
+def test_non_matching_faces_keep_the_ledger_and_momentum_under_varying_steps(method, friction):
     """6/9 faces under the steps: the balance and z momentum within roundoff.ledger; the
-    bars meet and part (the velocities about exchanged)."""
-    sim = _bars(method, 6, 9)
+    bars meet and part. With friction (nu = 0.3: the faces expand radially and slide on
+    each other), the tangential pass's work is in the balance: it closes the same."""
+    sim = _bars(method, 6, 9, nu=0.0 if friction is None else 0.3, friction=friction)
     summary = sim.run()
     assert summary["status"].startswith("completed")
     e, h = sim.energy.data(), sim.history.data()
     n, n_dofs = sim.n_steps, summary["n_dofs"]
     assert len(set(h["dt"].tolist())) > 10
     assert h["n_active"].max() > 0 and h["n_active"][-1] == 0  # met and parted
+    if friction is not None:
+        assert h["slip_work"][-1] > 0.0  # the faces slid
     bound = ledger(n, n_dofs)
     print(method, "balance", np.abs(e["balance_error_rel"]).max(), "momentum",
           np.abs(e["momentum_z"] - e["momentum_z"][0]).max() / abs(e["momentum_z"][0]),

@@ -1,4 +1,4 @@
-"""S = h_{n+1/2} h_n G M^-1 G' of node-to-segment constraints as a band, and the complementarity solver.
+"""S = h_{n+1/2} h_n G M^-1 G' of node-to-segment constraints as a band, and the LCP solver.
 
 G has one row per constraint with six entries: the slave's (r, z) dofs with
 the normal n, the two master nodes' (r, z) dofs with -N_a n and -N_b n. Two

@@ -280,7 +280,7 @@ def test_the_scene_file_runs_two_finite_bodies(tmp_path, step):
     """The 4/6 bodies through `impact-fenics run`, with the fixed dt (100 steps) or cfl = 0.5
     (the step re-estimated from the cells every 10 steps, clipped to t_end): the ledger and
     z momentum of energy.csv within roundoff.ledger, the set re-paired every 5 steps, the
-    foot yields."""
+    foot yields, nothing compiled in the loop."""
     import json
     import os
 
@@ -292,6 +292,7 @@ def test_the_scene_file_runs_two_finite_bodies(tmp_path, step):
     with open(os.path.join(out, "summary.json")) as f:
         s = json.load(f)
     assert s["status"] == "completed"
+    assert s["timing"]["compiled_in_loop"] == []  # a new step rebuilds S with loaded kernels
     if step == "dt":
         assert s["n_steps"] == 100
     else:  # 0.5 x the limit against the fixed dt's 0.72 x: more steps, and they vary

@@ -182,9 +182,8 @@ with `strain = "finite"`), optionally a `[wall]` and `[[fixed]]` faces, and `t_e
 `converged_dt` are refused there, as are `[wall] face = "held"` and `dt_interval` in a
 small-strain scene. Two finite-strain bodies run on `generator = "coaxial_bars_sized"`
 with `quadrilaterals = true` (the striker and the target, Q1 cells), in node-to-segment
-`[[contact]]` (`slave`, `master`, optionally `repair_every`), without a `[wall]`: that
-contact takes one step, so `[time]` gives a fixed `dt` that divides `t_end` (the last
-step equal to the others; otherwise refused in one line). A material at a kinematics it
+`[[contact]]` (`slave`, `master`, optionally `repair_every`), without a `[wall]`, under
+the step that follows their cells (`cfl` or a fixed `dt`, as for one body). A material at a kinematics it
 lacks is refused in one line naming the one it has. `scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the
 examples; [materials.md](materials.md) describes the element and the materials.
 

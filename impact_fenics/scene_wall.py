@@ -27,8 +27,7 @@ built by :func:`.scene_file.build`) under a step that follows their cells
   (steps, default 10);
 * no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line);
 * or two finite-strain bodies on ``generator = "coaxial_bars_sized"`` with
-  ``quadrilaterals = true``, in node-to-segment [[contact]], no [wall], a fixed ``dt``
-  that divides t_end (the segment kind takes one step).
+  ``quadrilaterals = true``, in node-to-segment [[contact]], no [wall].
 
 A small-strain scene may not use dt_interval; its [wall] is the same plane, with
 ``face = "contact"`` only (a held face is a [[fixed]] u_z). On ``quad_bar`` it has one
@@ -105,9 +104,6 @@ def check_kind(scene) -> None:
             if c.slave is None or c.rigid is not None:
                 raise InputError(f"{c.where} two finite-strain bodies meet node to segment "
                                  "(give slave and master)")
-        if scene.time["dt"] is None:
-            raise InputError("[time] dt: node-to-segment contact takes a constant step: give a "
-                             "fixed dt (s) that divides t_end")
     elif scene.mesh.generator != "quad_bar":
         given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
                  else f'file = "{scene.mesh.file}"')

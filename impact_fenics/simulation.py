@@ -248,14 +248,6 @@ class Simulation:
                              "facet group (the contact bookkeeping assumes no load there)")
         if rigid is not None:
             refuse_shared_rigid(rigid, constraints.names, self.contacts)
-        # a fixed dt that reaches t_end in equal steps (the last one unclipped) is constant
-        listed = self.listed_steps
-        varying = not isinstance(self.step_policy, ConstantStep) and (
-            not listed or any(h != listed[0] for h in listed))
-        if varying and isinstance(constraints, SegmentConstraints):
-            raise InputError(f"node-to-segment contact '{constraints.names[0]}'/"
-                             f"'{constraints.names[1]}' needs a constant step (this run's "
-                             "step changes: give a fixed dt that divides t_end)")
         t0 = time.perf_counter()
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()

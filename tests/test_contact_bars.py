@@ -155,7 +155,7 @@ def test_dme_pair_collision_law(e, positions):
     v_lo, v_up = np.array([3.0, 1.0, -1.0]), np.array([-1.0, 0.5, 2.0])
     b = np.array([0.0, 0.0, 1e-3])
     # slots: the three lower nodes, then the three upper ones
-    c = SimpleNamespace(n=3, rigid=None, dt=1e-6, b=b, lo=np.arange(3), up=np.arange(3, 6),
+    c = SimpleNamespace(n=3, rigid=None, dt=1e-6, h_avg=1e-6, b=b, lo=np.arange(3), up=np.arange(3, 6),
                         mass=np.concatenate([m_lo, m_up]), u=np.concatenate([u_lo, u_up]),
                         v=np.concatenate([v_lo, v_up]), force=np.zeros(3),
                         active=np.zeros(3, dtype=bool))

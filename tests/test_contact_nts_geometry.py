@@ -220,7 +220,7 @@ def _one_slave_set(xi, e_normal, v_slave, v_master):
     u = np.zeros(6)
     u_pred = u + dt * v
     c = SimpleNamespace(kind=SEGMENTS, n=1, bw=0, band=band, cs=cs, cc=cc, mass=mass,
-                        free=np.ones(6, bool), dt=dt, u=u_pred.copy(), v=v.copy(), u_pred=u_pred, v_pred=v.copy(),
+                        free=np.ones(6, bool), dt=dt, h_avg=dt, u=u_pred.copy(), v=v.copy(), u_pred=u_pred, v_pred=v.copy(),
                         force=np.zeros(1), active=np.zeros(1, bool), g0=np.zeros(1))
     c.gap = np.array([float(cc[0] @ u_pred[cs[0]])])
     c.apply_forces = None

@@ -3,10 +3,10 @@
 Scene: a copper striker (z in [-4R, 0]) at v0 onto a copper target at rest (z in [0, 4R]),
 R = 3.2 mm, both finite-strain J2 (total Lagrangian, Q1 quadrilaterals), contact faces of
 4 and 4 intervals (matched) or 4 and 6 (non-matching; the finer face the slave), FILM or
-DME, re-paired every 5 steps. The step is a fixed dt under the step that follows the cells
-(checked against the current cells' limit at every re-estimate): node-to-segment contact
-takes a constant step only, so dt = 2^-24 s (a power of two: t = n dt is exact, the last
-step is not clipped) and t_end a whole number of steps.
+DME, re-paired every 5 steps. The step follows the cells: a fixed dt checked against the
+current cells' limit at every re-estimate, dt = 2^-24 s (a power of two: t = n dt is exact,
+the last step is not clipped, so runs compared dof by dof take the same steps), or cfl x
+that limit re-estimated every 10 steps (the step varies as the cells deform).
 
 Oracles:
 
@@ -17,6 +17,8 @@ Oracles:
 * the ledger: kinetic + strain + plastic + work_gap - contact work = E_0, the kinetic
   identity of the half-step scheme, exact for any forces, within roundoff.ledger at
   every row;
+* the same under the step that follows the cells (cfl 0.5, re-estimated every 10 steps):
+  momentum and the ledger within roundoff.ledger, every re-pairing the brute force's;
 * re-pairing: at every re-pairing the pairs and rows of G equal a brute-force
   projection of every slave onto every segment (test_contact_repair._Watch, the same
   arithmetic: equal), and slaves change segments as the faces spread (counted);
@@ -34,8 +36,8 @@ Oracles:
   same O(eps) factor.
 
 * the scene file: the 4/6 bodies through `impact-fenics run` close energy.csv's balance
-  and keep its z momentum within the same bound; a varying step and a triangle mesh
-  are refused in one line.
+  and keep its z momentum within the same bound, with a fixed dt and with cfl (a varying
+  step); a triangle mesh is refused in one line.
 
 Every test runs unchanged on 1, 2 and 3 ranks (the compared arrays gathered).
 """
@@ -48,7 +50,6 @@ from mpi4py import MPI
 from impact_fenics import meshing, scenes
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact.segments import node_to_segment
-from impact_fenics.errors import InputError
 from impact_fenics.materials import J2, FiniteJ2
 from impact_fenics.simulation import Settings, Simulation
 from impact_fenics.stepping import FollowingStep
@@ -71,8 +72,9 @@ def _mesh(n_striker, n_target):
 
 
 def _bodies(n_striker, n_target, v0, n_steps, method, nu=0.35, finite=True, repair=True,
-            tmesh=None):
-    """The striker at v0 (m/s, +z) onto the target, n_steps of DT; node to segment with the
+            tmesh=None, dt=DT):
+    """The striker at v0 (m/s, +z) onto the target, n_steps of DT (to n_steps DT at 0.5 x
+    the current limit with ``dt`` None: finite strain only); node to segment with the
     finer face the slave, re-paired every EVERY steps (``repair``); ``tmesh``: the mesh
     built already (runs compared dof by dof share it: one partition, one numbering)."""
     if tmesh is None:
@@ -81,8 +83,8 @@ def _bodies(n_striker, n_target, v0, n_steps, method, nu=0.35, finite=True, repa
                                             hardening=100e6)
     model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
     settings = Settings(quiet=True, plots=False, timers=False, fields=False, energy_every=1)
-    if finite:  # a finite-strain body takes the step that follows its cells; here fixed
-        policy = FollowingStep(None, n_steps * DT, DT, 0.5, 10)
+    if finite:  # a finite-strain body takes the step that follows its cells (or a fixed dt)
+        policy = FollowingStep(None, n_steps * DT, dt, 0.5, 10)
     else:
         settings.dt, settings.n_steps, policy = DT, n_steps, None
     sim = Simulation(model, settings, initial_velocity={"striker": (0.0, v0)}, policy=policy)
@@ -136,18 +138,31 @@ def test_momentum_ledger_and_repairing(faces, method):
     assert summary["n_steps"] == 300
 
 
-def test_a_varying_step_is_refused_with_segments():
-    """The segment kind's kernels hold one step (S = dt^2 G M^-1 G', u and v moved with
-    the same dt): a step that follows the cells is refused in one line."""
-    tmesh = _mesh(4, 4)
-    material = FiniteJ2(E=E, nu=0.35, density=RHO)
-    model = DeformableModel(tmesh, [Body("striker", material), Body("target", material)])
-    sim = Simulation(model, Settings(quiet=True, plots=False, timers=False, fields=False),
-                     initial_velocity={"striker": (0.0, 1.0)},
-                     policy=FollowingStep(None, 1e-6, None, 0.5, 10))
-    with pytest.raises(InputError, match="needs a constant step"):
-        sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"),
-                        scenes.make_method("film"))
+@pytest.mark.parametrize("faces", [(4, 4), (4, 6)], ids=["matched", "non-matching"])
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_a_step_that_follows_the_cells(faces, method):
+    """100 m/s to 300 DT (18 us) at 0.5 x the current cells' limit, re-estimated every 10
+    steps: the step varies; momentum and the ledger to round-off, every re-pairing the
+    brute force's, the foot yields."""
+    sim = _bodies(*faces, 100.0, 300, method, dt=None)
+    watch = _Watch(sim)
+    summary = sim.run()
+    assert sim.status == "completed"
+    h = sim.history.data()["dt"]
+    assert len(set(h[:-1].tolist())) > 10  # re-estimated as the cells deform (the last clipped)
+    e = sim.energy.data()
+    n_dofs = COMM.allreduce(sim.model.n_owned)
+    bound = ledger(sim.n_steps, n_dofs)
+    p = e["momentum_z"]
+    print(faces, method, sim.n_steps, "steps, dt", h.min(), h.max(), "momentum",
+          np.abs(p - p[0]).max() / abs(p[0]), "balance",
+          np.abs(e["balance_error"]).max() / sim.ledger.E0, "bound", bound)
+    assert np.abs(p - p[0]).max() <= bound * abs(p[0])
+    assert np.abs(e["balance_error"]).max() <= bound * sim.ledger.E0
+    assert e["plastic_work"][-1] > 0.1 * sim.ledger.E0
+    c = sim.contacts[0]
+    assert len(watch.steps) == c.repairs == -(-sim.n_steps // EVERY)
+    assert summary["n_steps"] == sim.n_steps
 
 
 # ----------------------------------------------------------------------------- FILM = DME
@@ -257,19 +272,32 @@ def _scene(tmp_path, text):
     return path, os.path.join(base, "run")
 
 
-def test_the_scene_file_runs_two_finite_bodies(tmp_path):
-    """The 4/6 bodies through `impact-fenics run`: 100 steps, the ledger and z momentum of
-    energy.csv within roundoff.ledger, the set re-paired every 5 steps, the foot yields."""
+FIXED_DT = "dt = 5.9604644775390625e-08     # s, 2^-24 (exact)\n"
+
+
+@pytest.mark.parametrize("step", ["dt", "cfl"])
+def test_the_scene_file_runs_two_finite_bodies(tmp_path, step):
+    """The 4/6 bodies through `impact-fenics run`, with the fixed dt (100 steps) or cfl = 0.5
+    (the step re-estimated from the cells every 10 steps, clipped to t_end): the ledger and
+    z momentum of energy.csv within roundoff.ledger, the set re-paired every 5 steps, the
+    foot yields, nothing compiled in the loop."""
     import json
     import os
 
     from impact_fenics import cli
 
-    path, out = _scene(tmp_path, TWO_BODIES)
+    text = TWO_BODIES if step == "dt" else TWO_BODIES.replace(FIXED_DT, "cfl = 0.5\n")
+    path, out = _scene(tmp_path, text)
     assert cli.main(["run", path, "--out", out, "--quiet"]) == 0
     with open(os.path.join(out, "summary.json")) as f:
         s = json.load(f)
-    assert s["status"] == "completed" and s["n_steps"] == 100
+    assert s["status"] == "completed"
+    assert s["timing"]["compiled_in_loop"] == []  # a new step rebuilds S with loaded kernels
+    if step == "dt":
+        assert s["n_steps"] == 100
+    else:  # 0.5 x the limit against the fixed dt's 0.72 x: more steps, and they vary
+        h = np.genfromtxt(os.path.join(out, "history.csv"), delimiter=",", names=True)["dt"]
+        assert s["n_steps"] > 100 and len(set(h[:-1].tolist())) > 1
     e = np.genfromtxt(os.path.join(out, "energy.csv"), delimiter=",", names=True)
     bound = ledger(s["n_steps"], s["n_dofs"])
     e0 = e["total"][0]
@@ -280,8 +308,6 @@ def test_the_scene_file_runs_two_finite_bodies(tmp_path):
 
 
 @pytest.mark.parametrize("edit, message", [
-    (("dt = 5.9604644775390625e-08     # s, 2^-24 (exact)\n", "cfl = 0.5\n"),
-     "[time] dt: node-to-segment contact takes a constant step"),
     (("quadrilaterals = true\n", ""), "a finite-strain scene has one body for now"),
 ])
 def test_the_scene_file_refuses(tmp_path, capsys, edit, message):

@@ -276,17 +276,3 @@ def test_a_penalty_is_checked_at_every_step_the_run_takes():
     assert ok.contacts[0].method.info["beta_max"] <= 4.0 / 3.0
     with pytest.raises(InputError, match="beta_max = .* is above the stable bound"):
         _bars_with(Penalty(p), [0.4] * 10 + [0.9] * 10)
-
-
-def test_node_to_segment_contact_under_a_varying_step_is_refused_at_set_up():
-    from impact_fenics.contact.segments import node_to_segment
-
-    tm = meshing.coaxial_bars_sized(radius=0.05, striker_length=0.2, target_length=0.2,
-                                    h_striker=0.05 / 6, h_target=0.05 / 9, structured=True)
-    steel = LinearElastic(nu=0.0)
-    model = DeformableModel(tm, [Body("striker", steel), Body("target", steel)])
-    limit = _limit(model)
-    sim = Simulation(model, Settings(quiet=True), policy=StepSequence([0.5 * limit, 0.4 * limit]))
-    with pytest.raises(InputError, match="node-to-segment contact .* needs a constant step"):
-        sim.add_contact(node_to_segment(model, "target_contact", "striker_contact"),
-                        scenes.make_method("film"))

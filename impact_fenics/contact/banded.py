@@ -1,4 +1,4 @@
-"""S = dt^2 G M^-1 G' of node-to-segment constraints as a band, and the complementarity solver.
+"""S = h_{n+1/2} h_n G M^-1 G' of node-to-segment constraints as a band, and the LCP solver.
 
 G has one row per constraint with six entries: the slave's (r, z) dofs with
 the normal n, the two master nodes' (r, z) dofs with -N_a n and -N_b n. Two
@@ -37,8 +37,9 @@ def gap_of(g0, cs, cc, u, out):
 
 @njit(cache=True)
 def apply_multipliers(lam, cs, cc, mass, free, dt, u, v, dt_u):
-    """Forces G' lam (N) over one step: v += dt M^-1 G' lam, u += dt_u (that change)
-    (dt_u = dt at a constant step; the tangential pass: dt = h_n, dt_u = h_{n+1/2})."""
+    """Forces G' lam (N) over one step: v += dt M^-1 G' lam, u += dt_u (that change), with
+    ``dt`` the velocity step h_n and ``dt_u`` the position step h_{n+1/2} (s; equal under a
+    constant step)."""
     for i in range(lam.size):
         f = lam[i]
         if f == 0.0:
@@ -53,7 +54,16 @@ def apply_multipliers(lam, cs, cc, mass, free, dt, u, v, dt_u):
 
 @njit(cache=True)
 def band_of_s(cs, cc, minv, dt, bw, band):
-    """band[i, k] = S[i, i - k] for k = 0..bw (m/N), S = dt^2 G M^-1 G'."""
+    """band[i, k] = S[i, i - k] for k = 0..bw (m/N), S = dt^2 G M^-1 G' (a constant step)."""
+    band_of_s_steps(cs, cc, minv, dt, dt, bw, band)
+
+
+@njit(cache=True)
+def band_of_s_steps(cs, cc, minv, h, h_avg, bw, band):
+    """band[i, k] = S[i, i - k] for k = 0..bw (m/N), S = h_{n+1/2} h_n G M^-1 G' (``h``,
+    ``h_avg`` in s): a multiplier lam moves v by h_n M^-1 G' lam and u by h_{n+1/2} times
+    that, so the gaps by S lam. Under a constant step (h = h_avg = dt) it is dt^2 to the bit:
+    h * h_avg * s is evaluated as (h h_avg) s."""
     n = cs.shape[0]
     for i in range(n):
         for k in range(bw + 1):
@@ -70,7 +80,7 @@ def band_of_s(cs, cc, minv, dt, bw, band):
                 for q in range(cs.shape[1]):
                     if cs[j, q] == cs[i, p]:
                         s += cc[i, p] * cc[j, q] * w
-            band[i, k] = dt * dt * s
+            band[i, k] = h * h_avg * s
 
 
 def bandwidth(cs: np.ndarray, cc: np.ndarray, minv: np.ndarray) -> int:
@@ -345,12 +355,14 @@ class Pivoting:
         info.update({"bandwidth": int(bw), "iterations_max": 0, "iterations_total": 0})
 
     def rebanded(self, band: np.ndarray, bw: int, rows: np.ndarray) -> None:
-        """S was rebuilt (a re-pairing): its band is ``band`` (at least bw + 1 columns, the
-        ones past bw unread) of bandwidth ``bw``, ``rows`` (bool) the constraints that have
-        a row (a released one has none: a zero row of S, out of the warm start's loaded
-        set). The kept factor no longer holds; the factor's rows grow only when the band
-        does."""
+        """S was rebuilt (a re-pairing, or a new step): its band is ``band`` (at least
+        bw + 1 columns, the ones past bw unread) of bandwidth ``bw``, ``rows`` (bool) the
+        constraints that have a row (a released one has none: a zero row of S, out of the
+        warm start's loaded set). The kept factor no longer holds; the factor's rows grow
+        only when the band does."""
         self.band, self.bw = band, bw
+        if self.S is not None:  # the dense comparison solver keeps S whole (it allocates)
+            self.S = dense_s(band, bw)
         np.logical_and(self.free, rows, out=self.free)
         self.factored[-1] = False
         if self.L.shape[1] < band.shape[1]:

@@ -25,20 +25,21 @@ u^{n+1} = u^n + dt v^{n+1}. ``positions="paper"`` uses the paper's eq. (9) equal
 weights instead. The holding reaction of a closed pair is compressive exactly when its
 predicted gap is negative, so detection and release coincide.
 
-Case 3, node to segment (S = dt^2 G M^-1 G' banded, contact.banded): the normal
-relative displacement is eliminated. Positions: the M-orthogonal projection of u~
-onto the active manifold g = 0 (the mass-weighted position; centre of mass kept),
-u = u~ + dt^2 M^-1 G' nu with nu >= 0 the solution of FILM's complementarity problem
-(with coupled constraints the set that can hold is found by the same pivoting;
-uncoupled it is g~ < 0, the paper's eq. 7). Velocities: the M-orthogonal projection of
-v~ onto G v = -e G v~ on that set (Newton's restitution on the normal relative
-velocity), v = v~ + dt M^-1 G' phi with S phi = -(1 + e) dt G v~ where phi pushes;
+Case 3, node to segment (S = h_{n+1/2} h_n G M^-1 G' banded, contact.banded; dt^2 under
+a constant step): the normal relative displacement is eliminated. Positions: the
+M-orthogonal projection of u~ onto the active manifold g = 0 (the mass-weighted
+position; centre of mass kept), u = u~ + h_{n+1/2} h_n M^-1 G' nu with nu >= 0 the
+solution of FILM's complementarity problem (with coupled constraints the set that can
+hold is found by the same pivoting; uncoupled it is g~ < 0, the paper's eq. 7).
+Velocities: the M-orthogonal projection of v~ onto G v = -e G v~ on that set (Newton's
+restitution on the normal relative velocity), v = v~ + h_n M^-1 G' phi with
+S phi = -(1 + e) h_{n+1/2} G v~ where phi pushes;
 where coupling would make some phi pull, the same pivoting solves
 S phi + (1 + e) dt G v~ >= 0, phi >= 0 on the set instead (it reuses the band factor,
 so the usual case costs one band solve). For one slave over a segment this is
 m_eff = (1/m_s + sum N_i^2 / m_i)^-1. The reported force is phi (N, the momentum
-change over dt). With e = 0 and a constraint closed at step n, nu = phi and DME
-equals FILM exactly. Only the mass-weighted positions have this form.
+change over h_n). With e = 0 and a constraint closed at step n (g~ = h_{n+1/2} G v~),
+nu = phi and DME equals FILM exactly. Only the mass-weighted positions have this form.
 
 The set velocity is independent of the set position at an activation (a
 jump); the interface encodes it and books its energy.
@@ -84,7 +85,7 @@ class DME:
         self.vw = np.zeros(c.n)
 
     def rebanded(self, c) -> None:
-        """S was rebuilt (a re-pairing): the pivoting works on its new band."""
+        """S was rebuilt (a re-pairing, a new step): the pivoting works on its new band."""
         self.pivoting.rebanded(c.band, c.bw, c.has_row)
 
     def kernel_calls(self, c) -> list:
@@ -97,15 +98,15 @@ class DME:
             (_velocity_gaps, (ws.free, c.cs, c.cc, c.v_pred, self.e, c.dt, self.vgap, self.vfree)),
             (lcp_bpp, (c.band, c.bw, self.vgap, self.phi, self.vw, self.vfree, ws.idx, ws.rhs,
                        ws.sol, ws.L, ws.max_iter, ws.factored, ws.free)),
-            (_segments, (ws.lam, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.u,
-                         c.v, c.force, c.active))]
+            (_segments, (ws.lam, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt,
+                         c.h_avg, c.u, c.v, c.force, c.active))]
 
     def correct(self, c) -> None:
         if is_banded(c):
             self._correct_banded(c)
         elif c.rigid is None:
-            _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.dt, self.e, self.positions == "mass_weighted",
-                   c.u, c.v, c.force, c.active)
+            _pairs(c.gap, c.b, c.lo, c.up, c.mass, c.h_avg, self.e,
+                   self.positions == "mass_weighted", c.u, c.v, c.force, c.active)
         else:
             _cluster(c.gap, c.b, c.nodes, c.body, c.side, c.mass, c.m_over_dt, c.dt, c.u_now,
                      c.u, c.v, c.force, c.active, c.work)
@@ -120,13 +121,14 @@ class DME:
                      ws.sol, ws.L, ws.max_iter, ws.factored, ws.free)
         if it < 0:
             raise RuntimeError(f"dme: velocity pivoting did not converge ({c.n} constraints)")
-        _segments(nu, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v,
-                  c.force, c.active)
+        _segments(nu, self.phi, ws.free, c.cs, c.cc, c.mass, c.free, c.dt, c.h_avg, c.u,
+                  c.v, c.force, c.active)
 
 
 @njit(cache=True)
-def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
-    """Case 2: each penetrating pair moves as one (momentum, restitution, positions)."""
+def _pairs(gap, b, lo, up, mass, h_avg, e, mass_weighted, u, v, force, active):
+    """Case 2: each penetrating pair moves as one (momentum, restitution, positions); the
+    reported force (N) is the momentum change over the velocity step ``h_avg`` (h_n, s)."""
     for i in range(gap.size):
         active[i] = gap[i] < 0.0
         force[i] = 0.0
@@ -136,7 +138,7 @@ def _pairs(gap, b, lo, up, mass, dt, e, mass_weighted, u, v, force, active):
         share = mass[p] / (mass[p] + mass[q])  # momentum weight of the lower node
         rel = v[q] - v[p]  # approach velocity (m/s), < 0 when closing
         v_mean = v[p] + (1.0 - share) * rel
-        force[i] = -(1.0 + e) * share * mass[q] * rel / dt
+        force[i] = -(1.0 + e) * share * mass[q] * rel / h_avg
         v[p] = v_mean + (1.0 - share) * e * rel
         v[q] = v_mean - share * e * rel
         w = share if mass_weighted else 0.5
@@ -212,8 +214,9 @@ def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force,
 @njit(cache=True)
 def _velocity_gaps(held, cs, cc, v_pred, e, dt, vgap, vfree):
     """Case 3's velocity problem on the held set: w = (1 + e) dt G v~ + S phi >= 0,
-    phi >= 0, phi . w = 0 (G v >= -e G v~: Newton's law where the constraint pushes).
-    Zero off the held set; the held set is the start."""
+    phi >= 0, phi . w = 0 (G v >= -e G v~: Newton's law where the constraint pushes;
+    ``dt`` the position step h_{n+1/2} (s), the factor of S = h_{n+1/2} h_n G M^-1 G' that
+    v = v~ + h_n M^-1 G' phi lacks). Zero off the held set; the held set is the start."""
     for i in range(held.size):
         vgap[i] = 0.0
         vfree[i] = held[i]
@@ -225,9 +228,9 @@ def _velocity_gaps(held, cs, cc, v_pred, e, dt, vgap, vfree):
 
 
 @njit(cache=True)
-def _segments(nu, phi, held, cs, cc, mass, slot_free, dt, u, v, force, active):
-    """Case 3: positions u~ + dt^2 M^-1 G' nu, velocities v~ + dt M^-1 G' phi;
-    force = phi (N)."""
+def _segments(nu, phi, held, cs, cc, mass, slot_free, h, h_avg, u, v, force, active):
+    """Case 3: positions u~ + h_{n+1/2} h_n M^-1 G' nu, velocities v~ + h_n M^-1 G' phi
+    (``h``, ``h_avg``: h_{n+1/2}, h_n in s); force = phi (N)."""
     for i in range(nu.size):
         active[i] = held[i]
         force[i] = phi[i]
@@ -236,5 +239,5 @@ def _segments(nu, phi, held, cs, cc, mass, slot_free, dt, u, v, force, active):
         for k in range(cs.shape[1]):
             s = cs[i, k]
             if slot_free[s] and cc[i, k] != 0.0:
-                v[s] += dt * (cc[i, k] * phi[i]) / mass[s]
-                u[s] += dt * dt * (cc[i, k] * nu[i]) / mass[s]
+                v[s] += h_avg * (cc[i, k] * phi[i]) / mass[s]
+                u[s] += h * h_avg * (cc[i, k] * nu[i]) / mass[s]

@@ -19,7 +19,8 @@ complementarity conditions hold.
 Node to segment, S is banded (contact.banded): the same complementarity problem is
 solved by block principal pivoting on the band of S (``solver="fast"``, O(n) per
 iteration, reported as 'bpp') or with dense factors (``solver="dense"``); then
-v += dt M^-1 G' force, u += dt^2 M^-1 G' force. Iterations are counted.
+v += h_n M^-1 G' force, u += h_{n+1/2} h_n M^-1 G' force (S = h_{n+1/2} h_n G M^-1 G': dt^2
+under a constant step). Iterations are counted.
 """
 from __future__ import annotations
 
@@ -161,7 +162,7 @@ class FILM:
             self.pivoting = Pivoting(c.band, c.bw, solver, self.name, self.info)
 
     def rebanded(self, c) -> None:
-        """S was rebuilt (a re-pairing): the pivoting works on its new band."""
+        """S was rebuilt (a re-pairing, a new step): the pivoting works on its new band."""
         self.pivoting.rebanded(c.band, c.bw, c.has_row)
 
     @property
@@ -175,7 +176,8 @@ class FILM:
         if not is_banded(c):
             return []
         return self.pivoting.kernel_calls(c.gap) + [
-            (apply_multipliers, (c.force, c.cs, c.cc, c.mass, c.free, c.dt, c.u, c.v, c.dt))]
+            (apply_multipliers, (c.force, c.cs, c.cc, c.mass, c.free, c.h_avg, c.u, c.v,
+                                 c.dt))]
 
     def correct(self, c) -> None:
         if is_banded(c):

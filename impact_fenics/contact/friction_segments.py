@@ -347,6 +347,7 @@ class SegmentTangential(FrictionFigures):
 
     def __init__(self, c, law: FrictionLaw, what: str, stiffness: float | str | None = None):
         self.c, self.law = c, law
+        self._local = c._local  # the owned dofs it moves, the set's (D of a varying step)
         self.penalty, self.stiffness = stiffness is not None, stiffness
         self.ct = tangent_rows(c.cc)
         # normal and tangential rows couple (a curved master face): the Tresca iteration

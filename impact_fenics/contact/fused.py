@@ -265,8 +265,8 @@ def _general_step(code, src_u, src_v, recv, F, ints, flags, misc):
     elif code == FILM_FAST:
         _film_fast(gap, d_inv, misc[KAPPA], force, active, lo, up, dt_over_m, dt, u, v, work)
     elif code == DME_PAIRS:
-        _pairs(gap, b, lo, up, mass, dt, misc[RESTITUTION], misc[MASS_WEIGHTED] != 0.0, u, v,
-               force, active)
+        _pairs(gap, b, lo, up, mass, misc[H_AVG], misc[RESTITUTION], misc[MASS_WEIGHTED] != 0.0,
+               u, v, force, active)
     elif lo[0] == F.shape[1] - 1:  # a body below its nodes
         _cluster(gap, b, up, lo[0], -1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
     else:

@@ -53,7 +53,7 @@ from mpi4py import MPI
 
 from ..errors import InputError
 from . import fused
-from .banded import apply_multipliers, band_of_s, bandwidth, bandwidth_of, gap_of
+from .banded import apply_multipliers, band_of_s_steps, bandwidth, bandwidth_of, gap_of
 from .dme import DME
 from .film import FILM
 from .pairing import Constraints
@@ -311,8 +311,9 @@ class ContactSet:
         (2(n_s + k), 2(n_s + k) + 1); constraint i is row i of G, six (slot ``cs[i]``,
         coefficient ``cc[i]``) entries: the slave's dofs with the normal n, the master
         nodes' with -N_a n and -N_b n. ``free`` is False on fixed dofs (never moved);
-        ``band``/``bw``: S = dt^2 G M^-1 G' (m/N) as a lower band. The force (N) pushes
-        the slave along n and the master nodes along -n in proportion to N_a, N_b."""
+        ``band``/``bw``: S = h_{n+1/2} h_n G M^-1 G' (m/N) as a lower band, rebuilt in place
+        by :meth:`set_step`. The force (N) pushes the slave along n and the master nodes
+        along -n in proportion to N_a, N_b."""
         integ, n = self.integrator, self.n
         model = integ.model
         self.kind, self.rigid, self.r, self._fused = SEGMENTS, None, c.r, None
@@ -344,7 +345,8 @@ class ContactSet:
         self.g0 = c.g0.copy()
         self.bw = bandwidth(self.cs, self.cc, self.minv)
         self.band = np.empty((n, self.bw + 1))
-        band_of_s(self.cs, self.cc, self.minv, self.dt, self.bw, self.band)
+        band_of_s_steps(self.cs, self.cc, self.minv, self.dt, self.h_avg, self.bw, self.band)
+        self.has_row = np.ones(n, dtype=np.bool_)  # which slaves have a row (_repair)
         if np.any(self.band[:, 0] <= 0.0):
             k = int(np.flatnonzero(self.band[:, 0] <= 0.0)[0])
             raise InputError(f"contact: the constraint of '{c.names[0]}' node at "
@@ -451,7 +453,7 @@ class ContactSet:
         self.repair_every = every
         if not every:
             return
-        self.has_row = np.ones(self.n, dtype=np.bool_)  # which slaves have a row (_repair)
+        self.has_row[:] = True
         c = self.constraints
         n_slave = c.slave_xy.shape[0]
         self._repairing = Repairing(c, repair_reach(c) if reach is None else reach, end_tol)
@@ -481,7 +483,7 @@ class ContactSet:
         if bw + 1 > self.band.shape[1]:
             self.band = np.empty((self.n, bw + 1))
         self.bw = bw
-        band_of_s(self.cs, self.cc, self.minv, self.dt, bw, self.band)
+        band_of_s_steps(self.cs, self.cc, self.minv, self.dt, self.h_avg, bw, self.band)
         rebanded = getattr(self.method, "rebanded", None)  # a user's method: none
         if rebanded is not None:
             rebanded(self)
@@ -498,7 +500,8 @@ class ContactSet:
         load(rows_of_pairs, p.active, p.a, p.b, p.xi, p.normal, p.gap, p.dist, r.reach, n_slave,
              self.u_now, self.cs, self.cc, self.g0)
         load(bandwidth_of, self.cs, self.cc, self.minv, self._first_row)
-        load(band_of_s, self.cs, self.cc, self.minv, self.dt, self.bw, self.band)
+        load(band_of_s_steps, self.cs, self.cc, self.minv, self.dt, self.h_avg, self.bw,
+             self.band)
         method_calls = getattr(self.method, "kernel_calls", None)  # its own, re-pairing's too
         for fn, args in (method_calls(self) if method_calls else []):
             load(fn, *args)
@@ -533,13 +536,14 @@ class ContactSet:
 
     def set_step(self, h: float, h_avg: float) -> None:
         """Steps h_{n+1/2} (positions) and h_n (velocities) of the next step (s): rewrite
-        every constant that holds them (h_n / m, m / h_n, S's diagonal and kappa, a
-        penalty chosen from S), in place. Nothing changes when they are the set's."""
+        every constant that holds them (h_n / m, m / h_n, S's diagonal and kappa or its
+        band, a penalty chosen from S), in place. Nothing changes when they are the set's."""
         if h == self.dt and h_avg == self.h_avg:
             return
-        if self.kind == SEGMENTS:
-            raise InputError("node-to-segment contact: the step must stay constant")
         self.dt, self.h_avg = float(h), float(h_avg)
+        if self.kind == SEGMENTS:
+            self._segment_step()
+            return
         self._step_constants()
         self.method.setup(self)
         if self.friction is not None:
@@ -551,6 +555,20 @@ class ContactSet:
             misc[DT], misc[H_AVG], misc[KAPPA] = self.dt, self.h_avg, self.kappa
             if self.rigid is not None:
                 misc[RIGID_MASS] = self.rigid.mass
+
+    def _segment_step(self) -> None:
+        """The segment kind at new steps (docs/node_to_segment.md, "A varying step"): m / h_n
+        and S = h_{n+1/2} h_n G M^-1 G' rewritten in place (its storage as it is), the method
+        told (``rebanded``: the pivoting's kept factor dropped, a penalty's p rescaled), the
+        tangential pass's constants too. Nothing is allocated (the dense comparison solver
+        aside)."""
+        np.divide(self.mass, self.h_avg, out=self.m_over_dt)
+        band_of_s_steps(self.cs, self.cc, self.minv, self.dt, self.h_avg, self.bw, self.band)
+        rebanded = getattr(self.method, "rebanded", None)  # a user's method: none
+        if rebanded is not None:
+            rebanded(self)
+        if self.friction is not None:
+            self.friction.set_step()
 
     def penalty_beta(self) -> float:
         """beta_max = lambda_max(P^1/2 S P^1/2) (-) of a penalty set at the current steps
@@ -688,8 +706,8 @@ class ContactSet:
     def apply_forces(self, force: np.ndarray) -> None:
         """Apply compressive contact forces (N) to the predicted state."""
         if self.kind == SEGMENTS:
-            apply_multipliers(force, self.cs, self.cc, self.mass, self.free, self.dt, self.u,
-                              self.v, self.dt)
+            apply_multipliers(force, self.cs, self.cc, self.mass, self.free, self.h_avg,
+                              self.u, self.v, self.dt)
             return
         apply_forces(force, self.lo, self.up, self.dt_over_m, self.dt, self.u, self.v)
 

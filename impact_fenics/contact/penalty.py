@@ -2,7 +2,8 @@
 
     force_i = p_i * max(0, -g~_i)
 
-Stability for persistent contact. With S = dt^2 G M^-1 G' (m/N) and P = diag(p),
+Stability for persistent contact. With S = dt^2 G M^-1 G' (m/N; h_{n+1/2} h_n G M^-1 G'
+under a varying step) and P = diag(p),
 the corrected gaps are g = (I - S P) g~. Take an isolated pair (or a mode of
 P^1/2 S P^1/2 with eigenvalue beta) and no elastic coupling. With y^n the gap
 change of the last step, g^{n+1} = (1 - beta)(g^n + y^n) and
@@ -57,7 +58,10 @@ takes each slave's p from the largest diagonal any of its rows can have,
 S_ii <= dt^2 (1/m_s + 1/m_min) (m_min the lightest free master node, since
 N_a^2 + N_b^2 <= 1), scaled by Gershgorin's bound at set-up; ``beta_max`` is the
 largest Gershgorin bound of the rows the run used (their off-diagonal entries change
-with the pairing).
+with the pairing). Under a varying step S scales with h_{n+1/2} h_n: a ``scaled`` or
+``auto`` p scales with its inverse (the same beta at every step, as node pairs, whose p
+is chosen again), a given p stays and its beta grows with the step (``beta_max`` keeps the
+largest, which the loop checks at every change of step).
 """
 from __future__ import annotations
 
@@ -159,7 +163,7 @@ class Penalty:
             n_slave = c.constraints.slave_xy.shape[0]
             worst = float(c.minv[2 * n_slave:].max(initial=0.0))
             slave_minv = np.maximum(c.minv[0:2 * n_slave:2], c.minv[1:2 * n_slave:2])
-            self.p = 1.0 / (c.dt * c.dt * (slave_minv + worst))
+            self.p = 1.0 / (c.dt * c.h_avg * (slave_minv + worst))
             self.p *= self.beta_target / gershgorin_beta(c.band, c.bw, self.p)
         elif self.choice == "scaled":
             self.p = 1.0 / d
@@ -178,10 +182,19 @@ class Penalty:
         self.info = {"p_choice": str(self.choice), "p_min": float(self.p.min()),
                      "p_max": float(self.p.max()), "beta_max": beta,
                      "beta_bound": STABILITY_BOUND}
+        # the step pair p was chosen at (s^2), and that p: a step change rescales from them
+        self._hh, self._hh_setup, self._p_setup = c.dt * c.h_avg, c.dt * c.h_avg, self.p.copy()
 
     def rebanded(self, c) -> None:
-        """S was rebuilt (a re-pairing): ``beta_max`` keeps the largest Gershgorin bound of
-        the rows the run has used (p is the set-up's)."""
+        """S was rebuilt (a re-pairing, a new step): at a new step pair a ``scaled`` or
+        ``auto`` p becomes the set-up's times h h_n (set-up) / h h_n (now), in place (S
+        scales with h_{n+1/2} h_n); ``beta_max`` keeps the largest Gershgorin bound of the
+        rows and steps the run has used (p is otherwise the set-up's)."""
+        hh = c.dt * c.h_avg
+        if hh != self._hh:
+            self._hh = hh
+            if isinstance(self.choice, str):  # 'scaled', 'auto': p ~ 1 / (h h_n)
+                np.multiply(self._p_setup, self._hh_setup / hh, out=self.p)
         beta = gershgorin_of(c.band, c.bw, self.p)
         if beta > self.info["beta_max"]:
             self.info["beta_max"] = beta
@@ -191,16 +204,14 @@ class Penalty:
         node-pair and rigid sets load theirs by one call)."""
         if not is_banded(c):
             return []
-        calls = [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free,
-                                    c.dt, c.u, c.v))]
-        if getattr(c, "repair_every", 0):  # a re-pairing's bound (rebanded)
-            calls.append((gershgorin_of, (c.band, c.bw, self.p)))
-        return calls
+        return [(_penalty_banded, (c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass,
+                                   c.free, c.dt, c.h_avg, c.u, c.v)),
+                (gershgorin_of, (c.band, c.bw, self.p))]  # rebanded's bound
 
     def correct(self, c) -> None:
         if is_banded(c):
             _penalty_banded(c.gap, self.p, c.force, c.active, c.cs, c.cc, c.mass, c.free, c.dt,
-                            c.u, c.v)
+                            c.h_avg, c.u, c.v)
             return
         _penalty(c.gap, self.p, c.force, c.active, c.lo, c.up, c.dt_over_m, c.dt, c.u, c.v)
 
@@ -216,9 +227,10 @@ def _penalty(gap, p, force, active, lo, up, dt_over_m, dt, u, v):
 
 
 @njit(cache=True)
-def _penalty_banded(gap, p, force, active, cs, cc, mass, free, dt, u, v):
-    """force_i = p_i max(0, -g~_i) (N), applied through G' (six dofs a row)."""
+def _penalty_banded(gap, p, force, active, cs, cc, mass, free, h, h_avg, u, v):
+    """force_i = p_i max(0, -g~_i) (N), applied through G' (six dofs a row): v by h_n M^-1 G'
+    force, u by h_{n+1/2} times that (``h``, ``h_avg``: h_{n+1/2}, h_n in s)."""
     for i in range(gap.size):
         active[i] = gap[i] < 0.0
         force[i] = -p[i] * gap[i] if active[i] else 0.0
-    apply_multipliers(force, cs, cc, mass, free, dt, u, v, dt)
+    apply_multipliers(force, cs, cc, mass, free, h_avg, u, v, h)

@@ -284,3 +284,47 @@ def track_bar(sim: Simulation, radius: float, length: float):
                 "stored_elastic": float(shares[0]), "plastic_work": float(shares[1]),
                 "length_definition": definition}
     return figures
+
+
+# ----------------------------------------------------------------------------- Taylor anvil
+
+def taylor_anvil(settings: Settings, material, anvil=STEEL, anvil_scale: float = 1.0,
+                 radius: float = 3.2e-3, length: float = 32.4e-3, n_r: int = 4,
+                 v0: float = 227.0, method="film", anvil_radius: float | None = None,
+                 anvil_depth: float | None = None, hold_anvil: bool = True,
+                 t_end: float = 80e-6, dt: float = 2.0 ** -28, dt_interval: int = 10,
+                 repair_every: int = 5, comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """The Taylor rod (a finite-strain ``material``, radius and length in m, n_r x
+    round(n_r length / radius) square Q1 cells, the body "rod") at ``v0`` (m/s, -z) onto an
+    ``anvil`` (a linear elastic material, small strain; its E and density both times
+    ``anvil_scale``, which keeps its wave speed and stable step and multiplies its
+    impedance), the body "anvil": r <= anvil_radius, -anvil_depth <= z <= 0 (default 3 R
+    and 2 R), square cells of the rod's size, on the same mesh as a second cell group
+    (:func:`~.quad_meshes.rod_on_anvil`). The rod's face (slave) meets the anvil's top
+    (master) through node-to-segment contact by ``method``, re-paired every
+    ``repair_every`` steps as the foot spreads; ``hold_anvil``: the anvil's bottom held in
+    u_z (free otherwise). The step is the fixed ``dt`` (s; it must divide t_end: the
+    segment kind takes a constant step) under the step that follows the rod's cells
+    (checked every dt_interval steps; the run stops, exit 3, once their limit falls
+    below dt). Its summary's rod shape and energies: ``sim.run(extra=sim.scene_figures)``
+    (:func:`track_bar`)."""
+    from .contact.segments import node_to_segment
+    from .quad_meshes import rod_on_anvil
+    from .stepping import FollowingStep
+
+    require(anvil_scale > 0, f"anvil scale = {anvil_scale}: must be > 0")
+    n_z = max(1, round(n_r * length / radius))
+    tmesh = rod_on_anvil(comm, radius, length, n_r, n_z,
+                         3.0 * radius if anvil_radius is None else anvil_radius,
+                         2.0 * radius if anvil_depth is None else anvil_depth)
+    steel = replace(anvil, E=anvil_scale * anvil.E, density=anvil_scale * anvil.density)
+    model = DeformableModel(tmesh, [Body("rod", material), Body("anvil", steel)])
+    fixed = [model.facet_dofs("anvil_bottom", 1)] if hold_anvil else []
+    sim = Simulation(model, settings, fixed=fixed, initial_velocity={"rod": (0.0, -v0)},
+                     policy=FollowingStep(None, t_end, dt, 0.5, dt_interval))
+    sim.add_contact(node_to_segment(model, "rod_contact", "anvil_contact"),
+                    make_method(method) if isinstance(method, str) else method)
+    if repair_every:
+        sim.contacts[-1].set_repairing(repair_every)
+    sim.scene_figures = track_bar(sim, radius, length)
+    return sim

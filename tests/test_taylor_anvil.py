@@ -1,0 +1,78 @@
+"""The Taylor rod onto a deformable anvil (short runs; the convergence to the rigid wall
+is the study tests/test_taylor_anvil_study.py).
+
+Scene (:func:`impact_fenics.scenes.taylor_anvil`): the copper rod of docs/taylor_bar.md
+(finite-strain J2 on Q1, R = 3.2 mm, L = 32.4 mm, n_r = 4) onto a steel anvil (linear
+elastic, small strain, Q1, 3 R wide and 2 R deep), two cell groups of one mesh whose faces
+share no node, node-to-segment contact (the rod's face the slave) re-paired every 5 steps,
+a fixed step (the segment kind takes a constant one) under the step that follows the rod's
+cells.
+
+Oracles:
+
+* z momentum: with the anvil free (no dof held in z, no load) no external force acts in
+  z, so the total z momentum (rod + anvil) keeps its initial value to the round-off of a
+  ledger (roundoff.ledger: the contact forces G' lam are equal and opposite only up to
+  their roundings, the finite force's and K's rows sum to zero only up to theirs);
+* the ledger: kinetic + strain + plastic + work gap - contact work = E_0, the kinetic
+  identity of the half-step scheme, within roundoff.ledger at every row;
+* re-pairing: at every re-pairing the pairs and rows of G equal a brute-force projection
+  of every slave onto every segment (test_contact_repair._Watch);
+* first touch, elastic (5 m/s: the rod's stress about 0.2 GPa x v0 / 227 m/s... far below
+  the 400 MPa yield): the stress at the interface is the 1D two-impedance value
+  sigma = Z1 Z2 v0 / (Z1 + Z2), Z = rho c_P the plane-strain-wave impedance of each body
+  (the state under a face struck as a whole is one of uniaxial strain), until a release
+  from an edge of the loaded area reaches the axis.
+"""
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import scenes
+from impact_fenics.materials import STEEL, FiniteJ2
+from impact_fenics.simulation import Settings
+from roundoff import ledger
+from test_contact_repair import _Watch
+
+COMM = MPI.COMM_WORLD
+R = 3.2e-3  # m, the rod's radius (docs/taylor_bar.md)
+COPPER = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
+DT = 2.0 ** -27  # s (7.5e-9: 0.06 of the rod's limit at set-up; exact multiples of it)
+
+
+def _settings() -> Settings:
+    return Settings(quiet=True, plots=False, timers=False, fields=False, energy_every=1)
+
+
+def _anvil(n_steps: int, v0: float, method: str = "film", anvil_scale: float = 1.0,
+           hold_anvil: bool = False, dt: float = DT):
+    return scenes.taylor_anvil(_settings(), COPPER, anvil_scale=anvil_scale, n_r=4, v0=v0,
+                               method=method, hold_anvil=hold_anvil, t_end=n_steps * dt,
+                               dt=dt)
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_momentum_ledger_and_repairing(method):
+    """227 m/s, 400 steps (3 us: the rim yields and starts to spread), the anvil free:
+    z momentum and the ledger within roundoff.ledger, every re-pairing the brute force's."""
+    sim = _anvil(400, 227.0, method)
+    watch = _Watch(sim)
+    summary = sim.run(extra=sim.scene_figures)
+    assert sim.status == "completed" and summary["n_steps"] == 400
+    e = sim.energy.data()
+    n_dofs = COMM.allreduce(sim.model.n_owned)
+    bound = ledger(sim.n_steps, n_dofs)
+    p = e["momentum_z"]
+    assert np.abs(p - p[0]).max() <= bound * abs(p[0])
+    assert np.abs(e["balance_error"]).max() <= bound * sim.ledger.E0
+    assert e["plastic_work"][-1] > 0.0  # the rod yields at 227 m/s
+    assert len(watch.steps) == sim.contacts[0].repairs == 400 // 5
+
+
+def _z(material) -> float:
+    """rho c_P (kg/m^2/s): the impedance of a plane (uniaxial-strain) wave."""
+    nu = material.nu
+    m = material.E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+    return math.sqrt(m * material.density)

@@ -47,7 +47,7 @@ study-taylor: setup
 
 # the Taylor rod onto a steel anvil whose E and density are scaled by 1, 10, ..., 10^4,
 # against the rigid wall (tests/test_taylor_anvil_study.py, docs/taylor_bar.md,
-# docs/figures/taylor_anvil.json; about 8 minutes on one core)
+# docs/figures/taylor_anvil.json; about 3 minutes on one core)
 study-taylor-anvil: setup
 	$(PY) -m pytest tests/test_taylor_anvil_study.py -m study -q -s
 

@@ -4,6 +4,9 @@ A rectangle r0 <= r <= r1, z0 <= z <= z1 (m) of n_r x n_z bilinear quadrilateral
 (dolfinx's ``create_rectangle``, as :func:`quad_bar` builds the bar of a scene's
 ``generator = "quad_bar"``), one cell group and the facet groups of its four sides, so that a
 :class:`~.bodies.DeformableModel` addresses it by name as a gmsh mesh.
+
+:func:`rod_on_anvil` puts two such rectangles on one mesh, a rod standing on an anvil
+block, as two cell groups whose faces share no node (a contact interface).
 """
 from __future__ import annotations
 

@@ -38,7 +38,7 @@ from roundoff import ledger
 from test_contact_repair import _Watch
 
 COMM = MPI.COMM_WORLD
-R = 3.2e-3  # m, the rod's radius (docs/taylor_bar.md)
+R, L = 3.2e-3, 32.4e-3  # m, the rod's radius and length (docs/taylor_bar.md)
 COPPER = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
 DT = 2.0 ** -27  # s (7.5e-9: 0.07 of the limit at set-up, the anvil's 1.1e-7 s; a power
 # of two, so that t = n DT is exact and the run ends in equal steps)
@@ -71,6 +71,9 @@ def test_momentum_ledger_and_repairing(method):
     assert np.abs(e["balance_error"]).max() <= bound * sim.ledger.E0
     assert e["plastic_work"][-1] > 0.0  # the rod yields at 227 m/s
     assert len(watch.steps) == sim.contacts[0].repairs == 400 // 5
+    # the figures are the rod's (the anvil's nodes at (0, 0) and (R, 0) are left out):
+    # its rim has spread, its axis has shortened
+    assert summary["final_face_radius"] > R and summary["final_length"] < L
 
 
 def _z(material) -> float:
@@ -106,3 +109,29 @@ def test_first_touch_stress_is_the_two_impedance_value(anvil_scale, n_r):
     assert sigma[window].mean() == pytest.approx(expected, rel=(h / c2) / (t_b - t_a))
     e = sim.energy.data()
     assert not e["plastic_work"].any()  # elastic
+
+
+def test_the_mesh_holds_two_bodies_that_share_no_node():
+    """quad_meshes.rod_on_anvil through the scene: each body's lumped mass (the row sums
+    rho int N_a 2 pi r dA over its own nodes) adds up to rho V of its cylinder, pi R^2 L and
+    pi (3R)^2 2R, to the round-off of a node's mass (about 30 roundings) and of the sum (one
+    a node): the bodies' nodes are disjoint and their cells fill the two cylinders."""
+    from roundoff import rounding
+
+    sim = _anvil(1, 227.0)
+    model, mass = sim.model, sim.integrator.mass
+    for body, density, volume in (("rod", COPPER.density, math.pi * R ** 2 * L),
+                                  ("anvil", STEEL.density, math.pi * (3 * R) ** 2 * 2 * R)):
+        z = model.body_dofs(body, 1)
+        total = COMM.allreduce(float(mass[z].sum()))
+        n = COMM.allreduce(z.size)
+        assert abs(total - density * volume) <= rounding(30 + n, density * volume)
+    rod, anvil = (set(model.to_global(model.body_dofs(b, 1)).tolist()) for b in ("rod", "anvil"))
+    assert not COMM.allreduce(len(rod & anvil))  # owned dofs: each node once over the ranks
+
+
+def test_an_anvil_narrower_than_the_rod_is_refused():
+    from impact_fenics.errors import InputError
+
+    with pytest.raises(InputError, match="anvil radius"):
+        scenes.taylor_anvil(_settings(), COPPER, anvil_radius=0.5 * R, t_end=DT, dt=DT)

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study study-taylor study-shpb study-upsetting study-hertz-cylinder docs clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor study-taylor-anvil study-shpb study-upsetting study-hertz-cylinder docs clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -44,6 +44,12 @@ test-modern: setup-modern
 # the Taylor bar on three meshes against the literature (tests/test_taylor_study.py; long)
 study-taylor: setup
 	$(PY) -m pytest tests/test_taylor_study.py -m study -q -s
+
+# the Taylor rod onto a steel anvil whose E and density are scaled by 1, 10, ..., 10^4,
+# against the rigid wall (tests/test_taylor_anvil_study.py, docs/taylor_bar.md,
+# docs/figures/taylor_anvil.json; about 3 minutes on one core)
+study-taylor-anvil: setup
+	$(PY) -m pytest tests/test_taylor_anvil_study.py -m study -q -s
 
 # the SHPB's recovered J2 curve on the shipped and the halved mesh against the law
 # (tests/test_shpb_study.py), and friction mu = 0, 0.1, 0.2 at the specimen's faces against

@@ -4,6 +4,9 @@ A rectangle r0 <= r <= r1, z0 <= z <= z1 (m) of n_r x n_z bilinear quadrilateral
 (dolfinx's ``create_rectangle``, as :func:`quad_bar` builds the bar of a scene's
 ``generator = "quad_bar"``), one cell group and the facet groups of its four sides, so that a
 :class:`~.bodies.DeformableModel` addresses it by name as a gmsh mesh.
+
+:func:`rod_on_anvil` puts two such rectangles on one mesh, a rod standing on an anvil
+block, as two cell groups whose faces share no node (a contact interface).
 """
 from __future__ import annotations
 
@@ -99,4 +102,59 @@ def quad_rectangle(comm: MPI.Comm, r0: float, z0: float, r1: float, z1: float, n
                                   cell_type=dmesh.CellType.quadrilateral)
     tm = tag_rectangle(mesh, body)
     tm.info["h"] = max((r1 - r0) / n_r, (z1 - z0) / n_z)
+    return tm
+
+
+def rod_on_anvil(comm: MPI.Comm, radius: float, length: float, n_r: int, n_z: int,
+                 anvil_radius: float, anvil_depth: float) -> TaggedMesh:
+    """A rod 0 <= r <= radius, 0 <= z <= length (m) of n_r x n_z quadrilaterals standing on
+    an anvil block 0 <= r <= anvil_radius, -anvil_depth <= z <= 0 (m), one mesh of two
+    structured Q1 cell groups that share no node (the faces at z = 0 are a contact
+    interface). The anvil's cells are squares of the rod's radial size h = radius / n_r
+    where its sizes allow (round(anvil_radius / h) x round(anvil_depth / h) cells), so
+    its top matches the rod's face node for node at r <= radius at set-up.
+
+    Groups: cells "rod", "anvil"; facets "rod_contact" (the rod's face z = 0),
+    "rod_lateral", "rod_end" (z = length), "anvil_contact" (the anvil's top),
+    "anvil_lateral", "anvil_bottom", "axis" (both bodies')."""
+    from .meshing import _generate, _group, _to_dolfinx
+
+    require(radius > 0 and length > 0, "rod radius and length must be > 0 (m)")
+    require(n_r >= 1 and n_z >= 1, "n_r and n_z must be >= 1")
+    require(anvil_radius >= radius, f"anvil radius = {anvil_radius} m: must be at least the "
+            f"rod's ({radius} m)")
+    require(anvil_depth > 0, f"anvil depth = {anvil_depth} m: must be > 0")
+    h = radius / n_r
+    m_r, m_z = max(1, round(anvil_radius / h)), max(1, round(anvil_depth / h))
+
+    def rectangle(geo, r0, z0, r1, z1, nr, nz):
+        p = [geo.addPoint(r0, z0, 0, h), geo.addPoint(r1, z0, 0, h),
+             geo.addPoint(r1, z1, 0, h), geo.addPoint(r0, z1, 0, h)]
+        c = [geo.addLine(p[k], p[(k + 1) % 4]) for k in range(4)]  # bottom, right, top, left
+        s = geo.addPlaneSurface([geo.addCurveLoop(c)])
+        for k, n in ((0, nr), (2, nr), (1, nz), (3, nz)):
+            geo.mesh.setTransfiniteCurve(c[k], n + 1)
+        geo.mesh.setTransfiniteSurface(s, "Alternate")
+        geo.mesh.setRecombine(2, s)
+        return s, c
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        rod, c1 = rectangle(geo, 0.0, 0.0, radius, length, n_r, n_z)
+        anvil, c2 = rectangle(geo, 0.0, -anvil_depth, anvil_radius, 0.0, m_r, m_z)
+        geo.synchronize()
+        _group(gmsh, 2, [rod], "rod", 1)
+        _group(gmsh, 2, [anvil], "anvil", 2)
+        for name, curves, tag in (("rod_contact", [c1[0]], 11), ("rod_lateral", [c1[1]], 12),
+                                  ("rod_end", [c1[2]], 13), ("anvil_contact", [c2[2]], 14),
+                                  ("anvil_lateral", [c2[1]], 15), ("anvil_bottom", [c2[0]], 16),
+                                  ("axis", [c1[3], c2[3]], 17)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    tm = _to_dolfinx(comm, build, {"scene": "rod_on_anvil", "radius": radius,
+                                   "length": length, "n_r": n_r, "n_z": n_z,
+                                   "anvil_radius": anvil_radius, "anvil_depth": anvil_depth})
+    tm.info["h"] = h
+    tm.info["anvil_cells"] = (m_r, m_z)
     return tm

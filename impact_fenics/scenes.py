@@ -240,7 +240,7 @@ def taylor_bar(settings: Settings, material, radius: float = 3.2e-3, length: flo
     return sim
 
 
-def track_bar(sim: Simulation, radius: float, length: float):
+def track_bar(sim: Simulation, radius: float, length: float, body: str | None = None):
     """A bar's shape (0 <= r <= radius, 0 <= z <= length, m): displacement probes at the
     ends of its axis and at the corner of its impact face (history.csv: u_z_top,
     u_z_bottom, u_r_corner; in plane strain, (x, y): u_y_top, u_y_bottom, u_x_corner),
@@ -249,18 +249,22 @@ def track_bar(sim: Simulation, radius: float, length: float):
     started at (0, 0)), ``final_face_radius`` (m, r of the node that started at (R, 0)),
     from those nodes' displacements, and the stored energy psi(u^N) ``stored_elastic``
     and the plastic work ``plastic_work`` (J) of the finite-strain bodies' points at u^N
-    (the summary's evaluation there; the last energy row's are of the step before)."""
+    (the summary's evaluation there; the last energy row's are of the step before).
+    ``body``: the bar is this body of a scene whose other body touches it at z = 0 (an
+    anvil): the nodes are the body's, and the probes on z = 0 read its cells at z = 1e-9 L."""
     model, comm = sim.model, sim.comm
     plane = model.geometry.plane  # plane strain: (x, y), the names u_x, u_y
     across, along = ("u_x", "u_y") if plane else ("u_r", "u_z")
-    tracked = ((f"{along}_top", (0.0, length), along), (f"{along}_bottom", (0.0, 0.0), along),
-               (f"{across}_corner", (radius, 0.0), across))
-    for name, point, quantity in tracked:
-        sim.add_probe(name, point, quantity)
-    xy = model.node_xy[: model.n_owned // 2]
     tol = 1e-9 * length  # m: far above round-off, far below a cell
-    nodes = [np.flatnonzero(np.hypot(xy[:, 0] - r, xy[:, 1] - z) <= tol)
-             for _, (r, z), _ in tracked]
+    corners = ((0.0, length), (0.0, 0.0), (radius, 0.0))  # the tracked nodes (m)
+    lift = 0.0 if body is None else tol  # a point on the interface is in both bodies' cells
+    for (name, quantity), (r, z) in zip(((f"{along}_top", along), (f"{along}_bottom", along),
+                                         (f"{across}_corner", across)), corners):
+        sim.add_probe(name, (r, z if z > 0.0 else lift), quantity)
+    xy = model.node_xy[: model.n_owned // 2]
+    mine = (np.arange(xy.shape[0]) if body is None
+            else np.unique(model.body_dofs(body, 0) // 2))
+    nodes = [mine[np.hypot(xy[mine, 0] - r, xy[mine, 1] - z) <= tol] for r, z in corners]
 
     first, second = ("x", "y") if plane else ("r", "z")
     definition = (f"final_length: the {'length on x = 0' if plane else 'axis length'}, "
@@ -284,3 +288,47 @@ def track_bar(sim: Simulation, radius: float, length: float):
                 "stored_elastic": float(shares[0]), "plastic_work": float(shares[1]),
                 "length_definition": definition}
     return figures
+
+
+# ----------------------------------------------------------------------------- Taylor anvil
+
+def taylor_anvil(settings: Settings, material, anvil=STEEL, anvil_scale: float = 1.0,
+                 radius: float = 3.2e-3, length: float = 32.4e-3, n_r: int = 4,
+                 v0: float = 227.0, method="film", anvil_radius: float | None = None,
+                 anvil_depth: float | None = None, hold_anvil: bool = True,
+                 t_end: float = 80e-6, dt: float = 2.0 ** -28, dt_interval: int = 10,
+                 repair_every: int = 5, comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """The Taylor rod (a finite-strain ``material``, radius and length in m, n_r x
+    round(n_r length / radius) square Q1 cells, the body "rod") at ``v0`` (m/s, -z) onto an
+    ``anvil`` (a linear elastic material, small strain; its E and density both times
+    ``anvil_scale``, which keeps its wave speed and stable step and multiplies its
+    impedance), the body "anvil": r <= anvil_radius, -anvil_depth <= z <= 0 (default 3 R
+    and 2 R), square cells of the rod's size, on the same mesh as a second cell group
+    (:func:`~.quad_meshes.rod_on_anvil`). The rod's face (slave) meets the anvil's top
+    (master) through node-to-segment contact by ``method``, re-paired every
+    ``repair_every`` steps as the foot spreads; ``hold_anvil``: the anvil's bottom held in
+    u_z (free otherwise). The step is the fixed ``dt`` (s; it must divide t_end: the
+    segment kind takes a constant step) under the step that follows the rod's cells
+    (checked every dt_interval steps; the run stops, exit 3, once their limit falls
+    below dt). Its summary's rod shape and energies: ``sim.run(extra=sim.scene_figures)``
+    (:func:`track_bar`)."""
+    from .contact.segments import node_to_segment
+    from .quad_meshes import rod_on_anvil
+    from .stepping import FollowingStep
+
+    require(anvil_scale > 0, f"anvil scale = {anvil_scale}: must be > 0")
+    n_z = max(1, round(n_r * length / radius))
+    tmesh = rod_on_anvil(comm, radius, length, n_r, n_z,
+                         3.0 * radius if anvil_radius is None else anvil_radius,
+                         2.0 * radius if anvil_depth is None else anvil_depth)
+    steel = replace(anvil, E=anvil_scale * anvil.E, density=anvil_scale * anvil.density)
+    model = DeformableModel(tmesh, [Body("rod", material), Body("anvil", steel)])
+    fixed = [model.facet_dofs("anvil_bottom", 1)] if hold_anvil else []
+    sim = Simulation(model, settings, fixed=fixed, initial_velocity={"rod": (0.0, -v0)},
+                     policy=FollowingStep(None, t_end, dt, 0.5, dt_interval))
+    sim.add_contact(node_to_segment(model, "rod_contact", "anvil_contact"),
+                    make_method(method) if isinstance(method, str) else method)
+    if repair_every:
+        sim.contacts[-1].set_repairing(repair_every)
+    sim.scene_figures = track_bar(sim, radius, length, body="rod")
+    return sim

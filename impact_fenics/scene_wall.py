@@ -72,9 +72,18 @@ def read_wall(data: Any) -> WallSpec:
     return wall
 
 
+# generators that make quadrilaterals with quadrilaterals = true (quad_bar always does)
+QUAD_OPTION = ("coaxial_bars_sized", "shpb", "block")
+
+
+def quadrilateral_generator(generator: str | None, params: dict) -> bool:
+    """Whether the generator mesh is of Q1 quadrilaterals (a finite-strain body's cells)."""
+    return generator == "quad_bar" or (generator in QUAD_OPTION
+                                       and bool(params.get("quadrilaterals")))
+
+
 def check_kind(scene) -> None:
     """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
-    kinds = {b.strain for b in scene.bodies}
     if not scene.finite:
         if scene.wall is not None and scene.wall.face == "held":
             raise InputError('[wall] face = "held": a finite-strain body\'s condition; hold a '
@@ -93,41 +102,41 @@ def check_kind(scene) -> None:
         return
     body = next(b for b in scene.bodies if b.strain == "finite")
     where = f'[bodies.{body.name}] strain = "finite":'
-    # two finite-strain bars in node-to-segment contact on Q1 coaxial bars
-    two = (scene.mesh.generator == "coaxial_bars_sized"
-           and scene.mesh.params.get("quadrilaterals") and len(kinds) == 1)
-    if not two and (len(scene.bodies) > 1 or len(kinds) > 1):
-        raise InputError(f"{where} a finite-strain scene has one body for now (the mesh is "
-                         "quadrilateral and no body-to-body contact runs on it), or every body "
-                         'finite on generator = "coaxial_bars_sized" with quadrilaterals = true')
-    if two:
-        for c in scene.contacts:
-            if c.slave is None or c.rigid is not None:
-                raise InputError(f"{c.where} two finite-strain bodies meet node to segment "
-                                 "(give slave and master)")
-        if scene.time["dt"] is None:
-            raise InputError("[time] dt: node-to-segment contact takes a constant step: give a "
-                             "fixed dt (s) that divides t_end")
-    elif scene.mesh.generator != "quad_bar":
+    bar = scene.mesh.generator == "quad_bar"
+    if not bar and not quadrilateral_generator(scene.mesh.generator, scene.mesh.params):
         given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
                  else f'file = "{scene.mesh.file}"')
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
         raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
-                         f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+                         f" or quadrilaterals = true ({', '.join(QUAD_OPTION)}){file_note}: "
+                         f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+    if bar and len(scene.bodies) > 1:
+        raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
+                         f"{len(scene.bodies)} ([bodies])")
+    if bar and scene.contacts:
+        raise InputError(f"[[contact]]: not available with finite strain yet on quad_bar ({where} "
+                         "runs against a [wall]; bodies in contact need a mesh of several: "
+                         f"{', '.join(QUAD_OPTION)} with quadrilaterals = true)")
+    if any(c.slave is not None for c in scene.contacts):  # the segment kind: one step
+        if scene.time["dt"] is None:
+            raise InputError("[time] dt: node-to-segment contact takes a constant step: give a "
+                             "fixed dt (s) that divides t_end")
+    if scene.wall is not None and scene.wall.face == "held" and not bar:
+        raise InputError('[wall] face = "held": holds the face Z = 0 of the bar on '
+                         'generator = "quad_bar"; hold a face with [[fixed]] (components = '
+                         '["z"])')
     if scene.wall is not None and scene.wall.friction is not None \
             and scene.wall.method == "penalty":
         raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
                          "tangential spring is not built for a finite-strain body (use method "
                          "= \"film\" or \"dme\")")
-    refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"), ("probes", "[[probes]]"))
-    if not two:
-        refused = (("contacts", "[[contact]]"),) + refused
-    elif scene.wall is not None:
-        refused = (("wall", "[wall]"),) + refused
+    refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"))
+    if bar:  # the bar's own probes (its tracked nodes) fill its history
+        refused += (("probes", "[[probes]]"),)
     for key, what in refused:
         if getattr(scene, key):
             raise InputError(f"{what}: not available with finite strain yet ({where} runs "
-                             "against a [wall], or two finite bodies node to segment)")
+                             "against a [wall], or with other bodies in [[contact]])")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "

@@ -282,7 +282,8 @@ def test_the_scene_file_runs_two_finite_bodies(tmp_path):
 @pytest.mark.parametrize("edit, message", [
     (("dt = 5.9604644775390625e-08     # s, 2^-24 (exact)\n", "cfl = 0.5\n"),
      "[time] dt: node-to-segment contact takes a constant step"),
-    (("quadrilaterals = true\n", ""), "a finite-strain scene has one body for now"),
+    (("quadrilaterals = true\n", ""), 'a finite-strain body needs generator = "quad_bar" or '
+     "quadrilaterals = true"),
 ])
 def test_the_scene_file_refuses(tmp_path, capsys, edit, message):
     from impact_fenics import cli

@@ -5,7 +5,9 @@ A scene chooses finite strain per body, ``strain = "finite"`` in [bodies.NAME]
 (internal_force/finite.py) and run in the one loop (:class:`~.simulation.Simulation`,
 built by :func:`.scene_file.build`) under a step that follows their cells
 (:class:`~.stepping.FollowingStep`: cfl x the current limit re-estimated every
-``dt_interval`` steps, or a fixed dt checked against it). Such a scene holds, for now:
+``dt_interval`` steps, or a fixed dt checked against it). Its cells are quadrilaterals
+(:func:`quadrilateral_generator`; on triangles it is refused in one line: constant-strain
+triangles lock under isochoric flow). Such a scene holds, for now, either
 
 * one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
   across the radius, square cells; the bar spans 0 <= z <= length);
@@ -23,12 +25,16 @@ built by :func:`.scene_file.build`) under a step that follows their cells
   references; needs z = 0; the face's stop, 1/2 m_face v0^2 in J, is reported as
   impact_face_loss);
 * [[fixed]] faces (the groups axis, outer, bottom, top);
-* ``[time]`` t_end (s) and either cfl (<= 1) or dt (a fixed step, s); dt_interval
-  (steps, default 10);
 * no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line);
-* or two finite-strain bodies on ``generator = "coaxial_bars_sized"`` with
-  ``quadrilaterals = true``, in node-to-segment [[contact]], no [wall], a fixed ``dt``
-  that divides t_end (the segment kind takes one step).
+
+or any number of bodies, each small or finite strain, on ``coaxial_bars_sized``,
+``shpb`` or ``block`` with ``quadrilaterals = true`` (small strain on Q1: linear, or
+path-dependent with mean dilatation), in node-pair or node-to-segment [[contact]] with
+each other (node to segment takes one step: a fixed ``dt`` that divides t_end), with
+[[probes]] and [[fixed]] faces; no [wall], [rigid] or [[loads]] (refused, one line).
+
+In both, ``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
+dt_interval (steps, default 10); n_steps, force_dt and converged_dt are refused.
 
 A small-strain scene may not use dt_interval; its [wall] is the same plane, with
 ``face = "contact"`` only (a held face is a [[fixed]] u_z). On ``quad_bar`` it has one
@@ -121,10 +127,6 @@ def check_kind(scene) -> None:
         if scene.time["dt"] is None:
             raise InputError("[time] dt: node-to-segment contact takes a constant step: give a "
                              "fixed dt (s) that divides t_end")
-    if scene.wall is not None and scene.wall.face == "held" and not bar:
-        raise InputError('[wall] face = "held": holds the face Z = 0 of the bar on '
-                         'generator = "quad_bar"; hold a face with [[fixed]] (components = '
-                         '["z"])')
     if scene.wall is not None and scene.wall.friction is not None \
             and scene.wall.method == "penalty":
         raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
@@ -133,10 +135,13 @@ def check_kind(scene) -> None:
     refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"))
     if bar:  # the bar's own probes (its tracked nodes) fill its history
         refused += (("probes", "[[probes]]"),)
+    else:  # bodies in contact with each other (the wall's finite-strain checks: one bar)
+        refused += (("wall", "[wall]"),)
     for key, what in refused:
         if getattr(scene, key):
             raise InputError(f"{what}: not available with finite strain yet ({where} runs "
-                             "against a [wall], or with other bodies in [[contact]])")
+                             "against a [wall] on quad_bar, or with other bodies in "
+                             "[[contact]])")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "

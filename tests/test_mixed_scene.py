@@ -26,6 +26,9 @@ Oracles:
   cell h changes u and v by at most eps c0 t / h of their largest value. And the
   difference is first order: halving v0 halves it, within the same O(eps) factor
   (tests/test_two_finite_bodies.py states the same bound for two finite bodies).
+* bad input: a [wall] beside bodies in contact, a finite-strain body on triangles, and
+  node-to-segment contact under a step that follows the cells are refused in one line,
+  exit 2.
 
 Every test runs unchanged on 1, 2 and 3 ranks (the compared arrays gathered).
 """
@@ -220,3 +223,26 @@ def test_low_speed_finite_target_equals_small_strain(tmp_path_factory, monkeypat
     eps = 1.0 / C0
     for k in (0, 1):  # first order in the strain: the remainder is O(eps) of it
         assert abs(rel[1.0][k] / rel[0.5][k] / 2.0 - 1.0) <= eps * amplification
+
+
+@pytest.mark.parametrize("edits, message", [
+    ([("[time]", '[wall]\nz = -12.8e-3\nmethod = "film"\n\n[time]')],
+     "[wall]: not available with finite strain yet"),
+    ([("quadrilaterals = true\n", "")],
+     '[mesh] generator = "coaxial_bars_sized": a finite-strain body needs generator = '
+     '"quad_bar" or quadrilaterals = true (coaxial_bars_sized, shpb, block): finite strain '
+     "needs quadrilaterals"),
+    (PAIRS[3:], "[time] dt: node-to-segment contact takes a constant step"),
+], ids=["wall", "triangles", "segments under cfl"])
+def test_the_mixed_scene_refuses(tmp_path_factory, capsys, edits, message):
+    """Bad input: one line naming the table, exit 2, no traceback."""
+    _, scene = scene_on_every_rank(tmp_path_factory, "mixed_bad", _text(edits))
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["run", scene, "--out", os.path.join(os.path.dirname(scene), "out"),
+                  "--quiet"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert len(lines) == 1 and lines[0].startswith(f"error: {message}"), err
+        assert "Traceback" not in err

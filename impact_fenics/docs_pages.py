@@ -174,18 +174,31 @@ or a fixed `dt` checked against it (the run stops, exit 3, once the limit falls 
 it); the last step is clipped to `t_end`. Its outputs are every scene's (history.csv
 with displacement probes at the bar's tracked nodes, energy.csv with the ledger's
 columns, summary.json with the final length and face radius, fields.xdmf with the
-Cauchy stress and eps_p_eq per cell, contact_pairs.h5). Such a scene holds, for now,
-one body on `generator = "quad_bar"` with a material that has a finite-strain form
-(`"j2"`, rate-independent; `"johnson_cook"`; `"neo_hookean"`; or a class of your own
-with `strain = "finite"`), optionally a `[wall]` and `[[fixed]]` faces, and `t_end`;
-`[[contact]]`, `[rigid]`, `[[loads]]`, `[[probes]]`, `n_steps`, `force_dt` and
-`converged_dt` are refused there, as are `[wall] face = "held"` and `dt_interval` in a
-small-strain scene. Two finite-strain bodies run on `generator = "coaxial_bars_sized"`
-with `quadrilaterals = true` (the striker and the target, Q1 cells), in node-to-segment
-`[[contact]]` (`slave`, `master`, optionally `repair_every`), without a `[wall]`, under
-the step that follows their cells (`cfl` or a fixed `dt`, as for one body). A material at a kinematics it
-lacks is refused in one line naming the one it has. `scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the
-examples; [materials.md](materials.md) describes the element and the materials.
+Cauchy stress and eps_p_eq per cell, contact_pairs.h5). A finite-strain body needs
+quadrilaterals: `generator = "quad_bar"`, or `quadrilaterals = true` on
+`"coaxial_bars_sized"`, `"shpb"` or `"block"`; on triangles (any other generator, or a
+mesh file for now) it is refused in one line (constant-strain triangles lock under
+isochoric plastic flow). Its material has a finite-strain form (`"j2"`,
+rate-independent; `"johnson_cook"`; `"neo_hookean"`; or a class of your own with
+`strain = "finite"`); a material at a kinematics it lacks is refused in one line naming
+the one it has. Such a scene holds, for now, either
+
+- one body on `generator = "quad_bar"`, optionally a `[wall]` and `[[fixed]]` faces
+  (`[[contact]]`, `[rigid]`, `[[loads]]` and `[[probes]]` are refused there: the bar's
+  history has its own probes at its tracked nodes), or
+- any number of bodies on `coaxial_bars_sized`, `shpb` or `block` with
+  `quadrilaterals = true`, each small strain (linear, or path-dependent with mean
+  dilatation on Q1) or finite strain, in node-pair (`lower`, `upper`) or node-to-segment
+  (`slave`, `master`, optionally `repair_every`) `[[contact]]` with each other, with
+  `[[probes]]` and `[[fixed]]` faces (`[wall]`, `[rigid]` and `[[loads]]` are refused
+  there), under the step that follows the cells (`cfl`) or a fixed `dt`, for node pairs
+  and node to segment alike.
+
+`n_steps`, `force_dt` and `converged_dt` are refused in a finite-strain scene, as are
+`[wall] face = "held"` and `dt_interval` in a small-strain one.
+`scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the examples of a
+bar against a wall, `scenes/shpb_finite.toml` of a finite-strain specimen between linear
+bars; [materials.md](materials.md) describes the element and the materials.
 
 ## Small strain on quadrilaterals
 
@@ -195,7 +208,8 @@ facet groups `axis` (r = 0), `outer`, `bottom` (z = 0) and `top`; `[[loads]]`,
 `[[fixed]]` and `[[probes]]` as on triangles (a probe's `u_r`, `u_z` are the bilinear
 interpolation at its point, its stresses the cell's) and a rigid body's `[[contact]]`
 (a contact between deformable faces needs two bodies). `scenes/elastic_wave_q1.toml` is
-the example.
+the example. Several small-strain bodies run on Q1 on the generators with
+`quadrilaterals = true`, with each other and with finite-strain bodies (above).
 """
 
 

@@ -638,7 +638,7 @@ def shpb(bar_diameter: float = 0.02, striker_length: float = 0.2, incident_lengt
          transmitter_length: float = 0.6, specimen_diameter: float = 0.01,
          specimen_length: float = 0.005, h_bar: float = 0.001, h_specimen: float = 0.00025,
          structured: bool = True, bar_yield_stress: float | None = None,
-         comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+         quadrilaterals: bool = False, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     """A split Hopkinson pressure bar on the axis (m): the striker z in [-striker_length, 0],
     the incident bar [0, L_i], the specimen [L_i, L_i + L_s] and the transmitter bar
     [L_i + L_s, L_i + L_s + L_t], L_i = incident_length, L_s = specimen_length,
@@ -652,12 +652,16 @@ def shpb(bar_diameter: float = 0.02, striker_length: float = 0.2, incident_lengt
     "striker_face", "incident_struck", "incident_face", "specimen_front", "specimen_back",
     "transmitter_face", "transmitter_end", "lateral" (every body's), "axis".
 
+    ``quadrilaterals`` (with ``structured``): each body's structured grid recombined into
+    Q1 cells (a finite-strain specimen needs them; the bars are small strain on Q1).
+
     ``bar_yield_stress`` (Pa) shapes nothing: the scene's check of the bars' stress
     (:func:`impact_fenics.shpb.run_analysis.bar_stress_warning`) reads it from the same table.
     """
     require(min(bar_diameter, striker_length, incident_length, transmitter_length,
                 specimen_diameter, specimen_length, h_bar, h_specimen) > 0,
             "shpb: diameters, lengths and sizes must be > 0 (m)")
+    require(structured or not quadrilaterals, "shpb: quadrilaterals need the structured mesh")
     require(specimen_diameter <= bar_diameter, f"shpb: specimen_diameter = {specimen_diameter} m "
             f"is larger than bar_diameter = {bar_diameter} m: the specimen must sit on the bars' ends")
     a, b = 0.5 * bar_diameter, 0.5 * specimen_diameter
@@ -671,6 +675,9 @@ def shpb(bar_diameter: float = 0.02, striker_length: float = 0.2, incident_lengt
                                                ("transmitter", a, h_bar))):
             s, c = _rectangle(gmsh, 0.0, z[k], radius, z[k + 1], h,
                               n_r=max(1, int(round(radius / h))), structured=structured)
+            if quadrilaterals:
+                gmsh.model.geo.mesh.setRecombine(2, s)
+                gmsh.model.geo.synchronize()
             _group(gmsh, 2, [s], name, k + 1)
             curves.append(c)
         (s_, i_, p_, t_) = curves

@@ -131,7 +131,15 @@ def _graded_block(p: dict) -> Region:
 
 
 def generator_regions(generator: str, p: dict) -> list[Region]:
-    """The regions of a generator mesh with parameters ``p`` (its defaults filled in)."""
+    """The regions of a generator mesh with parameters ``p`` (its defaults filled in); with
+    ``quadrilaterals``, each structured grid's triangle pairs are one quadrilateral."""
+    regions = _regions(generator, p)
+    if p.get("quadrilaterals") and generator != "block":
+        regions = [Region(r.body, 0.5 * r.cells, r.nodes, r.h, "quad") for r in regions]
+    return regions
+
+
+def _regions(generator: str, p: dict) -> list[Region]:
     if generator == "bar":
         return [_rectangle("bar", p["radius"], p["length"], p["h"], p["structured"])]
     if generator in ("coaxial_bars", "coaxial_bars_sized"):

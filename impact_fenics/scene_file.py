@@ -543,7 +543,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         pairs.append(across / h_min + 1 if across else math.sqrt(cells))
     if scene.wall is not None and not scene.finite:  # its set: every boundary node
         pairs.append(4 * math.sqrt(cells))
-    if scene.finite:
+    if scene.finite and scene.mesh.generator == "quad_bar":
         columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
         energy_columns = 0
     else:

@@ -123,8 +123,9 @@ _MESH = Section("mesh", "[mesh]", (
     Key("width", "positive", "m", _GEN, "block width (x in [0, width]; a plane-strain section, "
         "or r in axisymmetry)", groups=("block",)),
     Key("height", "positive", "m", _GEN, "block height (y in [0, height])", groups=("block",)),
-    Key("quadrilaterals", "flag", "", _GEN, "Q1 quadrilaterals instead of triangles",
-        groups=("block", "coaxial_bars_sized")),
+    Key("quadrilaterals", "flag", "", _GEN, "Q1 quadrilaterals instead of triangles (with "
+        "structured; a finite-strain body needs them)",
+        groups=("block", "coaxial_bars_sized", "shpb")),
     Key("depth", "positive", "m", _GEN, "block depth (z in [-depth, 0])", groups=("punch_block",)),
     Key("h_surface", "positive", "m", _GEN, "element size at the surface", groups=("punch_block",)),
     Key("grading", "positive", "m/m", _GEN, "growth of the element size with the distance "

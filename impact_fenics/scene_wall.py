@@ -5,7 +5,9 @@ A scene chooses finite strain per body, ``strain = "finite"`` in [bodies.NAME]
 (internal_force/finite.py) and run in the one loop (:class:`~.simulation.Simulation`,
 built by :func:`.scene_file.build`) under a step that follows their cells
 (:class:`~.stepping.FollowingStep`: cfl x the current limit re-estimated every
-``dt_interval`` steps, or a fixed dt checked against it). Such a scene holds, for now:
+``dt_interval`` steps, or a fixed dt checked against it). Its cells are quadrilaterals
+(:func:`quadrilateral_generator`; on triangles it is refused in one line: constant-strain
+triangles lock under isochoric flow). Such a scene holds, for now, either
 
 * one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
   across the radius, square cells; the bar spans 0 <= z <= length);
@@ -23,11 +25,16 @@ built by :func:`.scene_file.build`) under a step that follows their cells
   references; needs z = 0; the face's stop, 1/2 m_face v0^2 in J, is reported as
   impact_face_loss);
 * [[fixed]] faces (the groups axis, outer, bottom, top);
-* ``[time]`` t_end (s) and either cfl (<= 1) or dt (a fixed step, s); dt_interval
-  (steps, default 10);
 * no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line);
-* or two finite-strain bodies on ``generator = "coaxial_bars_sized"`` with
-  ``quadrilaterals = true``, in node-to-segment [[contact]], no [wall].
+
+or any number of bodies, each small or finite strain, on ``coaxial_bars_sized``,
+``shpb`` or ``block`` with ``quadrilaterals = true`` (small strain on Q1: linear, or
+path-dependent with mean dilatation), in node-pair or node-to-segment [[contact]] with
+each other (under the step that follows the cells, or a fixed ``dt``), with
+[[probes]] and [[fixed]] faces; no [wall], [rigid] or [[loads]] (refused, one line).
+
+In both, ``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
+dt_interval (steps, default 10); n_steps, force_dt and converged_dt are refused.
 
 A small-strain scene may not use dt_interval; its [wall] is the same plane, with
 ``face = "contact"`` only (a held face is a [[fixed]] u_z). On ``quad_bar`` it has one
@@ -71,9 +78,18 @@ def read_wall(data: Any) -> WallSpec:
     return wall
 
 
+# generators that make quadrilaterals with quadrilaterals = true (quad_bar always does)
+QUAD_OPTION = ("coaxial_bars_sized", "shpb", "block")
+
+
+def quadrilateral_generator(generator: str | None, params: dict) -> bool:
+    """Whether the generator mesh is of Q1 quadrilaterals (a finite-strain body's cells)."""
+    return generator == "quad_bar" or (generator in QUAD_OPTION
+                                       and bool(params.get("quadrilaterals")))
+
+
 def check_kind(scene) -> None:
     """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
-    kinds = {b.strain for b in scene.bodies}
     if not scene.finite:
         if scene.wall is not None and scene.wall.face == "held":
             raise InputError('[wall] face = "held": a finite-strain body\'s condition; hold a '
@@ -92,38 +108,36 @@ def check_kind(scene) -> None:
         return
     body = next(b for b in scene.bodies if b.strain == "finite")
     where = f'[bodies.{body.name}] strain = "finite":'
-    # two finite-strain bars in node-to-segment contact on Q1 coaxial bars
-    two = (scene.mesh.generator == "coaxial_bars_sized"
-           and scene.mesh.params.get("quadrilaterals") and len(kinds) == 1)
-    if not two and (len(scene.bodies) > 1 or len(kinds) > 1):
-        raise InputError(f"{where} a finite-strain scene has one body for now (the mesh is "
-                         "quadrilateral and no body-to-body contact runs on it), or every body "
-                         'finite on generator = "coaxial_bars_sized" with quadrilaterals = true')
-    if two:
-        for c in scene.contacts:
-            if c.slave is None or c.rigid is not None:
-                raise InputError(f"{c.where} two finite-strain bodies meet node to segment "
-                                 "(give slave and master)")
-    elif scene.mesh.generator != "quad_bar":
+    bar = scene.mesh.generator == "quad_bar"
+    if not bar and not quadrilateral_generator(scene.mesh.generator, scene.mesh.params):
         given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
                  else f'file = "{scene.mesh.file}"')
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
         raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
-                         f"{file_note}: {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+                         f" or quadrilaterals = true ({', '.join(QUAD_OPTION)}){file_note}: "
+                         f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+    if bar and len(scene.bodies) > 1:
+        raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
+                         f"{len(scene.bodies)} ([bodies])")
+    if bar and scene.contacts:
+        raise InputError(f"[[contact]]: not available with finite strain yet on quad_bar ({where} "
+                         "runs against a [wall]; bodies in contact need a mesh of several: "
+                         f"{', '.join(QUAD_OPTION)} with quadrilaterals = true)")
     if scene.wall is not None and scene.wall.friction is not None \
             and scene.wall.method == "penalty":
         raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
                          "tangential spring is not built for a finite-strain body (use method "
                          "= \"film\" or \"dme\")")
-    refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"), ("probes", "[[probes]]"))
-    if not two:
-        refused = (("contacts", "[[contact]]"),) + refused
-    elif scene.wall is not None:
-        refused = (("wall", "[wall]"),) + refused
+    refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"))
+    if bar:  # the bar's own probes (its tracked nodes) fill its history
+        refused += (("probes", "[[probes]]"),)
+    else:  # bodies in contact with each other (the wall's finite-strain checks: one bar)
+        refused += (("wall", "[wall]"),)
     for key, what in refused:
         if getattr(scene, key):
             raise InputError(f"{what}: not available with finite strain yet ({where} runs "
-                             "against a [wall], or two finite bodies node to segment)")
+                             "against a [wall] on quad_bar, or with other bodies in "
+                             "[[contact]])")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "

@@ -87,12 +87,15 @@ def scene(tmp, edits) -> list[str]:
     return ["run", str(tmp / "scene.toml"), "--quiet", "--out", str(tmp / "out")]
 
 
+QUAD_OPTIONS = " or quadrilaterals = true (coaxial_bars_sized, shpb, block)"
+
+
 def expected(tmp, edits) -> str:
     if edits is GENERATOR:
         return ('error: [mesh] generator = "bar": a finite-strain body needs generator = '
-                f'"quad_bar": {REASON}')
+                f'"quad_bar"{QUAD_OPTIONS}: {REASON}')
     return (f'error: [mesh] file = "{tmp / "bar.msh"}": a finite-strain body needs generator = '
-            f'"quad_bar" (a mesh file is not read for one yet): {REASON}')
+            f'"quad_bar"{QUAD_OPTIONS} (a mesh file is not read for one yet): {REASON}')
 
 
 @serial_only

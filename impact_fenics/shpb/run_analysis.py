@@ -69,7 +69,8 @@ def bar_stress_warning(scene) -> str | None:
 class Setup:
     """What the analysis needs of the run: the bars, the specimen, the gauges, the incident
     pulse (s), the bars' radius (m) and Poisson's ratio, the striker speed (m/s), the
-    specimen's material table, the gauges' and the contact columns of history.csv."""
+    specimen's material table (with its body's kinematics as ``strain``, "small" or
+    "finite"), the gauges' and the contact columns of history.csv."""
 
     bars: Bars
     specimen: Specimen
@@ -166,7 +167,8 @@ def read_setup(run_dir: str, columns: list[str]) -> Setup:
     return Setup(bars=bars, specimen=specimen, gauges=gauges,
                  pulse=2.0 * g["striker_length"] / c0, radius=radius, nu=nu,
                  speed=abs(float(velocity[1])),
-                 specimen_material=materials.get(bodies["specimen"].get("material"), {}),
+                 specimen_material={**materials.get(bodies["specimen"].get("material"), {}),
+                                    "strain": bodies["specimen"].get("strain", "small")},
                  front_force=forces.get("specimen_front"),
                  back_force=forces.get("specimen_back"), face_probes=face_probes)
 
@@ -201,9 +203,25 @@ def material_law(material: dict, strain: np.ndarray, rate: float) -> np.ndarray 
     ``strain`` (compression positive, monotonic loading) and the strain rate ``rate``
     (1/s), small strain: elastic sigma = E eps; j2 (linear hardening H, overstress
     viscosity eta) sigma = min(E eps, (sigma_0 + H eps) E / (E + H)),
-    sigma_0 = sigma_y + eta rate. None for another model."""
+    sigma_0 = sigma_y + eta rate. None for another model.
+
+    A finite-strain j2 specimen (``material["strain"] == "finite"``: Hencky elasticity,
+    the yield on the Kirchhoff stress tau = J sigma) follows the same line in tau against
+    the log strain e = -ln(1 - eps): tau = min(E e, (sigma_y + H e) E / (E + H)). A uniform
+    specimen of length L carries tau = F L / (A_0 L_0) whatever its J (A = J A_0 L_0 / L),
+    so its engineering stress F / A_0 is tau / (1 - eps): returned, so that every curve
+    is compared in its own engineering measure."""
     model = material.get("model", "elastic")
     E = float(material.get("E", 0.0))
+    finite = material.get("strain", "small") == "finite"
+    if finite and model != "j2":
+        return None
+    if finite:
+        strain = np.asarray(strain, dtype=float)
+        log = -np.log1p(-strain)
+        H = float(material.get("hardening", 0.0))
+        tau = np.minimum(E * log, (float(material["yield_stress"]) + H * log) * E / (E + H))
+        return tau / (1.0 - strain)
     if model == "elastic":
         return E * strain
     if model == "j2":

@@ -13,7 +13,8 @@ faces with the same mu. The oracles do not come from the code:
   log volume strain is tr tau / (3K)); the platen force over the top face's current area
   pi r_top^2, read while the cylinder flows, equals it within the ringing (the spread of
   the sampled values), and within the impedance pressure rho c V (the largest dynamic
-  overpressure a platen at speed V makes on the elastic body).
+  overpressure a platen at speed V makes on the elastic body); the current area being
+  J pi R_eq^2 (R_eq^2 = R0^2 H0 / H), p = F / (pi R_eq^2) is sigma_y itself.
 
 The same test runs unchanged on 1, 2 and 3 ranks; the finite-strain study with the slab
 estimate is tests/test_upsetting_finite_study.py (docs/friction.md).
@@ -94,6 +95,11 @@ def test_frictionless_pressure_is_the_yield_stress_over_j(tmp):
               f"{spread / SIGMA_Y:.4f} sigma_y, rho c V = {RHO * C * V / SIGMA_Y:.4f} sigma_y")
     assert abs(mean - SIGMA_Y / J) <= 0.5 * spread  # inside the ringing's envelope
     assert spread <= RHO * C * V  # the ringing within the impedance pressure
+    # the current area is J pi R_eq^2 (R_eq^2 = R0^2 H0 / H, the volume J V0), so the
+    # force over pi R_eq^2 is sigma_y itself
+    H = H0 + h["c0_platen_u"][flowing]  # m (u_platen < 0)
+    p_eq = np.abs(h["c0_platen_force"][flowing]) / (math.pi * R0 ** 2 * H0 / H)  # Pa
+    assert abs(p_eq.mean() - SIGMA_Y) <= 0.5 * np.ptp(p_eq)
 
 
 def test_friction_keeps_every_pair_in_the_cone(tmp):

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study study-taylor study-taylor-anvil study-shpb study-upsetting study-hertz-cylinder docs clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor study-taylor-anvil study-shpb study-upsetting study-upsetting-finite study-hertz-cylinder docs clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -63,6 +63,11 @@ study-shpb: setup
 # (tests/test_upsetting_study.py, docs/friction.md; a few minutes on one core)
 study-upsetting: setup
 	$(PY) -m pytest tests/test_upsetting_study.py -m study -q -s
+
+# upsetting at finite strain, 10-30 % reduction, against the slab estimate
+# (tests/test_upsetting_finite_study.py, docs/friction.md; about ten minutes on one core)
+study-upsetting-finite: setup
+	$(PY) -m pytest tests/test_upsetting_finite_study.py -m study -q -s
 
 # Hertz's line contact in plane strain: a cylinder pressed slowly on the wall and on a
 # block (node to segment), 5, 10, 20 nodes across b (tests/test_plane_strain_hertz_study.py,

@@ -331,6 +331,7 @@ def taylor_anvil(settings: Settings, material, anvil=STEEL, anvil_scale: float =
     if repair_every:
         sim.contacts[-1].set_repairing(repair_every)
     sim.scene_figures = track_bar(sim, radius, length, body="rod")
+    return sim
 
 
 def upsetting(settings: Settings, material, radius: float = 5e-3, height: float = 5e-3,

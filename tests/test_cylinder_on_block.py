@@ -116,6 +116,10 @@ def _run(comm):
 
 
 def test_the_scene_closes_its_ledger_and_ranks_agree():
+    # gmsh 4.8 meshes the first model of a process a little differently from every later
+    # one (the same input, a few cells more in the block; gmsh's own state, not ours): a
+    # mesh made first on every rank, so that all the runs compared here mesh alike
+    meshing.cylinder_on_block(comm=MPI.COMM_SELF, **scene_file.read_scene(SCENE).mesh.params)
     s, h = _run(COMM)
     bound = ledger(s["n_steps"], s["n_dofs"])
     print(f"energy balance {s['energy_balance_error_rel']:.3g} (bound {bound:.3g})")

@@ -139,8 +139,9 @@ def _cylinder_on_block_regions(p: dict) -> list[Region]:
     R, hc, hf, zone = p["radius"], p["h_contact"], p["h_far"], p["contact_zone"]
     y0, top = p["gap"], p["gap"] + (R if p["quarter"] else 2 * R)
     regions = []
-    for name, x1, y_lo, y_hi in (("cylinder", R, y0, top),
-                                 ("block", p["block_width"], -p["block_depth"], 0.0)):
+    boxes = [("cylinder", R, y0, top)] + ([("block", p["block_width"], -p["block_depth"], 0.0)]
+                                          if p["block"] else [])
+    for name, x1, y_lo, y_hi in boxes:
         x, y = np.meshgrid((np.arange(200) + 0.5) / 200 * x1,
                            y_lo + (np.arange(200) + 0.5) / 200 * (y_hi - y_lo))
         inside = (np.hypot(x, y - y0 - R) <= R) if name == "cylinder" else np.ones_like(x, bool)

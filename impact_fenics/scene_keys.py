@@ -171,6 +171,8 @@ _MESH = Section("mesh", "[mesh]", (
         "the lowest line, below 90", groups=("cylinder_on_block",)),
     Key("quarter", "flag", "", _GEN, "only the quarter below the diametral plane (its face "
         "cylinder_top, to load it)", groups=("cylinder_on_block",)),
+    Key("block", "flag", "", _GEN, "the block under the cylinder (false: the cylinder alone, "
+        "on the [wall] say)", groups=("cylinder_on_block",)),
     Key("bar_diameter", "positive", "m", _GEN, "shpb: diameter of the striker and the bars",
         groups=("shpb",)),
     Key("incident_length", "positive", "m", _GEN, "shpb: incident bar length (z in [0, "

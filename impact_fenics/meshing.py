@@ -979,14 +979,74 @@ def _cylinder_refusals(radius, gap, block_width, block_depth, h_contact, h_far, 
                 f"exceed the contact arc's half width R sin(contact_angle) = {arc:.6g} m")
 
 
-def check_cylinder_on_block(params: dict) -> None:
-    """Refuse bad :func:`cylinder_on_block` parameters ``params`` (the scene's; the
-    generator's defaults fill the rest) before any mesh is made."""
+def check_generator(generator: str, params: dict) -> None:
+    """Refuse bad parameters ``params`` (a scene's; the generator's defaults fill the rest)
+    of :func:`cylinder_on_block` or :func:`striker_on_plate` in one line, before any mesh
+    is made."""
     import inspect
 
-    p = {k: v.default for k, v in inspect.signature(cylinder_on_block).parameters.items()
+    function, refusals = {"cylinder_on_block": (cylinder_on_block, _cylinder_refusals),
+                          "striker_on_plate": (striker_on_plate, _striker_refusals)}[generator]
+    p = {k: v.default for k, v in inspect.signature(function).parameters.items()
          if k != "comm"}
     p.update(params)
-    _cylinder_refusals(p["radius"], p["gap"], p["block_width"], p["block_depth"],
-                       p["h_contact"], p["h_far"], p["contact_zone"], p["contact_angle"],
-                       p["block"])
+    names = [k for k in inspect.signature(refusals).parameters]
+    refusals(**{k: p[k] for k in names})
+
+
+def striker_on_plate(striker_half_width: float = 0.002, striker_length: float = 0.01,
+                     gap: float = 0.0, plate_half_span: float = 0.02,
+                     plate_thickness: float = 0.002, h_striker: float = 0.0005,
+                     h_plate: float = 0.00025, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """The half section (x >= 0, a symmetry plane on x = 0) of a flat-ended striker across
+    a plate, for a plane-strain scene with ``symmetry = "x=0"``: the striker x in
+    [0, striker_half_width], y in [gap, gap + striker_length], over the plate x in
+    [0, plate_half_span], y in [-plate_thickness, 0] (m), on nodes of their own (node to
+    segment or node pairs ready). Triangles (P1) of sizes h_striker and h_plate (m),
+    unstructured; the plate's top split at the striker's half width.
+
+    Groups: cells "striker", "plate"; facets "striker_face" (y = gap), "striker_top",
+    "striker_side" (x = striker_half_width), "plate_contact" (the top under the striker),
+    "plate_top" (the rest of the top), "plate_bottom" (y = -plate_thickness),
+    "plate_end" (x = plate_half_span), "axis" (x = 0, both bodies).
+    """
+    _striker_refusals(striker_half_width, striker_length, gap, plate_half_span,
+                      plate_thickness, h_striker, h_plate)
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        w, y0, y1 = striker_half_width, gap, gap + striker_length
+        s = [geo.addPoint(0, y0, 0, h_striker), geo.addPoint(w, y0, 0, h_striker),
+             geo.addPoint(w, y1, 0, h_striker), geo.addPoint(0, y1, 0, h_striker)]
+        c = [geo.addLine(s[k], s[(k + 1) % 4]) for k in range(4)]  # face, side, top, axis
+        striker = geo.addPlaneSurface([geo.addCurveLoop(c)])
+        p = [geo.addPoint(0, 0, 0, h_plate), geo.addPoint(w, 0, 0, h_plate),
+             geo.addPoint(plate_half_span, 0, 0, h_plate),
+             geo.addPoint(plate_half_span, -plate_thickness, 0, h_plate),
+             geo.addPoint(0, -plate_thickness, 0, h_plate)]
+        lines = [geo.addLine(p[(k + 1) % 5], p[k]) for k in range(5)]  # counter-clockwise
+        plate = geo.addPlaneSurface([geo.addCurveLoop(lines[::-1])])
+        geo.synchronize()
+        _group(gmsh, 2, [striker], "striker", 1)
+        _group(gmsh, 2, [plate], "plate", 2)
+        for name, curves, tag in (("striker_face", [c[0]], 11), ("striker_side", [c[1]], 12),
+                                  ("striker_top", [c[2]], 13), ("plate_contact", [lines[0]], 14),
+                                  ("plate_top", [lines[1]], 15), ("plate_end", [lines[2]], 16),
+                                  ("plate_bottom", [lines[3]], 17),
+                                  ("axis", [c[3], lines[4]], 18)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "striker_on_plate", "h_striker": h_striker,
+                                     "h_plate": h_plate})
+
+
+def _striker_refusals(striker_half_width, striker_length, gap, plate_half_span,
+                      plate_thickness, h_striker, h_plate) -> None:
+    """The one-line refusals of :func:`striker_on_plate`'s sizes (m)."""
+    require(striker_half_width > 0 and striker_length > 0 and plate_half_span > 0
+            and plate_thickness > 0 and h_striker > 0 and h_plate > 0,
+            "striker_on_plate: the widths, lengths, thickness and sizes must be > 0 (m)")
+    require(gap >= 0, f"striker_on_plate: gap = {gap} m must be >= 0")
+    require(plate_half_span > striker_half_width, f"striker_on_plate: plate_half_span = "
+            f"{plate_half_span} m must exceed striker_half_width = {striker_half_width} m")

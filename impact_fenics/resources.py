@@ -198,6 +198,11 @@ def generator_regions(generator: str, p: dict) -> list[Region]:
         wedge = Region("wedge", cells, 1.0 + 0.5 * (cells + sides), p["h_wedge"], "unstructured")
         return [wedge, _rectangle("block", p["block_width"], p["block_depth"], p["h_block"],
                                   False)]
+    if generator == "striker_on_plate":
+        return [_rectangle("striker", p["striker_half_width"], p["striker_length"],
+                           p["h_striker"], False),
+                _rectangle("plate", p["plate_half_span"], p["plate_thickness"], p["h_plate"],
+                           False)]
     if generator == "cylinder_on_block":  # graded from the contact point: a sampled integral
         return _cylinder_on_block_regions(p)
     raise ValueError(generator)
@@ -217,6 +222,8 @@ def generator_size(generator: str, p: dict) -> float:
         return max(p["width"], p["depth"])
     if generator == "wedge_on_block":
         return max(p["block_width"], p["block_depth"] + p["wedge_height"])
+    if generator == "striker_on_plate":
+        return max(p["plate_half_span"], p["plate_thickness"] + p["gap"] + p["striker_length"])
     if generator == "cylinder_on_block":
         return max(p["block_width"], p["block_depth"] + p["gap"] + 2 * p["radius"])
     if generator == "shpb":

@@ -91,7 +91,7 @@ ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 # (impact_fenics.quad_meshes: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
               "nosed_striker_on_block", "shpb", "block", "wedge_on_block",
-              "cylinder_on_block")
+              "cylinder_on_block", "striker_on_plate")
 # parameters a generator has no default for (quad_bar: impact_fenics.quad_meshes.quad_bar)
 REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
 _BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
@@ -173,6 +173,20 @@ _MESH = Section("mesh", "[mesh]", (
         "cylinder_top, to load it)", groups=("cylinder_on_block",)),
     Key("block", "flag", "", _GEN, "the block under the cylinder (false: the cylinder alone, "
         "on the [wall] say)", groups=("cylinder_on_block",)),
+    Key("striker_half_width", "positive", "m", _GEN, "the striker's half width (x in [0, "
+        "striker_half_width])", groups=("striker_on_plate",)),
+    Key("striker_length", "positive", "m", _GEN, "the striker's length (y in [gap, gap + "
+        "striker_length])", groups=("striker_on_plate",)),
+    Key("gap", "number", "m", _GEN, "height of the striker's face above the plate's top "
+        "(y = 0), >= 0", groups=("striker_on_plate",)),
+    Key("plate_half_span", "positive", "m", _GEN, "the plate's half span (x in [0, "
+        "plate_half_span]), beyond the striker's half width", groups=("striker_on_plate",)),
+    Key("plate_thickness", "positive", "m", _GEN, "the plate's thickness (y in "
+        "[-plate_thickness, 0])", groups=("striker_on_plate",)),
+    Key("h_striker", "positive", "m", _GEN, "element size of the striker",
+        groups=("striker_on_plate",)),
+    Key("h_plate", "positive", "m", _GEN, "element size of the plate",
+        groups=("striker_on_plate",)),
     Key("bar_diameter", "positive", "m", _GEN, "shpb: diameter of the striker and the bars",
         groups=("shpb",)),
     Key("incident_length", "positive", "m", _GEN, "shpb: incident bar length (z in [0, "

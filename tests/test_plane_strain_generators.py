@@ -1,4 +1,5 @@
-"""The generator meshing.cylinder_on_block and its scene, scenes/cylinder_on_block.toml.
+"""The plane-strain generators meshing.cylinder_on_block (and its scene,
+scenes/cylinder_on_block.toml) and meshing.striker_on_plate.
 
 Oracles:
 - the generator's geometry against its closed form: the block's area W D to round-off;
@@ -11,7 +12,9 @@ Oracles:
 - the scene run through the CLI's build: the ledger within tests/roundoff.py's bound;
   the run on every rank equals the run on one (COMM_SELF) within 1e-10 of the largest
   contact force;
-- bad sizes refused when the scene is read, in one line naming the problem.
+- bad sizes refused when the scene is read, in one line naming the problem;
+- striker_on_plate: the striker's and the plate's areas w L and S t to round-off, the
+  faces' lengths (the striker's face and the plate's top under it w, the rest S - w).
 """
 import math
 import os
@@ -131,3 +134,34 @@ def test_the_scene_closes_its_ledger_and_ranks_agree():
     print(f"contact force: {COMM.size} ranks against 1 within {gap:.3g} N of {scale:.6g} N")
     assert scale > 0
     assert gap <= 1e-10 * scale
+
+
+def test_striker_on_plate_geometry():
+    w, L, gap, S, t = 0.002, 0.008, 0.0003, 0.012, 0.0015
+    tm = meshing.striker_on_plate(striker_half_width=w, striker_length=L, gap=gap,
+                                  plate_half_span=S, plate_thickness=t, h_striker=0.0005,
+                                  h_plate=0.00025)
+    area, length = _areas_and_lengths(tm)
+    tol = GMSH_TOLERANCE * max(S, t + gap + L)
+    n = COMM.allreduce(int(tm.cells("plate").size + tm.cells("striker").size))
+    for name, exact in (("striker", w * L), ("plate", S * t)):
+        assert abs(area(name) - exact) <= rounding(8 * n, exact) + 2 * max(S, L) * tol, name
+    for name, exact in (("striker_face", w), ("plate_contact", w), ("plate_top", S - w),
+                        ("plate_bottom", S), ("plate_end", t), ("striker_top", w),
+                        ("striker_side", L), ("axis", L + t)):
+        assert abs(length(name) - exact) <= rounding(n, exact) + 4 * tol, name
+
+
+def test_striker_on_plate_refuses_a_striker_wider_than_the_plate(tmp_path):
+    text = TEXT[:TEXT.index("[mesh]")] + """[mesh]
+generator = "striker_on_plate"
+striker_half_width = 0.03
+plate_half_span = 0.02
+""" + TEXT[TEXT.index("[materials.steel]"):]
+    path = _shared(tmp_path) / "bad.toml"
+    if COMM.rank == 0:
+        path.write_text(text)
+    COMM.barrier()
+    with pytest.raises(InputError, match="plate_half_span = 0.02 m must exceed "
+                                         "striker_half_width = 0.03 m"):
+        scene_file.read_scene(str(path))

@@ -881,3 +881,179 @@ def wedge_on_block(wedge_angle: float = 90.0, tip_radius: float = 0.0005,
     return _to_dolfinx(comm, build, {"scene": "wedge_on_block", "wedge_angle": wedge_angle,
                                      "tip_radius": tip_radius, "wedge_height": wedge_height,
                                      "half_width": half, "h_wedge": h_wedge, "h_block": h_block})
+
+
+def cylinder_on_block(radius: float = 0.01, gap: float = 0.0, block_width: float = 0.01,
+                      block_depth: float = 0.01, h_contact: float = 0.0001,
+                      h_far: float = 0.001, contact_zone: float = 0.001,
+                      contact_angle: float = 30.0, quarter: bool = False, block: bool = True,
+                      comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """The half section (x >= 0, a symmetry plane on x = 0) of a long cylinder of radius
+    ``radius`` (m) whose lowest line (0, gap) is ``gap`` (m) above a block x in
+    [0, block_width], y in [-block_depth, 0], for a plane-strain scene with
+    ``symmetry = "x=0"``; node to segment ready (the cylinder's contact arc and the
+    block's top are facet groups of their own, on nodes of their own).
+
+    The cylinder, centred at (0, R + gap): its arc from the lowest point up to
+    ``contact_angle`` (deg) from it ("cylinder_contact"), the rest of the arc
+    ("cylinder_arc") up to the top (0, 2R + gap), and x = 0; with ``quarter`` only the
+    quarter below its diametral plane y = R + gap (a face "cylinder_top" there, to load
+    it). Triangles (P1), unstructured: size h_contact (m) within ``contact_zone`` (m) of
+    the lowest point and of the block's top under it, growing to h_far (m) over 20 h_far.
+    Without ``block`` the cylinder alone (on a wall, say).
+
+    Groups: cells "cylinder" (and "block"); facets "cylinder_contact", "cylinder_arc",
+    "cylinder_top" (with ``quarter``), "axis" (x = 0, both bodies), "block_top"
+    (y = 0), "block_side" (x = block_width), "block_bottom" (y = -block_depth).
+    """
+    _cylinder_refusals(radius, gap, block_width, block_depth, h_contact, h_far, contact_zone,
+                       contact_angle, block)
+    a = math.radians(contact_angle)
+    R, y0 = radius, gap
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        tip = geo.addPoint(0.0, y0, 0.0, h_contact)
+        centre = geo.addPoint(0.0, y0 + R, 0.0, h_far)
+        mid = geo.addPoint(R * math.sin(a), y0 + R * (1 - math.cos(a)), 0.0, h_far)
+        side = geo.addPoint(R, y0 + R, 0.0, h_far)
+        near = geo.addCircleArc(tip, centre, mid)
+        far = [geo.addCircleArc(mid, centre, side)]
+        if quarter:
+            top = geo.addLine(side, centre)
+            axis = geo.addLine(centre, tip)
+            loop = [near] + far + [top, axis]
+        else:
+            crown = geo.addPoint(0.0, y0 + 2 * R, 0.0, h_far)
+            far.append(geo.addCircleArc(side, centre, crown))
+            axis = geo.addLine(crown, tip)
+            loop = [near] + far + [axis]
+        s = geo.addPlaneSurface([geo.addCurveLoop(loop)])
+        tips = [tip]
+        if block:
+            corner = [geo.addPoint(0.0, 0.0, 0.0, h_contact),
+                      geo.addPoint(block_width, 0.0, 0.0, h_far),
+                      geo.addPoint(block_width, -block_depth, 0.0, h_far),
+                      geo.addPoint(0.0, -block_depth, 0.0, h_far)]
+            lines = [geo.addLine(corner[i], corner[(i + 1) % 4]) for i in range(4)]
+            s_block = geo.addPlaneSurface([geo.addCurveLoop(lines)])
+            tips.append(corner[0])
+        geo.synchronize()
+        field = gmsh.model.mesh.field
+        dist = field.add("Distance")
+        field.setNumbers(dist, "PointsList", tips)
+        size = field.add("Threshold")
+        field.setNumber(size, "InField", dist)
+        field.setNumber(size, "SizeMin", h_contact)
+        field.setNumber(size, "SizeMax", h_far)
+        field.setNumber(size, "DistMin", contact_zone)
+        field.setNumber(size, "DistMax", contact_zone + 20 * h_far)
+        field.setAsBackgroundMesh(size)
+        for option in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints",
+                       "MeshSizeFromCurvature"):
+            gmsh.option.setNumber(f"Mesh.{option}", 0)
+        _group(gmsh, 2, [s], "cylinder", 1)
+        groups = [("cylinder_contact", [near], 11), ("cylinder_arc", far, 12)]
+        if quarter:
+            groups.append(("cylinder_top", [top], 13))
+        groups.append(("axis", [axis] + ([lines[3]] if block else []), 14))
+        if block:
+            _group(gmsh, 2, [s_block], "block", 2)
+            groups += [("block_top", [lines[0]], 15), ("block_bottom", [lines[2]], 16),
+                       ("block_side", [lines[1]], 17)]
+        for name, curves, tag in groups:
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "cylinder_on_block", "radius": radius,
+                                     "gap": gap, "h_contact": h_contact, "h_far": h_far})
+
+
+def _cylinder_refusals(radius, gap, block_width, block_depth, h_contact, h_far, contact_zone,
+                       contact_angle, block=True) -> None:
+    """The one-line refusals of :func:`cylinder_on_block`'s sizes (m) and angle (deg)."""
+    require(radius > 0 and h_contact > 0 and h_far > 0 and contact_zone > 0,
+            "cylinder_on_block: radius, h_contact, h_far and contact_zone must be > 0 (m)")
+    require(gap >= 0, f"cylinder_on_block: gap = {gap} m must be >= 0")
+    require(0.0 < contact_angle < 90.0, f"cylinder_on_block: contact_angle = {contact_angle} "
+            "deg must be in (0, 90)")
+    require(h_contact <= h_far < radius, f"cylinder_on_block: the sizes must satisfy h_contact "
+            f"({h_contact} m) <= h_far ({h_far} m) < radius ({radius} m)")
+    if block:
+        require(block_depth > 0, f"cylinder_on_block: block_depth = {block_depth} m must be > 0")
+        arc = radius * math.sin(math.radians(contact_angle))
+        require(block_width > arc, f"cylinder_on_block: block_width = {block_width} m must "
+                f"exceed the contact arc's half width R sin(contact_angle) = {arc:.6g} m")
+
+
+def check_generator(generator: str, params: dict) -> None:
+    """Refuse bad parameters ``params`` (a scene's; the generator's defaults fill the rest)
+    of :func:`cylinder_on_block` or :func:`striker_on_plate` in one line, before any mesh
+    is made."""
+    import inspect
+
+    function, refusals = {"cylinder_on_block": (cylinder_on_block, _cylinder_refusals),
+                          "striker_on_plate": (striker_on_plate, _striker_refusals)}[generator]
+    p = {k: v.default for k, v in inspect.signature(function).parameters.items()
+         if k != "comm"}
+    p.update(params)
+    names = [k for k in inspect.signature(refusals).parameters]
+    refusals(**{k: p[k] for k in names})
+
+
+def striker_on_plate(striker_half_width: float = 0.002, striker_length: float = 0.01,
+                     gap: float = 0.0, plate_half_span: float = 0.02,
+                     plate_thickness: float = 0.002, h_striker: float = 0.0005,
+                     h_plate: float = 0.00025, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """The half section (x >= 0, a symmetry plane on x = 0) of a flat-ended striker across
+    a plate, for a plane-strain scene with ``symmetry = "x=0"``: the striker x in
+    [0, striker_half_width], y in [gap, gap + striker_length], over the plate x in
+    [0, plate_half_span], y in [-plate_thickness, 0] (m), on nodes of their own (node to
+    segment or node pairs ready). Triangles (P1) of sizes h_striker and h_plate (m),
+    unstructured; the plate's top split at the striker's half width.
+
+    Groups: cells "striker", "plate"; facets "striker_face" (y = gap), "striker_top",
+    "striker_side" (x = striker_half_width), "plate_contact" (the top under the striker),
+    "plate_top" (the rest of the top), "plate_bottom" (y = -plate_thickness),
+    "plate_end" (x = plate_half_span), "axis" (x = 0, both bodies).
+    """
+    _striker_refusals(striker_half_width, striker_length, gap, plate_half_span,
+                      plate_thickness, h_striker, h_plate)
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        w, y0, y1 = striker_half_width, gap, gap + striker_length
+        s = [geo.addPoint(0, y0, 0, h_striker), geo.addPoint(w, y0, 0, h_striker),
+             geo.addPoint(w, y1, 0, h_striker), geo.addPoint(0, y1, 0, h_striker)]
+        c = [geo.addLine(s[k], s[(k + 1) % 4]) for k in range(4)]  # face, side, top, axis
+        striker = geo.addPlaneSurface([geo.addCurveLoop(c)])
+        p = [geo.addPoint(0, 0, 0, h_plate), geo.addPoint(w, 0, 0, h_plate),
+             geo.addPoint(plate_half_span, 0, 0, h_plate),
+             geo.addPoint(plate_half_span, -plate_thickness, 0, h_plate),
+             geo.addPoint(0, -plate_thickness, 0, h_plate)]
+        lines = [geo.addLine(p[(k + 1) % 5], p[k]) for k in range(5)]  # counter-clockwise
+        plate = geo.addPlaneSurface([geo.addCurveLoop(lines[::-1])])
+        geo.synchronize()
+        _group(gmsh, 2, [striker], "striker", 1)
+        _group(gmsh, 2, [plate], "plate", 2)
+        for name, curves, tag in (("striker_face", [c[0]], 11), ("striker_side", [c[1]], 12),
+                                  ("striker_top", [c[2]], 13), ("plate_contact", [lines[0]], 14),
+                                  ("plate_top", [lines[1]], 15), ("plate_end", [lines[2]], 16),
+                                  ("plate_bottom", [lines[3]], 17),
+                                  ("axis", [c[3], lines[4]], 18)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "striker_on_plate", "h_striker": h_striker,
+                                     "h_plate": h_plate})
+
+
+def _striker_refusals(striker_half_width, striker_length, gap, plate_half_span,
+                      plate_thickness, h_striker, h_plate) -> None:
+    """The one-line refusals of :func:`striker_on_plate`'s sizes (m)."""
+    require(striker_half_width > 0 and striker_length > 0 and plate_half_span > 0
+            and plate_thickness > 0 and h_striker > 0 and h_plate > 0,
+            "striker_on_plate: the widths, lengths, thickness and sizes must be > 0 (m)")
+    require(gap >= 0, f"striker_on_plate: gap = {gap} m must be >= 0")
+    require(plate_half_span > striker_half_width, f"striker_on_plate: plate_half_span = "
+            f"{plate_half_span} m must exceed striker_half_width = {striker_half_width} m")

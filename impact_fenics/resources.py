@@ -130,6 +130,29 @@ def _graded_block(p: dict) -> Region:
     return Region("block", cells, 1.0 + 0.5 * (cells + float(edges)), h_min, "unstructured")
 
 
+def _cylinder_on_block_regions(p: dict) -> list[Region]:
+    """meshing.cylinder_on_block's two bodies: cells = the integral of dA / (EQUILATERAL
+    h(d)^2) of its size field (h_contact within contact_zone of the origin, rising
+    linearly to h_far over 20 h_far), sampled on a 200 x 200 grid of each body's box."""
+    import numpy as np
+
+    R, hc, hf, zone = p["radius"], p["h_contact"], p["h_far"], p["contact_zone"]
+    y0, top = p["gap"], p["gap"] + (R if p["quarter"] else 2 * R)
+    regions = []
+    boxes = [("cylinder", R, y0, top)] + ([("block", p["block_width"], -p["block_depth"], 0.0)]
+                                          if p["block"] else [])
+    for name, x1, y_lo, y_hi in boxes:
+        x, y = np.meshgrid((np.arange(200) + 0.5) / 200 * x1,
+                           y_lo + (np.arange(200) + 0.5) / 200 * (y_hi - y_lo))
+        inside = (np.hypot(x, y - y0 - R) <= R) if name == "cylinder" else np.ones_like(x, bool)
+        d = np.hypot(x, y - y0 if name == "cylinder" else y)  # to the nearer contact point
+        h = np.clip(hc + (hf - hc) * (d - zone) / (20 * hf), hc, hf)
+        cells = float((inside / h ** 2).sum()) * x1 * (y_hi - y_lo) / 200 ** 2 / EQUILATERAL
+        regions.append(Region(name, cells, 1.0 + 0.5 * cells + 2 * math.sqrt(cells), hc,
+                              "unstructured"))
+    return regions
+
+
 def generator_regions(generator: str, p: dict) -> list[Region]:
     """The regions of a generator mesh with parameters ``p`` (its defaults filled in); with
     ``quadrilaterals``, each structured grid's triangle pairs are one quadrilateral."""
@@ -183,6 +206,13 @@ def _regions(generator: str, p: dict) -> list[Region]:
         wedge = Region("wedge", cells, 1.0 + 0.5 * (cells + sides), p["h_wedge"], "unstructured")
         return [wedge, _rectangle("block", p["block_width"], p["block_depth"], p["h_block"],
                                   False)]
+    if generator == "striker_on_plate":
+        return [_rectangle("striker", p["striker_half_width"], p["striker_length"],
+                           p["h_striker"], False),
+                _rectangle("plate", p["plate_half_span"], p["plate_thickness"], p["h_plate"],
+                           False)]
+    if generator == "cylinder_on_block":  # graded from the contact point: a sampled integral
+        return _cylinder_on_block_regions(p)
     raise ValueError(generator)
 
 
@@ -200,6 +230,10 @@ def generator_size(generator: str, p: dict) -> float:
         return max(p["width"], p["depth"])
     if generator == "wedge_on_block":
         return max(p["block_width"], p["block_depth"] + p["wedge_height"])
+    if generator == "striker_on_plate":
+        return max(p["plate_half_span"], p["plate_thickness"] + p["gap"] + p["striker_length"])
+    if generator == "cylinder_on_block":
+        return max(p["block_width"], p["block_depth"] + p["gap"] + 2 * p["radius"])
     if generator == "shpb":
         return (p["striker_length"] + p["incident_length"] + p["specimen_length"]
                 + p["transmitter_length"])

@@ -306,6 +306,10 @@ def _read_mesh(data: Any, base: str) -> MeshSpec:
             params[spec.name] = t.value(spec.name, MISSING)
     if generator == "wedge_on_block" and params.get("wedge_angle", 0.0) >= 180.0:
         raise t.error("wedge_angle", "must be below 180 deg (the wedge's included angle)")
+    if generator in ("cylinder_on_block", "striker_on_plate"):  # before any estimate
+        from .meshing import check_generator
+
+        check_generator(generator, params)
     return MeshSpec(generator, params, None)
 
 

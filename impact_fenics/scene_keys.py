@@ -90,7 +90,8 @@ ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 # the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
 # (impact_fenics.quad_meshes: quadrilaterals, a finite-strain body or a small-strain Q1 one)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
-              "nosed_striker_on_block", "shpb", "block", "wedge_on_block")
+              "nosed_striker_on_block", "shpb", "block", "wedge_on_block",
+              "cylinder_on_block", "striker_on_plate")
 # parameters a generator has no default for (quad_bar: impact_fenics.quad_meshes.quad_bar)
 REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
 _BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
@@ -154,6 +155,39 @@ _MESH = Section("mesh", "[mesh]", (
         groups=("wedge_on_block",)),
     Key("h_wedge", "positive", "m", _GEN, "element size of the wedge",
         groups=("wedge_on_block",)),
+    Key("radius", "positive", "m", _GEN, "the cylinder's radius R", groups=("cylinder_on_block",)),
+    Key("gap", "number", "m", _GEN, "height of the cylinder's lowest line above the "
+        "block's top (y = 0)", groups=("cylinder_on_block",)),
+    Key("block_width", "positive", "m", _GEN, "the block's half width (x in [0, block_width]), "
+        "beyond R sin(contact_angle)", groups=("cylinder_on_block",)),
+    Key("block_depth", "positive", "m", _GEN, "the block's depth (y in [-block_depth, 0])",
+        groups=("cylinder_on_block",)),
+    Key("h_contact", "positive", "m", _GEN, "element size within contact_zone of the contact "
+        "point, both bodies", groups=("cylinder_on_block",)),
+    Key("h_far", "positive", "m", _GEN, "element size far from it (h_contact <= h_far < R)",
+        groups=("cylinder_on_block",)),
+    Key("contact_zone", "positive", "m", _GEN, "distance from the contact point meshed at "
+        "h_contact (then growing to h_far over 20 h_far)", groups=("cylinder_on_block",)),
+    Key("contact_angle", "positive", "deg", _GEN, "the arc of the group cylinder_contact, from "
+        "the lowest line, below 90", groups=("cylinder_on_block",)),
+    Key("quarter", "flag", "", _GEN, "only the quarter below the diametral plane (its face "
+        "cylinder_top, to load it)", groups=("cylinder_on_block",)),
+    Key("block", "flag", "", _GEN, "the block under the cylinder (false: the cylinder alone, "
+        "on the [wall] say)", groups=("cylinder_on_block",)),
+    Key("striker_half_width", "positive", "m", _GEN, "the striker's half width (x in [0, "
+        "striker_half_width])", groups=("striker_on_plate",)),
+    Key("striker_length", "positive", "m", _GEN, "the striker's length (y in [gap, gap + "
+        "striker_length])", groups=("striker_on_plate",)),
+    Key("gap", "number", "m", _GEN, "height of the striker's face above the plate's top "
+        "(y = 0), >= 0", groups=("striker_on_plate",)),
+    Key("plate_half_span", "positive", "m", _GEN, "the plate's half span (x in [0, "
+        "plate_half_span]), beyond the striker's half width", groups=("striker_on_plate",)),
+    Key("plate_thickness", "positive", "m", _GEN, "the plate's thickness (y in "
+        "[-plate_thickness, 0])", groups=("striker_on_plate",)),
+    Key("h_striker", "positive", "m", _GEN, "element size of the striker",
+        groups=("striker_on_plate",)),
+    Key("h_plate", "positive", "m", _GEN, "element size of the plate",
+        groups=("striker_on_plate",)),
     Key("bar_diameter", "positive", "m", _GEN, "shpb: diameter of the striker and the bars",
         groups=("shpb",)),
     Key("incident_length", "positive", "m", _GEN, "shpb: incident bar length (z in [0, "

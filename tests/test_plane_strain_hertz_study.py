@@ -35,7 +35,7 @@ from impact_fenics.contact.plane import plane_below, wall_part
 from impact_fenics.contact.segments import node_to_segment
 from impact_fenics.geometry import PLANE_STRAIN, Geometry
 from impact_fenics.materials import LinearElastic
-from impact_fenics.meshing import _generate, _group, _to_dolfinx
+from impact_fenics.meshing import cylinder_on_block
 from impact_fenics.simulation import Settings, Simulation
 
 COMM = MPI.COMM_WORLD
@@ -48,60 +48,6 @@ E_STAR = STEEL.E / (1 - STEEL.nu ** 2)  # Pa, against a rigid plane
 C_L = math.sqrt(STEEL.E * (1 - STEEL.nu) / ((1 + STEEL.nu) * (1 - 2 * STEEL.nu)) / STEEL.density)
 
 
-def _quarter_disc(h_c: float, h_far: float, d_c: float, block: bool = False):
-    """The quarter disc x >= 0, y <= R of the cylinder centred at (0, R), touching y = 0 at
-    the origin, its arc split at 30 degrees (``arc_contact`` below, ``arc`` above), and
-    with ``block`` an elastic block x in [0, R], y in [-R, 0] under it (its own nodes):
-    element size h_c (m) within d_c of the origin, growing to h_far 20 h_far further.
-    Groups: cells "cylinder" (and "block"); facets "arc_contact", "arc", "top" (y = R),
-    "axis" (x = 0) (and "block_top", "block_bottom")."""
-
-    def build(gmsh):
-        geo = gmsh.model.geo
-        tip = geo.addPoint(0.0, 0.0, 0.0, h_c)
-        centre = geo.addPoint(0.0, R, 0.0, h_far)
-        mid = geo.addPoint(R * math.sin(math.pi / 6), R * (1 - math.cos(math.pi / 6)), 0.0,
-                           h_far)
-        side = geo.addPoint(R, R, 0.0, h_far)
-        near = geo.addCircleArc(tip, centre, mid)
-        far = geo.addCircleArc(mid, centre, side)
-        top = geo.addLine(side, centre)
-        axis = geo.addLine(centre, tip)
-        s = geo.addPlaneSurface([geo.addCurveLoop([near, far, top, axis])])
-        tips = [tip]
-        if block:
-            corner = [geo.addPoint(0.0, 0.0, 0.0, h_c), geo.addPoint(R, 0.0, 0.0, h_far),
-                      geo.addPoint(R, -R, 0.0, h_far), geo.addPoint(0.0, -R, 0.0, h_far)]
-            lines = [geo.addLine(corner[i], corner[(i + 1) % 4]) for i in range(4)]
-            s_block = geo.addPlaneSurface([geo.addCurveLoop(lines)])
-            tips.append(corner[0])
-        geo.synchronize()
-        field = gmsh.model.mesh.field
-        dist = field.add("Distance")
-        field.setNumbers(dist, "PointsList", tips)
-        size = field.add("Threshold")
-        field.setNumber(size, "InField", dist)
-        field.setNumber(size, "SizeMin", h_c)
-        field.setNumber(size, "SizeMax", h_far)
-        field.setNumber(size, "DistMin", d_c)
-        field.setNumber(size, "DistMax", d_c + 20 * h_far)
-        field.setAsBackgroundMesh(size)
-        for option in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints",
-                       "MeshSizeFromCurvature"):
-            gmsh.option.setNumber(f"Mesh.{option}", 0)
-        _group(gmsh, 2, [s], "cylinder", 1)
-        groups = [("arc_contact", near, 11), ("arc", far, 12), ("top", top, 13),
-                  ("axis", axis, 14)]
-        if block:
-            _group(gmsh, 2, [s_block], "block", 2)
-            groups += [("block_top", lines[0], 15), ("block_bottom", lines[2], 16)]
-        for name, curve, tag in groups:
-            _group(gmsh, 1, [curve], name, tag)
-        _generate(gmsh)
-
-    return _to_dolfinx(COMM, build, {"scene": "quarter_disc", "h": h_c})
-
-
 def _pressed(per_b: int, block: bool = False):
     """The quarter disc pressed on the wall, or with ``block`` on the elastic block (node to
     segment, the disc's arc the slave, the block's bottom held in y), with per_b nodes
@@ -112,21 +58,22 @@ def _pressed(per_b: int, block: bool = False):
     f_aim = math.pi * e_star * b_aim ** 2 / (4 * R)  # N/m
     h_c = b_aim / per_b
     bodies = [Body("cylinder", STEEL)] + ([Body("block", STEEL)] if block else [])
-    model = DeformableModel(_quarter_disc(h_c, R / 10, 2 * b_aim, block), bodies,
+    model = DeformableModel(cylinder_on_block(R, 0.0, R, R, h_c, R / 10, 2 * b_aim, quarter=True,
+                                              block=block, comm=COMM), bodies,
                             geometry=Geometry(PLANE_STRAIN, T, "x=0"))
     dt = 0.25 * h_c / C_L  # s, below the stable step of the finest cells
     t_ramp = 30 * R / C_L
     pressure = loads.Trapezoid(f_aim / (2 * R), t_ramp, 10 * t_ramp, 20 * t_ramp)  # Pa
-    load = loads.SurfaceLoad(model, "top", pressure, traction=(0.0, -1.0))
+    load = loads.SurfaceLoad(model, "cylinder_top", pressure, traction=(0.0, -1.0))
     fixed = [model.facet_dofs("block_bottom", 1)] if block else None
     sim = Simulation(model, Settings(dt=dt, n_steps=int(t_ramp / dt) + 1, out=None,
                                      quiet=True), loads=[load], fixed=fixed)
     if block:
-        cons = node_to_segment(model, "arc_contact", "block_top")
+        cons = node_to_segment(model, "cylinder_contact", "block_top")
         contact = sim.add_contact(cons, FILM())
         x = np.asarray(cons.slave_xy[:, 0])
     else:
-        arc = np.unique(model.facet_dofs("arc_contact", 1) // 2)
+        arc = np.unique(model.facet_dofs("cylinder_contact", 1) // 2)
         cons = plane_below(COMM, arc, model.node_xy, model.offset, 0.0, model.length_scale)
         contact = sim.add_contact(cons, FILM(), rigid=wall_part())
         x = np.asarray(cons.r)

@@ -418,6 +418,19 @@ def _rectangle(gmsh, r0, z0, r1, z1, h, n_r=None, structured=False):
     return s, c
 
 
+def _block_split_top(geo, x_break: float, width: float, depth: float,
+                     h: float) -> tuple[int, list[int]]:
+    """A block 0 <= x <= width, -depth <= y <= 0 (m) of element size ``h`` whose top is
+    split at ``x_break``: its surface and its lines, each drawn from its successor's
+    corner (the top under the body above [0, x_break], the rest of the top, the side,
+    the bottom, the axis), the loop counter-clockwise."""
+    p = [geo.addPoint(0, 0, 0, h), geo.addPoint(x_break, 0, 0, h),
+         geo.addPoint(width, 0, 0, h), geo.addPoint(width, -depth, 0, h),
+         geo.addPoint(0, -depth, 0, h)]
+    lines = [geo.addLine(p[(k + 1) % 5], p[k]) for k in range(5)]
+    return geo.addPlaneSurface([geo.addCurveLoop(lines[::-1])]), lines
+
+
 def _group(gmsh, dim: int, entities: list[int], name: str, tag: int) -> None:
     gmsh.model.addPhysicalGroup(dim, entities, tag)
     gmsh.model.setPhysicalName(dim, tag, name)
@@ -861,12 +874,7 @@ def wedge_on_block(wedge_angle: float = 90.0, tip_radius: float = 0.0005,
         flank, top = geo.addLine(tangent, shoulder), geo.addLine(shoulder, crown)
         axis_w = geo.addLine(crown, tip)
         wedge = geo.addPlaneSurface([geo.addCurveLoop([arc, flank, top, axis_w])])
-        b = [geo.addPoint(0, 0, 0, h_block), geo.addPoint(half, 0, 0, h_block),
-             geo.addPoint(block_width, 0, 0, h_block),
-             geo.addPoint(block_width, -block_depth, 0, h_block),
-             geo.addPoint(0, -block_depth, 0, h_block)]
-        lines = [geo.addLine(b[(k + 1) % 5], b[k]) for k in range(5)]  # counter-clockwise
-        block = geo.addPlaneSurface([geo.addCurveLoop(lines[::-1])])
+        block, lines = _block_split_top(geo, half, block_width, block_depth, h_block)
         geo.synchronize()
         _group(gmsh, 2, [wedge], "wedge", 1)
         _group(gmsh, 2, [block], "block", 2)
@@ -1027,12 +1035,7 @@ def striker_on_plate(striker_half_width: float = 0.002, striker_length: float = 
              geo.addPoint(w, y1, 0, h_striker), geo.addPoint(0, y1, 0, h_striker)]
         c = [geo.addLine(s[k], s[(k + 1) % 4]) for k in range(4)]  # face, side, top, axis
         striker = geo.addPlaneSurface([geo.addCurveLoop(c)])
-        p = [geo.addPoint(0, 0, 0, h_plate), geo.addPoint(w, 0, 0, h_plate),
-             geo.addPoint(plate_half_span, 0, 0, h_plate),
-             geo.addPoint(plate_half_span, -plate_thickness, 0, h_plate),
-             geo.addPoint(0, -plate_thickness, 0, h_plate)]
-        lines = [geo.addLine(p[(k + 1) % 5], p[k]) for k in range(5)]  # counter-clockwise
-        plate = geo.addPlaneSurface([geo.addCurveLoop(lines[::-1])])
+        plate, lines = _block_split_top(geo, w, plate_half_span, plate_thickness, h_plate)
         geo.synchronize()
         _group(gmsh, 2, [striker], "striker", 1)
         _group(gmsh, 2, [plate], "plate", 2)

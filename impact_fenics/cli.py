@@ -260,8 +260,10 @@ def _report(title: str, s: dict, out_dir: str) -> None:
     if "final_length" in s:  # a finite-strain bar
         face = ("x of the impact face's corner" if s.get("geometry", {}).get("kind")
                 == "plane_strain" else "impact-face radius")
+        plastic = any("plastic_work" in b for b in s.get("bodies", {}).values())
         print(f"shape: length {s['final_length'] * 1e3:.4f} mm, {face} "
-              f"{s['final_face_radius'] * 1e3:.4f} mm, max eps_p {s['eps_p_max']:.4f}")
+              f"{s['final_face_radius'] * 1e3:.4f} mm"
+              + (f", max eps_p {s['eps_p_max']:.4f}" if plastic else ""))
 
     if "energy" in s:
         print(energy_line(s))

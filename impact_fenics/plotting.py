@@ -284,9 +284,9 @@ def _auto_region(points: np.ndarray, cells: np.ndarray, values: list[np.ndarray]
 
 
 def _run_facts(run_dir: str, data: XdmfRun) -> tuple[str, bool]:
-    """(title, finite strain?) of a run: the scene's title and the kinematics from its
-    summary.json; without one, the directory's name, and finite strain where the cells
-    are quadrilaterals (only the finite-strain runs write those)."""
+    """(title, finite strain?) of a run: the scene's title and whether a body is at finite
+    strain, from its summary.json; without one, the directory's name, and finite strain
+    where the cells are quadrilaterals."""
     import json
 
     try:
@@ -297,8 +297,9 @@ def _run_facts(run_dir: str, data: XdmfRun) -> tuple[str, bool]:
     if not isinstance(summary, dict):
         summary = {}
     title = summary.get("title") or _run_name(run_dir)
-    finite = (summary["strain"] == "finite" if "strain" in summary
-              else data.cells.shape[1] == 4)
+    bodies = summary.get("bodies")
+    finite = (any(isinstance(b, dict) and b.get("strain") == "finite" for b in bodies.values())
+              if isinstance(bodies, dict) and bodies else data.cells.shape[1] == 4)
     return str(title), finite
 
 

@@ -99,7 +99,8 @@ def console_lines(s: dict) -> list[str]:
     if plane:
         lines.append(f"plane strain: masses, forces and energies per thickness t = "
                      f"{s['geometry']['thickness']:.6g} m")
-    if s.get("strain") != "finite" and "eps_p_max" in s:
+    plastic = any("plastic_work" in b for b in s.get("bodies", {}).values())
+    if plastic and "eps_p_max" in s and "final_length" not in s:  # (a bar's shape line has it)
         lines.append(f"plastic strain: largest equivalent plastic strain {s['eps_p_max']:.4g} "
                      "at the end (at a point of the stiffness rule)")
     for name, b in s.get("bodies", {}).items():

@@ -250,7 +250,10 @@ def body_figures(model, integ, body_mass: dict[str, float], v_start: dict[str, f
     # energy rows' u^n, kept by the run), else at the current u
     kept = finite_u if finite_u is not None else [None] * len(integ.finite)
     psi.update({f.body: f.stored_energy_local(u) for f, u in zip(integ.finite, kept)})
-    plastic = {f.body: f.plastic_work_local for f in integ.nonlinear + integ.finite}
+    # the plastic work of path-dependent bodies (a finite-strain elastic one has no state)
+    plastic = {f.body: f.plastic_work_local for f in integ.nonlinear + integ.finite
+               if f in integ.nonlinear or f.material.n_state > 0}
+    finite = {f.body for f in integ.finite}
     out = {}
     for name in model.bodies:
         dofs = np.concatenate([model.body_dofs(name, 0), model.body_dofs(name, 1)])
@@ -259,7 +262,7 @@ def body_figures(model, integ, body_mass: dict[str, float], v_start: dict[str, f
                                               integ.v_owned[dofs])), strain,
                           plastic.get(name, 0.0)])
         comm.Allreduce(MPI.IN_PLACE, local)
-        out[name] = {"mass": body_mass[name],
+        out[name] = {"mass": body_mass[name], "strain": "finite" if name in finite else "small",
                      "velocity_z_initial": v_start[name], "velocity_z_final": v_end[name],
                      "kinetic_energy": float(local[0]), "strain_energy": float(local[1])}
         if name in plastic:

@@ -480,6 +480,7 @@ class SegmentTangential(FrictionFigures):
             self.band = np.empty((c.n, bw + 1))
             self.L = np.zeros((c.n, bw + 1))
         self.bw = bw
+        self.info["tangential_bandwidth"] = max(self.info["tangential_bandwidth"], int(bw))
         bw_slots = slot_bandwidth(c.cs, c.minv, self._first)
         self.coupled = coupling_of(c.cs, c.cc, self.ct, c.minv, bw_slots) > COUPLING_TOL
         self.info["coupled"] = self.info["coupled"] or bool(self.coupled)

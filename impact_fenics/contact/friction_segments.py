@@ -37,6 +37,12 @@ loss takes the normal share only, and the slip work D = Σ h_n |λ_t| |w^{n+1/2}
 L_t = -W_t - D are kept with the stats of :mod:`.friction` (same indices and columns).
 Every rank holds the set's gathered slots and takes the same decisions.
 
+A set re-paired in the loop (``ContactSet.set_repairing``; FILM and DME) tells the pass
+after each re-pairing (:meth:`SegmentTangential.repaired`): T's rows, A's band and the
+coupling are rebuilt in place from the new rows of G; the last step's sets are only the
+pivoting's start (a stuck slave on a new segment is tested again against its tangent),
+and a released slave (a zero row) gets λ_t = 0. The penalty's spring is refused there.
+
 The penalty (docs/friction.md 4) solves nothing: each loaded row's spring k_t (N/m) on its
 committed elastic slip s_e (m) gives the trial λ_tr = -k_t (s_e + h_{n+1/2} w~_t), which is
 returned to the cone row by row, and the rows' forces are applied together. Its

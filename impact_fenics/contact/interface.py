@@ -372,8 +372,9 @@ class ContactSet:
         frictionless one. Built for FILM, DME and the penalty (its tangential spring
         ``tangential_penalty``: N/m, or ``"scaled"``, beta_t = 1 per row; one whose
         beta_t passes 4/3 is refused unless ``force``) on node pairs, a flat rigid or
-        fixed face (the wall) and node to segment (the penalty on a straight master);
-        refused in one line elsewhere. Call before the run."""
+        fixed face (the wall) and node to segment (the penalty on a straight master; FILM
+        and DME re-paired too, :meth:`set_repairing`, in either order); refused in one
+        line elsewhere. Call before the run."""
         from .friction import (DME_T, FILM_T, PENALTY_T, STABILITY_BOUND, Tangential,
                                friction_law)
 

@@ -37,6 +37,12 @@ loss takes the normal share only, and the slip work D = Σ h_n |λ_t| |w^{n+1/2}
 L_t = -W_t - D are kept with the stats of :mod:`.friction` (same indices and columns).
 Every rank holds the set's gathered slots and takes the same decisions.
 
+A set re-paired in the loop (``ContactSet.set_repairing``; FILM and DME) tells the pass
+after each re-pairing (:meth:`SegmentTangential.repaired`): T's rows, A's band and the
+coupling are rebuilt in place from the new rows of G; the last step's sets are only the
+pivoting's start (a stuck slave on a new segment is tested again against its tangent),
+and a released slave (a zero row) gets λ_t = 0. The penalty's spring is refused there.
+
 The penalty (docs/friction.md 4) solves nothing: each loaded row's spring k_t (N/m) on its
 committed elastic slip s_e (m) gives the trial λ_tr = -k_t (s_e + h_{n+1/2} w~_t), which is
 returned to the cone row by row, and the rows' forces are applied together. Its
@@ -53,8 +59,8 @@ from numba import njit
 
 from ..errors import InputError
 from ..plausibility import warn
-from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, band_solve, \
-    bandwidth, gap_of, gershgorin_beta
+from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, \
+    band_of_s_steps, band_solve, bandwidth, bandwidth_of, gap_of, gershgorin_beta
 from .friction import HISTORY, N_SLIP, N_STICK, PENALTY_HISTORY, RETURN_LOSS, SLIP_WORK, \
     STORED, T_FORCE, T_LOSS, T_PEAK, FrictionFigures, FrictionLaw, _coefficient, \
     _return_to_cone
@@ -84,6 +90,57 @@ def coupling(cs: np.ndarray, cc: np.ndarray, ct: np.ndarray, minv: np.ndarray) -
     np.add.at(T, (rows, cs.ravel()), ct.ravel())
     scale = float(np.max(np.einsum("ij,j,ij->i", G, minv, G), initial=0.0))
     cross = float(np.abs((G * minv) @ T.T).max(initial=0.0))
+    return cross / scale if scale > 0.0 else 0.0
+
+
+def tangent_rows_into(cc: np.ndarray, ct: np.ndarray) -> None:
+    """:func:`tangent_rows` in place (``ct`` rewritten from ``cc``; no array made)."""
+    ct[:, 0::2] = cc[:, 1::2]
+    np.negative(cc[:, 0::2], out=ct[:, 1::2])
+
+
+@njit(cache=True)
+def slot_bandwidth(cs, minv, first):
+    """Largest |i - j| over rows that list a common free slot, whatever their coefficients
+    (the band that holds both G M^-1 G' and G M^-1 T'); ``first`` (one int64 a slot) is
+    its scratch."""
+    for s in range(first.size):
+        first[s] = -1
+    bw = 0
+    for i in range(cs.shape[0]):
+        for p in range(cs.shape[1]):
+            s = cs[i, p]
+            if minv[s] == 0.0:
+                continue
+            if first[s] >= 0:
+                bw = max(bw, i - first[s])
+            else:
+                first[s] = i
+    return bw
+
+
+@njit(cache=True)
+def coupling_of(cs, cc, ct, minv, bw):
+    """:func:`coupling` compiled on the band ``bw`` of :func:`slot_bandwidth`, without
+    temporaries: max |(G M^-1 T')_ij| / max (G M^-1 G')_ii (-)."""
+    n, m = cs.shape[0], cs.shape[1]
+    scale = 0.0
+    cross = 0.0
+    for i in range(n):
+        for j in range(max(0, i - bw), min(n, i + bw + 1)):
+            g = 0.0
+            t = 0.0
+            for p in range(m):
+                w = minv[cs[i, p]]
+                if w == 0.0 or cc[i, p] == 0.0:
+                    continue
+                for q in range(m):
+                    if cs[j, q] == cs[i, p]:
+                        g += cc[i, p] * cc[j, q] * w
+                        t += cc[i, p] * ct[j, q] * w
+            if j == i:
+                scale = max(scale, g)
+            cross = max(cross, abs(t))
     return cross / scale if scale > 0.0 else 0.0
 
 
@@ -384,17 +441,73 @@ class SegmentTangential(FrictionFigures):
         # plastic slips Δs_p (m)
         self.k_t, self.s_e, self.dsp = np.zeros((3, n))
         self.beta_max = 0.0
+        self.no_free = np.zeros(n, dtype=np.bool_)
+        self.repairing = False  # start_repairing: the set re-pairs in the loop
         self.set_step()
+
+    def refuse_repairing(self, what: str) -> None:
+        """Refuse re-pairing where it is not built: the penalty (its spring's elastic slip
+        lies along the old segment) and restitution e > 0 (a re-pairing can make the rows
+        couple, where e > 0 is not built)."""
+        if self.penalty:
+            raise InputError(f"{what}: the penalty's friction with re-pairing is not built "
+                             "(its tangential spring's elastic slip lies along the old "
+                             "segment); film and dme are")
+        if getattr(self.c.method, "e", 0.0) > 0.0:
+            raise InputError(f"{what}: friction with re-pairing and restitution e > 0 is not "
+                             "built (a re-pairing can make the rows couple); e = 0 is")
+
+    def start_repairing(self, what: str) -> None:
+        """The set re-pairs (``ContactSet.set_repairing``): from now on :meth:`repaired`
+        follows each re-pairing. Refused for the penalty and e > 0 (:meth:`refuse_repairing`).
+        Its scratch and the bound of A's band storage are made here."""
+        self.refuse_repairing(what)
+        c = self.c
+        self.repairing = True
+        self._first = np.empty(c.n_slots, np.int64)
+        bw_slots = slot_bandwidth(c.cs, c.minv, self._first)
+        self.coupled = coupling_of(c.cs, c.cc, self.ct, c.minv, bw_slots) > COUPLING_TOL
+        self.info["coupled"] = bool(self.coupled)
+        self.initialize()  # the re-pairing's kernels loaded now
+
+    def repaired(self) -> None:
+        """After a re-pairing (the set's rows of G rewritten in place): T's rows, A's band
+        (its storage grows only past its widest so far, as S's), the rows moving no free
+        slot (a released slave: no row, so λ_t = 0), the coupling (the Tresca iteration
+        from this step on where the new rows couple) and the kept factor dropped. The sets
+        of the last step stay as the pivoting's start: a stuck slave on a new segment is
+        tested again against the new tangent; FILM and DME keep no elastic slip, so
+        nothing else is carried. Nothing is allocated but a wider band."""
+        c = self.c
+        tangent_rows_into(c.cc, self.ct)
+        bw = bandwidth_of(c.cs, self.ct, c.minv, self._first)
+        rebind = bw != self.bw
+        if bw + 1 > self.band.shape[1]:
+            self.band = np.empty((c.n, bw + 1))
+            self.L = np.zeros((c.n, bw + 1))
+        self.bw = bw
+        self.info["tangential_bandwidth"] = max(self.info["tangential_bandwidth"], int(bw))
+        bw_slots = slot_bandwidth(c.cs, c.minv, self._first)
+        self.coupled = coupling_of(c.cs, c.cc, self.ct, c.minv, bw_slots) > COUPLING_TOL
+        self.info["coupled"] = self.info["coupled"] or bool(self.coupled)
+        self._rebuild(rebind)
 
     def set_step(self) -> None:
         """A's band, h_n T M^-1 T' (band_of_s with sqrt(h_n) for its dt^2); the penalty's
         k_t at this step and its bound beta_max = Gershgorin's row sums of
         h_{n+1/2} K^1/2 A K^1/2 (on matched faces A is diagonal and this is the node
         pairs' beta_t = k_t h h_n (1/m_s + 1/m_m) exactly)."""
+        self._rebuild(True)
+
+    def _rebuild(self, rebind: bool) -> None:
+        """A's band at the set's steps and rows, in place; ``rebind``: the kernels'
+        argument tuples again (a new step, a new bandwidth)."""
         c = self.c
         band_of_s(c.cs, self.ct, c.minv, np.sqrt(c.h_avg), self.bw, self.band)
-        self.no_free = self.band[:, 0] <= 0.0  # a row moving no free slot: λ_t = 0
+        np.less_equal(self.band[:, 0], 0.0, out=self.no_free)  # no free slot: λ_t = 0
         self.factored[-1] = False
+        if not rebind:
+            return
         if self.penalty:
             if isinstance(self.stiffness, str):
                 self.k_t[:] = scaled_stiffness(self.band, self.bw, c.dt)
@@ -431,6 +544,13 @@ class SegmentTangential(FrictionFigures):
         load(apply_multipliers, self.lam, c.cs, self.ct, c.mass, c.free, c.h_avg, c.u, c.v, c.dt)
         load(_settled, self.lam, self.lam_last, c.force, self.force_last, self.state,
              self.state_last, c.active, self.active_last)
+        if self.repairing:  # a re-pairing's calls, and the Tresca iteration's it may need
+            load(bandwidth_of, c.cs, self.ct, c.minv, self._first)
+            load(slot_bandwidth, c.cs, c.minv, self._first)
+            load(coupling_of, c.cs, c.cc, self.ct, c.minv, self.bw)
+            load(band_of_s_steps, c.cs, self.ct, c.minv, c.h_avg, c.h_avg, self.bw, self.band)
+            load(band_matvec, self.band, self.bw, self.applied, self.aw)
+            load(gap_of, c.g0, c.cs, c.cc, c.u, c.gap)
         self._bind()
 
     def _caps_args(self) -> tuple:

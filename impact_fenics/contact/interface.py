@@ -372,8 +372,9 @@ class ContactSet:
         frictionless one. Built for FILM, DME and the penalty (its tangential spring
         ``tangential_penalty``: N/m, or ``"scaled"``, beta_t = 1 per row; one whose
         beta_t passes 4/3 is refused unless ``force``) on node pairs, a flat rigid or
-        fixed face (the wall) and node to segment (the penalty on a straight master);
-        refused in one line elsewhere. Call before the run."""
+        fixed face (the wall) and node to segment (the penalty on a straight master; FILM
+        and DME re-paired too, :meth:`set_repairing`, in either order); refused in one
+        line elsewhere. Call before the run."""
         from .friction import (DME_T, FILM_T, PENALTY_T, STABILITY_BOUND, Tangential,
                                friction_law)
 
@@ -393,11 +394,12 @@ class ContactSet:
 
             if not isinstance(self.method, (FILM, DME, Penalty)):
                 raise InputError(f"{what}: friction needs method film, dme or penalty")
-            if self.repair_every:
-                raise InputError(f"{what}: friction with re-pairing (node to segment at "
-                                 "finite strain) is not built yet")
             spring = tangential_penalty if isinstance(self.method, Penalty) else None
-            self.friction = SegmentTangential(self, law, what, spring)
+            tangential = SegmentTangential(self, law, what, spring)
+            if self.repair_every:  # the pass follows each re-pairing (refused: the penalty)
+                tangential.start_repairing(what)
+            tangential.initialize()  # its kernels loaded now: the set was initialized
+            self.friction = tangential
             if spring is not None and self.friction.beta_max > STABILITY_BOUND and not force:
                 raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t <= "
                                  f"{self.friction.beta_max:.3g} (Gershgorin bound on h h_n "
@@ -441,9 +443,8 @@ class ContactSet:
         largest Gershgorin bound of the rows the run used."""
         if self.kind != SEGMENTS:
             raise InputError("re-pairing is for node-to-segment contact")
-        if self.friction is not None and int(every):
-            raise InputError("contact: friction with re-pairing (node to segment at finite "
-                             "strain) is not built yet")
+        if self.friction is not None and int(every):  # refused: the penalty's spring
+            self.friction.refuse_repairing(f"friction = {self.friction.law.text()}")
         every = int(every)
         if every < 0:
             raise InputError(f"contact: repair_every = {every} must be >= 0 (0: never)")
@@ -463,6 +464,8 @@ class ContactSet:
         self.repairs = 0  # re-pairings made
         self.method.setup(self)  # a penalty's p, bounded over every row (the flag is set)
         self._load_repair_kernels()
+        if self.friction is not None:  # the tangential pass follows each re-pairing
+            self.friction.start_repairing(f"friction = {self.friction.law.text()}")
 
     def _repair(self) -> None:
         """Re-pair at X + u^n and rebuild G, g0 and S's band (see :meth:`set_repairing`).
@@ -487,6 +490,8 @@ class ContactSet:
         rebanded = getattr(self.method, "rebanded", None)  # a user's method: none
         if rebanded is not None:
             rebanded(self)
+        if self.friction is not None:  # T's rows, A's band, the coupling: rebuilt in place
+            self.friction.repaired()
         self.repairs += 1
 
     def _load_repair_kernels(self) -> None:

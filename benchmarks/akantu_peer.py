@@ -91,9 +91,10 @@ def main() -> None:
     p.add_argument("--dt", type=float, required=True, help="the time step (s)")
     p.add_argument("--check-steps", type=int, default=10)
     p.add_argument("--steps", type=int, default=30)
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=3, help="timed blocks (0: the check alone)")
     p.add_argument("--out", required=True)
     p.add_argument("--material", choices=sorted(MATERIALS), default="elastic")
+    p.add_argument("--label", default="", help="names u_akantu_<label>.npy (default: material)")
     p.add_argument("--E", type=float, default=2e11, help="Young's modulus (Pa)")
     p.add_argument("--nu", type=float, default=0.3)
     p.add_argument("--rho", type=float, default=7850.0, help="density (kg/m^3)")
@@ -128,7 +129,7 @@ def main() -> None:
     for _ in range(args.check_steps):
         model.solveStep()
     u_check = np.array(model.getDisplacement(), copy=True)
-    np.save(os.path.join(here, f"u_akantu_{args.material}.npy"), u_check)
+    np.save(os.path.join(here, f"u_akantu_{args.label or args.material}.npy"), u_check)
     yielded = _yielded_fraction(model, aka) if args.material == "j2" else None
     samples = []
     for _ in range(args.repeats):
@@ -136,7 +137,7 @@ def main() -> None:
         for _ in range(args.steps):
             model.solveStep()
         samples.append((time.perf_counter() - t) / args.steps)
-    step = float(np.median(samples))
+    step = float(np.median(samples)) if samples else None  # --repeats 0: the check alone
     n_dofs = 2 * n_nodes
     n_elements = int(mesh.getNbElement(type=aka._triangle_3))
     n_points = int(model.getFEEngine().getNbIntegrationPoints(aka._triangle_3))
@@ -145,8 +146,9 @@ def main() -> None:
            "dt": args.dt, "stable_dt": stable, "check_steps": args.check_steps,
            "steps": args.steps, "repeats": args.repeats, "step_seconds": step,
            "samples": samples, "setup_seconds": setup,
-           "ns_per_dof_per_step": 1e9 * step / n_dofs,
-           "ns_per_point_per_step": 1e9 * step / (n_elements * n_points),
+           "ns_per_dof_per_step": None if step is None else 1e9 * step / n_dofs,
+           "ns_per_point_per_step": (None if step is None
+                                     else 1e9 * step / (n_elements * n_points)),
            "yielded_fraction": yielded,
            "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
            "material": args.material,

@@ -80,6 +80,7 @@ def part_matfree(ctx) -> dict:
 
 AKANTU_SPEED = 1.0  # m/s: the scale of the random initial velocity of both codes
 AKANTU_HARDENING = 2e9  # Pa: the J2 hardening modulus H of both codes
+NEVER_YIELDS = 1e15  # Pa: a yield stress that no point of the comparison reaches
 
 
 def _akantu_missing(ctx, py: str) -> str | None:
@@ -154,26 +155,38 @@ def ours_run(tmesh, material, geometry, dt: float, v0: np.ndarray, steps: int,
         eps_bar = integ.nonlinear[0].qs.state[..., 0]
         rec["points_per_cell"] = int(eps_bar.shape[1])
         rec["yielded_fraction"] = float((eps_bar > 0).mean())
-    rec["step_seconds"] = time_steps(step, steps, repeats)
+    rec["step_seconds"] = time_steps(step, steps, repeats) if repeats else None
     return rec, u
 
 
-def _run_akantu(ctx, py: str, work: str, material: str, dt: float, yield_stress: float) -> dict:
+def _run_akantu(ctx, py: str, work: str, material: str, dt: float, yield_stress: float,
+                label: str = "", timed: bool = True) -> dict:
     """benchmarks/akantu_peer.py on the mesh and velocity written in ``work``; ``material``
     'elastic' or 'j2' (plastic_linear_isotropic_hardening); its u after the check steps
-    under "u"."""
+    under "u"; not ``timed``: the check steps alone."""
     mode = ctx.mode
-    out = os.path.join(work, f"akantu_{material}.json")
+    label = label or material
+    out = os.path.join(work, f"akantu_{label}.json")
     cmd = [py, str(BENCHMARKS / "akantu_peer.py"), "--mesh", os.path.join(work, "bar.msh"),
            "--velocity", os.path.join(work, "v0.npy"), "--dt", repr(dt),
            "--check-steps", str(mode.akantu_steps), "--steps", str(mode.akantu_steps),
-           "--repeats", str(max(3, mode.repeats // 2)), "--out", out, "--material", material,
+           "--repeats", str(mode.repeats if timed else 0), "--out", out,
+           "--material", material, "--label", label,
            "--E", repr(STEEL.E), "--nu", repr(STEEL.nu), "--rho", repr(STEEL.density)]
     if material == "j2":
         cmd += ["--yield-stress", repr(yield_stress), "--hardening", repr(AKANTU_HARDENING)]
     rec = run_json(cmd, out, child_env("PYTHON", OMP_NUM_THREADS="1"), work, timeout=600)
-    rec["u"] = np.load(os.path.join(work, f"u_akantu_{material}.npy")).ravel()
+    rec["u"] = np.load(os.path.join(work, f"u_akantu_{label}.npy")).ravel()
     return rec
+
+
+def _same_problem(ak: dict, ours: dict, u: np.ndarray) -> dict:
+    """Akantu's u after the check steps (taken out of ``ak``) against ours ``u``: the largest
+    difference over max |u|, and whether the dofs and cells are the same."""
+    scale = float(np.abs(u).max())
+    return {"u_max": scale, "u_rel_diff": float(np.abs(ak.pop("u") - u).max()) / scale,
+            "same_dofs": ak["n_dofs"] == ours["n_dofs"],
+            "same_cells": ak["n_elements"] == ours["n_cells"]}
 
 
 def _row(code: str, geometry: str, material: str, rec: dict, seconds: float, points: int | None,
@@ -198,7 +211,7 @@ def part_akantu(ctx) -> dict:
     if reason:
         return {"skipped": reason}
     mode = ctx.mode
-    steps, repeats = mode.akantu_steps, max(3, mode.repeats // 2)
+    steps, repeats = mode.akantu_steps, mode.repeats
     tmesh, h = bar_mesh(ctx.comm, mode.akantu_dofs)
     plane, axi = Geometry(PLANE_STRAIN), Geometry()
     # the time step: 0.9 x our element bound in plane strain, used by both codes
@@ -217,13 +230,18 @@ def part_akantu(ctx) -> dict:
     sigma_y = akantu_yield_stress(dt, h)
     rec = {"n_cells": n_cells, "h": h, "dt": dt, "steps": steps, "repeats": repeats,
            "speed": AKANTU_SPEED, "yield_stress": sigma_y, "hardening": AKANTU_HARDENING,
-           "load_average_start": load_start, "akantu": {}, "ours": {}, "check": {}}
-    for material in ("elastic", "j2"):
+           "load_average_start": load_start, "started": time.strftime("%Y-%m-%d %H:%M"),
+           "akantu": {}, "ours": {}, "check": {}}
+    # the timed runs, and J2 below its yield stress (the check alone): both codes' plastic
+    # materials on the elastic branch of their return mappings, the same problem again
+    runs = {"elastic": ("elastic", sigma_y, True), "j2": ("j2", sigma_y, True),
+            "j2_elastic_range": ("j2", NEVER_YIELDS, False)}
+    for label, (material, stress, timed) in runs.items():
         try:
-            rec["akantu"][material] = _run_akantu(ctx, py, work, material, dt, sigma_y)
+            rec["akantu"][label] = _run_akantu(ctx, py, work, material, dt, stress, label, timed)
         except (subprocess.SubprocessError, OSError, ValueError, RuntimeError) as exc:
-            ctx.log(f"   akantu: the {material} run failed: {exc}")
-            return {"skipped": f"akantu {material} run failed: {exc}",
+            ctx.log(f"   akantu: the {label} run failed: {exc}")
+            return {"skipped": f"akantu {label} run failed: {exc}",
                     "load_average_start": load_start}
     rec["version"] = rec["akantu"]["elastic"].get("version", "?")
     materials = {"elastic": STEEL, "j2": akantu_j2(sigma_y)}
@@ -232,12 +250,9 @@ def part_akantu(ctx) -> dict:
             ours, u = ours_run(tmesh, mat, geometry, dt, v0, steps, repeats)
             rec["ours"][f"{name}_{material}"] = ours
             if name == "plane_strain":  # the same discrete problem as Akantu's
-                ak = rec["akantu"][material]
-                scale = float(np.abs(u).max())
-                rec["check"][material] = {
-                    "u_max": scale, "u_rel_diff": float(np.abs(ak.pop("u") - u).max()) / scale,
-                    "same_dofs": ak["n_dofs"] == ours["n_dofs"],
-                    "same_cells": ak["n_elements"] == ours["n_cells"]}
+                rec["check"][material] = _same_problem(rec["akantu"][material], ours, u)
+    ours, u = ours_run(tmesh, akantu_j2(NEVER_YIELDS), plane, dt, v0, steps, 0)
+    rec["check"]["j2_elastic_range"] = _same_problem(rec["akantu"]["j2_elastic_range"], ours, u)
     ak_el, ak_j2 = (rec["akantu"][m]["step_seconds"] for m in ("elastic", "j2"))
     o = {k: v["step_seconds"] for k, v in rec["ours"].items()}
     rec["akantu_over_ours"] = ak_el / o["plane_strain_elastic"]
@@ -248,9 +263,10 @@ def part_akantu(ctx) -> dict:
     rec["akantu_over_ours_j2_per_point"] = (ak_j2 / p_ak) / (o["plane_strain_j2"] / p_pl)
     rec["axisymmetric_over_plane_strain"] = {
         m: o[f"axisymmetric_{m}"] / o[f"plane_strain_{m}"] for m in materials}
-    rec["ns_per_dof_per_step"] = {"akantu_elastic": ns_per_dof(ak_el, rec["akantu"]["elastic"]["n_dofs"]),
-                                  "akantu_j2": ns_per_dof(ak_j2, rec["akantu"]["j2"]["n_dofs"])}
-    rec["ns_per_dof_per_step"].update({k: ns_per_dof(v, rec["ours"][k]["n_dofs"]) for k, v in o.items()})
+    per_dof = {f"akantu_{m}": ns_per_dof(a["step_seconds"], a["n_dofs"])
+               for m, a in rec["akantu"].items() if a["step_seconds"] is not None}
+    per_dof.update({k: ns_per_dof(v, rec["ours"][k]["n_dofs"]) for k, v in o.items()})
+    rec["ns_per_dof_per_step"] = per_dof
     rec["load_average_end"] = os.getloadavg()
     version = rec["version"]
     rows = [_row(f"Akantu {version}", "plane strain", "elastic", rec["akantu"]["elastic"], ak_el,
@@ -273,7 +289,8 @@ def part_akantu(ctx) -> dict:
     c = rec["check"]
     ctx.log(f"   the same problem: u after {steps} steps from u = 0 and the same random velocity "
             f"differs by {c['elastic']['u_rel_diff']:.1e} (elastic) and "
-            f"{c['j2']['u_rel_diff']:.1e} (J2) of max |u|; points yielded: Akantu "
+            f"{c['j2']['u_rel_diff']:.1e} (J2; below yield "
+            f"{c['j2_elastic_range']['u_rel_diff']:.1e}) of max |u|; points yielded: Akantu "
             f"{rec['akantu']['j2'].get('yielded_fraction') or 0:.0%}, ours plane strain "
             f"{rec['ours']['plane_strain_j2']['yielded_fraction']:.0%}, axisymmetric "
             f"{rec['ours']['axisymmetric_j2']['yielded_fraction']:.0%}; Akantu's own stable "

@@ -556,8 +556,8 @@ def _akantu(ak: dict, bench: dict) -> list[str]:
            f"(median of {ak['repeats']}). J2: linear isotropic hardening, σ_y = "
            f"{ak['yield_stress'] / 1e6:.3g} MPa, H = {ak['hardening'] / 1e9:g} GPa, so that "
            f"most points yield (Akantu {akr['j2'].get('yielded_fraction') or 0:.0%}, ours "
-           f"{ours['plane_strain_j2']['yielded_fraction']:.0%} of the points after the first "
-           "steps). Our axisymmetric step runs on the same mesh (the axis held, dt "
+           f"{ours['plane_strain_j2']['yielded_fraction']:.0%} of the points by the end of "
+           f"the {ak['steps']} steps before the timing). Our axisymmetric step runs on the same mesh (the axis held, dt "
            f"{ours['axisymmetric_elastic']['dt']:.3e} s).", ""]
 
     def row(code, geometry, material, rec, seconds, points, reference):

@@ -8,6 +8,7 @@ harness itself.
 """
 import json
 import math
+import os
 
 import pytest
 from mpi4py import MPI
@@ -15,7 +16,7 @@ from mpi4py import MPI
 from impact_fenics.bench import main
 from impact_fenics.bench.contact import CONTACT_METHODS
 from impact_fenics.bench.step import scipy_equivalence
-from roundoff import rounding
+from roundoff import STEP_ROUNDINGS, rounding
 
 # akantu needs a venv of its own that CI does not have: left out here
 PARTS = "step,contact,friction,solvers,scaling,stream,ranks,format,matfree,j2,finite,gain,shpb"
@@ -207,3 +208,50 @@ def test_smoke_friction_times_each_method_with_and_without_friction(smoke):
             assert math.isfinite(v) and v > 0
         assert on["contact_ratio"] == on["contact"] / off["contact"]
     assert any(line.startswith("## Friction") for line in docs_pages._friction(r, smoke))
+
+
+AKANTU_PYTHON = "/tmp/akantu-venv/bin/python"  # the harness's default --akantu-python
+
+
+@pytest.mark.skipif(not os.path.exists(AKANTU_PYTHON),
+                    reason=f"no Akantu venv at {AKANTU_PYTHON} (python -m impact_fenics.bench "
+                           "--install-akantu makes it)")
+def test_smoke_akantu_runs_our_problem(tmp_path_factory):
+    """The akantu part runs Akantu's step and ours on the same plane-strain problem: the same
+    dofs and triangles, one point per triangle in both with J2 (three in our axisymmetric
+    row), and for the elastic body the same u after the steps from the same state to
+    round-off (the same P1 stiffness and lumped mass; Akantu's central differences and our
+    leapfrog give the same positions from u = 0), and so for J2 below its yield stress (both
+    return mappings on their elastic branch). Each code rounds a dof's quantities about
+    32 times a step (tests/roundoff.py) and the stable linear step carries the earlier
+    roundings along without growth: two codes over n steps stay within 2 x 32 x n roundings
+    of max |u|. Timings are only positive and finite; the page renders the part. Under
+    mpirun the part is serial-only and the harness skips it."""
+    from impact_fenics import docs_pages
+
+    comm = MPI.COMM_WORLD
+    path = str(tmp_path_factory.mktemp("akantu") / "bench.json") if comm.rank == 0 else None
+    path = comm.bcast(path, root=0)
+    main(["--smoke", "--quiet", "--parts", "akantu", "--out", path])
+    with open(path) as f:
+        bench = json.load(f)
+    ak = bench["akantu"]
+    if comm.size > 1:
+        assert "skipped" in ak
+        return
+    assert "skipped" not in ak and "error" not in ak, ak
+    for material in ("elastic", "j2"):
+        a, ours = ak["akantu"][material], ak["ours"][f"plane_strain_{material}"]
+        assert a["n_dofs"] == ours["n_dofs"] and a["n_elements"] == ours["n_cells"] == ak["n_cells"]
+        assert a["dt"] == ours["dt"] == ak["dt"] and a["check_steps"] == ak["steps"]
+        for v in (a["step_seconds"], ours["step_seconds"],
+                  ak["ours"][f"axisymmetric_{material}"]["step_seconds"]):
+            assert math.isfinite(v) and v > 0
+    assert ak["akantu"]["j2"]["points_per_element"] == 1
+    assert ak["ours"]["plane_strain_j2"]["points_per_cell"] == 1
+    assert ak["ours"]["axisymmetric_j2"]["points_per_cell"] == 3
+    assert ak["ours"]["plane_strain_j2"]["yielded_fraction"] > 0.5  # J2 times return mappings
+    for check in ("elastic", "j2_elastic_range"):  # J2 below yield: the elastic branch
+        assert ak["check"][check]["u_max"] > 0
+        assert ak["check"][check]["u_rel_diff"] <= rounding(2 * STEP_ROUNDINGS * ak["steps"])
+    assert any(line.startswith("## A peer: Akantu") for line in docs_pages._akantu(ak, bench))

@@ -34,8 +34,9 @@ P1 and Q1, so the discrete S0 branch also starts at c_pl), and whatever the real
 amplitude factor A(omega) (even in omega: no delay). The mid-level arrival instead reads
 the group delays of the ramp's wavenumbers (Airy's smoothing of the ramp's corners
 reaches its middle): it is printed and held to the same bound. What the centroid leaves
-is the tail after T (the trailing dispersive ringing, s(T) - 1 printed), and a fixed offset from the loaded end (its near field and its first cells: it halves with h),
-the same at both stations, which are 10 W and 30 W from the end.
+is the tail after T (the trailing dispersive ringing, s(T) - 1 printed), and a fixed
+offset from the loaded end (its near field and its first cells: it halves with h), the
+same at both stations, which are 10 W and 30 W from the end.
 
 The tolerance, relative to c_pl, bounds the group delay of every wavenumber of the ramp's
 main lobe (its gradient is a box of duration t_r, whose spectrum's first zero is at

@@ -121,12 +121,20 @@ def section_row(model, name: str, z: float) -> tuple[np.ndarray, np.ndarray]:
         force = _quad_action(model, name, cells[layer], plane)
     else:
         force = _triangle_action(model, name, cells[layer], plane)
-    # the dofs of the layer's nodes this rank owns, with the node's coordinates
-    n_owned_nodes = model.n_owned // model.bs
-    nodes = np.unique(model.cell_dofs[cells[layer]].ravel())
+    # the dofs of the layer's nodes this rank owns, with the node's coordinates; a node
+    # of the layer may be owned by a rank that holds none of the layer's cells (a
+    # partition along the plane: it holds the node's cells above only), so each rank
+    # marks the layer's nodes it sees and the marks are summed onto their owners
+    from dolfinx import fem
+
+    from .compat import scatter_add
+
+    mark = fem.Function(model.V)
+    mark.x.array[model.bs * np.unique(model.cell_dofs[cells[layer]].ravel())] = 1.0
+    scatter_add(mark.x)
+    nodes = np.flatnonzero(mark.x.array[: model.n_owned: model.bs] > 0)
     coords = np.zeros((n_nodes, 2))
     coords[model.cell_dofs[cells].ravel()] = xy.reshape(-1, 2)
-    nodes = nodes[nodes < n_owned_nodes]
     scene = model.dofs.local_to_scene()
     unrolled = (2 * nodes[:, None] + np.arange(2)).ravel()
     mine = np.column_stack([np.repeat(coords[nodes, 1], 2), np.repeat(coords[nodes, 0], 2),

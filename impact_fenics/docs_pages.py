@@ -105,11 +105,12 @@ def _generator_rows() -> list[str]:
     rows = ["| generator | parameters (default) | made by |", "|---|---|---|"]
     for gen in GENERATORS:
         params = [k.name for k in mesh.keys if gen in k.groups]
-        if gen == "quad_bar":
-            where = "`impact_fenics.quad_meshes.quad_bar`"
+        if gen in ("quad_bar", "rod_on_anvil"):
+            where = f"`impact_fenics.quad_meshes.{gen}`"
             defaults = {}
+            words = {"anvil_radius": "3 radius", "anvil_depth": "2 radius"}  # the reader's
         else:
-            where = f"`impact_fenics.meshing.{gen}`"
+            where, words = f"`impact_fenics.meshing.{gen}`", {}
             signature = inspect.signature(getattr(meshing, gen)).parameters
             defaults = {n: p.default for n, p in signature.items()
                         if p.default is not inspect.Parameter.empty}
@@ -118,6 +119,8 @@ def _generator_rows() -> list[str]:
         for name in params:
             if name in REQUIRED_PARAMS.get(gen, ()):
                 cells.append(f"`{name}` (required)")
+            elif name in words:
+                cells.append(f"`{name}` ({words[name]})")
             else:
                 cells.append(f"`{name}` ({_toml(defaults[name])})")
         rows.append(f"| `{gen}` | {', '.join(cells)} | {where} |")

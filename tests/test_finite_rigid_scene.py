@@ -1,0 +1,89 @@
+"""Finite-strain scene files with rigid bodies, loads on them and a deformable anvil: the
+scene run equals the Python builder's run.
+
+* Upsetting (scenes/upsetting_finite.toml, short): a finite-strain J2 cylinder on
+  ``quad_bar`` on the fixed plane z = 0 ([wall], DME, friction) under a rigid platen
+  ([rigid.platen], its [[contact]] with friction) driven by a [[loads]] constant force
+  held until t_end, against :func:`impact_fenics.scenes.upsetting` with the same values.
+* The Taylor anvil (scenes/taylor_anvil.toml, short): ``generator = "rod_on_anvil"``, the
+  finite-strain copper rod onto the linear elastic steel anvil through node-to-segment
+  contact re-paired every 5 steps, the anvil's bottom held in z ([[fixed]]), against
+  :func:`impact_fenics.scenes.taylor_anvil`.
+
+The oracle is exact equivalence: the scene reader builds the same objects in the same
+order (the mesh, the bodies, the fixed dofs, the contact sets and their friction, the
+rigid body and its force, whose value is the same float at every t), so every
+displacement, velocity, rigid-body state and energy row is equal bit for bit, on any
+number of ranks (both runs share the rank count and the mesh's partition). The ledger of
+the scene run closes within roundoff.ledger.
+"""
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import scenes
+from impact_fenics.materials import STEEL, FiniteJ2
+from impact_fenics.scene_file import build, read_scene
+from impact_fenics.simulation import Settings
+from roundoff import ledger
+from scene_texts import replace, scene_on_every_rank
+
+COMM = MPI.COMM_WORLD
+QUIET = {"out": None, "quiet": True, "plots": False, "fields": False, "timers": False}
+
+
+def _scene_file(path: str, edits) -> str:
+    with open(path) as f:
+        text = f.read()
+    for old, new in edits:
+        text = replace(text, old, new)
+    return text
+
+
+def _same_run(a, b, sa: dict, sb: dict) -> None:
+    """Two finished runs equal bit for bit: steps, every dof's u and v, the rigid bodies'
+    state, every energy row, and the scene run's ledger within roundoff.ledger."""
+    assert a.status == b.status == "completed"
+    assert sa["n_steps"] == sb["n_steps"] and sa["t_end"] == sb["t_end"]
+    for name in ("u_owned", "v_owned"):
+        assert np.array_equal(getattr(a.integrator, name), getattr(b.integrator, name)), name
+    ra = [(c.rigid.u, c.rigid.v) for c in a.contacts if c.rigid is not None]
+    rb = [(c.rigid.u, c.rigid.v) for c in b.contacts if c.rigid is not None]
+    assert ra == rb
+    ea, eb = a.energy.data(), b.energy.data()
+    assert sorted(ea) == sorted(eb)
+    for key in ea:
+        assert np.array_equal(np.asarray(ea[key]), np.asarray(eb[key]), equal_nan=True), key
+    # the ledger's residual over its largest term, within each step's roundings
+    assert sa["energy_balance_error_rel"] <= ledger(sa["n_steps"], sa["n_dofs"])
+
+
+R0 = H0 = 5e-3  # m
+UPSET = FiniteJ2(E=20e9, nu=0.3, density=7850.0, yield_stress=200e6, hardening=0.0)
+V, T_RAMP, M = 0.5, 20e-6, 1e6  # m/s, s, kg
+T_UPSET = 30e-6  # s: the ramp and 10 us after it (about 120 steps at n_r = 4)
+
+
+def test_the_upsetting_scene_is_scenes_upsetting(tmp_path_factory):
+    drive = -M * V / T_RAMP  # N, as scenes.upsetting computes it
+    text = _scene_file("scenes/upsetting_finite.toml", [
+        ("n_r = 8", "n_r = 4"), ("value = -1e10", f"value = {drive!r}"),
+        ("t_end = 50e-6", f"t_end = {T_RAMP!r}"), ("t_end = 1e-3 ", f"t_end = {T_UPSET!r} ")])
+    _, path = scene_on_every_rank(tmp_path_factory, "upsetting", text)
+    from_file = build(read_scene(path), QUIET)
+    settings = from_file.settings
+    built = scenes.upsetting(Settings(**{**settings.__dict__}), UPSET, R0, H0, 4, 4,
+                             friction=0.05, method="dme", speed=V, t_ramp=T_RAMP,
+                             platen_mass=M, t_end=T_UPSET, cfl=0.5, dt_interval=10)
+    sa, sb = from_file.run(), built.run()
+    _same_run(from_file, built, sa, sb)
+    platen = from_file.contacts[0].rigid
+    # the platen's speed ramped to V: the drive acts over whole steps (t < t_ramp: its
+    # impulse is M V to within the largest step, dt_max / t_ramp, about 0.2 % here), and
+    # the contact's impulse over M is far smaller (F t / (M V) < 1e-4: F < 1.1 sigma_y
+    # pi R0^2 = 17 kN over 30 us against M V = 5e5 N s)
+    assert abs(platen.v / -V - 1.0) <= sa["dt_range"][1] / T_RAMP + 1e-4
+    e = from_file.energy.data()
+    assert e["plastic_work"][-1] > 0.0  # the platen has pressed the billet into yield

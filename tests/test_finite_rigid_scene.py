@@ -86,3 +86,27 @@ def test_the_upsetting_scene_is_scenes_upsetting(tmp_path_factory):
     # pi R0^2 = 17 kN over 30 us against M V = 5e5 N s)
     assert abs(platen.v / -V - 1.0) <= sa["dt_range"][1] / T_RAMP + 1e-4
     assert platen.u < 0.0  # it has moved down, into the billet (elastic still: 0.2 %)
+
+
+COPPER = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
+DT = 2.0 ** -27  # s (a power of two: t = n DT exact; 0.07 of the rod's limit at set-up)
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_the_taylor_anvil_scene_is_scenes_taylor_anvil(tmp_path_factory, method):
+    """100 steps at 227 m/s (0.75 us: the rim yields), re-paired every 5 steps."""
+    text = _scene_file("scenes/taylor_anvil.toml", [
+        ("t_end = 80e-6 ", f"t_end = {100 * DT!r} "),
+        ("dt = 3.725290298461914e-09", f"dt = {DT!r}"), ('method = "film"', f'method = "{method}"')])
+    _, path = scene_on_every_rank(tmp_path_factory, f"anvil_{method}", text)
+    from_file = build(read_scene(path), QUIET)
+    built = scenes.taylor_anvil(Settings(**{**from_file.settings.__dict__}), COPPER,
+                                anvil=STEEL, n_r=4, v0=227.0, method=method, t_end=100 * DT,
+                                dt=DT, dt_interval=10, repair_every=5)
+    sa = from_file.run(extra=from_file.scene_figures)
+    sb = built.run(extra=built.scene_figures)
+    _same_run(from_file, built, sa, sb)
+    assert sa["n_steps"] == 100 and from_file.contacts[0].repairs == 100 // 5
+    for key in ("final_length", "final_face_radius", "stored_elastic", "plastic_work"):
+        assert sa[key] == sb[key], key
+    assert sa["plastic_work"] > 0.0 and sa["final_face_radius"] > 3.2e-3  # the rim yields

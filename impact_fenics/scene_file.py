@@ -537,7 +537,10 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         if dt is None:
             dt = t["cfl"] * min(resources.DT_FACTOR[r.kind] * r.h / speeds.get(r.body, fastest)
                                 for r in regions)
-            flattening = scene.finite and scene.wall is not None
+            # a body that strikes the wall flattens (its cells' limit falls); one at rest
+            # on it, pressed by a platen (upsetting), barely does
+            flattening = scene.finite and scene.wall is not None and any(
+                b.velocity != (0.0, 0.0) for b in scene.bodies if b.strain == "finite")
         n_steps = math.ceil(t["t_end"] / dt - 1e-9) * (resources.FLATTENING if flattening else 1)
     plastic = any(scene.materials[b.material].plastic for b in scene.bodies)
     h_min = min(r.h for r in regions)
@@ -545,17 +548,20 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
     for c in scene.contacts:  # the nodes of the (slave, lower) face
         across = c.radius if c.rigid is not None else radius
         pairs.append(across / h_min + 1 if across else math.sqrt(cells))
-    if scene.wall is not None and not scene.finite:  # its set: every boundary node
+    # the bar against the wall alone (the Taylor bar: its steps' flattening factor holds
+    # the wall's rows and the energy rows); anything else is counted as every scene
+    taylor = (scene.finite and scene.mesh.generator == "quad_bar" and not scene.contacts)
+    if scene.wall is not None and not taylor:  # its set: every boundary node
         pairs.append(4 * math.sqrt(cells))
-    if scene.finite and scene.mesh.generator == "quad_bar":
+    if taylor:
         columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
-        columns += len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
-                                           for c in scene.contacts)
         energy_columns = 0
     else:
         columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
                                               for c in scene.contacts)
         columns += 6 if scene.wall is not None else 0
+        if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
+            columns += 3  # the bar's (the rod's) tracked nodes
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
         energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
     shape = resources.RunShape(

@@ -7,33 +7,42 @@ built by :func:`.scene_file.build`) under a step that follows their cells
 (:class:`~.stepping.FollowingStep`: cfl x the current limit re-estimated every
 ``dt_interval`` steps, or a fixed dt checked against it). Its cells are quadrilaterals
 (:func:`quadrilateral_generator`; on triangles it is refused in one line: constant-strain
-triangles lock under isochoric flow). Such a scene holds, for now, either
+triangles lock under isochoric flow). A finite-strain scene is a scene like any other:
+its bodies, each small or finite strain, on a mesh of quadrilaterals, which is
 
-* one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
-  across the radius, square cells; the bar spans 0 <= z <= length);
-* its material: a model with a finite-strain form (``"j2"``: multiplicative J2,
-  Hencky elasticity, linear hardening, rate-independent; ``"johnson_cook"``;
-  ``"neo_hookean"``) or a class of one's own with ``strain = "finite"``
-  (the kinematics is checked with the materials, :mod:`.scene_materials`);
-* optionally a ``[wall]``: the rigid plane z (m, default 0, at or below the bar), a fixed
-  rigid part under every boundary node with its contact set (:mod:`.contact.plane`),
-  frictionless or with ``friction`` (film and dme: contact/friction.py), with
-  ``method`` = "film", "dme" or "penalty" and, for penalty, ``penalty`` = a stiffness
-  in N/m or "scaled"; ``face`` = "contact" (default: every boundary node a unilateral
-  candidate, so the rim of the impact face may lift off) or "held" (u_z = 0 on the face
-  Z = 0 from t = 0, free to slide radially: the condition of the converged Taylor-bar
-  references; needs z = 0; the face's stop, 1/2 m_face v0^2 in J, is reported as
-  impact_face_loss);
-* [[fixed]] faces (the groups axis, outer, bottom, top);
-* no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line);
+* ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells across the radius,
+  square cells; the bar spans 0 <= z <= length): one body;
+* ``generator = "rod_on_anvil"`` (:func:`.quad_meshes.rod_on_anvil`: the rod "rod" of
+  quad_bar's cells on the anvil block "anvil", anvil_radius and anvil_depth in m,
+  default 3 and 2 radius, squares of the rod's size; facet groups rod_contact,
+  anvil_contact, anvil_bottom, ...);
+* ``coaxial_bars_sized``, ``shpb`` or ``block`` with ``quadrilaterals = true``;
 
-or any number of bodies, each small or finite strain, on ``coaxial_bars_sized``,
-``shpb`` or ``block`` with ``quadrilaterals = true`` (small strain on Q1: linear, or
-path-dependent with mean dilatation), in node-pair or node-to-segment [[contact]] with
-each other (under the step that follows the cells, or a fixed ``dt``), with
-[[probes]] and [[fixed]] faces; no [wall], [rigid] or [[loads]] (refused, one line).
+with, as on triangles, [[contact]] between bodies (node pairs, node to segment with
+``repair_every``; on quad_bar, one body, a rigid face only), [rigid.NAME] bodies in
+contact with a face ([[contact]] rigid, surface, radius), [[loads]] on facets and on
+rigid bodies (a ``"constant"`` pulse may end at ``t_end``: the heavy platen of
+``scenes/upsetting_finite.toml``, a force held over the ramp), [[fixed]] faces,
+[[probes]] (on quad_bar and rod_on_anvil, not named as the bar's tracked nodes'
+probes: u_z_top, u_z_bottom, u_r_corner) and a ``[wall]``: the rigid plane z (m,
+default 0, at or below the bodies), a fixed rigid part under every boundary node with
+its contact set (:mod:`.contact.plane`), frictionless or with ``friction`` (film and
+dme: contact/friction.py; the penalty's tangential spring is refused at finite strain),
+with ``method`` = "film", "dme" or "penalty" and, for penalty, ``penalty`` = a
+stiffness in N/m or "scaled"; ``face`` = "contact" (default: every boundary node a
+unilateral candidate, so the rim of the impact face may lift off) or, on quad_bar only,
+"held" (u_z = 0 on the face Z = 0 from t = 0, free to slide radially: the condition of
+the converged Taylor-bar references; needs z = 0; the face's stop, 1/2 m_face v0^2 in
+J, is reported as impact_face_loss). On quad_bar and rod_on_anvil the summary has the
+bar's (the rod's) final length and face radius (:func:`.scenes.track_bar`).
 
-In both, ``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
+Its materials have a finite-strain form (``"j2"``: multiplicative J2, Hencky elasticity,
+linear hardening, rate-independent; ``"johnson_cook"``; ``"neo_hookean"``) or are a class
+of one's own with ``strain = "finite"`` (the kinematics is checked with the materials,
+:mod:`.scene_materials`). A rigid body's motion follows from its mass and forces (no
+prescribed motion yet: a heavy body driven by a force instead).
+
+``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
 dt_interval (steps, default 10); n_steps, force_dt and converged_dt are refused.
 
 A small-strain scene may not use dt_interval; its [wall] is the same plane, with

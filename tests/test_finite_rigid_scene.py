@@ -110,3 +110,27 @@ def test_the_taylor_anvil_scene_is_scenes_taylor_anvil(tmp_path_factory, method)
     for key in ("final_length", "final_face_radius", "stored_elastic", "plastic_work"):
         assert sa[key] == sb[key], key
     assert sa["plastic_work"] > 0.0 and sa["final_face_radius"] > 3.2e-3  # the rim yields
+
+
+@pytest.mark.parametrize("path, edit, message", [
+    ("scenes/upsetting_finite.toml", ("t_end = 50e-6", "t_end = 0.0"),
+     "[loads #1] t_end = 0.0: must be > 0"),
+    ("scenes/upsetting_finite.toml", ("[time]", '[[contact]]\nlower = "bottom"\nupper = '
+                                                '"outer"\nmethod = "film"\n\n[time]'),
+     "[contact #2] a contact between deformable faces needs two bodies"),
+    ("scenes/taylor_anvil.toml", ("[time]", '[wall]\nz = 0.0\nmethod = "film"\n'
+                                            'face = "held"\n\n[time]'),
+     '[wall] face = "held": it holds the face Z = 0 of the bar of generator = "quad_bar"'),
+    ("scenes/taylor_anvil.toml", ("n_r = 4", "n_r = 4\nanvil_radius = -1.0"),
+     "[mesh] anvil_radius = -1.0: must be > 0"),
+], ids=["constant t_end", "node pairs on one bar", "held face off quad_bar", "anvil radius"])
+def test_what_a_finite_scene_still_refuses(tmp_path_factory, path, edit, message):
+    """Bad input: one line naming the table and the key (InputError, exit 2 on the
+    command line)."""
+    from impact_fenics.errors import InputError
+
+    _, scene = scene_on_every_rank(tmp_path_factory, "bad", _scene_file(path, [edit]))
+    with pytest.raises(InputError) as error:
+        read_scene(scene)
+    text = str(error.value)
+    assert text.startswith(message) and "\n" not in text, text

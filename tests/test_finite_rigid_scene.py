@@ -17,7 +17,6 @@ displacement, velocity, rigid-body state and energy row is equal bit for bit, on
 number of ranks (both runs share the rank count and the mesh's partition). The ledger of
 the scene run closes within roundoff.ledger.
 """
-import math
 
 import numpy as np
 import pytest

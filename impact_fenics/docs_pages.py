@@ -105,11 +105,12 @@ def _generator_rows() -> list[str]:
     rows = ["| generator | parameters (default) | made by |", "|---|---|---|"]
     for gen in GENERATORS:
         params = [k.name for k in mesh.keys if gen in k.groups]
-        if gen == "quad_bar":
-            where = "`impact_fenics.quad_meshes.quad_bar`"
+        if gen in ("quad_bar", "rod_on_anvil"):
+            where = f"`impact_fenics.quad_meshes.{gen}`"
             defaults = {}
+            words = {"anvil_radius": "3 radius", "anvil_depth": "2 radius"}  # the reader's
         else:
-            where = f"`impact_fenics.meshing.{gen}`"
+            where, words = f"`impact_fenics.meshing.{gen}`", {}
             signature = inspect.signature(getattr(meshing, gen)).parameters
             defaults = {n: p.default for n, p in signature.items()
                         if p.default is not inspect.Parameter.empty}
@@ -118,6 +119,8 @@ def _generator_rows() -> list[str]:
         for name in params:
             if name in REQUIRED_PARAMS.get(gen, ()):
                 cells.append(f"`{name}` (required)")
+            elif name in words:
+                cells.append(f"`{name}` ({words[name]})")
             else:
                 cells.append(f"`{name}` ({_toml(defaults[name])})")
         rows.append(f"| `{gen}` | {', '.join(cells)} | {where} |")
@@ -175,30 +178,39 @@ it); the last step is clipped to `t_end`. Its outputs are every scene's (history
 with displacement probes at the bar's tracked nodes, energy.csv with the ledger's
 columns, summary.json with the final length and face radius, fields.xdmf with the
 Cauchy stress and eps_p_eq per cell, contact_pairs.h5). A finite-strain body needs
-quadrilaterals: `generator = "quad_bar"`, or `quadrilaterals = true` on
-`"coaxial_bars_sized"`, `"shpb"` or `"block"`; on triangles (any other generator, or a
-mesh file for now) it is refused in one line (constant-strain triangles lock under
+quadrilaterals: `generator = "quad_bar"` or `"rod_on_anvil"`, or `quadrilaterals = true`
+on `"coaxial_bars_sized"`, `"shpb"` or `"block"`; on triangles (any other generator, or
+a mesh file for now) it is refused in one line (constant-strain triangles lock under
 isochoric plastic flow). Its material has a finite-strain form (`"j2"`,
 rate-independent; `"johnson_cook"`; `"neo_hookean"`; or a class of your own with
 `strain = "finite"`); a material at a kinematics it lacks is refused in one line naming
-the one it has. Such a scene holds, for now, either
+the one it has.
 
-- one body on `generator = "quad_bar"`, optionally a `[wall]` and `[[fixed]]` faces
-  (`[[contact]]`, `[rigid]`, `[[loads]]` and `[[probes]]` are refused there: the bar's
-  history has its own probes at its tracked nodes), or
-- any number of bodies on `coaxial_bars_sized`, `shpb` or `block` with
-  `quadrilaterals = true`, each small strain (linear, or path-dependent with mean
-  dilatation on Q1) or finite strain, in node-pair (`lower`, `upper`) or node-to-segment
-  (`slave`, `master`, optionally `repair_every`) `[[contact]]` with each other, with
-  `[[probes]]` and `[[fixed]]` faces (`[wall]`, `[rigid]` and `[[loads]]` are refused
-  there), under the step that follows the cells (`cfl`) or a fixed `dt`, for node pairs
-  and node to segment alike.
+Otherwise a finite-strain scene is a scene like any other: any number of bodies, each
+small strain (linear, or path-dependent with mean dilatation on Q1) or finite strain,
+in node-pair (`lower`, `upper`) or node-to-segment (`slave`, `master`, optionally
+`repair_every`) `[[contact]]` with each other, rigid bodies (`[rigid.NAME]`, a
+`[[contact]]` with `rigid`) with their `[[loads]]`, `[[loads]]` on facets, `[[fixed]]`
+faces, `[[probes]]` and a `[wall]`, under the step that follows the cells (`cfl`) or a
+fixed `dt`. `generator = "quad_bar"` makes one body (its `[[contact]]` tables are rigid
+faces); `"rod_on_anvil"` makes the rod `rod` on the anvil block `anvil` (facet groups
+`rod_contact`, `anvil_contact`, `anvil_bottom`, `rod_end`, `rod_lateral`,
+`anvil_lateral`, `axis`). On these two the summary has the bar's (the rod's) final
+length and face radius, and history.csv the displacements of its tracked nodes
+(`u_z_top`, `u_z_bottom`, `u_r_corner`: a probe of one of these names is refused).
+A rigid body's motion follows from its mass and forces: a platen that should move at
+a given speed is a heavy one driven by a force over a ramp (a `"constant"` pulse with
+`t_end`), as in `scenes/upsetting_finite.toml`; prescribed motion is not available yet.
 
-`n_steps`, `force_dt` and `converged_dt` are refused in a finite-strain scene, as are
-`[wall] face = "held"` and `dt_interval` in a small-strain one.
-`scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are the examples of a
-bar against a wall, `scenes/shpb_finite.toml` of a finite-strain specimen between linear
-bars; [materials.md](materials.md) describes the element and the materials.
+Refused in a finite-strain scene, one line each: `n_steps`, `force_dt` and
+`converged_dt`; `[wall] face = "held"` off `quad_bar` (hold another face with
+`[[fixed]]`); `[wall] friction` with `method = "penalty"` (its tangential spring is not
+built for a finite-strain body). `[wall] face = "held"` and `dt_interval` are refused in
+a small-strain scene. `scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are
+the examples of a bar against a wall, `scenes/taylor_anvil.toml` of the rod on a linear
+elastic anvil, `scenes/upsetting_finite.toml` of a cylinder between the wall and a rigid
+platen, `scenes/shpb_finite.toml` of a finite-strain specimen between linear bars;
+[materials.md](materials.md) describes the element and the materials.
 
 ## Small strain on quadrilaterals
 

@@ -182,6 +182,13 @@ def _regions(generator: str, p: dict) -> list[Region]:
         n_r = p["n_r"]
         n_z = max(1, round(n_r * p["length"] / p["radius"]))
         return [Region("", float(n_r * n_z), (n_r + 1.0) * (n_z + 1.0), p["radius"] / n_r, "quad")]
+    if generator == "rod_on_anvil":  # the rod as quad_bar's; the anvil in squares of its h
+        n_r, h = p["n_r"], p["radius"] / p["n_r"]
+        n_z = max(1, round(n_r * p["length"] / p["radius"]))
+        m_r = max(1, round((p.get("anvil_radius") or 3.0 * p["radius"]) / h))
+        m_z = max(1, round((p.get("anvil_depth") or 2.0 * p["radius"]) / h))
+        return [Region("rod", float(n_r * n_z), (n_r + 1.0) * (n_z + 1.0), h, "quad"),
+                Region("anvil", float(m_r * m_z), (m_r + 1.0) * (m_z + 1.0), h, "quad")]
     if generator == "punch_block":
         return [_graded_block(p)]
     if generator == "shpb":
@@ -220,6 +227,9 @@ def generator_size(generator: str, p: dict) -> float:
     """The largest extent (m) in r or z of a generator mesh with parameters ``p``."""
     if generator in ("bar", "quad_bar"):
         return max(p["radius"], p["length"])
+    if generator == "rod_on_anvil":
+        return max(p.get("anvil_radius") or 3.0 * p["radius"],
+                   p["length"] + (p.get("anvil_depth") or 2.0 * p["radius"]))
     if generator == "block":
         return max(p["width"], p["height"])
     if generator in ("coaxial_bars", "coaxial_bars_sized"):
@@ -242,7 +252,7 @@ def generator_size(generator: str, p: dict) -> float:
 
 def contact_radius(generator: str | None, p: dict) -> float | None:
     """The radius (m) of the contact faces of a generator mesh (None: not known)."""
-    if generator in ("bar", "quad_bar", "coaxial_bars", "coaxial_bars_sized"):
+    if generator in ("bar", "quad_bar", "coaxial_bars", "coaxial_bars_sized", "rod_on_anvil"):
         return p["radius"]
     if generator == "nosed_striker_on_block":
         return p["nose_radius"]
@@ -403,7 +413,8 @@ def generator_params(scene) -> dict[str, Any]:
 
     from . import meshing
 
-    params = {} if scene.mesh.generator == "quad_bar" else {  # quad_bar: every key given
+    quad = scene.mesh.generator in ("quad_bar", "rod_on_anvil")  # their keys given or derived
+    params = {} if quad else {
         k: v.default for k, v in
         inspect.signature(getattr(meshing, scene.mesh.generator)).parameters.items()
         if v.default is not inspect.Parameter.empty}

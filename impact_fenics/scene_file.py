@@ -28,7 +28,7 @@ from . import plausibility, resources, rundir
 from .errors import InputError
 from .geometry import AXISYMMETRIC_GEOMETRY, Geometry
 from .scene_keys import (DT_INTERVAL, ENERGY_EVERY, GENERATORS, METHODS, PLANE_QUANTITIES, PULSES,
-                         QUANTITIES, REQUIRED, REQUIRED_PARAMS)
+                         QUAD_GENERATORS, QUANTITIES, REQUIRED, REQUIRED_PARAMS)
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
 from .scene_wall import check_kind, read_wall
@@ -87,7 +87,7 @@ class ContactSpec:
 class LoadSpec:
     where: str
     pulse: str                # "trapezoid" or "constant"
-    params: dict[str, float]  # peak, t_rise, t_fall, t_end (s) or value
+    params: dict[str, float]  # peak, t_rise, t_fall, t_end (s), or value and t_end (s, or None)
     facet: str | None = None
     rigid: str | None = None
     traction: tuple[float, float] | None = None
@@ -537,7 +537,10 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         if dt is None:
             dt = t["cfl"] * min(resources.DT_FACTOR[r.kind] * r.h / speeds.get(r.body, fastest)
                                 for r in regions)
-            flattening = scene.finite and scene.wall is not None
+            # a body that strikes the wall flattens (its cells' limit falls); one at rest
+            # on it, pressed by a platen (upsetting), barely does
+            flattening = scene.finite and scene.wall is not None and any(
+                b.velocity != (0.0, 0.0) for b in scene.bodies if b.strain == "finite")
         n_steps = math.ceil(t["t_end"] / dt - 1e-9) * (resources.FLATTENING if flattening else 1)
     plastic = any(scene.materials[b.material].plastic for b in scene.bodies)
     h_min = min(r.h for r in regions)
@@ -545,15 +548,20 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
     for c in scene.contacts:  # the nodes of the (slave, lower) face
         across = c.radius if c.rigid is not None else radius
         pairs.append(across / h_min + 1 if across else math.sqrt(cells))
-    if scene.wall is not None and not scene.finite:  # its set: every boundary node
+    # the bar against the wall alone (the Taylor bar: its steps' flattening factor holds
+    # the wall's rows and the energy rows); anything else is counted as every scene
+    taylor = (scene.finite and scene.mesh.generator == "quad_bar" and not scene.contacts)
+    if scene.wall is not None and not taylor:  # its set: every boundary node
         pairs.append(4 * math.sqrt(cells))
-    if scene.finite and scene.mesh.generator == "quad_bar":
+    if taylor:
         columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
         energy_columns = 0
     else:
         columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
                                               for c in scene.contacts)
         columns += 6 if scene.wall is not None else 0
+        if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
+            columns += 3  # the bar's (the rod's) tracked nodes
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
         energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
     shape = resources.RunShape(
@@ -636,6 +644,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             tmesh = meshing.load_msh(scene.mesh.file, comm=comm)
         elif scene.mesh.generator == "quad_bar":  # Q1: a finite-strain or small-strain bar
             tmesh = quad_bar_mesh(scene, comm)
+        elif scene.mesh.generator == "rod_on_anvil":  # Q1: a rod on an anvil block
+            tmesh = rod_on_anvil_mesh(scene, comm)
         else:
             generate = getattr(meshing, scene.mesh.generator)
             tmesh = generate(comm=comm, **scene.mesh.params)
@@ -657,7 +667,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     incident = {name: [] for name in scene.rigid}
     for spec in scene.loads:
         pulse = (ld.Trapezoid(**spec.params) if spec.pulse == "trapezoid"
-                 else ld.Constant(spec.params["value"]))
+                 else _constant(spec.params["value"], spec.params["t_end"]))
         if spec.rigid is not None and spec.incident:
             incident[spec.rigid].append((1.0, pulse))
         elif spec.rigid is not None:
@@ -731,7 +741,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             sim.add_contact(cons, make_method(w.method, penalty=w.penalty), rigid=wall_part())
             if w.friction is not None:
                 sim.contacts[-1].set_friction(w.friction, w.tangential_penalty, scene.force)
-    if scene.finite and scene.mesh.generator == "quad_bar":
+    if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
         _track_the_bar(sim, scene, held)
     for p in scene.probes:
         with within(p.where):
@@ -779,9 +789,22 @@ def quad_bar_mesh(scene: Scene, comm: MPI.Comm):
     return tag_rectangle(mesh, scene.bodies[0].name)
 
 
+def rod_on_anvil_mesh(scene: Scene, comm: MPI.Comm):
+    """The TaggedMesh of a scene on ``rod_on_anvil`` (:func:`.quad_meshes.rod_on_anvil`:
+    the rod n_r x round(n_r length / radius) square cells, the anvil 3 radius wide and
+    2 radius deep unless given)."""
+    from .quad_meshes import quad_bar_cells_along, rod_on_anvil
+
+    p = scene.mesh.params
+    return rod_on_anvil(comm, p["radius"], p["length"], p["n_r"], quad_bar_cells_along(p),
+                        p.get("anvil_radius") or 3.0 * p["radius"],
+                        p.get("anvil_depth") or 2.0 * p["radius"])
+
+
 def _track_the_bar(sim, scene: Scene, held: bool) -> None:
     """A finite-strain bar's figures (:func:`.scenes.track_bar`: probes at its tracked
-    nodes, its final length, face radius and energies at u^N) into
+    nodes, its final length, face radius and energies at u^N; on ``rod_on_anvil`` the
+    rod's) into
     ``sim.scene_figures``, with the scene's mesh, body and material and, with a [wall],
     its face and, for a held face, the face's stop at t = 0, 1/2 m_face v0^2 (J) as
     ``impact_face_loss`` (outside the run's ledger, which starts from the rest of the
@@ -790,12 +813,14 @@ def _track_the_bar(sim, scene: Scene, held: bool) -> None:
 
     from .scenes import track_bar
 
+    from .quad_meshes import quad_bar_cells_along
+
     p, model, comm = scene.mesh.params, sim.model, sim.comm
-    figures = track_bar(sim, p["radius"], p["length"])
-    body = scene.bodies[0]
-    n_cells = model.mesh.topology.index_map(2).size_global
-    extra = {"mesh": f"{p['n_r']} x {n_cells // p['n_r']} quadrilaterals", "body": body.name,
-             "material": scene.materials[body.material].model}
+    rod = scene.mesh.generator == "rod_on_anvil"
+    figures = track_bar(sim, p["radius"], p["length"], body="rod" if rod else None)
+    body = next(b for b in scene.bodies if b.name == "rod") if rod else scene.bodies[0]
+    extra = {"mesh": f"{p['n_r']} x {quad_bar_cells_along(p)} quadrilaterals",
+             "body": body.name, "material": scene.materials[body.material].model}
     if scene.wall is not None:
         extra["wall_face"] = scene.wall.face
         m_face = 0.0
@@ -838,6 +863,16 @@ def _one_body_at(tmesh, point: tuple[float, float], comm: MPI.Comm) -> str:
                          f"bodies {' and '.join(sorted(names))}: its value depends on the body; "
                          "move it into one of them")
     return names.pop()
+
+
+def _constant(value: float, t_end: float | None):
+    """A constant pulse: ``value`` for 0 <= t < t_end (s), 0 from t_end on (held when
+    t_end is None)."""
+    from .loads import Constant
+
+    if t_end is None:
+        return Constant(value)
+    return lambda t: value if t < t_end else 0.0
 
 
 def _force(terms: list[tuple[float, Any]]):

@@ -81,20 +81,23 @@ PLANE_QUANTITIES = ("sigma_xx", "sigma_yy", "sigma_out", "sigma_xy", "von_mises"
 GEOMETRIES = ("axisymmetric", "plane_strain")
 MODELS = tuple(MATERIAL_MODELS)  # the materials by name (impact_fenics.materials.MODELS)
 STRAIN_WORDS = {"small": "small strain", "finite": "finite strain"}
-PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value",)}
+PULSES = {"trapezoid": ("peak", "t_rise", "t_fall", "t_end"), "constant": ("value", "t_end")}
 WALL_METHODS = ("film", "dme", "penalty")
 WALL_FACES = ("contact", "held")
 DT_INTERVAL = 10  # finite strain: steps between re-estimates of the stable step (default)
 ENERGY_EVERY = 10  # small strain: steps between energy rows (default)
 
-# the mesh generators of the scene files: impact_fenics.meshing, and quad_bar
-# (impact_fenics.quad_meshes: quadrilaterals, a finite-strain body or a small-strain Q1 one)
+# the mesh generators of the scene files: impact_fenics.meshing, and quad_bar and
+# rod_on_anvil (impact_fenics.quad_meshes: quadrilaterals, finite-strain bodies or
+# small-strain Q1 ones)
 GENERATORS = ("bar", "coaxial_bars", "punch_block", "coaxial_bars_sized", "quad_bar",
-              "nosed_striker_on_block", "shpb", "block", "wedge_on_block",
+              "rod_on_anvil", "nosed_striker_on_block", "shpb", "block", "wedge_on_block",
               "cylinder_on_block", "striker_on_plate")
-# parameters a generator has no default for (quad_bar: impact_fenics.quad_meshes.quad_bar)
-REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r")}
-_BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar")
+QUAD_GENERATORS = ("quad_bar", "rod_on_anvil")  # impact_fenics.quad_meshes (not meshing)
+# parameters a generator has no default for (impact_fenics.quad_meshes)
+REQUIRED_PARAMS = {"quad_bar": ("radius", "length", "n_r"),
+                   "rod_on_anvil": ("radius", "length", "n_r")}
+_BARS = ("bar", "coaxial_bars", "coaxial_bars_sized", "quad_bar", "rod_on_anvil")
 _TWO_BARS = ("coaxial_bars", "coaxial_bars_sized")
 _GEN = "the generator's"
 
@@ -108,7 +111,8 @@ _MESH = Section("mesh", "[mesh]", (
     Key("file", "text", "", None, "instead of `generator`: a 2D `.msh` file (r = x, z = y) "
         "with named physical groups, relative to the scene file", default_text="none"),
     Key("radius", "positive", "m", _GEN, "radius of the bar (both bars)", groups=_BARS),
-    Key("length", "positive", "m", _GEN, "length of the bar", groups=("bar", "quad_bar")),
+    Key("length", "positive", "m", _GEN, "length of the bar (the rod)",
+        groups=("bar", "quad_bar", "rod_on_anvil")),
     Key("striker_length", "positive", "m", _GEN, "striker length (z in [-striker_length, 0])",
         groups=_TWO_BARS + ("shpb",)),
     Key("target_length", "positive", "m", _GEN, "target length (z in [0, target_length])",
@@ -135,7 +139,13 @@ _MESH = Section("mesh", "[mesh]", (
     Key("breaks", "breaks", "m, -", _GEN, "surface breaks [[r, intervals], ...]: equal "
         "intervals up to each radius r", groups=("punch_block",)),
     Key("n_r", "count", "-", _GEN, "quadrilaterals across the radius (square cells, "
-        "round(n_r length / radius) along)", groups=("quad_bar",)),
+        "round(n_r length / radius) along)", groups=("quad_bar", "rod_on_anvil")),
+    Key("anvil_radius", "positive", "m", None, "rod_on_anvil: the anvil's radius (r <= "
+        "anvil_radius), at least the rod's", groups=("rod_on_anvil",),
+        default_text="3 radius"),
+    Key("anvil_depth", "positive", "m", None, "rod_on_anvil: the anvil's depth (z in "
+        "[-anvil_depth, 0]; square cells of the rod's radial size)", groups=("rod_on_anvil",),
+        default_text="2 radius"),
     Key("nose_radius", "positive", "m", _GEN, "striker and nose radius",
         groups=("nosed_striker_on_block",)),
     Key("shank_length", "positive", "m", _GEN, "striker length above the nose",
@@ -385,6 +395,8 @@ _LOADS = Section("loads", "[[loads]]", (
     Key("t_end", "number", "s", REQUIRED, "trapezoid: end of the pulse (0 after), >= t_fall",
         groups=("trapezoid",)),
     Key("value", "number", "Pa or N", REQUIRED, "constant: the load", groups=("constant",)),
+    Key("t_end", "positive", "s", None, "constant: the load is `value` for 0 <= t < t_end "
+        "and 0 from t_end on", groups=("constant",), default_text="never (held)"),
 ), variants="`rigid` makes a load on a rigid body, else on `facet`; `pulse` chooses the "
             "pulse's keys.")
 

@@ -43,7 +43,7 @@ class Table:
     def __init__(self, data: Any, where: str, section: str, groups: tuple[str, ...] = ()):
         if not isinstance(data, dict):
             raise InputError(f"{where} must be a table, not {toml_text(data)}")
-        self.data, self.where = data, where
+        self.data, self.where, self.groups = data, where, groups
         self.section = SECTIONS[section]
         allowed = self.section.allowed(groups)
         for key in data:
@@ -61,7 +61,7 @@ class Table:
         """The value of ``key`` checked by its kind in the key table; if absent, the
         table's default (or ``default``, for a default the reader computes); a
         required key that is absent is an error."""
-        spec = self.section.key(key)
+        spec = self.section.key(key, self.groups)  # (two variants may name a key alike)
         if default is _TABLE:
             default = spec.default
             if isinstance(default, list):

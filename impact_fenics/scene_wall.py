@@ -7,33 +7,42 @@ built by :func:`.scene_file.build`) under a step that follows their cells
 (:class:`~.stepping.FollowingStep`: cfl x the current limit re-estimated every
 ``dt_interval`` steps, or a fixed dt checked against it). Its cells are quadrilaterals
 (:func:`quadrilateral_generator`; on triangles it is refused in one line: constant-strain
-triangles lock under isochoric flow). Such a scene holds, for now, either
+triangles lock under isochoric flow). A finite-strain scene is a scene like any other:
+its bodies, each small or finite strain, on a mesh of quadrilaterals, which is
 
-* one body on ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells
-  across the radius, square cells; the bar spans 0 <= z <= length);
-* its material: a model with a finite-strain form (``"j2"``: multiplicative J2,
-  Hencky elasticity, linear hardening, rate-independent; ``"johnson_cook"``;
-  ``"neo_hookean"``) or a class of one's own with ``strain = "finite"``
-  (the kinematics is checked with the materials, :mod:`.scene_materials`);
-* optionally a ``[wall]``: the rigid plane z (m, default 0, at or below the bar), a fixed
-  rigid part under every boundary node with its contact set (:mod:`.contact.plane`),
-  frictionless or with ``friction`` (film and dme: contact/friction.py), with
-  ``method`` = "film", "dme" or "penalty" and, for penalty, ``penalty`` = a stiffness
-  in N/m or "scaled"; ``face`` = "contact" (default: every boundary node a unilateral
-  candidate, so the rim of the impact face may lift off) or "held" (u_z = 0 on the face
-  Z = 0 from t = 0, free to slide radially: the condition of the converged Taylor-bar
-  references; needs z = 0; the face's stop, 1/2 m_face v0^2 in J, is reported as
-  impact_face_loss);
-* [[fixed]] faces (the groups axis, outer, bottom, top);
-* no [[contact]], [rigid], [[loads]] or [[probes]] (refused, one line);
+* ``[mesh] generator = "quad_bar"`` (radius, length in m, n_r cells across the radius,
+  square cells; the bar spans 0 <= z <= length): one body;
+* ``generator = "rod_on_anvil"`` (:func:`.quad_meshes.rod_on_anvil`: the rod "rod" of
+  quad_bar's cells on the anvil block "anvil", anvil_radius and anvil_depth in m,
+  default 3 and 2 radius, squares of the rod's size; facet groups rod_contact,
+  anvil_contact, anvil_bottom, ...);
+* ``coaxial_bars_sized``, ``shpb`` or ``block`` with ``quadrilaterals = true``;
 
-or any number of bodies, each small or finite strain, on ``coaxial_bars_sized``,
-``shpb`` or ``block`` with ``quadrilaterals = true`` (small strain on Q1: linear, or
-path-dependent with mean dilatation), in node-pair or node-to-segment [[contact]] with
-each other (under the step that follows the cells, or a fixed ``dt``), with
-[[probes]] and [[fixed]] faces; no [wall], [rigid] or [[loads]] (refused, one line).
+with, as on triangles, [[contact]] between bodies (node pairs, node to segment with
+``repair_every``; on quad_bar, one body, a rigid face only), [rigid.NAME] bodies in
+contact with a face ([[contact]] rigid, surface, radius), [[loads]] on facets and on
+rigid bodies (a ``"constant"`` pulse may end at ``t_end``: the heavy platen of
+``scenes/upsetting_finite.toml``, a force held over the ramp), [[fixed]] faces,
+[[probes]] (on quad_bar and rod_on_anvil, not named as the bar's tracked nodes'
+probes: u_z_top, u_z_bottom, u_r_corner) and a ``[wall]``: the rigid plane z (m,
+default 0, at or below the bodies), a fixed rigid part under every boundary node with
+its contact set (:mod:`.contact.plane`), frictionless or with ``friction`` (film and
+dme: contact/friction.py; the penalty's tangential spring is refused at finite strain),
+with ``method`` = "film", "dme" or "penalty" and, for penalty, ``penalty`` = a
+stiffness in N/m or "scaled"; ``face`` = "contact" (default: every boundary node a
+unilateral candidate, so the rim of the impact face may lift off) or, on quad_bar only,
+"held" (u_z = 0 on the face Z = 0 from t = 0, free to slide radially: the condition of
+the converged Taylor-bar references; needs z = 0; the face's stop, 1/2 m_face v0^2 in
+J, is reported as impact_face_loss). On quad_bar and rod_on_anvil the summary has the
+bar's (the rod's) final length and face radius (:func:`.scenes.track_bar`).
 
-In both, ``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
+Its materials have a finite-strain form (``"j2"``: multiplicative J2, Hencky elasticity,
+linear hardening, rate-independent; ``"johnson_cook"``; ``"neo_hookean"``) or are a class
+of one's own with ``strain = "finite"`` (the kinematics is checked with the materials,
+:mod:`.scene_materials`). A rigid body's motion follows from its mass and forces (no
+prescribed motion yet: a heavy body driven by a force instead).
+
+``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
 dt_interval (steps, default 10); n_steps, force_dt and converged_dt are refused.
 
 A small-strain scene may not use dt_interval; its [wall] is the same plane, with
@@ -47,6 +56,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import FINITE_STRAIN_NEEDS_QUADRILATERALS, InputError
+from .scene_keys import QUAD_GENERATORS
 from .scene_table import Table
 
 
@@ -78,66 +88,68 @@ def read_wall(data: Any) -> WallSpec:
     return wall
 
 
-# generators that make quadrilaterals with quadrilaterals = true (quad_bar always does)
+# generators that make quadrilaterals with quadrilaterals = true (quad_bar and rod_on_anvil
+# always do)
 QUAD_OPTION = ("coaxial_bars_sized", "shpb", "block")
 
 
 def quadrilateral_generator(generator: str | None, params: dict) -> bool:
     """Whether the generator mesh is of Q1 quadrilaterals (a finite-strain body's cells)."""
-    return generator == "quad_bar" or (generator in QUAD_OPTION
-                                       and bool(params.get("quadrilaterals")))
+    return generator in QUAD_GENERATORS or (generator in QUAD_OPTION
+                                            and bool(params.get("quadrilaterals")))
+
+
+def _one_bar(scene) -> None:
+    """A scene on quad_bar has one body, and its [[contact]] tables rigid faces only."""
+    if len(scene.bodies) > 1:
+        raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
+                         f"{len(scene.bodies)} ([bodies])")
+    for c in scene.contacts:
+        if c.rigid is None:
+            raise InputError(f'{c.where} a contact between deformable faces needs two '
+                             'bodies: [mesh] generator = "quad_bar" makes one (a rigid '
+                             "body's [[contact]] runs on it)")
 
 
 def check_kind(scene) -> None:
     """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
+    bar = scene.mesh.generator == "quad_bar"
     if not scene.finite:
         if scene.wall is not None and scene.wall.face == "held":
             raise InputError('[wall] face = "held": a finite-strain body\'s condition; hold a '
                              "small-strain body's face with [[fixed]] (components = [\"z\"])")
-        if scene.mesh.generator == "quad_bar":
-            if len(scene.bodies) > 1:
-                raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
-                                 f"{len(scene.bodies)} ([bodies])")
-            for c in scene.contacts:
-                if c.rigid is None:
-                    raise InputError(f'{c.where} a contact between deformable faces needs two '
-                                     'bodies: [mesh] generator = "quad_bar" makes one (a rigid '
-                                     "body's [[contact]] runs on it)")
+        if bar:
+            _one_bar(scene)
         if scene.time["dt_interval"] is not None:
             raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
         return
-    body = next(b for b in scene.bodies if b.strain == "finite")
-    where = f'[bodies.{body.name}] strain = "finite":'
-    bar = scene.mesh.generator == "quad_bar"
-    if not bar and not quadrilateral_generator(scene.mesh.generator, scene.mesh.params):
+    if not quadrilateral_generator(scene.mesh.generator, scene.mesh.params):
         given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
                  else f'file = "{scene.mesh.file}"')
         file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
         raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
-                         f" or quadrilaterals = true ({', '.join(QUAD_OPTION)}){file_note}: "
+                         ' or "rod_on_anvil", or quadrilaterals = true '
+                         f"({', '.join(QUAD_OPTION)}){file_note}: "
                          f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
-    if bar and len(scene.bodies) > 1:
-        raise InputError('[mesh] generator = "quad_bar" makes one body; the scene has '
-                         f"{len(scene.bodies)} ([bodies])")
-    if bar and scene.contacts:
-        raise InputError(f"[[contact]]: not available with finite strain yet on quad_bar ({where} "
-                         "runs against a [wall]; bodies in contact need a mesh of several: "
-                         f"{', '.join(QUAD_OPTION)} with quadrilaterals = true)")
+    if bar:
+        _one_bar(scene)
+    if scene.wall is not None and scene.wall.face == "held" and not bar:
+        raise InputError('[wall] face = "held": it holds the face Z = 0 of the bar of generator '
+                         '= "quad_bar"; hold a face of another mesh with [[fixed]]')
     if scene.wall is not None and scene.wall.friction is not None \
             and scene.wall.method == "penalty":
         raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
                          "tangential spring is not built for a finite-strain body (use method "
                          "= \"film\" or \"dme\")")
-    refused = (("rigid", "[rigid.NAME]"), ("loads", "[[loads]]"))
-    if bar:  # the bar's own probes (its tracked nodes) fill its history
-        refused += (("probes", "[[probes]]"),)
-    else:  # bodies in contact with each other (the wall's finite-strain checks: one bar)
-        refused += (("wall", "[wall]"),)
-    for key, what in refused:
-        if getattr(scene, key):
-            raise InputError(f"{what}: not available with finite strain yet ({where} runs "
-                             "against a [wall] on quad_bar, or with other bodies in "
-                             "[[contact]])")
+    if scene.mesh.generator in QUAD_GENERATORS:  # the bar's (the rod's) tracked nodes' probes
+        tracked = {f"{a}_{end}" for a, end in (("u_z", "top"), ("u_z", "bottom"),
+                                               ("u_r", "corner"), ("u_y", "top"),
+                                               ("u_y", "bottom"), ("u_x", "corner"))}
+        for p in scene.probes:
+            if p.name in tracked:
+                raise InputError(f"{p.where} name = \"{p.name}\": the bar's tracked nodes' "
+                                 "probe has it (u_z_top, u_z_bottom, u_r_corner; plane strain "
+                                 "u_y_top, u_y_bottom, u_x_corner): choose another")
     t = scene.time
     if t["n_steps"] is not None:
         raise InputError("[time] n_steps: the finite-strain step varies with the deformation; "

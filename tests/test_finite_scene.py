@@ -365,9 +365,13 @@ CASES = [
     ("wall cuts the bar", ("z = 0.0", "z = 0.001"), "[wall] the wall z = 0.001 m cuts the body"),
     ("cfl above 1", ("cfl = 0.5", "cfl = 1.5"), "[time] cfl = 1.5: must be <= 1"),
     ("n_steps", ("t_end = 8e-6", "n_steps = 100"), "[time] n_steps: the finite-strain step varies"),
-    ("contact with finite strain", ("[time]", '[[contact]]\nlower = "a"\nupper = "b"\n'
+    ("node pairs on one bar", ("[time]", '[[contact]]\nlower = "a"\nupper = "b"\n'
                                               'method = "film"\n\n[time]'),
-     "[[contact]]: not available with finite strain yet"),
+     "[contact #1] a contact between deformable faces needs two bodies: [mesh] generator = "
+     '"quad_bar" makes one'),
+    ("probe named as a tracked node's", ("[time]", '[[probes]]\nname = "u_z_top"\nquantity = '
+                                                    '"u_z"\npoint = [0.0, 1e-3]\n\n[time]'),
+     '[probes #1] name = "u_z_top": the bar\'s tracked nodes\' probe has it'),
     ("viscous finite J2", ("hardening = 100e6", "hardening = 100e6\nviscosity = 1.0"),
      '[materials.copper] viscosity = 1.0: the finite-strain form of model = "j2" (FiniteJ2) '
      "has no such parameter"),

@@ -26,7 +26,7 @@ Oracles:
   cell h changes u and v by at most eps c0 t / h of their largest value. And the
   difference is first order: halving v0 halves it, within the same O(eps) factor
   (tests/test_two_finite_bodies.py states the same bound for two finite bodies).
-* bad input: a [wall] beside bodies in contact, a finite-strain body on triangles, and
+* bad input: a held [wall] face off quad_bar, a finite-strain body on triangles, and
   node-to-segment contact under a step that follows the cells are refused in one line,
   exit 2.
 
@@ -226,13 +226,13 @@ def test_low_speed_finite_target_equals_small_strain(tmp_path_factory, monkeypat
 
 
 @pytest.mark.parametrize("edits, message", [
-    ([("[time]", '[wall]\nz = -12.8e-3\nmethod = "film"\n\n[time]')],
-     "[wall]: not available with finite strain yet"),
+    ([("[time]", '[wall]\nz = 0.0\nmethod = "film"\nface = "held"\n\n[time]')],
+     '[wall] face = "held": it holds the face Z = 0 of the bar of generator = "quad_bar"'),
     ([("quadrilaterals = true\n", "")],
      '[mesh] generator = "coaxial_bars_sized": a finite-strain body needs generator = '
-     '"quad_bar" or quadrilaterals = true (coaxial_bars_sized, shpb, block): finite strain '
-     "needs quadrilaterals"),
-], ids=["wall", "triangles"])
+     '"quad_bar" or "rod_on_anvil", or quadrilaterals = true (coaxial_bars_sized, shpb, '
+     'block): finite strain needs quadrilaterals'),
+], ids=["held face", "triangles"])
 def test_the_mixed_scene_refuses(tmp_path_factory, capsys, edits, message):
     """Bad input: one line naming the table, exit 2, no traceback."""
     _, scene = scene_on_every_rank(tmp_path_factory, "mixed_bad", _text(edits))

@@ -1,0 +1,135 @@
+"""Finite-strain scene files with rigid bodies, loads on them and a deformable anvil: the
+scene run equals the Python builder's run.
+
+* Upsetting (scenes/upsetting_finite.toml, short): a finite-strain J2 cylinder on
+  ``quad_bar`` on the fixed plane z = 0 ([wall], DME, friction) under a rigid platen
+  ([rigid.platen], its [[contact]] with friction) driven by a [[loads]] constant force
+  held until t_end, against :func:`impact_fenics.scenes.upsetting` with the same values.
+* The Taylor anvil (scenes/taylor_anvil.toml, short): ``generator = "rod_on_anvil"``, the
+  finite-strain copper rod onto the linear elastic steel anvil through node-to-segment
+  contact re-paired every 5 steps, the anvil's bottom held in z ([[fixed]]), against
+  :func:`impact_fenics.scenes.taylor_anvil`.
+
+The oracle is exact equivalence: the scene reader builds the same objects in the same
+order (the mesh, the bodies, the fixed dofs, the contact sets and their friction, the
+rigid body and its force, whose value is the same float at every t), so every
+displacement, velocity, rigid-body state and energy row is equal bit for bit, on any
+number of ranks (both runs share the rank count and the mesh's partition). The ledger of
+the scene run closes within roundoff.ledger.
+"""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import scenes
+from impact_fenics.materials import STEEL, FiniteJ2
+from impact_fenics.scene_file import build, read_scene
+from impact_fenics.simulation import Settings
+from roundoff import ledger
+from scene_texts import replace, scene_on_every_rank
+
+COMM = MPI.COMM_WORLD
+QUIET = {"out": None, "quiet": True, "plots": False, "fields": False, "timers": False}
+
+
+def _scene_file(path: str, edits) -> str:
+    with open(path) as f:
+        text = f.read()
+    for old, new in edits:
+        text = replace(text, old, new)
+    return text
+
+
+def _same_run(a, b, sa: dict, sb: dict) -> None:
+    """Two finished runs equal bit for bit: steps, every dof's u and v, the rigid bodies'
+    state, every energy row, and the scene run's ledger within roundoff.ledger."""
+    assert a.status == b.status == "completed"
+    assert sa["n_steps"] == sb["n_steps"] and sa["t_end"] == sb["t_end"]
+    for name in ("u_owned", "v_owned"):
+        assert np.array_equal(getattr(a.integrator, name), getattr(b.integrator, name)), name
+    ra = [(c.rigid.u, c.rigid.v) for c in a.contacts if c.rigid is not None]
+    rb = [(c.rigid.u, c.rigid.v) for c in b.contacts if c.rigid is not None]
+    assert ra == rb
+    ea, eb = a.energy.data(), b.energy.data()
+    assert sorted(ea) == sorted(eb)
+    for key in ea:
+        assert np.array_equal(np.asarray(ea[key]), np.asarray(eb[key]), equal_nan=True), key
+    # the ledger's residual over its largest term, within each step's roundings
+    assert sa["energy_balance_error_rel"] <= ledger(sa["n_steps"], sa["n_dofs"])
+
+
+R0 = H0 = 5e-3  # m
+UPSET = FiniteJ2(E=20e9, nu=0.3, density=7850.0, yield_stress=200e6, hardening=0.0)
+V, T_RAMP, M = 0.5, 20e-6, 1e6  # m/s, s, kg
+T_UPSET = 30e-6  # s: the ramp and 10 us after it (about 120 steps at n_r = 4)
+
+
+def test_the_upsetting_scene_is_scenes_upsetting(tmp_path_factory):
+    drive = -M * V / T_RAMP  # N, as scenes.upsetting computes it
+    text = _scene_file("scenes/upsetting_finite.toml", [
+        ("n_r = 8", "n_r = 4"), ("value = -1e10", f"value = {drive!r}"),
+        ("t_end = 50e-6", f"t_end = {T_RAMP!r}"), ("t_end = 1e-3 ", f"t_end = {T_UPSET!r} ")])
+    _, path = scene_on_every_rank(tmp_path_factory, "upsetting", text)
+    from_file = build(read_scene(path), QUIET)
+    settings = from_file.settings
+    built = scenes.upsetting(Settings(**{**settings.__dict__}), UPSET, R0, H0, 4, 4,
+                             friction=0.05, method="dme", speed=V, t_ramp=T_RAMP,
+                             platen_mass=M, t_end=T_UPSET, cfl=0.5, dt_interval=10)
+    sa, sb = from_file.run(), built.run()
+    _same_run(from_file, built, sa, sb)
+    platen = from_file.contacts[0].rigid
+    # the platen's speed ramped to V: the drive acts over whole steps (t < t_ramp: its
+    # impulse is M V to within the largest step, dt_max / t_ramp, about 0.2 % here), and
+    # the contact's impulse over M is far smaller (F t / (M V) < 1e-4: F < 1.1 sigma_y
+    # pi R0^2 = 17 kN over 30 us against M V = 5e5 N s)
+    assert abs(platen.v / -V - 1.0) <= sa["dt_range"][1] / T_RAMP + 1e-4
+    assert platen.u < 0.0  # it has moved down, into the billet (elastic still: 0.2 %)
+
+
+COPPER = FiniteJ2(E=117e9, nu=0.35, density=8930.0, yield_stress=400e6, hardening=100e6)
+DT = 2.0 ** -27  # s (a power of two: t = n DT exact; 0.07 of the rod's limit at set-up)
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_the_taylor_anvil_scene_is_scenes_taylor_anvil(tmp_path_factory, method):
+    """100 steps at 227 m/s (0.75 us: the rim yields), re-paired every 5 steps."""
+    text = _scene_file("scenes/taylor_anvil.toml", [
+        ("t_end = 80e-6 ", f"t_end = {100 * DT!r} "),
+        ("dt = 3.725290298461914e-09", f"dt = {DT!r}"), ('method = "film"', f'method = "{method}"')])
+    _, path = scene_on_every_rank(tmp_path_factory, f"anvil_{method}", text)
+    from_file = build(read_scene(path), QUIET)
+    built = scenes.taylor_anvil(Settings(**{**from_file.settings.__dict__}), COPPER,
+                                anvil=STEEL, n_r=4, v0=227.0, method=method, t_end=100 * DT,
+                                dt=DT, dt_interval=10, repair_every=5)
+    sa = from_file.run(extra=from_file.scene_figures)
+    sb = built.run(extra=built.scene_figures)
+    _same_run(from_file, built, sa, sb)
+    assert sa["n_steps"] == 100 and from_file.contacts[0].repairs == 100 // 5
+    for key in ("final_length", "final_face_radius", "stored_elastic", "plastic_work"):
+        assert sa[key] == sb[key], key
+    assert sa["plastic_work"] > 0.0 and sa["final_face_radius"] > 3.2e-3  # the rim yields
+
+
+@pytest.mark.parametrize("path, edit, message", [
+    ("scenes/upsetting_finite.toml", ("t_end = 50e-6", "t_end = 0.0"),
+     "[loads #1] t_end = 0.0: must be > 0"),
+    ("scenes/upsetting_finite.toml", ("[time]", '[[contact]]\nlower = "bottom"\nupper = '
+                                                '"outer"\nmethod = "film"\n\n[time]'),
+     "[contact #2] a contact between deformable faces needs two bodies"),
+    ("scenes/taylor_anvil.toml", ("[time]", '[wall]\nz = 0.0\nmethod = "film"\n'
+                                            'face = "held"\n\n[time]'),
+     '[wall] face = "held": it holds the face Z = 0 of the bar of generator = "quad_bar"'),
+    ("scenes/taylor_anvil.toml", ("n_r = 4", "n_r = 4\nanvil_radius = -1.0"),
+     "[mesh] anvil_radius = -1.0: must be > 0"),
+], ids=["constant t_end", "node pairs on one bar", "held face off quad_bar", "anvil radius"])
+def test_what_a_finite_scene_still_refuses(tmp_path_factory, path, edit, message):
+    """Bad input: one line naming the table and the key (InputError, exit 2 on the
+    command line)."""
+    from impact_fenics.errors import InputError
+
+    _, scene = scene_on_every_rank(tmp_path_factory, "bad", _scene_file(path, [edit]))
+    with pytest.raises(InputError) as error:
+        read_scene(scene)
+    text = str(error.value)
+    assert text.startswith(message) and "\n" not in text, text

@@ -146,6 +146,23 @@ def _return_to_cone(trial, cap):
 
 
 @njit(cache=True)
+def _apply_tangential(f, p, q, h_over_m, h, u, v):
+    """Apply λ_t = ``f`` (N) along +r on slot ``q`` and -r on slot ``p``: v by h_n f / m
+    (``h_over_m``), u by h_{n+1/2} (``h``) times that. A slot with h_n / m = 0 (a fixed r
+    dof, a rigid part's slot) is not written: its move would be 0 (under a rigid face
+    every constraint shares its slot, and a write there each would chain the loop's
+    iterations through memory)."""
+    if h_over_m[q] != 0.0:
+        dv_q = f * h_over_m[q]
+        v[q] += dv_q
+        u[q] += h * dv_q
+    if h_over_m[p] != 0.0:
+        dv_p = f * h_over_m[p]
+        v[p] -= dv_p
+        u[p] -= h * dv_p
+
+
+@njit(cache=True)
 def film_tangential(lo, up, active, force, a_inv, h_over_m, h, mu_s, mu_d, decay, stick,
                     v_now, u, v, lam, state):
     """FILM's tangential pass on the predicted r state (u, v; m, m/s) of the tangential
@@ -170,12 +187,7 @@ def film_tangential(lo, up, active, force, a_inv, h_over_m, h, mu_s, mu_d, decay
             c = _coefficient(mu_s, mu_d, decay, v_now[q] - v_now[p]) * fn
             f, state[i] = _return_to_cone(lam_star, c)
         lam[i] = f
-        dv_q = f * h_over_m[q]
-        dv_p = f * h_over_m[p]
-        v[q] += dv_q
-        u[q] += h * dv_q
-        v[p] -= dv_p
-        u[p] -= h * dv_p
+        _apply_tangential(f, p, q, h_over_m, h, u, v)
 
 
 @njit(cache=True)
@@ -263,12 +275,7 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
                 d_slip[i] = c * abs(dsp)
                 ret += 0.5 * k_t[i] * dsp * dsp
         lam[i] = f
-        dv_q = f * h_over_m[q]
-        dv_p = f * h_over_m[p]
-        v[q] += dv_q
-        u[q] += h * dv_q
-        v[p] -= dv_p
-        u[p] -= h * dv_p
+        _apply_tangential(f, p, q, h_over_m, h, u, v)
         s_e[i] += h * (v[q] - v[p]) - dsp
         stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
     stats[RETURN_LOSS] += ret
@@ -286,7 +293,8 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     return loss and change of stored energy, J) into ``stats`` (cumulative), with the
     step's total tangential force, its largest magnitude so far and the stick/slip
     counts. Returns (W_t (J), the first constraint whose relative
-    tangential displacement u_up,r - u_lo,r exceeds its ``slip_limit`` (m), or -1)."""
+    tangential displacement u_up,r - u_lo,r exceeds its ``slip_limit`` (m), or -1);
+    ``slip_limit`` may be empty (no finite limit: a rigid face)."""
     for k in range(local.size):
         dst_u[local[k]] = u[pos[k]]
         dst_v[local[k]] = v[pos[k]]
@@ -313,7 +321,7 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     stats[3] += slip
     stats[4] += -w_t - slip - spring_change
     stats[5] = max(stats[5], abs(total))
-    for i in range(lam.size):
+    for i in range(slip_limit.size):  # (empty where no constraint has a finite limit)
         if abs(u_now[up[i]] - u_now[lo[i]]) > slip_limit[i]:
             return w_t, i
     return w_t, -1
@@ -324,7 +332,7 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
 (S_U, S_V, S_U_PRED, S_V_PRED, S_U_NOW, S_V_NOW, S_F_PREV, S_KU_PREV, S_JUMP, S_MASS,
  S_H_OVER_M, S_M_OVER_H) = range(12)
 R_LAM, R_A_INV, R_K_T, R_S_E, R_D_SLIP, R_SLIP_LIMIT = range(6)
-X_DT, X_H_AVG, X_MU_S, X_MU_D, X_DECAY, X_STICK, X_KERNEL, X_GATHERED = range(8)
+X_DT, X_H_AVG, X_MU_S, X_MU_D, X_DECAY, X_STICK, X_KERNEL, X_GATHERED, X_LIMITED = range(9)
 
 
 @njit(cache=True)
@@ -334,7 +342,8 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
     (``own``: the owned dofs' local indices and slots; or, where ``x[X_GATHERED]``, unpack
     the Allgatherv's ``recv`` with ``unpack``: its u and v positions and the slots), run
     the method's kernel (``x[X_KERNEL]``) and :func:`_commit_tangential`. The arrays are
-    the packed rows above (``pairs``: lo, up). Returns what the commit returns."""
+    the packed rows above (``pairs``: lo, up; the slip limits checked where
+    ``x[X_LIMITED]``). Returns what the commit returns."""
     u, v, u_pred, v_pred = slots[S_U], slots[S_V], slots[S_U_PRED], slots[S_V_PRED]
     u_now, v_now, mass = slots[S_U_NOW], slots[S_V_NOW], slots[S_MASS]
     h_over_m, m_over_h = slots[S_H_OVER_M], slots[S_M_OVER_H]
@@ -363,7 +372,8 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
     change = stats[RETURN_LOSS] + stats[STORED] - before
     return _commit_tangential(own[0], own[1], src_u, src_v, h, x[X_H_AVG], m_over_h, u, v,
                               v_pred, u_now, v_now, slots[S_F_PREV], slots[S_KU_PREV],
-                              slots[S_JUMP], lo, up, lam, state, stats, rows[R_SLIP_LIMIT],
+                              slots[S_JUMP], lo, up, lam, state, stats,
+                              rows[R_SLIP_LIMIT][:lo.size if x[X_LIMITED] != 0.0 else 0],
                               kernel == PENALTY_T, d_slip, change)
 
 
@@ -495,7 +505,7 @@ class Tangential(FrictionFigures):
         the run, bound to its compiled entry once."""
         law, c = self.law, self.c
         if not hasattr(self, "scalars"):
-            self.scalars = np.zeros(8)
+            self.scalars = np.zeros(9)
             integ = c.integrator
             self._args = (integ.u_owned, integ.v_owned, self._own, self._recv, self._unpack,
                           self.slots, self.rows, self.pairs, c.active, c.force, self.state,
@@ -506,17 +516,44 @@ class Tangential(FrictionFigures):
         x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] = (law.static, law.dynamic, law.decay,
                                                         float(law.stick))
         x[X_KERNEL], x[X_GATHERED] = float(self.kernel), float(c.comm.size > 1)
+        x[X_LIMITED] = float(np.isfinite(self.slip_limit).any())
 
-    def step(self) -> float:
-        """The tangential pass of the step, after the set's normal step: gather the
-        predicted r state, correct, write back, book (one compiled call, after the
-        Allgatherv under MPI). Returns W_t (J)."""
+    @property
+    def folds(self) -> bool:
+        """Does the set's one compiled call of a step run this pass too
+        (:func:`.fused.contact_step_friction`)? Yes, unless a caller replaced
+        :meth:`step` on this pass (a comparison of paths): then the set calls it."""
+        return "step" not in vars(self)
+
+    @property
+    def fused_args(self) -> tuple:
+        """The pass's arrays, in :func:`.fused.contact_step_friction`'s order (the same
+        for the run; its scalars rewritten in place by :meth:`set_step`)."""
+        return (self._own, self._recv, self._unpack, self.slots, self.rows, self.pairs,
+                self.state, self.stats, self.scalars)
+
+    def exchange(self) -> None:
+        """Under MPI, the Allgatherv of the predicted r state of the slots (into the pass's
+        receive buffer); nothing in serial. Before the pass: the set's normal step does
+        not write r dofs, so before or after it reads the same values."""
         if self.c.comm.size > 1:
             integ = self.c.integrator
             _pack(integ.u_owned, integ.v_owned, self._local, self._send)
             self.c.comm.Allgatherv(self._send,
                                    [self._recv, self._counts, self._displs, MPI.DOUBLE])
+
+    def step(self) -> float:
+        """The tangential pass of the step as a call of its own, after the set's normal
+        step: gather the predicted r state, correct, write back, book (one compiled call,
+        after the Allgatherv under MPI). Returns W_t (J). (The normal step's own call runs
+        it instead where it :attr:`folds`.)"""
+        self.exchange()
         w_t, far = self._pass(*self._args)
+        self.check_slip(far)
+        return w_t
+
+    def check_slip(self, far: int) -> None:
+        """Warn once if constraint ``far`` (>= 0; -1: none) slipped past its limit."""
         if far >= 0 and not self.warned:
             self.warned = True
             c = self.c
@@ -527,7 +564,6 @@ class Tangential(FrictionFigures):
                  f"m has slipped {s:.3g} m, past half its facet ({self.slip_limit[far]:.3g} m): "
                  "node pairs keep their partner, so the force acts at the wrong place; use "
                  "node to segment (slave/master) for faces that slide", c.comm)
-        return w_t
 
     # outputs
     @property

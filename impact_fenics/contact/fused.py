@@ -38,9 +38,10 @@ import numpy as np
 from numba import njit
 
 from ..jit_watch import drop_stale_cache
-from . import dme, film, penalty, state
+from . import dme, film, friction, penalty, state
 from .dme import _cluster, _pairs
 from .film import _film_fast
+from .friction import _tangential_pass
 from .penalty import _penalty
 from .state import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
                     FROM_V, GAP, H_AVG, IMPEDANCE, INCIDENT, JUMP, JUMPS, KAPPA, KU_PREV,
@@ -345,5 +346,30 @@ def contact_step(src_u, src_v, recv, F, ints, flags, misc, f_ext, f_in):
     return F[U, body], v_next
 
 
+@njit(cache=True)
+def contact_step_friction(src_u, src_v, recv, F, ints, flags, misc, t_own, t_recv, t_unpack,
+                          t_slots, t_rows, t_pairs, t_state, t_stats, t_x, f_ext, f_in):
+    """Step n -> n+1 of a contact set with Coulomb friction (node pairs, a rigid or fixed
+    face) as one call: :func:`contact_step` (the normal step), then the set's tangential
+    pass (friction._tangential_pass: take the predicted r state of its slots, the
+    method's tangential kernel, write back, book), its work W_t (J) added to the set's
+    contact work. The same two kernels the two separate calls ran, in the same order on
+    the same arrays, so the same numbers bit for bit; one call saves the second call's
+    Python and argument unboxing. The normal step writes only normal (z) dofs, so under
+    MPI both Allgathervs (``recv``, ``t_recv``) come before the call.
+
+    The arguments: :func:`contact_step`'s, then the pass's
+    (:attr:`.friction.Tangential.fused_args`), then the rigid body's forces. Returns the
+    rigid body's (u^{n+1}, v^{n+1}) (m, m/s; zeros without one) and the first constraint
+    past its slip limit (-1: none)."""
+    u_r, v_r = contact_step(src_u, src_v, recv, F, ints, flags, misc, f_ext, f_in)
+    n = int(misc[N_CONS])
+    w_t, far = _tangential_pass(src_u, src_v, t_own, t_recv, t_unpack, t_slots, t_rows,
+                                t_pairs, flags[0, :n], F[FORCE, :n], t_state, t_stats, t_x)
+    misc[LEDGER] += w_t
+    return u_r, v_r, far
+
+
 # contact_step compiles the method kernels into itself: its cache goes with theirs
 drop_stale_cache(contact_step, (dme, film, penalty, state))
+drop_stale_cache(contact_step_friction, (dme, film, friction, penalty, state))

@@ -425,6 +425,12 @@ class ContactSet:
                              f"{tangential.beta_max:.3g} passes the stable bound 4/3 (k_t h "
                              "h_n (1/m_lo + 1/m_up)); lower it, use 'scaled' or force")
         self.friction = tangential
+        if self._fused is not None:  # the step's one call runs the pass too (fused.py)
+            from ..jit_watch import direct
+
+            self._friction_call = self._fused_call + tangential.fused_args
+            self._contact_friction_step = direct(fused.contact_step_friction,
+                                                 *self._friction_call, 0.0, 0.0)
 
     def set_repairing(self, every: int, reach: float | None = None,
                       end_tol: float = END_TOLERANCE) -> None:
@@ -743,11 +749,20 @@ class ContactSet:
             f_ext = float(rigid.force(integ.t))
             if rigid.incident is not None:
                 f_in = float(rigid.incident(integ.t))
+        tangential = self.friction
+        folded = tangential is not None and tangential.folds
         if self._gathered:
             _pack(integ.u_owned, integ.v_owned, self._local, self._send)
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
+            if folded:
+                tangential.exchange()
         t1 = clock()
-        u_r, v_r = self._contact_step(*self._fused_call, f_ext, f_in)
+        if folded:  # the normal step and the tangential pass in one call
+            u_r, v_r, far = self._contact_friction_step(*self._friction_call, f_ext, f_in)
+            tangential.check_slip(far)
+            tangential = None
+        else:
+            u_r, v_r = self._contact_step(*self._fused_call, f_ext, f_in)
         t2 = clock()
         if rigid is not None:
             rigid.u, rigid.v = u_r, v_r
@@ -755,8 +770,8 @@ class ContactSet:
                 misc = self._misc
                 rigid.wave_incident, rigid.wave_reflected, rigid.wave_delivered = (
                     float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
-        if self.friction is not None:  # the tangential pass, booked with the contact work
-            self._misc[LEDGER] += self.friction.step()
+        if tangential is not None:  # the tangential pass as a call of its own
+            self._misc[LEDGER] += tangential.step()
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2

@@ -416,6 +416,10 @@ class Tangential(FrictionFigures):
     def __init__(self, c, law: FrictionLaw, kernel: int, stiffness: float | str = "scaled"):
         self.c, self.law, self.kernel = c, law, kernel
         self.stiffness = stiffness
+        # the set's one compiled call of a step runs this pass too
+        # (:func:`.fused.contact_step_friction`); False: the set calls :meth:`step`, the
+        # pass as a call of its own (the tests compare the two paths)
+        self.folds = True
         integ = c.integrator
         model = integ.model
         nd, ns = c.n_deformable, c.n_slots
@@ -517,13 +521,6 @@ class Tangential(FrictionFigures):
                                                         float(law.stick))
         x[X_KERNEL], x[X_GATHERED] = float(self.kernel), float(c.comm.size > 1)
         x[X_LIMITED] = float(np.isfinite(self.slip_limit).any())
-
-    @property
-    def folds(self) -> bool:
-        """Does the set's one compiled call of a step run this pass too
-        (:func:`.fused.contact_step_friction`)? Yes, unless a caller replaced
-        :meth:`step` on this pass (a comparison of paths): then the set calls it."""
-        return "step" not in vars(self)
 
     @property
     def fused_args(self) -> tuple:

@@ -27,7 +27,9 @@ the gauges' R <= 5 % and the 3-wave rate is within 10 % of its median: the truth
 faces' contact forces at the faces' displacement strain) within 1 % of the law point by
 point, the 3-wave stress within 2 %; the 1-wave stress is printed (docs/shpb.md: it
 misses its 2 % by its strain lag, which the finite law's steeper engineering slope
-enlarges). The same scene with an OFHC copper Johnson-Cook specimen: the truth within
+enlarges); with the specimen's cells halved the miss and the strain lag stay (the
+1-wave analysis' own assumption, not the mesh). The same scene with an OFHC copper
+Johnson-Cook specimen: the truth within
 3 % of its flow stress at the run's strain rate and the specimen's volume-mean
 temperature (adiabatic heating from its plastic work), point by point on the plateau.
 """

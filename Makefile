@@ -55,9 +55,10 @@ study-taylor-anvil: setup
 # (tests/test_shpb_study.py), and friction mu = 0, 0.1, 0.2 at the specimen's faces against
 # the slab estimate, writing docs/figures/shpb_friction_*.png|json
 # (tests/test_shpb_friction_study.py), and the finite-strain specimen of
-# scenes/shpb_finite.toml (tests/test_shpb_finite.py); docs/shpb.md; a few minutes on 2 cores
+# scenes/shpb_finite.toml (tests/test_shpb_finite.py), and L/D = 1 against 0.5, the
+# specimen's inertia (tests/test_shpb_inertia.py); docs/shpb.md; a few minutes on 2 cores
 study-shpb: setup
-	N=$(NP) PY=$(PY) scripts/mpi_pytest.sh tests/test_shpb_study.py tests/test_shpb_friction_study.py tests/test_shpb_finite.py -m study -q -s
+	N=$(NP) PY=$(PY) scripts/mpi_pytest.sh tests/test_shpb_study.py tests/test_shpb_friction_study.py tests/test_shpb_finite.py tests/test_shpb_inertia.py -m study -q -s
 
 # upsetting with Coulomb friction (small strain) against the slab estimate
 # (tests/test_upsetting_study.py, docs/friction.md; a few minutes on one core)

@@ -27,7 +27,9 @@ the gauges' R <= 5 % and the 3-wave rate is within 10 % of its median: the truth
 faces' contact forces at the faces' displacement strain) within 1 % of the law point by
 point, the 3-wave stress within 2 %; the 1-wave stress is printed (docs/shpb.md: it
 misses its 2 % by its strain lag, which the finite law's steeper engineering slope
-enlarges). The same scene with an OFHC copper Johnson-Cook specimen: the truth within
+enlarges); with the specimen's cells halved the miss and the strain lag stay (the
+1-wave analysis' own assumption, not the mesh). The same scene with an OFHC copper
+Johnson-Cook specimen: the truth within
 3 % of its flow stress at the run's strain rate and the specimen's volume-mean
 temperature (adiabatic heating from its plastic work), point by point on the plateau.
 """
@@ -110,21 +112,41 @@ def test_the_command_analyses_the_finite_specimen(short_run):
     assert math.isfinite(float(np.nanmax(d["equilibrium_ratio"])))
 
 
-@pytest.mark.study
-def test_the_recovered_curve_of_the_finite_specimen(tmp_path_factory):
-    """The shipped scenes/shpb_finite.toml: the truth within 1 % of the finite law, the
-    3-wave stress within 2 %, point by point on the plateau."""
+def _finite_run(tmp_path_factory, specimen_halved: bool) -> str:
+    """scenes/shpb_finite.toml run to the end (no fields); with ``specimen_halved`` the
+    specimen's cells halved (0.125 mm, 40 x 40), dt halved with them (2^-27 s, the same
+    t_end: 38924 steps) and its face probes one (finer) cell row inside; the bars kept."""
     from impact_fenics import cli
-    from impact_fenics.shpb.run_analysis import analyse_run
-    from test_shpb_study import errors
 
     with open(os.path.join(ROOT, "scenes", "shpb_finite.toml")) as f:
         text = replace(f.read(), "output_every = 400", "fields = false")
-    base, scene = scene_on_every_rank(tmp_path_factory, "shpb_finite", text)
+    if specimen_halved:
+        for old, new in (("h_specimen = 0.00025 ", "h_specimen = 0.000125 "),
+                         ("dt = 1.4901161193847656e-08 ", f"dt = {2.0 ** -27!r} "),
+                         ("point = [0.0, 0.60025]", "point = [0.0, 0.600125]"),
+                         ("point = [0.0, 0.60475]", "point = [0.0, 0.604875]")):
+            text = replace(text, old, new)
+    name = "shpb_finite_specimen_halved" if specimen_halved else "shpb_finite"
+    base, scene = scene_on_every_rank(tmp_path_factory, name, text)
     out = os.path.join(base, "run")
     assert cli.main(["run", scene, "--out", out, "--quiet"]) == 0
     COMM.barrier()
-    r = analyse_run(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def finite_shipped(tmp_path_factory):
+    return _finite_run(tmp_path_factory, specimen_halved=False)
+
+
+@pytest.mark.study
+def test_the_recovered_curve_of_the_finite_specimen(finite_shipped):
+    """The shipped scenes/shpb_finite.toml: the truth within 1 % of the finite law, the
+    3-wave stress within 2 %, point by point on the plateau."""
+    from impact_fenics.shpb.run_analysis import analyse_run
+    from test_shpb_study import errors
+
+    r = analyse_run(finite_shipped)
     e = errors(r)
     if COMM.rank == 0:
         print("finite specimen", {k: (f"{np.mean(v):+.4f}", f"{np.max(np.abs(v)):.4f}")
@@ -133,6 +155,44 @@ def test_the_recovered_curve_of_the_finite_specimen(tmp_path_factory):
     assert np.max(np.abs(e["truth"])) <= 0.01
     assert np.max(np.abs(e["3-wave"])) <= 0.02
     assert math.isfinite(e["transits"])
+
+
+def one_wave_lag(run_dir: str) -> tuple[float, float]:
+    """On the plateau: the mean 1-wave strain less the faces' (-), and the mean error of
+    the 1-wave stress against the law read at the faces' strain (-)."""
+    from impact_fenics.shpb.run_analysis import analyse_run, columns, material_law
+
+    r = analyse_run(run_dir)
+    c, p = columns(r), r.plateau
+    law = material_law(r.setup.specimen_material, c["strain_true"][p], r.rate)
+    return (float(np.mean(c["strain_1"][p] - c["strain_true"][p])),
+            float(np.mean(c["stress_1"][p] / law - 1.0)))
+
+
+@pytest.mark.study
+def test_the_one_wave_miss_is_the_analysis_not_the_mesh(finite_shipped, tmp_path_factory):
+    """The finite specimen's 1-wave stress misses its 2 % on the mean (docs/shpb.md). With
+    the specimen's cells halved the miss and its cause, the 1-wave strain's lag behind the
+    faces', stay: a discretisation error of first order or higher would at least halve,
+    so the lag is held above 3/4 of the shipped mesh's (between no change and a halving).
+    The 1-wave stress read at the faces' strain is on the law within the truth's 1 %."""
+    from impact_fenics.shpb.run_analysis import analyse_run
+    from test_shpb_study import errors
+
+    halved = _finite_run(tmp_path_factory, specimen_halved=True)
+    figures = {}
+    for name, run_dir in (("shipped", finite_shipped), ("specimen halved", halved)):
+        e = errors(analyse_run(run_dir))
+        lag, stress_at_faces = one_wave_lag(run_dir)
+        figures[name] = (lag, stress_at_faces)
+        if COMM.rank == 0:
+            print(f"finite specimen, {name}: 1-wave {np.max(np.abs(e['1-wave'])):.4f} "
+                  f"({np.mean(e['1-wave']):+.4f}), its strain less the faces' {lag:+.5f}, "
+                  f"its stress at the faces' strain {stress_at_faces:+.4f}; truth "
+                  f"{np.max(np.abs(e['truth'])):.4f} ({np.mean(e['truth']):+.4f})")
+        assert abs(stress_at_faces) <= 0.01
+    lag_shipped, lag_halved = figures["shipped"][0], figures["specimen halved"][0]
+    assert lag_halved / lag_shipped >= 0.75
 
 
 # OFHC copper (Johnson & Cook 1983; scenes/taylor_johnson_cook.toml): Pa, -, 1/s, K, J/(kg K)

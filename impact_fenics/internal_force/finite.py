@@ -486,8 +486,8 @@ class FiniteStrainForce:
     def stable_dt(self) -> float:
         """min over the current cells of L / c (s): L = A / (largest diagonal), c the
         material's elastic dilatational speed (collective)."""
-        return (self.V.mesh.comm.allreduce(self.length_min_local(), op=_MIN)
-                / self.wave_speed)
+        local = self.length_min_local()
+        return (local if self._serial else self._comm.allreduce(local, op=_MIN)) / self.wave_speed
 
     def book(self) -> Booking:
         """work: the trapezoid work; stored: sum_q w_q psi(F_bar_q); dissipated: the

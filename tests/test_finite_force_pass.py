@@ -179,13 +179,14 @@ def displacements(xy):
     return out
 
 
-def run_pass(fn, material, g, u, state0):
-    """(f, state, tau, plastic work, J_min) of one call of the pass ``fn`` from ``state0``."""
+def run_pass(fn, material, g, u, state0, radius):
+    """(f, state, tau, plastic work, J_min) of one call of the pass ``fn`` from ``state0``;
+    ``radius``: what the pass reads at the points, R (the previous pass) or 1 / R (the new)."""
     n = g.dofs.shape[0]
     state, tau = state0.copy(), np.zeros((n, 4, 4))
     f = np.zeros(u.size)
     n_state = state0.shape[-1]
-    wp, j_min, _ = fn(material.params(), 1e-7, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume,
+    wp, j_min, _ = fn(material.params(), 1e-7, g.dofs, g.dNdR, g.dNdZ, g.N, radius, g.w, g.volume,
                       u, f, state, tau, np.zeros((4, 8)), np.zeros(4), np.zeros(5),
                       np.zeros(WORK), np.zeros(n_state), np.zeros(4))
     return f, state, tau, wp, j_min
@@ -238,8 +239,8 @@ def test_force_pass_matches_the_previous_one(name, plane):
     old = previous_kernel(material.update, n_state, point_copy, plane)
     yielded = {}
     for case, u in displacements(xy).items():
-        f_new, s_new, t_new, wp_new, j_new = run_pass(new, material, g, u, state0)
-        f_old, s_old, t_old, wp_old, j_old = run_pass(old, material, g, u, state0)
+        f_new, s_new, t_new, wp_new, j_new = run_pass(new, material, g, u, state0, g.inv_R)
+        f_old, s_old, t_old, wp_old, j_old = run_pass(old, material, g, u, state0, g.R)
         d_f, d_tau, d_b, d_eps = bounds(material, g, u, t_old)
         if name == "johnson_cook":  # two returns stopping by one rule: see test_hencky_split
             q_max = float(np.abs(t_old).max()) * 3.0

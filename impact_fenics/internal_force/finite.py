@@ -102,7 +102,7 @@ def cube_root(x: float) -> float:
     return np.cbrt(x)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F, plane) -> float:
     """F at point q of cell c into F = (F_rr, F_rz, F_zr, F_zz, F_tt); returns J. In plane
     strain (``plane``) the out-of-plane stretch F_tt is 1."""
@@ -138,9 +138,11 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
         return _KERNELS[key]
 
     @njit(fastmath=False, error_model="numpy")
-    def force(params, dt, dofs, dNdR, dNdZ, N, R, w, volume, u, f, state, tau, Fq, Jq, fbar, work,
-              point_state, point_tau):
+    def force(params, dt, dofs, dNdR, dNdZ, N, inv_R, w, volume, u, f, state, tau, Fq, Jq, fbar,
+              work, point_state, point_tau):
         """f += f_int (N) over the cells; state and tau (Kirchhoff, Pa) updated in place.
+        ``inv_R``: 1 / R_q (1/m) at the points, the quotient made once at set-up (unread in
+        plane strain).
         Returns (plastic work increment (J), smallest J, cell of the smallest J). ``Fq``
         (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q, the F-bar factor and 1 / R_q.
 
@@ -171,7 +173,7 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                     ftt = 1.0
                     jq = det2
                 else:
-                    inv_r = 1.0 / R[c, q]
+                    inv_r = inv_R[c, q]
                     Fq[q, 7] = inv_r
                     ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r
                                  + N[q, 3] * u3r) * inv_r
@@ -320,7 +322,8 @@ def cell_length_min(dofs, X, u) -> float:
         d1r, d1z = x3r - x0r, x3z - x0z  # diagonals 0-3 and 1-2
         d2r, d2z = x2r - x1r, x2z - x1z
         area = 0.5 * abs(d1r * d2z - d1z * d2r)
-        dmax = max(math.sqrt(d1r * d1r + d1z * d1z), math.sqrt(d2r * d2r + d2z * d2z))
+        # max(sqrt a, sqrt b) = sqrt(max(a, b)) exactly (sqrt correctly rounded, monotone)
+        dmax = math.sqrt(max(d1r * d1r + d1z * d1z, d2r * d2r + d2z * d2z))
         length = area / dmax
         if length < best:
             best = length
@@ -395,6 +398,10 @@ class FiniteStrainForce:
         self.plastic_work_local = 0.0
         self.j_min = 1.0
         self.u_owned = self.u.x.array[: self.n_owned]
+        # the step's arrays and communicator, looked up once (each lookup costs ~0.3 us)
+        self._u_all, self._f_all = self.u.x.array, self.f.x.array
+        self._comm = V.mesh.comm
+        self._serial = self._comm.size == 1
         self._f_prev = np.zeros(self.n_owned)
         self._u_prev = np.zeros(self.n_owned)
         self.wave_speed = material.wave_speed()  # c (m/s), elastic dilatational
@@ -410,7 +417,7 @@ class FiniteStrainForce:
         from ..jit_watch import load
 
         g, u = self.geometry, self.u.x.array
-        load(self._force, self.params, 1.0, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
+        load(self._force, self.params, 1.0, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, g.volume, u,
              self.f.x.array, self.state, self.tau, self._Fq, self._Jq, self._fbar, self._work,
              self._point_state, self._point_tau)
         load(self._stored, self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
@@ -426,14 +433,14 @@ class FiniteStrainForce:
         """f_int(u^n) (N), owned view; the state moves to the current u. Raises
         UnstableRunError on a non-positive J (inverted element)."""
         g = self.geometry
-        arr = self.f.x.array
-        arr[:] = 0.0
-        wp, j_min, c_min = self._force(self.params, dt, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w,
-                                       g.volume, self.u.x.array, arr, self.state, self.tau,
+        arr = self._f_all
+        arr.fill(0.0)
+        wp, j_min, c_min = self._force(self.params, dt, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w,
+                                       g.volume, self._u_all, arr, self.state, self.tau,
                                        self._Fq, self._Jq, self._fbar, self._work,
                                        self._point_state, self._point_tau)
-        comm = self.V.mesh.comm
-        j_all = comm.allreduce(j_min, op=_MIN)
+        comm = self._comm
+        j_all = j_min if self._serial else comm.allreduce(j_min, op=_MIN)
         if not j_all > 0.0:
             where = ""
             if j_min <= 0.0 and c_min >= 0:
@@ -444,7 +451,8 @@ class FiniteStrainForce:
             raise UnstableRunError(f"an element inverted: J = det F = {j_all:.3g} <= 0{where}; "
                                    "the mesh is too coarse for this deformation or dt too large")
         self.j_min = j_all
-        compat.scatter_add(self.f.x)
+        if not self._serial:  # (one rank: no ghosts to sum)
+            compat.scatter_add(self.f.x)
         self.plastic_work_local += wp
         return self.f_owned
 
@@ -478,8 +486,8 @@ class FiniteStrainForce:
     def stable_dt(self) -> float:
         """min over the current cells of L / c (s): L = A / (largest diagonal), c the
         material's elastic dilatational speed (collective)."""
-        return (self.V.mesh.comm.allreduce(self.length_min_local(), op=_MIN)
-                / self.wave_speed)
+        local = self.length_min_local()
+        return (local if self._serial else self._comm.allreduce(local, op=_MIN)) / self.wave_speed
 
     def book(self) -> Booking:
         """work: the trapezoid work; stored: sum_q w_q psi(F_bar_q); dissipated: the

@@ -100,28 +100,8 @@ def tangent_rows_into(cc: np.ndarray, ct: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def slot_bandwidth(cs, minv, first):
-    """Largest |i - j| over rows that list a common free slot, whatever their coefficients
-    (the band that holds both G M^-1 G' and G M^-1 T'); ``first`` (one int64 a slot) is
-    its scratch."""
-    for s in range(first.size):
-        first[s] = -1
-    bw = 0
-    for i in range(cs.shape[0]):
-        for p in range(cs.shape[1]):
-            s = cs[i, p]
-            if minv[s] == 0.0:
-                continue
-            if first[s] >= 0:
-                bw = max(bw, i - first[s])
-            else:
-                first[s] = i
-    return bw
-
-
-@njit(cache=True)
 def coupling_of(cs, cc, ct, minv, bw):
-    """:func:`coupling` compiled on the band ``bw`` of :func:`slot_bandwidth`, without
+    """:func:`coupling` compiled on the band ``bw`` of every row listing a free slot, without
     temporaries: max |(G M^-1 T')_ij| / max (G M^-1 G')_ii (-)."""
     n, m = cs.shape[0], cs.shape[1]
     scale = 0.0
@@ -465,7 +445,10 @@ class SegmentTangential(FrictionFigures):
         c = self.c
         self.repairing = True
         self._first = np.empty(c.n_slots, np.int64)
-        bw_slots = slot_bandwidth(c.cs, c.minv, self._first)
+        # the band of rows that list a common free slot, whatever their coefficients (it
+        # holds both G M^-1 G' and G M^-1 T'): bandwidth_of on coefficients of one
+        self._every_entry = np.ones(c.cs.shape)
+        bw_slots = bandwidth_of(c.cs, self._every_entry, c.minv, self._first)
         self.coupled = coupling_of(c.cs, c.cc, self.ct, c.minv, bw_slots) > COUPLING_TOL
         self.info["coupled"] = bool(self.coupled)
         self.initialize()  # the re-pairing's kernels loaded now
@@ -487,7 +470,7 @@ class SegmentTangential(FrictionFigures):
             self.L = np.zeros((c.n, bw + 1))
         self.bw = bw
         self.info["tangential_bandwidth"] = max(self.info["tangential_bandwidth"], int(bw))
-        bw_slots = slot_bandwidth(c.cs, c.minv, self._first)
+        bw_slots = bandwidth_of(c.cs, self._every_entry, c.minv, self._first)
         self.coupled = coupling_of(c.cs, c.cc, self.ct, c.minv, bw_slots) > COUPLING_TOL
         self.info["coupled"] = self.info["coupled"] or bool(self.coupled)
         self._rebuild(rebind)
@@ -546,7 +529,6 @@ class SegmentTangential(FrictionFigures):
              self.state_last, c.active, self.active_last)
         if self.repairing:  # a re-pairing's calls, and the Tresca iteration's it may need
             load(bandwidth_of, c.cs, self.ct, c.minv, self._first)
-            load(slot_bandwidth, c.cs, c.minv, self._first)
             load(coupling_of, c.cs, c.cc, self.ct, c.minv, self.bw)
             load(band_of_s_steps, c.cs, self.ct, c.minv, c.h_avg, c.h_avg, self.bw, self.band)
             load(band_matvec, self.band, self.bw, self.applied, self.aw)

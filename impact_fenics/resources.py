@@ -26,7 +26,8 @@ a value, twice for its doubling buffer).
 **Time**: set-up (imports, mesh, forms, kernels from the cache) SETUP_SECONDS
 plus SETUP_SECONDS_PER_CELL a cell; the steps SECONDS_PER_STEP a step and
 SECONDS_PER_DOF_STEP a dof (PLASTIC_... for path-dependent bodies,
-FINITE_SECONDS_PER_CELL_STEP a cell at finite strain) shared by the ranks; and,
+FINITE_SECONDS_PER_CELL_STEP a cell at finite strain, the other bodies' dofs beside
+them at their rate) shared by the ranks; and,
 where numba's cache is cold (a first run), COMPILE_SECONDS times the share of
 the kernels that compile. Calibrated on the shipped scenes on a loaded 2-core
 machine (`impact-fenics check` against the run's wall time): estimates to
@@ -324,6 +325,7 @@ class RunShape:
     n_steps: float
     n_ranks: int
     finite: bool = False
+    finite_cells: float = 0.0     # the cells of the finite-strain bodies (finite: all if 0)
     plastic: bool = False
     flattening: bool = False
     history_columns: int = 2
@@ -349,10 +351,14 @@ def estimate(s: RunShape) -> Estimate:
     memory = (s.n_ranks * BASE_BYTES_PER_RANK + BYTES_PER_DOF * dofs
               + 2 * 8.0 * history_rows * s.history_columns)
     setup = SETUP_SECONDS + SETUP_SECONDS_PER_CELL * s.cells
-    if s.finite:
-        steps = n * FINITE_SECONDS_PER_CELL_STEP * s.cells / s.n_ranks
+    per_dof = PLASTIC_SECONDS_PER_DOF_STEP if s.plastic else SECONDS_PER_DOF_STEP
+    if s.finite:  # the finite-strain cells, and the small-strain bodies' dofs beside them
+        finite_cells = s.finite_cells if 0.0 < s.finite_cells < s.cells else s.cells
+        rest = dofs * (1.0 - finite_cells / s.cells)
+        steps = n * FINITE_SECONDS_PER_CELL_STEP * finite_cells / s.n_ranks
+        if rest > 0.0:
+            steps += n * (SECONDS_PER_STEP + per_dof * rest / s.n_ranks)
     else:
-        per_dof = PLASTIC_SECONDS_PER_DOF_STEP if s.plastic else SECONDS_PER_DOF_STEP
         steps = n * (SECONDS_PER_STEP + per_dof * dofs / s.n_ranks)
     parts = {"history.csv": CSV_BYTES_PER_VALUE * history_rows * s.history_columns}
     frames = 0.0

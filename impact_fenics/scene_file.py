@@ -543,6 +543,9 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
                 b.velocity != (0.0, 0.0) for b in scene.bodies if b.strain == "finite")
         n_steps = math.ceil(t["t_end"] / dt - 1e-9) * (resources.FLATTENING if flattening else 1)
     plastic = any(scene.materials[b.material].plastic for b in scene.bodies)
+    finite_bodies = {b.name for b in scene.bodies if b.strain == "finite"}
+    finite_cells = sum(r.cells for r in regions  # (a one-body generator names no body)
+                       if r.body in finite_bodies or (not r.body and finite_bodies))
     h_min = min(r.h for r in regions)
     pairs = []
     for c in scene.contacts:  # the nodes of the (slave, lower) face
@@ -565,7 +568,8 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
         energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
     shape = resources.RunShape(
-        cells, nodes, n_steps, comm.size, finite=scene.finite, plastic=plastic,
+        cells, nodes, n_steps, comm.size, finite=scene.finite, finite_cells=finite_cells,
+        plastic=plastic,
         flattening=flattening, history_columns=columns, history_every=o["history_every"],
         energy_columns=energy_columns, energy_every=o["energy_every"] or ENERGY_EVERY,
         output_every=o["output_every"], fields=o["fields"], cell_fields=cell_fields,

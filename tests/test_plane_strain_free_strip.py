@@ -64,6 +64,7 @@ from mpi4py import MPI
 
 from impact_fenics import loads, meshing
 from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.compat import trapezoid
 from impact_fenics.geometry import PLANE_STRAIN, Geometry
 from impact_fenics.materials import LinearElastic
 from impact_fenics.probes import arrival_time
@@ -177,8 +178,8 @@ def run_strip(kind: str, h: float) -> tuple[float, float]:
         s = np.asarray(hist[f"F{k}"]) / f_inf
         T = y / c_pl + T_RISE + 2.5e-5  # the ramp has passed; the same margin at both
         m = t <= T
-        tm, sm = t[m], s[m]  # the trapezoid rule (np.trapz is gone from numpy 2)
-        area = float(0.5 * np.sum((sm[1:] + sm[:-1]) * np.diff(tm))) + (T - tm[-1]) * sm[-1]
+        tm, sm = t[m], s[m]
+        area = trapezoid(sm, tm) + (T - tm[-1]) * sm[-1]
         centroid.append(T - area)
         middle.append(arrival_time(t, s, 0.5))
         print(f"{kind} h = {h * 1e3:g} mm, y = {y} m: centroid {centroid[-1] * 1e6:.4f} us, "

@@ -87,7 +87,7 @@ def scene(tmp, edits) -> list[str]:
     return ["run", str(tmp / "scene.toml"), "--quiet", "--out", str(tmp / "out")]
 
 
-QUAD_OPTIONS = " or quadrilaterals = true (coaxial_bars_sized, shpb, block)"
+QUAD_OPTIONS = ' or "rod_on_anvil", or quadrilaterals = true (coaxial_bars_sized, shpb, block)'
 
 
 def expected(tmp, edits) -> str:

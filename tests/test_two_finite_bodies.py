@@ -309,7 +309,7 @@ def test_the_scene_file_runs_two_finite_bodies(tmp_path, step):
 
 @pytest.mark.parametrize("edit, message", [
     (("quadrilaterals = true\n", ""), 'a finite-strain body needs generator = "quad_bar" or '
-     "quadrilaterals = true"),
+     '"rod_on_anvil", or quadrilaterals = true'),
 ])
 def test_the_scene_file_refuses(tmp_path, capsys, edit, message):
     from impact_fenics import cli

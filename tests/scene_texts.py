@@ -8,6 +8,41 @@ from conftest import clean_mpi_env
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 
+
+# The two Q1 copper-size bars of the mixed-kinematics scenes (R = 3.2 mm, 12.8 mm long, h = R/4 on
+# the striker and R/6 on the target: node-to-segment faces 4/6), their J2 copper, and the film
+# node-to-segment contact with the 100 steps of 2^-24 s that both scenes run.
+Q1_BARS_MESH = """[mesh]
+generator = "coaxial_bars_sized"
+radius = 3.2e-3
+striker_length = 12.8e-3
+target_length = 12.8e-3
+h_striker = 8e-4
+h_target = 5.333333333333333e-4
+structured = true
+quadrilaterals = true
+"""
+
+COPPER_J2 = """[materials.copper]
+model = "j2"
+E = 117e9
+nu = 0.35
+density = 8930.0
+yield_stress = 400e6
+hardening = 100e6
+"""
+
+FILM_SEGMENTS_100_STEPS = """[[contact]]
+slave = "target_contact"
+master = "striker_contact"
+method = "film"
+repair_every = 5
+
+[time]
+dt = 5.9604644775390625e-08     # s, 2^-24 (exact)
+t_end = 5.9604644775390625e-06  # s, 100 steps
+"""
+
 # Two coaxial steel bars of radius 2 cm and length 4 cm (h = 1 cm): 3 pairs, a few dozen cells.
 PAIR = """\
 title = "tiny impact"

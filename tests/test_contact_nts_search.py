@@ -110,14 +110,18 @@ def _end_rule(c, seg, xi, kind, normal, gap, slave_x, master_x, end_tol=END_TOLE
         node = a if xi[i] == 0.0 else b
         if count[node] != 1 or abs(c.master_xy[node, 0]) <= c.tie_tol:
             continue
+        # products summed as written (a BLAS dot, numpy's @, may fuse them: not the
+        # kernel's rounding)
         t = master_x[b] - master_x[a]
-        raw = (slave_x[i] - master_x[a]) @ t / (t @ t)
+        d = slave_x[i] - master_x[a]
+        raw = (d[0] * t[0] + d[1] * t[1]) / (t[0] * t[0] + t[1] * t[1])
         if (raw - 1.0 if node == b else -raw) > end_tol:
             out[i] = True
             continue
         kind[i] = FACE
         normal[i] = normals[seg[i]]
-        gap[i] = normal[i] @ (slave_x[i] - master_x[node])
+        d = slave_x[i] - master_x[node]
+        gap[i] = normal[i, 0] * d[0] + normal[i, 1] * d[1]
     return out, kind, normal, gap
 
 

@@ -36,7 +36,7 @@ from impact_fenics import cli
 from impact_fenics.integrator import Integrator
 from pvbatch_run import pvbatch_json
 from roundoff import ledger, rounding
-from scene_texts import launch, replace
+from scene_texts import COPPER_J2, launch, replace
 
 COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="launches processes: serial only")
@@ -49,14 +49,7 @@ radius = {R!r}
 length = {L!r}
 n_r = 2
 
-[materials.copper]
-model = "j2"
-E = 117e9
-nu = 0.35
-density = 8930.0
-yield_stress = 400e6
-hardening = 100e6
-
+{COPPER_J2}
 [bodies.bar]
 material = "copper"
 velocity = [0.0, -{V0!r}]

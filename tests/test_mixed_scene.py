@@ -43,7 +43,7 @@ from mpi4py import MPI
 from impact_fenics import cli
 from impact_fenics.scene_file import build, read_scene
 from roundoff import ledger
-from scene_texts import assert_ranks_agree, read_history, replace, scene_on_every_rank
+from scene_texts import COPPER_J2, FILM_SEGMENTS_100_STEPS, Q1_BARS_MESH, assert_ranks_agree, read_history, replace, scene_on_every_rank
 
 COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="launches processes: serial only")
@@ -52,32 +52,20 @@ E_CU, RHO_CU = 117e9, 8930.0  # Pa, kg/m^3: the copper target
 C0 = math.sqrt(E_CU / RHO_CU)  # m/s, the target's bar speed
 DT = 2.0 ** -24  # s (0.68 of the target's cells' limit at set-up)
 
-MIXED = """
+MIXED = ("""
 title = "a linear striker onto a finite-strain target"
 
-[mesh]
-generator = "coaxial_bars_sized"
-radius = 3.2e-3
-striker_length = 12.8e-3
-target_length = 12.8e-3
-h_striker = 8e-4
-h_target = 5.333333333333333e-4
-structured = true
-quadrilaterals = true
-
+"""
+         + Q1_BARS_MESH
+         + """
 [materials.steel]
 E = 200e9
 nu = 0.3
 density = 7850.0
 
-[materials.copper]
-model = "j2"
-E = 117e9
-nu = 0.35
-density = 8930.0
-yield_stress = 400e6
-hardening = 100e6
-
+"""
+         + COPPER_J2
+         + """
 [bodies.striker]
 material = "steel"
 velocity = [0.0, 100.0]
@@ -86,16 +74,9 @@ velocity = [0.0, 100.0]
 material = "copper"
 strain = "finite"
 
-[[contact]]
-slave = "target_contact"
-master = "striker_contact"
-method = "film"
-repair_every = 5
-
-[time]
-dt = 5.9604644775390625e-08     # s, 2^-24 (exact)
-t_end = 5.9604644775390625e-06  # s, 100 steps
-
+"""
+         + FILM_SEGMENTS_100_STEPS
+         + """
 [output]
 history_every = 1
 energy_every = 1
@@ -111,7 +92,7 @@ point = [0.0, 0.8e-3]
 name = "striker_tail"
 quantity = "u_z"
 point = [0.0, -12.8e-3]
-"""
+""")
 
 # the same bodies on matched faces (h = R/4 both) in node pairs, the step following the cells
 PAIRS = [("h_target = 5.333333333333333e-4", "h_target = 8e-4"),

@@ -54,6 +54,7 @@ from impact_fenics.materials import J2, FiniteJ2
 from impact_fenics.simulation import Settings, Simulation
 from impact_fenics.stepping import FollowingStep
 from roundoff import assert_within_spread, ledger, one_ulp
+from scene_texts import COPPER_J2, FILM_SEGMENTS_100_STEPS, Q1_BARS_MESH
 from test_contact_repair import _Watch
 
 COMM = MPI.COMM_WORLD
@@ -218,27 +219,15 @@ def _run(faces, v0, n_steps, finite, tmesh):
 
 # ----------------------------------------------------------------------------- the scene file
 
-TWO_BODIES = """
+TWO_BODIES = ("""
 title = "two finite-strain bars"
 
-[mesh]
-generator = "coaxial_bars_sized"
-radius = 3.2e-3
-striker_length = 12.8e-3
-target_length = 12.8e-3
-h_striker = 8e-4
-h_target = 5.333333333333333e-4
-structured = true
-quadrilaterals = true
-
-[materials.copper]
-model = "j2"
-E = 117e9
-nu = 0.35
-density = 8930.0
-yield_stress = 400e6
-hardening = 100e6
-
+"""
+              + Q1_BARS_MESH
+              + """
+"""
+              + COPPER_J2
+              + """
 [bodies.striker]
 material = "copper"
 velocity = [0.0, 100.0]
@@ -248,16 +237,8 @@ strain = "finite"
 material = "copper"
 strain = "finite"
 
-[[contact]]
-slave = "target_contact"
-master = "striker_contact"
-method = "film"
-repair_every = 5
-
-[time]
-dt = 5.9604644775390625e-08     # s, 2^-24 (exact)
-t_end = 5.9604644775390625e-06  # s, 100 steps
 """
+              + FILM_SEGMENTS_100_STEPS)
 
 
 def _scene(tmp_path, text):

@@ -11,7 +11,7 @@ record up to what the correction does not model.
 Between two gauges at the same radius the correction's left-out amplitude factors (the
 first mode's radial variation of strain) are the same at both and cancel. Both records
 are low-passed alike (a Gaussian of SIGMA = 1 us: the gain exp(-(2 pi f SIGMA)^2 / 2)
-is 1e-3 at f a / c0 = 0.37, 600 kHz); the filter and the correction are convolutions,
+is 1/2 at 187 kHz, f a / c0 = 0.19, and 1e-3 at 600 kHz, f a / c0 = 0.59); the filter and the correction are convolutions,
 so they commute, and the filtered B is the moved filtered A wherever the bar carries
 the first mode alone. The band left out is the ringing of a few radii's wavelength,
 where the records differ by more than the first mode (measured: 0.7 % of the peak on

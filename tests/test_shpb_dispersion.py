@@ -244,3 +244,85 @@ def test_bad_input():
         dispersion.correct(t, strain, 1.0, -RADIUS, NU_STEEL, C0)
     with pytest.raises(InputError, match="equal length"):
         dispersion.correct(t, strain[:-1], 1.0, RADIUS, NU_STEEL, C0)
+
+
+def pochhammer_terms(c: float, x: float, nu: float) -> tuple[complex, complex, complex]:
+    """The three terms of the Pochhammer frequency equation of a free solid cylinder in
+    its textbook form (radius a = 1, c₀ = 1, k = 2π x, x = a/Λ, ω = k c):
+
+        2α (β² + k²) J₁(α) J₁(β) − (β² − k²)² J₀(α) J₁(β) − 4k² αβ J₁(α) J₀(β) = 0,
+        α² = k² (c²/c_L² − 1),  β² = k² (c²/c_T² − 1),
+
+    with complex square roots and scipy's Bessel functions of complex argument: written
+    here independently of :mod:`impact_fenics.shpb.dispersion` (no rescaling, no real
+    forms). Above c_T the sum is real; below it, i times a real number."""
+    from scipy import special
+
+    ct2 = 1.0 / (2.0 * (1.0 + nu))
+    cl2 = (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu))
+    k = 2.0 * math.pi * x
+    alpha = np.sqrt(complex(k * k * (c * c / cl2 - 1.0)))
+    beta = np.sqrt(complex(k * k * (c * c / ct2 - 1.0)))
+    j0a, j1a = special.jv(0, alpha), special.jv(1, alpha)
+    j0b, j1b = special.jv(0, beta), special.jv(1, beta)
+    return (2.0 * alpha * (beta ** 2 + k * k) * j1a * j1b,
+            -((beta ** 2 - k * k) ** 2) * j0a * j1b,
+            -4.0 * k * k * alpha * beta * j1a * j0b)
+
+
+def pochhammer_root(x: float, nu: float) -> tuple[float, float]:
+    """The first mode's c/c₀ at a/Λ = x by a sign scan and bisection of the textbook
+    equation (its real part above c_T, its imaginary part below; c = c_T, where β = 0
+    makes every term vanish, is never bracketed), and the root's round-off: 16 ε of the
+    terms' sizes (each term a Bessel product of a few ulps and a dozen roundings) over
+    the equation's slope there."""
+    ct = math.sqrt(1.0 / (2.0 * (1.0 + nu)))
+
+    def f(c: float) -> float:
+        total = sum(pochhammer_terms(c, x, nu))
+        return total.imag if c < ct else total.real
+
+    # below c_T first (from 0.5 c₀, under the Rayleigh speed, above the trivial root 0):
+    # any root there is the lowest mode; else the first root above c_T
+    for lo_end, hi_end in ((0.5, ct * (1.0 - 1e-9)), (ct * (1.0 + 1e-9), 1.0 + 1e-9)):
+        grid = np.linspace(lo_end, hi_end, 2001)
+        values = np.array([f(c) for c in grid])
+        change = np.flatnonzero(np.signbit(values[:-1]) != np.signbit(values[1:]))
+        if change.size:
+            lo, hi = grid[change[0]], grid[change[0] + 1]
+            f_lo = f(lo)
+            for _ in range(80):
+                mid = 0.5 * (lo + hi)
+                f_mid = f(mid)
+                if np.signbit(f_mid) == np.signbit(f_lo):
+                    lo, f_lo = mid, f_mid
+                else:
+                    hi = mid
+            root = 0.5 * (lo + hi)
+            step = 1e-7 * root
+            slope = abs(f(root + step) - f(root - step)) / (2.0 * step)
+            size = sum(abs(t) for t in pochhammer_terms(root, x, nu))
+            return root, 16.0 * EPS * size / slope
+    raise AssertionError(f"no root at a/Λ = {x}")
+
+
+@pytest.mark.parametrize("nu", [0.25, NU_STEEL])
+def test_first_mode_against_the_textbook_equation(nu):
+    """The first mode of the code (its rescaled real form, scanned and bisected) against
+    the root of the textbook Pochhammer equation solved here by its own scan and
+    bisection, from long waves through c_T (which the first mode crosses near
+    a/Λ ≈ 0.65) to short ones: equal within the two roots' round-off (each 16 ε of its
+    terms over the slope) plus two ulps of each bisection's last bracket. The page's
+    table (docs/shpb.md, 5 digits) agrees to its last digit."""
+    table = {0.25: {0.1: 0.99333, 0.25: 0.93479, 0.5: 0.69344, 0.75: 0.61163, 1.0: 0.58932,
+                    2.0: 0.57830},
+             NU_STEEL: {0.1: 0.99113, 0.25: 0.92175, 0.5: 0.68927, 0.75: 0.60877,
+                        1.0: 0.58607, 2.0: 0.57408}}[nu]
+    for x, printed in table.items():
+        oracle, roundoff = pochhammer_root(x, nu)
+        got = float(dispersion.first_mode(x, nu))
+        bound = 2.0 * roundoff + 4.0 * EPS
+        print(f"nu={nu} a/L={x}: code {got:.16f} textbook {oracle:.16f} "
+              f"difference {got - oracle:+.1e} (bound {bound:.1e})")
+        assert abs(got - oracle) <= bound
+        assert abs(oracle - printed) <= 0.5e-5 + 4.0 * EPS

@@ -12,6 +12,9 @@ Oracles (the derivation is the page's):
   check resolves the specimen's axial inertia term to 10 %), with eps_dot from the
   faces' displacement probes and from the gauges (3-wave) alike; without the term it is
   off by more than the term's share.
+* DH-2's term, derived from the energy balance, against the axial and radial equations
+  of motion of the same field integrated numerically (exact for its polynomials): equal
+  to round-off, the radial term with the plus sign (elastic and in plastic flow).
 * The mean-stress inertia rho (L^2/12 + nu_p^2 D^2/8) eps_ddot (nu_p = 1/2, plastic flow)
   at the plateau's mean strain acceleration is below a tenth of the 1 % to which the truth
   is held: on the plateau the specimen's inertia cannot be told from the law.
@@ -162,3 +165,57 @@ def test_l_over_d_1_against_one_half(ld1, tmp_path_factory):
                   f"{np.mean(m['share faces']):.3f}, without it {np.mean(m['no term']):+.3f}; "
                   f"mean-stress inertia {out['inertia'] * 100:.3g} % of the law")
         assert abs(np.mean(e["truth"])) <= 0.01
+
+
+@pytest.mark.parametrize("nu_p, elastic", [(0.3, True), (NU_PLASTIC, False)])
+def test_the_mean_stress_term_from_the_equations_of_motion(nu_p, elastic):
+    """DH-2's term (inertia_stress, derived from the energy balance) against the two
+    equations of motion of Davies and Hunter's field, integrated here numerically
+    (docs/shpb.md, "L/D = 1", item 3): axially dp/dz = -rho a(z), a = a_b + eps_ddot
+    (L - z), from the front face's p_f; radially d sigma_rr/dr = rho nu_p eps_ddot r
+    with sigma_rr = sigma_theta, zero on the rim, the confinement q = -sigma_rr; the
+    axial stress p = E eps + 2 nu q (elastic) or sigma_y + q (plastic flow) at each r.
+    The faces' mean less the material's stress is the axial part (faces' mean less the
+    volume mean of p) plus the radial part (the section mean of p less the material's
+    stress): equal to inertia_stress with the plus sign of the page. Every integrand is
+    a polynomial of degree <= 3, which Simpson's rule integrates exactly, so the two
+    agree to round-off: a few hundred roundings (the cumulative sums over the 2001
+    points) of the largest term."""
+    from scipy import integrate
+
+    from impact_fenics.shpb.inertia import inertia_stress
+
+    rho, length, diameter = 7850.0, 0.005, 0.01  # kg/m^3, m: the shipped specimen
+    eps_ddot, a_back = 4.8e7, 3.0e5  # 1/s^2, m/s^2: the rise's, and a back face moving
+    young, eps, sigma_y = 200e9, 1.0e-3, 300e6  # Pa, -, Pa
+    p_front = 3.5e8  # Pa, any: the differences do not depend on it
+    z = np.linspace(0.0, length, 2001)
+    # p(z) = p_f - rho int_0^z a: a is linear in z, its integral by the trapezoid rule is
+    # exact, cumulated
+    a = a_back + eps_ddot * (length - z)
+    p_axial = p_front - rho * np.concatenate(
+        [[0.0], np.cumsum(0.5 * (a[1:] + a[:-1]) * np.diff(z))])
+    faces_mean = 0.5 * (p_axial[0] + p_axial[-1])
+    volume_mean = integrate.simpson(p_axial, x=z) / length
+    axial = faces_mean - volume_mean
+    r = np.linspace(0.0, 0.5 * diameter, 2001)
+    g = rho * nu_p * eps_ddot * r  # d sigma_rr / dr, linear: trapezoid exact
+    from_rim = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(r))])
+    sigma_rr = from_rim - from_rim[-1]  # zero on the rim
+    q = -sigma_rr
+    material = young * eps if elastic else sigma_y
+    p_section = material + (2.0 * nu_p * q if elastic else q)
+    area = math.pi * (0.5 * diameter) ** 2
+    section_mean = integrate.simpson(p_section * 2.0 * math.pi * r, x=r) / area
+    radial = section_mean - material
+    expected = float(inertia_stress(rho, length, diameter, nu_p, eps_ddot))
+    got = axial + radial
+    if COMM.rank == 0:
+        print(f"nu_p = {nu_p} ({'elastic' if elastic else 'plastic'}): axial {axial:.6e} Pa "
+              f"(rho L^2/12 eps_ddot {rho * length ** 2 / 12 * eps_ddot:.6e}), radial "
+              f"{radial:.6e} Pa (rho nu_p^2 D^2/8 eps_ddot "
+              f"{rho * nu_p ** 2 * diameter ** 2 / 8 * eps_ddot:.6e}); sum {got:.9e}, "
+              f"inertia_stress {expected:.9e}")
+    assert radial > 0.0  # the radial inertia raises the axial stress
+    # the sums run over 2000 intervals; the differences are of stresses up to p_front
+    assert abs(got - expected) <= rounding(4 * z.size, p_front + material)

@@ -8,7 +8,9 @@ stress then follow from the back face's velocity, eps_dot and eps_ddot alone:
 
 * momentum: m (v_back + L eps_dot / 2), so F_front - F_back = m (a_back + L eps_ddot / 2);
 * energy: (F_front + F_back) / (2 A) = sigma + rho (L^2/12 + nu_p^2 D^2/8) eps_ddot,
-  sigma the stress that does the specimen's internal work.
+  sigma the stress that does the specimen's internal work. Both terms raise the faces'
+  mean; referred to the back face (Davies and Hunter's form) the same reads
+  sigma = F_back / A + rho (L^2/6 - nu_p^2 D^2/8) eps_ddot + rho L a_back / 2.
 """
 from __future__ import annotations
 

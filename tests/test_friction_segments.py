@@ -27,7 +27,8 @@ Oracles:
   work in closed form, the energy balance closing; on non-matching faces the cone holds
   exactly, the plastic slip opposes the force and is zero in stick, the ledger closes;
 * the refusals of what is not built, one line each: a curved master with restitution
-  e > 0, the penalty on a curved master, a tangential stiffness past the bound.
+  e > 0, a tangential stiffness past the bound (the penalty on a curved master:
+  tests/test_friction_penalty_segments.py).
 """
 from __future__ import annotations
 
@@ -349,12 +350,9 @@ t_end = 1e-6
 @pytest.mark.parametrize("text, words", [
     (NOSE.format(method="dme").replace('method = "dme"', 'method = "dme"\nrestitution = 0.5'),
      "curved master face with restitution e > 0 is not built yet"),
-    (NOSE.format(method="penalty"),
-     "the penalty's friction on a curved master face (where normal and tangential rows "
-     "couple) is not built yet"),
     (SCENE.format(method="penalty", friction="friction = 0.2\ntangential_penalty = 1e15",
                   v0=5.0).replace(PAIRS, SEGMENTS), "passes the stable bound 4/3")],
-    ids=["curved-restitution", "penalty-curved", "penalty-past-bound"])
+    ids=["curved-restitution", "penalty-past-bound"])
 def test_refused_in_one_line(tmp, text, words, capsys):
     """What is not built is refused in one line "error: ...", exit 2, nothing written."""
     path = os.path.join(tmp, "bad.toml")

@@ -6,15 +6,16 @@ Oracles:
 * μ = 0 with the penalty and re-pairing makes no tangential pass: the run equals the
   frictionless re-paired penalty run, every column, bit for bit (one process, one
   partition; on several ranks within the spread of a one-ulp change of v0);
-* matched flat faces (nu = 0, nothing slides), a given p and k_t: with re-pairing every
-  step the slaves stay on their segments, so the elastic slips are carried unchanged and
-  the run equals the run without re-pairing within the spread of a one-ulp change of v0;
-* a nose (R = 2 cm) on a block, re-paired every step, μ = 0.05: at every step and loaded
-  row the cone |λ_t| <= μ λ_n (1 + 1e-12); at every re-pairing each elastic slip is the
-  rule's, recomputed here from the rows' normals before and after (kept on the same
-  segment, (t . t') s_e on another, 0 released) and the return loss grew by the stored
-  energy the projections dropped, Σ 1/2 k_t (s_e^2 - s_e'^2) >= 0; the ledger closes
-  (roundoff.ledger);
+* (on a flat master without re-pairing the pass is unchanged: tests/test_friction_segments.py
+  holds it equal to node pairs on matched faces and to the closed forms of a block on an
+  inclined face;)
+* a nose (R = 2 cm) on a block (a curved master: the rows couple) and the breathing bars
+  (slaves change segments, the rim slave is released), re-paired every step: at every
+  step and loaded row the cone |λ_t| <= μ λ_n (1 + 1e-12); at every re-pairing each
+  elastic slip is the rule's, recomputed here from the rows' normals before and after
+  (kept on the same segment, (t . t') s_e on another, 0 released) and the return loss
+  grew, and the stored energy fell, by the energy the projections dropped,
+  Σ 1/2 k_t (s_e^2 - s_e'^2) >= 0; the ledger closes (roundoff.ledger);
 * a block on an inclined straight face (tests/test_friction_segments.py's) at two soft
   stiffnesses k_t = β m / h^2, β = 0.05 and 0.1: its steady stick differs from FILM's
   (which does not slide) by the spring's stretch (1 - β) F / k_t, falling as 1/k_t up to
@@ -32,12 +33,11 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from impact_fenics import scenes
 from impact_fenics.contact import FILM, Penalty
 from impact_fenics.contact.friction import RETURN_LOSS, STORED
 from impact_fenics.contact.friction_segments import OFF
 from impact_fenics.errors import InputError
-from roundoff import assert_runs_agree, assert_within_spread, ledger, one_ulp, rounding
+from roundoff import assert_runs_agree, ledger, one_ulp, rounding
 from test_contact_repair import V0, _bars, _settings
 from test_friction_segments import NOSE, _block_on_incline
 
@@ -75,49 +75,6 @@ def test_zero_friction_penalty_with_repairing_is_the_frictionless_run():
         for k in ref[i]:
             assert_runs_agree(got[i][k], ref[i][k], None if ulp is None else ulp[i][k], n,
                               k, None if i == 0 else np.abs(ref[1]["total"]).max())
-
-
-# ----------------------------------------------------------------------------- a flat master
-
-def test_matched_flat_faces_repaired_carry_the_spring():
-    """Matching 5/5 nu = 0 faces (flat, matched: nothing slides, every slave stays on its
-    segment), the penalty with a given p and k_t (half the scaled ones of the set-up, so
-    that re-pairing, which would choose scaled ones for every row it can make, keeps the
-    same springs), μ = 0.3: re-paired every step against not re-paired, within the spread
-    of a one-ulp change of v0 (roundoff class (c)); the same stick and slip counts. The
-    elastic slips are carried unchanged (same segment), so the return loss and the stored
-    energy agree too."""
-    probe = scenes.bar_impact_sized(_settings(), Penalty("scaled"), n_striker=5, n_target=5)
-    c = probe.contacts[0]
-    c.set_friction(0.3)
-    p, k_t = 0.5 * float(c.method.p.min()), 0.5 * float(c.friction.k_t.min())
-
-    def run(repair=0, v0=V0):
-        sim = scenes.bar_impact_sized(_settings(), Penalty(p), n_striker=5, n_target=5, v0=v0)
-        c = sim.contacts[0]
-        if repair:
-            c.set_repairing(repair)
-        c.set_friction(0.3, k_t)
-        sim.run()
-        assert sim.compiled_in_loop == []
-        return sim
-
-    on, off, ulp = run(repair=1), run(), run(v0=one_ulp(V0))
-    n = on.n_steps
-    assert on.contacts[0].repairs == n
-    ho, hr, hu = on.history.data(), off.history.data(), ulp.history.data()
-    assert np.array_equal(ho["n_stick"], hr["n_stick"])
-    assert np.array_equal(ho["n_slip"], hr["n_slip"])
-    assert np.asarray(ho["n_stick"]).max() > 0 and np.abs(ho["spring_energy"]).max() > 0.0
-    for col in ("contact_force", "tangential_force"):
-        assert_within_spread(ho[col], hr[col], hu[col], n, col,
-                             np.abs(hr["contact_force"]).max())
-    eo, er, eu = on.energy.data(), off.energy.data(), ulp.energy.data()
-    scale = np.abs(er["total"]).max()
-    for col in ("kinetic", "strain", "contact_work"):
-        assert_within_spread(eo[col], er[col], eu[col], n, col, scale)
-    for col in ("return_loss", "spring_energy", "slip_work"):
-        assert_within_spread(ho[col], hr[col], hu[col], n, col, scale)
 
 
 # ----------------------------------------------------------------------------- a curved master
@@ -271,3 +228,62 @@ def test_breathing_bars_repaired_carry_and_ledger(breathing):
     if COMM.rank == 0:
         print(f"\nbreathing bars penalty re-paired: {seen}; beta_t_max "
               f"{sim.contacts[0].friction.beta_max:.4g}")
+
+
+# ----------------------------------------------------------------------------- stiffer: FILM
+
+def test_penalty_stick_approaches_film_as_one_over_k_t():
+    """The block on the inclined face (tan θ = μ/4, μ = 0.5: it sticks with the cone at four
+    times the load, above the soft springs' transient overshoot, at most 2 F) at
+    k_t = β m/h^2, β = 0.05 and 0.1 (the scaled k_t is β = 1), and under FILM, whose stick
+    is w = 0: its slide t . u stays 0. The penalty settles at s_e = -(1 - β) F / k_t
+    (docs/friction.md 4) with |z| = sqrt(1 - β) per step (below 1e-16 after 1500 steps),
+    so the difference of the two sticks is (1 - β) F / k_t: falling as 1/k_t, by the ratio
+    (1 - β1) β2 / ((1 - β2) β1) = 19/9 when k_t doubles. Round-off: a step's roundings (32)
+    on F / k_t; FILM's slide, n steps' roundings of h^2 g (its step's displacement)."""
+    mu, n = 0.5, 1500
+    theta = np.arctan(0.25 * mu)
+    m, g, h = 2.0, 10.0, 1e-3
+    F = m * g * np.sin(theta)
+    _, film, _, _, _ = _block_on_incline(theta, mu, "scaled", n, FILM())
+    film_slide = film[-1, 3]
+    assert abs(film_slide) <= rounding(32 * n, h * h * g)
+    diffs = {}
+    for beta in (0.05, 0.1):
+        k_t = beta * m / h ** 2
+        c, rows, _, _, _ = _block_on_incline(theta, mu, k_t, n)
+        ln, lt, _, slide, s_e = rows.T
+        assert np.all(np.abs(lt) < mu * ln)  # stick at every step
+        assert abs(c.friction.beta_max - beta) <= rounding(8, beta)
+        diff = slide[-1] - film_slide
+        assert abs(diff + (1.0 - beta) * F / k_t) <= rounding(32, F / k_t) + abs(film_slide)
+        diffs[beta] = abs(diff)
+    ratio = diffs[0.05] / diffs[0.1]
+    assert abs(ratio - 19.0 / 9.0) <= rounding(64, 19.0 / 9.0) + 2 * abs(film_slide) / diffs[0.1]
+    if COMM.rank == 0:
+        print(f"\npenalty stick - FILM stick: {diffs[0.05]:.6e} m at beta 0.05, "
+              f"{diffs[0.1]:.6e} m at beta 0.1: ratio {ratio:.6f} for k_t doubled "
+              f"(closed form 19/9 = {19 / 9:.6f}; 1/k_t alone: 2)")
+
+
+# ----------------------------------------------------------------------------- refusals
+
+@pytest.mark.parametrize("order", ["friction first", "repairing first"])
+def test_normal_bound_past_one_with_repairing_is_refused(order):
+    """A normal penalty at beta 1.2 (within its own 4/3) with friction and re-pairing: the
+    sequential update is stable only with the normal bound at most 1 (docs/friction.md
+    4.2): refused in one line, either order of the calls; accepted when forced."""
+    sim = _bars(Penalty("scaled", beta_target=1.2))
+    c = sim.contacts[0]
+    first, second = ((lambda: c.set_friction(0.3), lambda: c.set_repairing(1))
+                     if order == "friction first" else
+                     (lambda: c.set_repairing(1), lambda: c.set_friction(0.3)))
+    first()
+    with pytest.raises(InputError, match="passes 1, the bound under which the penalty's "
+                                         "friction is stable"):
+        second()
+    sim = _bars(Penalty("scaled", beta_target=1.2))
+    c = sim.contacts[0]
+    c.set_repairing(1)
+    c.set_friction(0.3, force=True)
+    assert c.friction.penalty and c.friction.repairing

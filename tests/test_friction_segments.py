@@ -570,11 +570,11 @@ def test_contact_pairs_file_with_friction(tmp, method, kind):
 
 # ----------------------------------------------------------------------------- the penalty
 
-def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int):
+def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int, method=None):
     """A block (one slave node, m = 2 kg, both components free) resting on a fixed straight
     master segment inclined at ``theta`` (rad) to r, under gravity g = 10 m/s^2 along -z,
     h = 1e-3 s, the penalty with friction μ and tangential stiffness ``stiffness`` (N/m or
-    "scaled"). Returns the set, the per-step (λ_n, λ_t, w_t^{n+1/2}, slide along t, s_e)
+    "scaled"), or ``method`` (a contact method) in its place. Returns the set, the per-step (λ_n, λ_t, w_t^{n+1/2}, slide along t, s_e)
     and the kinetic energy and the gravity's work by the half-step kinetic identity
     (rank 0's numbers, broadcast)."""
     from impact_fenics.contact.plane import _Host
@@ -597,7 +597,7 @@ def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int):
         segments=np.array([[0, 1]]), seg=np.array([0]), a=np.array([0]), b=np.array([1]),
         xi=np.array([0.5]), normal=np.array([[nr, nz]]), g0=np.array([0.0]),
         kind=np.array([FACE]), names=("block", "incline"))
-    c = ContactSet(cons, host, Penalty("scaled"))
+    c = ContactSet(cons, host, Penalty("scaled") if method is None else method)
     c.set_friction(mu, stiffness)
     c.initialize()
     rows, kinetic, gravity = [], 0.0, 0.0

@@ -205,10 +205,14 @@ def test_curved_master_repaired_carry_and_ledger(nose):
     e = sim.energy.data()
     scale = np.abs(np.asarray(e["total"])).max()
     n_dofs = 2 * 2 * 600  # at most: the two bodies' nodes, (r, z) each
-    assert np.abs(np.asarray(e["balance_error"])).max() <= ledger(sim.n_steps, n_dofs) * scale
+    balance = np.abs(np.asarray(e["balance_error"])).max()
+    assert balance <= ledger(sim.n_steps, n_dofs) * scale
     h = sim.history.data()
     assert np.all(np.diff(np.asarray(h["return_loss"])) >= 0.0)
     assert np.all(np.diff(np.asarray(h["slip_work"])) >= 0.0)
+    if COMM.rank == 0:
+        print(f"\nnose penalty re-paired: balance {balance:.3g} J of {scale:.4g} J (bound "
+              f"{ledger(sim.n_steps, n_dofs) * scale:.3g} J); {sim.contacts[0].friction.summary()}")
 
 
 def test_breathing_bars_repaired_carry_and_ledger(breathing):
@@ -226,8 +230,10 @@ def test_breathing_bars_repaired_carry_and_ledger(breathing):
     h = sim.history.data()
     assert np.all(np.diff(np.asarray(h["return_loss"])) >= 0.0)
     if COMM.rank == 0:
-        print(f"\nbreathing bars penalty re-paired: {seen}; beta_t_max "
-              f"{sim.contacts[0].friction.beta_max:.4g}")
+        print(f"\nbreathing bars penalty re-paired: {seen}; balance "
+              f"{summary['energy_balance_error_rel']:.3g} and z momentum "
+              f"{np.abs(p - p[0]).max() / abs(p[0]):.3g} relative (bound {bound:.3g}); "
+              f"{sim.contacts[0].friction.summary()}")
 
 
 # ----------------------------------------------------------------------------- stiffer: FILM
@@ -287,3 +293,37 @@ def test_normal_bound_past_one_with_repairing_is_refused(order):
     c.set_repairing(1)
     c.set_friction(0.3, force=True)
     assert c.friction.penalty and c.friction.repairing
+
+
+# ----------------------------------------------------------------------------- finite strain
+
+def test_taylor_rod_on_an_elastic_anvil_penalty_friction():
+    """The Taylor rod (finite-strain J2) at 227 m/s on the free elastic anvil
+    (tests/test_taylor_anvil.py's scene, node to segment re-paired every 5 steps), the
+    penalty with μ = 0.2, 400 steps (the rim yields and spreads, the rod's face segments
+    turn): the cone at every loaded row and step, every re-pairing's elastic slips the
+    rule's (carried with a turning segment, projected on another's), z momentum and the
+    ledger within roundoff.ledger, the slip work positive."""
+    from test_taylor_anvil import _anvil
+
+    sim = _anvil(400, 227.0, "penalty")
+    c = sim.contacts[0]
+    c.set_friction(0.2)
+    watch = _Watch(c, 0.2)
+    summary = sim.run(extra=sim.scene_figures)
+    assert sim.status == "completed" and summary["n_steps"] == 400
+    assert sim.compiled_in_loop == []
+    seen = watch.seen
+    assert seen["carried"] > 0 and seen["sticks"] > 0 and seen["slips"] > 0, seen
+    e = sim.energy.data()
+    bound = ledger(sim.n_steps, COMM.allreduce(sim.model.n_owned))
+    p = np.asarray(e["momentum_z"])
+    assert np.abs(p - p[0]).max() <= bound * abs(p[0])
+    assert np.abs(np.asarray(e["balance_error"])).max() <= bound * sim.ledger.E0
+    assert c.friction.figures()["slip_work"] > 0.0
+    if COMM.rank == 0:
+        print(f"\ntaylor anvil penalty: {seen}; {c.friction.summary()}; face radius "
+              f"{summary['final_face_radius']:.6e} m, length {summary['final_length']:.6e} m; "
+              f"z momentum {np.abs(p - p[0]).max() / abs(p[0]):.3g}, balance "
+              f"{np.abs(np.asarray(e['balance_error'])).max() / sim.ledger.E0:.3g} relative "
+              f"(bound {bound:.3g})")

@@ -25,8 +25,8 @@ Oracles:
   w = 0 within the band solve's round-off), a released slave (no row) has λ_t = 0; the
   balance and z momentum within roundoff.ledger (the r momentum is not conserved on an
   axisymmetric body); nothing compiles in the loop;
-* refusals in one line: the penalty's friction with re-pairing (its spring's elastic slip
-  lies along the old segment), either order of the calls, and restitution e > 0.
+* refusals in one line: restitution e > 0 (the penalty's friction with re-pairing:
+  tests/test_friction_penalty_segments.py).
 
 Every test runs unchanged on 1, 2 and 3 ranks (the set's arrays are replicated).
 """
@@ -35,7 +35,7 @@ import pytest
 from mpi4py import MPI
 
 from impact_fenics import scenes
-from impact_fenics.contact import DME, FILM, Penalty
+from impact_fenics.contact import DME, FILM
 from impact_fenics.contact.friction_segments import OFF, STICK
 from impact_fenics.errors import InputError
 from roundoff import assert_runs_agree, assert_within_spread, ledger, one_ulp, rounding
@@ -266,18 +266,6 @@ def test_breathing_bars_momentum_and_ledger(breathing):
     assert np.abs(p - p[0]).max() <= bound * abs(p[0])
     assert summary["energy_balance_error_rel"] <= bound
     assert sim.history.data()["slip_work"][-1] > 0.0
-
-
-@pytest.mark.parametrize("order", ["friction first", "repairing first"])
-def test_penalty_friction_with_repairing_is_refused(order):
-    sim = _bars(Penalty("scaled"))
-    c = sim.contacts[0]
-    first, second = ((lambda: c.set_friction(MU), lambda: c.set_repairing(1))
-                     if order == "friction first" else
-                     (lambda: c.set_repairing(1), lambda: c.set_friction(MU)))
-    first()
-    with pytest.raises(InputError, match="penalty's friction with re-pairing is not built"):
-        second()
 
 
 def test_restitution_with_friction_and_repairing_is_refused():

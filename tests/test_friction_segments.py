@@ -27,7 +27,8 @@ Oracles:
   work in closed form, the energy balance closing; on non-matching faces the cone holds
   exactly, the plastic slip opposes the force and is zero in stick, the ledger closes;
 * the refusals of what is not built, one line each: a curved master with restitution
-  e > 0, the penalty on a curved master, a tangential stiffness past the bound.
+  e > 0, a tangential stiffness past the bound (the penalty on a curved master:
+  tests/test_friction_penalty_segments.py).
 """
 from __future__ import annotations
 
@@ -349,12 +350,9 @@ t_end = 1e-6
 @pytest.mark.parametrize("text, words", [
     (NOSE.format(method="dme").replace('method = "dme"', 'method = "dme"\nrestitution = 0.5'),
      "curved master face with restitution e > 0 is not built yet"),
-    (NOSE.format(method="penalty"),
-     "the penalty's friction on a curved master face (where normal and tangential rows "
-     "couple) is not built yet"),
     (SCENE.format(method="penalty", friction="friction = 0.2\ntangential_penalty = 1e15",
                   v0=5.0).replace(PAIRS, SEGMENTS), "passes the stable bound 4/3")],
-    ids=["curved-restitution", "penalty-curved", "penalty-past-bound"])
+    ids=["curved-restitution", "penalty-past-bound"])
 def test_refused_in_one_line(tmp, text, words, capsys):
     """What is not built is refused in one line "error: ...", exit 2, nothing written."""
     path = os.path.join(tmp, "bad.toml")
@@ -572,11 +570,11 @@ def test_contact_pairs_file_with_friction(tmp, method, kind):
 
 # ----------------------------------------------------------------------------- the penalty
 
-def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int):
+def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int, method=None):
     """A block (one slave node, m = 2 kg, both components free) resting on a fixed straight
     master segment inclined at ``theta`` (rad) to r, under gravity g = 10 m/s^2 along -z,
     h = 1e-3 s, the penalty with friction μ and tangential stiffness ``stiffness`` (N/m or
-    "scaled"). Returns the set, the per-step (λ_n, λ_t, w_t^{n+1/2}, slide along t, s_e)
+    "scaled"), or ``method`` (a contact method) in its place. Returns the set, the per-step (λ_n, λ_t, w_t^{n+1/2}, slide along t, s_e)
     and the kinetic energy and the gravity's work by the half-step kinetic identity
     (rank 0's numbers, broadcast)."""
     from impact_fenics.contact.plane import _Host
@@ -599,7 +597,7 @@ def _block_on_incline(theta: float, mu: float, stiffness, n_steps: int):
         segments=np.array([[0, 1]]), seg=np.array([0]), a=np.array([0]), b=np.array([1]),
         xi=np.array([0.5]), normal=np.array([[nr, nz]]), g0=np.array([0.0]),
         kind=np.array([FACE]), names=("block", "incline"))
-    c = ContactSet(cons, host, Penalty("scaled"))
+    c = ContactSet(cons, host, Penalty("scaled") if method is None else method)
     c.set_friction(mu, stiffness)
     c.initialize()
     rows, kinetic, gravity = [], 0.0, 0.0

@@ -41,7 +41,11 @@ A set re-paired in the loop (``ContactSet.set_repairing``; FILM and DME) tells t
 after each re-pairing (:meth:`SegmentTangential.repaired`): T's rows, A's band and the
 coupling are rebuilt in place from the new rows of G; the last step's sets are only the
 pivoting's start (a stuck slave on a new segment is tested again against its tangent),
-and a released slave (a zero row) gets λ_t = 0. The penalty's spring is refused there.
+and a released slave (a zero row) gets λ_t = 0. The penalty's spring is carried
+(docs/friction.md 4.1, :func:`carry_elastic_slip`): a slave kept on its segment keeps its
+elastic slip s_e (the tangent turned with the segment), one paired to another segment
+keeps its projection (t . t') s_e on the new tangent, a released one none; the stored
+energy the projection drops is booked into the return loss at the re-pairing.
 
 The penalty (docs/friction.md 4) solves nothing: each loaded row's spring k_t (N/m) on its
 committed elastic slip s_e (m) gives the trial λ_tr = -k_t (s_e + h_{n+1/2} w~_t), which is
@@ -50,7 +54,10 @@ recurrence is the normal penalty's with s_e in place of the gap and A in place o
 is stable for beta_t = λ_max(h_{n+1/2} K^1/2 A K^1/2) < 4/3, bounded by Gershgorin's row
 sums on A's band (``"scaled"`` puts that bound at 1). On a straight master the normal and
 tangential rows decouple, so the two bounds hold apart; on a curved master (coupled rows)
-the penalty with friction is refused until the joint bound is derived.
+the sequential update is (I - Θ)(I - N) in mass-scaled coordinates, stable under the same
+rule where the normal bound is at most 1 (docs/friction.md 4.2): a normal penalty whose
+bound passes 1 is refused there (and under re-pairing, which can make the rows couple)
+unless forced. The penalty needs no Tresca iteration: both springs are explicit.
 """
 from __future__ import annotations
 
@@ -60,10 +67,11 @@ from numba import njit
 from ..errors import InputError
 from ..plausibility import warn
 from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, \
-    band_of_s_steps, band_solve, bandwidth, bandwidth_of, gap_of, gershgorin_beta
+    band_of_s_steps, band_solve, bandwidth, bandwidth_of, gap_of, gershgorin_beta, \
+    gershgorin_of
 from .friction import HISTORY, N_SLIP, N_STICK, PENALTY_HISTORY, RETURN_LOSS, SLIP_WORK, \
-    STORED, T_FORCE, T_LOSS, T_PEAK, FrictionFigures, FrictionLaw, _coefficient, \
-    _return_to_cone
+    STABILITY_BOUND, STORED, T_FORCE, T_LOSS, T_PEAK, FrictionFigures, FrictionLaw, \
+    _coefficient, _return_to_cone
 
 OFF, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # a row's set: λ_t = 0, free, +c, -c
 COUPLING_TOL = 1e-12  # |G M^-1 T'| against the largest |G M^-1 G'|: round-off of the normals
@@ -285,6 +293,29 @@ def _apply_and_book(lam, state, cs, ct, mass, free, h, h_avg, u, v, v_now, w_pre
 
 
 @njit(cache=True)
+def carry_elastic_slip(seg, cs, cc, ct_old, k_t, s_e, stats):
+    """The penalty's elastic slips across a re-pairing (docs/friction.md 4.1), the rows of
+    G rewritten (``cs``, ``cc``) and T's not yet (``ct_old``: the old tangents, the slave's
+    entries t = (n_z, -n_r)). ``seg``: per row the slots of the master nodes a, b it had
+    (rewritten here to the new ones). A row on the same segment keeps s_e (m; carried with
+    the segment); on another segment s_e' = (t . t') s_e; a released row (zero
+    coefficients, t' = 0) s_e' = 0. The drop of stored energy 1/2 k_t (s_e^2 - s_e'^2) (J)
+    goes into the return loss and out of the stored energy in ``stats``."""
+    drop = 0.0
+    for i in range(s_e.shape[0]):
+        a, b = cs[i, 2], cs[i, 4]
+        released = cc[i, 0] == 0.0 and cc[i, 1] == 0.0
+        if s_e[i] != 0.0 and (released or a != seg[i, 0] or b != seg[i, 1]):
+            s = (ct_old[i, 0] * cc[i, 1] - ct_old[i, 1] * cc[i, 0]) * s_e[i]
+            drop += 0.5 * k_t[i] * (s_e[i] * s_e[i] - s * s)
+            s_e[i] = s
+        seg[i, 0] = a
+        seg[i, 1] = b
+    stats[RETURN_LOSS] += drop
+    stats[STORED] -= drop
+
+
+@njit(cache=True)
 def _penalty_pass(active, force, no_free, k_t, mu_s, mu_d, decay, stick, cs, ct, mass, free,
                   h, h_avg, u, v, v_now, w_prev, wt, w_next, lam, state, cap, s_e, dsp,
                   stats):
@@ -376,23 +407,20 @@ class SegmentTangential(FrictionFigures):
     """The tangential pass of a node-to-segment set ``c`` (FILM or DME) with friction
     ``law`` (not zero). Made by ``ContactSet.set_friction``; :meth:`step` runs between
     the method's normal correction and the set's commit. With ``stiffness`` (N/m, or
-    ``"scaled"``) the pass is the penalty's tangential spring (:func:`_penalty_pass`) on
-    a straight master face, its stability bound ``beta_max`` (Gershgorin's, of
-    h K^1/2 A K^1/2) checked by the caller against 4/3."""
+    ``"scaled"``) the pass is the penalty's tangential spring (:func:`_penalty_pass`), its
+    stability bound ``beta_max`` (Gershgorin's, of h K^1/2 A K^1/2) checked by the caller
+    against 4/3 (:meth:`bound_problem`); ``force``: accept the bounds past it."""
 
     max_iter = 1000
 
-    def __init__(self, c, law: FrictionLaw, what: str, stiffness: float | str | None = None):
-        self.c, self.law = c, law
+    def __init__(self, c, law: FrictionLaw, what: str, stiffness: float | str | None = None,
+                 force: bool = False):
+        self.c, self.law, self.forced = c, law, force
         self._local = c._local  # the owned dofs it moves, the set's (D of a varying step)
         self.penalty, self.stiffness = stiffness is not None, stiffness
         self.ct = tangent_rows(c.cc)
         # normal and tangential rows couple (a curved master face): the Tresca iteration
         self.coupled = coupling(c.cs, c.cc, self.ct, c.minv) > COUPLING_TOL
-        if self.coupled and self.penalty:
-            raise InputError(f"{what}: the penalty's friction on a curved master face (where "
-                             "normal and tangential rows couple) is not built yet; a straight "
-                             "master face is, and film and dme are on a curved one")
         if self.coupled and getattr(c.method, "e", 0.0) > 0.0:
             raise InputError(f"{what}: friction on a curved master face with restitution "
                              "e > 0 is not built yet (e = 0 is)")
@@ -419,31 +447,49 @@ class SegmentTangential(FrictionFigures):
         self._v_pred_saved = np.zeros(c.n_slots)
         # the penalty's springs: k_t (N/m), the committed elastic slips s_e and the step's
         # plastic slips Δs_p (m)
-        self.k_t, self.s_e, self.dsp = np.zeros((3, n))
+        self.k_t, self.s_e, self.dsp, self._hk = np.zeros((4, n))
+        self.seg = np.ascontiguousarray(c.cs[:, 2::2])  # the master nodes' r slots, a and b
+        self._k_setup, self._hh_setup = self.k_t.copy(), 0.0  # a re-paired set's k_t
         self.beta_max = 0.0
         self.no_free = np.zeros(n, dtype=np.bool_)
         self.repairing = False  # start_repairing: the set re-pairs in the loop
         self.set_step()
 
+    def bound_problem(self) -> str | None:
+        """What of the penalty's bounds (docs/friction.md 4.2) passes its limit, unless
+        ``force``: k_t's Gershgorin bound past 4/3; where the rows couple or re-pair, the
+        normal penalty's past 1. None if nothing (or not the penalty)."""
+        if not self.penalty or self.forced:
+            return None
+        if self.beta_max > STABILITY_BOUND:
+            return (f"tangential_penalty = {self.stiffness!r} N/m: beta_t <= "
+                    f"{self.beta_max:.3g} (Gershgorin bound on h h_n K^1/2 T M^-1 T' K^1/2) "
+                    "passes the stable bound 4/3; lower it, use 'scaled' or force")
+        beta_n = float(getattr(self.c.method, "info", {}).get("beta_max", 0.0))
+        if (self.coupled or self.repairing) and beta_n > 1.0 + 1e-12:
+            return (f"penalty: beta_max <= {beta_n:.4g} passes 1, the bound under which the "
+                    "penalty's friction is stable where normal and tangential rows couple (a "
+                    "curved master, re-pairing); lower p, use 'scaled' or force")
+        return None
+
     def refuse_repairing(self, what: str) -> None:
-        """Refuse re-pairing where it is not built: the penalty (its spring's elastic slip
-        lies along the old segment) and restitution e > 0 (a re-pairing can make the rows
-        couple, where e > 0 is not built)."""
-        if self.penalty:
-            raise InputError(f"{what}: the penalty's friction with re-pairing is not built "
-                             "(its tangential spring's elastic slip lies along the old "
-                             "segment); film and dme are")
+        """Refuse re-pairing where it is not built: restitution e > 0 (a re-pairing can
+        make the rows couple, where e > 0 is not built)."""
         if getattr(self.c.method, "e", 0.0) > 0.0:
             raise InputError(f"{what}: friction with re-pairing and restitution e > 0 is not "
                              "built (a re-pairing can make the rows couple); e = 0 is")
 
     def start_repairing(self, what: str) -> None:
         """The set re-pairs (``ContactSet.set_repairing``): from now on :meth:`repaired`
-        follows each re-pairing. Refused for the penalty and e > 0 (:meth:`refuse_repairing`).
-        Its scratch and the bound of A's band storage are made here."""
+        follows each re-pairing. Refused for e > 0 (:meth:`refuse_repairing`). Its scratch
+        and the bound of A's band storage are made here; the penalty's k_t is chosen for
+        every row a re-pairing can make and kept (docs/friction.md 4.2), its bounds
+        checked (:meth:`bound_problem`)."""
         self.refuse_repairing(what)
         c = self.c
         self.repairing = True
+        if self.penalty:
+            self._repairing_stiffness()
         self._first = np.empty(c.n_slots, np.int64)
         # the band of rows that list a common free slot, whatever their coefficients (it
         # holds both G M^-1 G' and G M^-1 T'): bandwidth_of on coefficients of one
@@ -452,6 +498,28 @@ class SegmentTangential(FrictionFigures):
         self.coupled = coupling_of(c.cs, c.cc, self.ct, c.minv, bw_slots) > COUPLING_TOL
         self.info["coupled"] = bool(self.coupled)
         self.initialize()  # the re-pairing's kernels loaded now
+        problem = self.bound_problem()
+        if problem:
+            raise InputError(problem)
+
+    def _repairing_stiffness(self) -> None:
+        """A re-paired set's k_t (N/m), kept for the run: ``"scaled"`` from the largest
+        A_ii a slave's row can have, h_n (1/m_s + 1/m_min) (m_min the lightest free master
+        component, N_a^2 + N_b^2 <= 1), scaled by Gershgorin's bound of A at set-up (the
+        normal penalty's choice of p, penalty.py); a given k_t on every row."""
+        c = self.c
+        if isinstance(self.stiffness, str):
+            n_slave = c.constraints.slave_xy.shape[0]
+            worst = float(c.minv[2 * n_slave:].max(initial=0.0))
+            slave = np.maximum(c.minv[0:2 * n_slave:2], c.minv[1:2 * n_slave:2])
+            k = 1.0 / (c.dt * c.h_avg * (slave + worst))
+            bound = gershgorin_beta(self.band, self.bw, c.dt * k)
+            self._k_setup[:] = k / bound if bound > 0.0 else k
+        else:
+            self._k_setup[:] = float(self.stiffness)
+        self._hh_setup = c.dt * c.h_avg
+        self.k_t[:] = self._k_setup
+        self.beta_max = gershgorin_beta(self.band, self.bw, c.dt * self.k_t)
 
     def repaired(self) -> None:
         """After a re-pairing (the set's rows of G rewritten in place): T's rows, A's band
@@ -460,8 +528,12 @@ class SegmentTangential(FrictionFigures):
         from this step on where the new rows couple) and the kept factor dropped. The sets
         of the last step stay as the pivoting's start: a stuck slave on a new segment is
         tested again against the new tangent; FILM and DME keep no elastic slip, so
-        nothing else is carried. Nothing is allocated but a wider band."""
+        nothing else is carried; the penalty's elastic slips are carried
+        (:func:`carry_elastic_slip`, before T's rows are rewritten). Nothing is allocated
+        but a wider band."""
         c = self.c
+        if self.penalty:
+            carry_elastic_slip(self.seg, c.cs, c.cc, self.ct, self.k_t, self.s_e, self.stats)
         tangent_rows_into(c.cc, self.ct)
         bw = bandwidth_of(c.cs, self.ct, c.minv, self._first)
         rebind = bw != self.bw
@@ -489,9 +561,15 @@ class SegmentTangential(FrictionFigures):
         band_of_s(c.cs, self.ct, c.minv, np.sqrt(c.h_avg), self.bw, self.band)
         np.less_equal(self.band[:, 0], 0.0, out=self.no_free)  # no free slot: λ_t = 0
         self.factored[-1] = False
+        if self.penalty and self.repairing:  # k_t kept; a scaled one follows 1 / (h h_n)
+            hh = c.dt * c.h_avg
+            if isinstance(self.stiffness, str) and hh != self._hh_setup:
+                np.multiply(self._k_setup, self._hh_setup / hh, out=self.k_t)
+            np.multiply(self.k_t, c.dt, out=self._hk)
+            self.beta_max = max(self.beta_max, gershgorin_of(self.band, self.bw, self._hk))
         if not rebind:
             return
-        if self.penalty:
+        if self.penalty and not self.repairing:
             if isinstance(self.stiffness, str):
                 self.k_t[:] = scaled_stiffness(self.band, self.bw, c.dt)
             else:
@@ -519,6 +597,14 @@ class SegmentTangential(FrictionFigures):
         load(_tangential_gaps, c.cs, self.ct, c.v_now, self.w_prev)
         if self.penalty:
             load(_penalty_pass, *self._penalty_args())
+            if self.repairing:  # a re-pairing's calls
+                load(carry_elastic_slip, self.seg, c.cs, c.cc, self.ct, self.k_t, self.s_e,
+                     self.stats)
+                load(bandwidth_of, c.cs, self.ct, c.minv, self._first)
+                load(coupling_of, c.cs, c.cc, self.ct, c.minv, self.bw)
+                load(band_of_s_steps, c.cs, self.ct, c.minv, c.h_avg, c.h_avg, self.bw,
+                     self.band)
+                load(gershgorin_of, self.band, self.bw, self._hk)
             self._bind()
             return
         load(_caps, *self._caps_args())

@@ -372,9 +372,9 @@ class ContactSet:
         frictionless one. Built for FILM, DME and the penalty (its tangential spring
         ``tangential_penalty``: N/m, or ``"scaled"``, beta_t = 1 per row; one whose
         beta_t passes 4/3 is refused unless ``force``) on node pairs, a flat rigid or
-        fixed face (the wall) and node to segment (the penalty on a straight master; FILM
-        and DME re-paired too, :meth:`set_repairing`, in either order); refused in one
-        line elsewhere. Call before the run."""
+        fixed face (the wall) and node to segment (re-paired too, :meth:`set_repairing`, in
+        either order; the penalty's normal bound at most 1 where rows couple or re-pair);
+        refused in one line elsewhere. Call before the run."""
         from .friction import (DME_T, FILM_T, PENALTY_T, STABILITY_BOUND, Tangential,
                                friction_law)
 
@@ -395,16 +395,14 @@ class ContactSet:
             if not isinstance(self.method, (FILM, DME, Penalty)):
                 raise InputError(f"{what}: friction needs method film, dme or penalty")
             spring = tangential_penalty if isinstance(self.method, Penalty) else None
-            tangential = SegmentTangential(self, law, what, spring)
-            if self.repair_every:  # the pass follows each re-pairing (refused: the penalty)
+            tangential = SegmentTangential(self, law, what, spring, force)
+            if self.repair_every:  # the pass follows each re-pairing (the penalty: its spring)
                 tangential.start_repairing(what)
             tangential.initialize()  # its kernels loaded now: the set was initialized
             self.friction = tangential
-            if spring is not None and self.friction.beta_max > STABILITY_BOUND and not force:
-                raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t <= "
-                                 f"{self.friction.beta_max:.3g} (Gershgorin bound on h h_n "
-                                 "K^1/2 T M^-1 T' K^1/2) passes the stable bound 4/3; lower it, "
-                                 "use 'scaled' or force")
+            problem = tangential.bound_problem()  # the penalty's (docs/friction.md 4.2)
+            if problem:
+                raise InputError(problem)
             return
         if isinstance(self.method, Penalty):
             kernel = PENALTY_T
@@ -449,7 +447,7 @@ class ContactSet:
         largest Gershgorin bound of the rows the run used."""
         if self.kind != SEGMENTS:
             raise InputError("re-pairing is for node-to-segment contact")
-        if self.friction is not None and int(every):  # refused: the penalty's spring
+        if self.friction is not None and int(every):  # refused: e > 0
             self.friction.refuse_repairing(f"friction = {self.friction.law.text()}")
         every = int(every)
         if every < 0:

@@ -23,6 +23,13 @@ scale lambda + 2 mu, on each of the two evaluations (this one and the code's), 2
 = 80 EPS (lambda + 2 mu) (a few 1e-3 Pa). A frame one step off differs by the stress
 change of one step: at the front, where a cell's strain changes by about v / c a step,
 (lambda + 2 mu) v / c ~ 1e8 Pa here, eleven orders above.
+
+A small-strain path-dependent body's frame is the points' update at the u written, from
+the committed state, over the step that reached it: the update the next step commits.
+Oracle (exact equivalence): under steps that change, a viscoplastic J2 body (whose
+return reads the step, eta / h) gives a frame's point stresses equal, bit for bit, to
+those the next step commits at the same u (the same kernel on the same numbers). Over
+the step before, h_{n-1/2} instead of h_{n+1/2}, they differ at every flowing point.
 """
 import math
 import os
@@ -32,6 +39,11 @@ import pytest
 from mpi4py import MPI
 
 from impact_fenics import cli
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.integrator import Integrator
+from impact_fenics.materials.j2 import J2
+from impact_fenics.quad_meshes import one_body
+from impact_fenics.stepping import StepSequence
 from impact_fenics.xdmf import FieldSeries
 from roundoff import EPS
 from scene_texts import ROOT, replace
@@ -148,3 +160,44 @@ def test_a_frames_stress_is_that_of_its_displacement(tmp_path_factory, geometry)
     # the frames saw the impact (stresses far above the tolerance), and each is its u's
     assert largest > 1e6 * TOL
     assert worst <= TOL, (worst, TOL, largest)
+
+
+def test_a_small_strain_frame_is_the_update_the_next_step_commits():
+    """A viscoplastic J2 disc (4 x 10 mm, P1 triangles, 1 mm) at 20 m/s onto its held face
+    z = 0 (rho c v ~ 9e8 Pa against a 200 MPa yield: the points at the face flow), under
+    steps alternating between 0.3 and 0.15 of h / c every two steps; at every change of
+    step the frame's point stresses at u^{n+1} against the next step's committed ones."""
+    from dolfinx import mesh as dmesh
+
+    mesh = dmesh.create_rectangle(COMM, [np.array([0.0, 0.0]), np.array([4e-3, 10e-3])],
+                                  [4, 10], cell_type=dmesh.CellType.triangle)
+    # eta / h ~ 1e4 / 1e-8 = 1e12 Pa, above 3 mu = 2.3e11: the step changes the return
+    j2 = J2(E=200e9, nu=0.3, density=7850.0, yield_stress=200e6, hardening=5e9,
+            viscosity=1e4)
+    model = DeformableModel(one_body(mesh), [Body("body", j2)])
+    owned = model.n_owned // 2
+    face = np.flatnonzero(np.abs(model.node_xy[:owned, 1]) <= 1e-12)
+    fixed = np.concatenate([model.axis_dofs(), 2 * face + 1]).astype(np.int32)
+    h_c = 1e-3 / math.sqrt(E / 7850.0)  # s: a cell's transit at the bar speed
+    steps = [f * h_c for f in (0.3, 0.3, 0.15, 0.15) * 6]
+    integ = Integrator(model, None, fixed, policy=StepSequence(steps))
+    v0 = np.zeros(model.n_owned)
+    v0[1::2] = -20.0
+    integ.set_initial(None, v0)
+    force, u = integ.nonlinear[0], integ.u_function.x
+    frame, compared, flowing = None, 0, 0
+    for n in range(len(steps) - 1):
+        eps_before = force.qs.eps_p.copy()
+        integ.predict()  # the update at u^n, committed
+        if frame is not None:
+            assert np.array_equal(force.qs.sigma, frame)
+            compared += 1
+            flowing += int(np.any(force.qs.eps_p != eps_before))
+        integ.advance()
+        frame = None
+        if n >= 1 and steps[n] != steps[n - 1]:  # u^{n+1} reached by another step:
+            # the points' last update took h_{n-1/2}, this frame's and the next one's h_{n+1/2}
+            u.scatter_forward()
+            frame = force.point_stresses(u.array).sigma.copy()
+    compared, flowing = COMM.allreduce(compared), COMM.allreduce(flowing)
+    assert compared >= 5 * COMM.size and flowing >= 1

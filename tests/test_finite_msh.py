@@ -5,8 +5,7 @@ square cells) written with gmsh's Python API: a transfinite rectangle recombined
 quadrilaterals, its surface the cell group "bar" (the body), its bottom the facet group
 "bottom", each node moved onto the generator's (gmsh places transfinite nodes within
 ~1e-14 m of the grid, which alone moves the step by some 1e-12 of itself, far above
-round-off). A copper bar (Hencky J2)
-strikes the wall at 150 m/s.
+round-off). A copper bar (Hencky J2) strikes the wall at 150 m/s.
 
 Oracle: the same bar from the generator. dolfinx numbers a file's nodes and cells in
 another order than create_rectangle's, so the nodal sums of the internal force run in

@@ -345,7 +345,11 @@ class CellStress:
 
     A path-dependent body's cells get the weighted mean of the stresses of its points
     at ``u`` (:func:`point_mean_stress`; its force's :attr:`frame` then holds that
-    state, for the frame's other cell fields).
+    state, for the frame's other cell fields). A finite-strain body's cells get the
+    mean Cauchy stress of its points' update at ``u`` (the force's
+    :meth:`~.internal_force.finite.FiniteStrainForce.frame_values`), and
+    :attr:`finite_eps_p` and :attr:`finite_temperature` that update's: every value of a
+    frame belongs to the u it writes.
 
     The common mesh (bodies of one isotropic D over a range of cells, no path-dependent
     body, no UFL Expression) is one compiled call, :func:`isotropic_stress_range`;
@@ -478,7 +482,7 @@ class CellStress:
             point_mean_stress(force.point_stresses(u).sigma, force.geometry.w, cells, values)
             _von_mises(values, cells, run)
         for cells, force in self._finite:  # (stress columns rr, tt, zz, rz)
-            sig, self.finite_eps_p[cells], self.finite_temperature[cells] = force.cell_values(u)
+            sig, self.finite_eps_p[cells], self.finite_temperature[cells] = force.frame_values(u)
             values[0, cells], values[1, cells] = sig[:, 0], sig[:, 2]
             values[2, cells], values[3, cells] = sig[:, 1], sig[:, 3]
             von_mises_cells(values, cells)

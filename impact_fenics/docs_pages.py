@@ -179,9 +179,10 @@ with displacement probes at the bar's tracked nodes, energy.csv with the ledger'
 columns, summary.json with the final length and face radius, fields.xdmf with the
 Cauchy stress and eps_p_eq per cell, contact_pairs.h5). A finite-strain body needs
 quadrilaterals: `generator = "quad_bar"` or `"rod_on_anvil"`, or `quadrilaterals = true`
-on `"coaxial_bars_sized"`, `"shpb"` or `"block"`; on triangles (any other generator, or
-a mesh file for now) it is refused in one line (constant-strain triangles lock under
-isochoric plastic flow). Its material has a finite-strain form (`"j2"`,
+on `"coaxial_bars_sized"`, `"shpb"` or `"block"`, or a `.msh` file of quadrilaterals only
+(recombine its surfaces in gmsh; its cell groups the bodies, its facet groups the faces,
+as on triangles); on triangles (any other generator, or a file of triangles) it is
+refused in one line (constant-strain triangles lock under isochoric plastic flow). Its material has a finite-strain form (`"j2"`,
 rate-independent; `"johnson_cook"`; `"neo_hookean"`; or a class of your own with
 `strain = "finite"`); a material at a kinematics it lacks is refused in one line naming
 the one it has.

@@ -31,7 +31,7 @@ from .scene_keys import (DT_INTERVAL, ENERGY_EVERY, GENERATORS, METHODS, PLANE_Q
                          QUAD_GENERATORS, QUANTITIES, REQUIRED, REQUIRED_PARAMS)
 from .scene_materials import MaterialSpec, check_kinematics, read_material
 from .scene_table import MISSING, Table, array_of, is_number, tables_of, toml_text, within
-from .scene_wall import check_kind, read_wall
+from .scene_wall import check_file_kind, check_kind, read_wall
 
 COMPONENTS = {"r": 0, "z": 1}
 PLANE_COMPONENTS = {"x": 0, "y": 1}
@@ -520,6 +520,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
 
         with within("[mesh]"):
             counts = meshing.msh_size(scene.mesh.file, comm)
+        check_file_kind(scene, counts["quadrilaterals"])
         kind = "quad" if counts["quadrilaterals"] else "unstructured"
         regions = [resources.Region(name, float(n), 0.0, h, kind)
                    for name, (n, h) in counts["groups"].items()]

@@ -17,6 +17,10 @@ its bodies, each small or finite strain, on a mesh of quadrilaterals, which is
   default 3 and 2 radius, squares of the rod's size; facet groups rod_contact,
   anvil_contact, anvil_bottom, ...);
 * ``coaxial_bars_sized``, ``shpb`` or ``block`` with ``quadrilaterals = true``;
+* ``[mesh] file = "NAME.msh"`` of quadrilaterals only (gmsh's recombined surfaces; the
+  bodies its cell groups, the faces its facet groups, as on triangles): a file of
+  triangles is refused in one line when the estimate counts its cells
+  (:func:`check_file_kind`);
 
 with, as on triangles, [[contact]] between bodies (node pairs, node to segment with
 ``repair_every``; on quad_bar, one body, a rigid face only), [rigid.NAME] bodies in
@@ -111,6 +115,14 @@ def _one_bar(scene) -> None:
                              "body's [[contact]] runs on it)")
 
 
+def check_file_kind(scene, quadrilaterals: bool) -> None:
+    """A finite-strain scene's mesh file holds quadrilaterals only (``quadrilaterals``: the
+    file's count, :func:`.meshing.msh_size`); one line otherwise."""
+    if scene.finite and not quadrilaterals:  # (the reader refuses two cell types)
+        raise InputError(f'[mesh] file = "{scene.mesh.file}": the file\'s cells are triangles '
+                         f"(recombine its surfaces in gmsh): {FINITE_STRAIN_NEEDS_QUADRILATERALS}")
+
+
 def check_kind(scene) -> None:
     """What a finite-strain scene may hold, and what a small-strain one may not (one line)."""
     bar = scene.mesh.generator == "quad_bar"
@@ -123,13 +135,13 @@ def check_kind(scene) -> None:
         if scene.time["dt_interval"] is not None:
             raise InputError("[time] dt_interval: only a finite-strain scene re-estimates its step")
         return
-    if not quadrilateral_generator(scene.mesh.generator, scene.mesh.params):
-        given = (f'generator = "{scene.mesh.generator}"' if scene.mesh.generator
-                 else f'file = "{scene.mesh.file}"')
-        file_note = "" if scene.mesh.generator else " (a mesh file is not read for one yet)"
-        raise InputError(f'[mesh] {given}: a finite-strain body needs generator = "quad_bar"'
-                         ' or "rod_on_anvil", or quadrilaterals = true '
-                         f"({', '.join(QUAD_OPTION)}){file_note}: "
+    # a mesh file's cells are counted with the estimate (scene_file.estimate, every rank:
+    # check_file_kind); a generator's are known from its name
+    if scene.mesh.generator and not quadrilateral_generator(scene.mesh.generator,
+                                                            scene.mesh.params):
+        raise InputError(f'[mesh] generator = "{scene.mesh.generator}": a finite-strain body '
+                         'needs generator = "quad_bar" or "rod_on_anvil", or quadrilaterals = '
+                         f"true ({', '.join(QUAD_OPTION)}), or a mesh file of quadrilaterals: "
                          f"{FINITE_STRAIN_NEEDS_QUADRILATERALS}")
     if bar:
         _one_bar(scene)

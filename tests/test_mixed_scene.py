@@ -212,7 +212,7 @@ def test_low_speed_finite_target_equals_small_strain(tmp_path_factory, monkeypat
     ([("quadrilaterals = true\n", "")],
      '[mesh] generator = "coaxial_bars_sized": a finite-strain body needs generator = '
      '"quad_bar" or "rod_on_anvil", or quadrilaterals = true (coaxial_bars_sized, shpb, '
-     'block): finite strain needs quadrilaterals'),
+     'block), or a mesh file of quadrilaterals: finite strain needs quadrilaterals'),
 ], ids=["held face", "triangles"])
 def test_the_mixed_scene_refuses(tmp_path_factory, capsys, edits, message):
     """Bad input: one line naming the table, exit 2, no traceback."""

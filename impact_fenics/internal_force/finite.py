@@ -392,6 +392,7 @@ class FiniteStrainForce:
         self._work = np.zeros(WORK)
         self._point_state = np.zeros(self.state.shape[-1])
         self._point_tau = np.zeros(4)
+        self._frame = None  # a frame's copies of state and tau, its force and cell values
         self.f = fem.Function(V)
         self.n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.f_owned = self.f.x.array[: self.n_owned]
@@ -510,13 +511,43 @@ class FiniteStrainForce:
     def cell_values(self, u: np.ndarray | None = None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per owned cell: Cauchy stress (n, 4) (Pa), mean eps_bar_p (n,), mean temperature (K,
-        0 without one), at the current u or ``u`` (as :meth:`stored_energy_local`)."""
+        0 without one) of the committed point state (tau and the state of the last
+        :meth:`compute`), its J_bar at the current u or ``u``. Between steps the points hold
+        the update at u^n while u is u^{n+1}: a frame takes :meth:`frame_values`."""
         g = self.geometry
         n = g.dofs.shape[0]
         sig, eps, temp = np.zeros((n, 4)), np.zeros(n), np.zeros(n)
         i_temp = getattr(self.material, "temperature_index", -1)
         cell_means(self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
                    self.u.x.array if u is None else u, self._Fq, self._Jq, sig, eps, temp, i_temp,
+                   self.plane)
+        return sig, eps, temp
+
+    def frame_values(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`cell_values` of the points' update at the displacement ``u`` (m, the local
+        array, ghosts current) from the committed state: the Cauchy stress (Pa, sigma =
+        tau(F_bar) / J_bar, both of ``u``), eps_bar_p and temperature a frame writes with
+        ``u``. The committed state is left as it is.
+
+        A frame comes after the step that moved u^n to u^{n+1}, while the points hold the
+        update at u^n; this is the update the next step makes at u^{n+1} (the same fused
+        kernel, from the same state, over the step just taken, h_{n+1/2}), on copies of the
+        state and tau. The arrays (made at the first frame) are reused by the next call."""
+        g = self.geometry
+        if self._frame is None:
+            n = g.dofs.shape[0]
+            self._frame = (np.empty_like(self.state), np.empty_like(self.tau),
+                           np.empty_like(self.f.x.array), np.zeros((n, 4)), np.zeros(n),
+                           np.zeros(n))
+        state, tau, f, sig, eps, temp = self._frame
+        np.copyto(state, self.state)
+        np.copyto(tau, self.tau)
+        f.fill(0.0)
+        self._force(self.params, self.h, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, g.volume, u,
+                    f, state, tau, self._Fq, self._Jq, self._fbar, self._work,
+                    self._point_state, self._point_tau)
+        cell_means(tau, state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, u, self._Fq,
+                   self._Jq, sig, eps, temp, getattr(self.material, "temperature_index", -1),
                    self.plane)
         return sig, eps, temp
 

@@ -742,12 +742,14 @@ class QuadratureForce:
 
         An output comes after the step that moved u^n to u^{n+1}, while the points hold
         the update at u^n. This is the update the next step makes at u^{n+1}, by the same
-        kernel (the fused one, on either path) from the same state: its stresses are what
+        kernel (the fused one, on either path) from the same state, over the step that
+        reached u^{n+1} (:attr:`h`, h_{n+1/2}; the points' :attr:`dt` is still h_{n-1/2}, which
+        a rate-dependent material would read when the step varies): its stresses are what
         the material computes for the displacement written with them, and satisfy its
         yield condition. One pass over the body's cells."""
         qs, fr, g = self.qs, self.frame, self.geometry
         fr.copy_from(qs)
         self._frame_f.fill(0.0)
-        self._fused(self.params, self.dt, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, u,
+        self._fused(self.params, self.h, g.dofs, g.dNdr, g.dNdz, g.N, g.inv_r, g.w, u,
                     self._frame_f, *fr.kernel_arrays, self._work)
         return fr

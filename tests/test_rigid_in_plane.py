@@ -221,3 +221,35 @@ def test_block_dragged_by_a_heavy_plate(method):
     assert ring <= lead
     # the plate gives up what the block gains: M (V - V_p) = m v̄ <= m (V + lead)
     assert np.all(np.abs(rows[:, 2] - V) <= MASS * (V + lead) / plate.mass)
+
+
+# ----------------------------------------------------------------------------- scene files
+
+@pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")
+def test_scene_key_velocity_x(tmp_path):
+    """[rigid.NAME] velocity_x: a plane-strain punch pressed onto a block and moving
+    sideways with friction runs from the command line; its history has the part's u_x and
+    v_x, its energy table M V (momentum_x_punch), the ledger closes (the run's own check)
+    and friction slows the punch. In an axisymmetric scene the key is refused in one line."""
+    from scene_texts import RIGID, assert_refused, launch, read_history, replace
+
+    text = replace(RIGID, "radius = 0.1\n", 'half_width = 0.1\nfriction = 0.3\n')
+    text = replace(text, 'method = "dme"', 'method = "film"')
+    text = replace(text, 'components = ["z"]', 'components = ["y"]')
+    text = replace(text, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n")
+    scene = tmp_path / "slide.toml"
+    scene.write_text('geometry = "plane_strain"\nthickness = 0.01\n' + text)
+    out = tmp_path / "out"
+    proc = launch(["run", scene, "--out", out], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    h = read_history(out)
+    assert h["punch_v_x"][0] <= 0.5 and h["punch_v_x"][-1] < 0.5  # friction drags it back
+    assert np.all(np.diff(h["punch_u_x"]) > 0)
+    e = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
+    assert "momentum_x_punch" in e.dtype.names
+    assert e["momentum_x_punch"][-1] == pytest.approx(0.1 * h["punch_v_x"][-1], rel=1e-15)
+    axi = tmp_path / "axi.toml"
+    axi.write_text(replace(RIGID, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n"))
+    assert_refused(["run", axi, "--out", tmp_path / "out_axi"],
+                   "error: [rigid.punch] velocity_x: an axisymmetric rigid body moves along z "
+                   "only (the axis)", tmp_path / "out_axi")

@@ -86,7 +86,8 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         if staging:
             friction = getattr(c, "friction", None)
             tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm, rows=pair_rows,
-                                                     tangential=friction is not None)
+                                                     tangential=friction is not None,
+                                                     axis=c.integrator.model.geometry.axes[0])
             if comm.rank == 0:
                 pair_tables.append((c, tables[f"pairs{k}"]))
                 tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active,

@@ -229,8 +229,8 @@ def test_block_dragged_by_a_heavy_plate(method):
 def test_scene_key_velocity_x(tmp_path):
     """[rigid.NAME] velocity_x: a plane-strain punch pressed onto a block and moving
     sideways with friction runs from the command line; its history has the part's u_x and
-    v_x, its energy table M V (momentum_x_punch), the ledger closes (the run's own check)
-    and friction slows the punch. In an axisymmetric scene the key is refused in one line."""
+    v_x, its energy table M V (momentum_x_punch), its contact_pairs.h5 the pairs' x, the
+    ledger closes (the run's own check) and friction slows the punch. In an axisymmetric scene the key is refused in one line."""
     from scene_texts import RIGID, assert_refused, launch, read_history, replace
 
     text = replace(RIGID, "radius = 0.1\n", 'half_width = 0.1\nfriction = 0.3\n')
@@ -248,6 +248,10 @@ def test_scene_key_velocity_x(tmp_path):
     e = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
     assert "momentum_x_punch" in e.dtype.names
     assert e["momentum_x_punch"][-1] == pytest.approx(0.1 * h["punch_v_x"][-1], rel=1e-15)
+    from impact_fenics.output import read_pairs  # its pairs are labelled x in plane strain
+
+    pairs = read_pairs(str(out / "contact_pairs.h5"))
+    assert "x" in pairs and "r" not in pairs and np.all(np.abs(pairs["x"]) <= 0.1 + 1e-12)
     axi = tmp_path / "axi.toml"
     axi.write_text(replace(RIGID, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n"))
     assert_refused(["run", axi, "--out", tmp_path / "out_axi"],

@@ -223,6 +223,29 @@ def test_block_dragged_by_a_heavy_plate(method):
     assert np.all(np.abs(rows[:, 2] - V) <= MASS * (V + lead) / plate.mass)
 
 
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_an_x_force_on_the_plate(method):
+    """An external x force f_x on the plate (from rest, with friction): the x momentum of
+    block + plate grows by Σ h f_x (its impulse) within test (b)'s bound, and the ledger,
+    which books f_x's work by the kinetic identity of the plate's x slot and its 1/2 M V^2,
+    closes within tests/roundoff.py's bound."""
+    f_x = 0.5 * MU * F  # N: the plate accelerates the block through friction
+    plate = RigidBody("plate", 1000.0 * MASS, force_x=lambda t: f_x)
+    n = 200
+    rows, s, sim, c, _ = _run(method, n, plate=plate)
+    p = rows[:, 0] + plate.mass * rows[:, 2]
+    impulse = f_x * DT * np.arange(1, n + 1)
+    n_nodes = COMM.allreduce(sim.integrator.mass.size // 2)
+    scale = float(np.abs(p).max())
+    bound = EPS * 8 * (n_nodes + c.n + 2) * scale * np.arange(1, n + 1)
+    print(f"{method}: x momentum within {np.abs(p - impulse).max():.3g} kg m/s of the "
+          f"impulse {impulse[-1]:.4g} (bound {bound[-1]:.3g}); ledger "
+          f"{s['energy_balance_error_rel']:.3g}; plate V = {plate.v_x:.4g} m/s")
+    assert np.all(np.abs(p - impulse) <= bound)
+    assert plate.v_x > 0.0 and rows[-1, 0] > 0.0
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+
 # ----------------------------------------------------------------------------- scene files
 
 @pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")

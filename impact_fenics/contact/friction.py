@@ -11,7 +11,9 @@ diagonal, A_ii = h_n (1/m_lo,r + 1/m_up,r) (m/(N s); 1/m = 0 on a fixed r dof an
 rigid part, which has no r slot). So the pass is one loop over the constraints, after
 the normal step, on the r components of the constraints' nodes (the *tangential slots*:
 one per deformable slot of the set, in the same order, and one with zero inverse mass in
-place of a rigid part's).
+place of a rigid part's). In plane strain a moving rigid part slides along x under FILM
+and DME: its slot gets 1/M and :func:`rigid_slide` solves the face's rows together
+(A = D + (h_n/M) 1 1', docs/friction.md 11).
 
 With t = e_r, the relative tangential velocity of constraint i is
 w_t = v_up,r - v_lo,r (m/s) and its multiplier λ_t (N) acts along +r on the upper side,

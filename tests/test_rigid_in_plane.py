@@ -127,13 +127,23 @@ def test_frictionless_sideways_motion_leaves_the_nodes_bit_for_bit(method):
 
 def test_sideways_refusals():
     """One line each: the penalty's friction on a sliding part, a part over a symmetry
-    plane, a fixed part given a sideways velocity."""
+    plane (with friction), a fixed part given a sideways velocity, a button."""
     with pytest.raises(InputError, match="penalty's spring on a sliding part"):
         _run("penalty", 1)
     with pytest.raises(InputError, match="held in x"):
         _run("film", 1, symmetry="x=0")
     with pytest.raises(InputError, match="a fixed part has no velocity"):
         RigidBody("seat", 1.0, v_x=1.0, fixed=True)
+    from impact_fenics.contact import rigid_face
+    from impact_fenics.contact.pairing import spherical_button
+
+    tmesh = meshing.block(W, H, h=H, comm=COMM)
+    model = DeformableModel(tmesh, [Body("block", STEEL)],
+                            geometry=Geometry(PLANE_STRAIN, TS))
+    sim = Simulation(model, Settings(dt=DT, n_steps=1, out=None, quiet=True))
+    with pytest.raises(InputError, match="a button .* cannot move sideways"):
+        sim.add_contact(rigid_face(model, "top", W, "punch", spherical_button(10 * W)), FILM(),
+                        rigid=RigidBody("punch", 1.0, v_x=V))
 
 
 def test_axisymmetric_sideways_is_refused():

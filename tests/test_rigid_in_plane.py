@@ -63,7 +63,8 @@ def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None):
     cons = plane_below(COMM, bottom, model.node_xy, model.offset, 0.0, model.length_scale)
     if plate is None:
         plate = RigidBody("plate", 1000.0 * MASS, v_x=v_x)
-    methods = {"film": FILM, "dme": lambda: DME(restitution=0.0), "penalty": Penalty}
+    methods = {"film": FILM, "dme": lambda: DME(restitution=0.0), "penalty": Penalty,
+               "film_dense": lambda: FILM("dense")}  # (dense: the unfused step)
     c = sim.add_contact(cons, methods[method](), rigid=plate)
     c.set_friction(friction)
     mass = sim.integrator.mass
@@ -163,7 +164,7 @@ def test_axisymmetric_sideways_is_refused():
 N_STEPS = 320  # t* = m V / (μ F) is 220 steps
 
 
-@pytest.mark.parametrize("method", ["film", "dme"])
+@pytest.mark.parametrize("method", ["film", "dme", "film_dense"])
 def test_x_momentum_of_block_and_plate_is_conserved(method):
     """(b) Σ m v_x + M V unchanged to round-off at every step. Bound: a step rounds each
     node's x velocity (prediction v + h f/m and the pass's correction: 4 roundings), the

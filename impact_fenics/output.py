@@ -244,7 +244,8 @@ def _pair_row_tangential(state, k, lam_t, slip_state) -> None:
 
 class PairHistory:
     """Per-pair gap (m), contact force (N) and active flag at every history row, in HDF5
-    (``contact_pairs.h5``: ``clock`` (rows x 2: step, time in s), ``r`` (pairs, m) and
+    (``contact_pairs.h5``: ``clock`` (rows x 2: step, time in s), ``r`` (pairs, m; ``x``
+    in plane strain, the name ``axis``) and
     ``state`` (rows x 3 x pairs: gap, force, active as 0/1; with ``tangential``, a set
     with friction, rows x 5 x pairs: then the tangential force λ_t (N) and 0/1/2 for
     none, stick, slip)), written by rank 0 in blocks of rows, two dataset writes a
@@ -252,7 +253,7 @@ class PairHistory:
     :func:`read_pairs` reads it back."""
 
     def __init__(self, path: str, r: np.ndarray, comm: MPI.Comm, capacity: int = 256,
-                 rows: int = 1024, tangential: bool = False):
+                 rows: int = 1024, tangential: bool = False, axis: str = "r"):
         self.path = path
         self.comm = comm
         n = r.size
@@ -266,7 +267,7 @@ class PairHistory:
             self._state = np.zeros((capacity, 5 if tangential else 3, n))
             self._alloc = max(rows, capacity)  # rows the datasets hold (grown if exceeded)
             self._f = h5py.File(path, "w")
-            self._f.create_dataset("r", data=r)
+            self._f.create_dataset(axis, data=r)
             self._ds = [self._f.create_dataset(name, shape=(self._alloc,) + arr.shape[1:],
                                                maxshape=(None,) + arr.shape[1:], dtype=np.float64,
                                                chunks=(min(capacity, 64),) + arr.shape[1:])
@@ -342,14 +343,15 @@ class PairHistory:
 
 
 def read_pairs(path: str) -> dict[str, np.ndarray]:
-    """contact_pairs.h5 as arrays: step, time (rows), r (pairs, m), gap (m), force (N),
-    active (rows x pairs); with friction also tangential_force (N) and slip_state (0
-    none, 1 stick, 2 slip)."""
+    """contact_pairs.h5 as arrays: step, time (rows), r (pairs, m; x in plane strain),
+    gap (m), force (N), active (rows x pairs); with friction also tangential_force (N)
+    and slip_state (0 none, 1 stick, 2 slip)."""
     import h5py
 
     with h5py.File(path, "r") as f:
-        clock, state, r = f["clock"][...], f["state"][...], f["r"][...]
-    out = {"step": clock[:, 0].astype(np.int64), "time": clock[:, 1], "r": r,
+        axis = "x" if "x" in f else "r"
+        clock, state, r = f["clock"][...], f["state"][...], f[axis][...]
+    out = {"step": clock[:, 0].astype(np.int64), "time": clock[:, 1], axis: r,
            "gap": state[:, 0], "force": state[:, 1], "active": state[:, 2] > 0.5}
     if state.shape[1] == 5:
         out.update(tangential_force=state[:, 3], slip_state=state[:, 4].astype(np.int8))

@@ -24,9 +24,13 @@ ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
 
 def momentum_columns(bodies: Iterable[str], contacts: list) -> list[str]:
     """The z momentum columns (kg m/s): the total, then per body and per moving rigid body
-    of the contact sets (a fixed one takes any impulse and keeps none)."""
+    of the contact sets (a fixed one takes any impulse and keeps none); then the x
+    momentum M V of each rigid body that slides (plane strain, docs/friction.md 11)."""
     names = list(bodies) + [c.rigid.name for c in contacts if c.moving_rigid is not None]
-    return ["momentum_z"] + [f"momentum_z_{n}" for n in names]
+    sliding = [c.rigid.name for c in contacts
+               if c.moving_rigid is not None and c.rigid.slides]
+    return (["momentum_z"] + [f"momentum_z_{n}" for n in names]
+            + [f"momentum_x_{n}" for n in sliding])
 
 
 def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
@@ -49,6 +53,8 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
         if c.moving_rigid is not None:  # (a fixed part's would be zeros)
             cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
+            if c.rigid.slides:  # its x dof (plane strain)
+                cols += [f"{tag}{c.rigid.name}_u_x", f"{tag}{c.rigid.name}_v_x"]
         cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
         if getattr(c, "friction", None) is not None:  # its tangential pass's stats
             cols += [f"{tag}{name}" for name, _ in c.friction.history_columns]
@@ -80,7 +86,8 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         if staging:
             friction = getattr(c, "friction", None)
             tables[f"pairs{k}"] = output.PairHistory(path(name), c.r, comm, rows=pair_rows,
-                                                     tangential=friction is not None)
+                                                     tangential=friction is not None,
+                                                     axis=c.integrator.model.geometry.axes[0])
             if comm.rank == 0:
                 pair_tables.append((c, tables[f"pairs{k}"]))
                 tables[f"pairs{k}"].prepare(c.committed_gap(), c.force, c.active,
@@ -102,8 +109,10 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
     layout, k = [], offset + 3
     friction = []  # (its stats, their indices, its first raw column) per set with friction
     for c in contacts:
-        layout.append((memoryview(c.stats), c.times, c.moving_rigid, k))
-        k += 6 + (2 if c.moving_rigid is not None else 0)
+        rigid = c.moving_rigid
+        slides = rigid is not None and rigid.slides
+        layout.append((memoryview(c.stats), c.times, rigid, slides, k))
+        k += 6 + (2 if rigid is not None else 0) + (2 if slides else 0)
         if getattr(c, "friction", None) is not None:
             which = tuple(i for _, i in c.friction.history_columns)
             friction.append((c.friction.stats, which, k))
@@ -125,7 +134,7 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
         else:  # t^n, the sum of the steps, and h_{n-1/2}, the step that led to it
             cells[k + 1] = step.time(n)
             cells[k + 2] = step.h
-        for stats, times, rigid, k in layout:
+        for stats, times, rigid, slides, k in layout:
             k += j
             cells[k] = stats[0]
             cells[k + 1] = stats[1]
@@ -134,6 +143,10 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
                 cells[k + 3] = rigid.u
                 cells[k + 4] = rigid.v
                 k += 2
+                if slides:
+                    cells[k + 3] = rigid.u_x
+                    cells[k + 4] = rigid.v_x
+                    k += 2
             cells[k + 3] = times.detection
             cells[k + 4] = times.solve
             cells[k + 5] = times.update

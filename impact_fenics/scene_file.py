@@ -58,6 +58,7 @@ class RigidSpec:
     mass: float      # kg
     velocity: float  # m/s along z
     impedance: float = 0.0  # kg/s, of a rod driving the body (percussive drilling)
+    velocity_x: float = 0.0  # m/s sideways (plane strain)
 
 
 @dataclass
@@ -220,6 +221,11 @@ def read_scene(path: str) -> Scene:
     if geometry.plane:
         _check_plane_strain(scene)
     else:
+        for spec in rigid.values():
+            if spec.velocity_x != 0.0:
+                raise InputError(f"[rigid.{spec.name}] velocity_x: an axisymmetric rigid body "
+                                 "moves along z only (the axis); a sideways velocity needs "
+                                 'geometry = "plane_strain"')
         for c in contacts:
             if "half_width" in c.given:
                 raise InputError(f"{c.where} half_width: an axisymmetric rigid face has a "
@@ -337,6 +343,8 @@ def _read_rigid(name: str, data: dict) -> RigidSpec:
     spec = RigidSpec(name, t.value("mass"), t.value("velocity"))
     if "impedance" in t:
         spec.impedance = t.value("impedance")
+    if "velocity_x" in t:
+        spec.velocity_x = t.value("velocity_x")
     return spec
 
 
@@ -726,6 +734,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 spec = scene.rigid[c.rigid]
                 body = RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]),
                                  v=spec.velocity, impedance=spec.impedance,
+                                 v_x=spec.velocity_x,
                                  incident=_force(incident[spec.name]) if incident[spec.name]
                                  else None)
                 profile = None if c.button is None else spherical_button(c.button)

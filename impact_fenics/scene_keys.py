@@ -284,10 +284,16 @@ _BODIES = Section("bodies", "[bodies.NAME]", (
 ))
 
 _RIGID = Section("rigid", "[rigid.NAME]", (
-    "A rigid body with one z degree of freedom (a punch, a drill bit; y in plane strain, "
-    "its mass, forces and impedance those of the slab t), in exactly one [[contact]]."), (
+    "A rigid body with one z degree of freedom (a punch, a drill bit; in plane strain y "
+    "and a sideways x, its mass, forces and impedance those of the slab t), in exactly one "
+    "[[contact]]."), (
     Key("mass", "positive", "kg", REQUIRED, "mass"),
     Key("velocity", "number", "m/s", 0.0, "initial z velocity"),
+    Key("velocity_x", "number", "m/s", 0.0, "plane strain: initial sideways (x) velocity",
+        note="The body translates along x too (no rotation: an oblique face keeps its "
+        "orientation); film and dme friction couple it to the face's nodes, the penalty's "
+        "friction is refused with it; refused in an axisymmetric scene (the axis). "
+        "[friction.md](friction.md) section 11."),
     Key("impedance", "positive", "kg/s", None, "impedance Z = rho c A of a rod driving the body "
         "from above", default_text="none", note="The rod pushes with 2 F_i - Z w (w the "
         "downward velocity, F_i its incident wave: [[loads]] incident)."),

@@ -929,6 +929,10 @@ class Simulation:
             p_total += p
             v_next += 3
         cells[j + 13] = p_total
+        for c in rigid:  # a sliding part's x momentum M V (docs/friction.md 11)
+            if c.rigid.slides:
+                cells[m] = c.rigid.mass * c.rigid.v_x
+                m += 1
         return row
 
     # ------------------------------------------------------------ outputs

@@ -474,9 +474,10 @@ class StepBlock:
             return None
         contact = sim.contacts[0] if sim.contacts else None
         if contact is not None and (type(contact) is not ContactSet or contact._fused is None
-                                    or (contact.rigid is not None and contact.rigid.fixed)
+                                    or (contact.rigid is not None and (contact.rigid.fixed
+                                                                       or contact.rigid.slides))
                                     or contact.friction is not None):
-            return None  # (a fixed part, a wall, friction's tangential pass: the Python step)
+            return None  # (a fixed or sliding part, a wall, friction's tangential pass: the Python step)
         if probes is not None and probes._plastic:
             return None
         addresses = native.addresses()

@@ -192,3 +192,16 @@ def test_symmetry_plane_rule_only_where_declared():
     assert abs(abs(off.normal[0, 0]) - math.sqrt(0.5)) <= 4 * EPS
     assert off.normal[0, 1] < 0.0
     assert on.g0[0] == 0.0 and off.g0[0] == 0.0
+
+
+def test_node_to_segment_messages_name_x_and_y():
+    """In plane strain node to segment names the coordinates x and y (as the probes and the
+    node pairs do): a slave face with no master segment within reach is refused in one
+    line giving its first node as (x=..., y=...)."""
+    from impact_fenics.errors import InputError
+
+    model = DeformableModel(_mesh("pairs", W), [Body("striker", STEEL), Body("target", STEEL)],
+                            geometry=Geometry(PLANE_STRAIN, 0.01))
+    with pytest.raises(InputError, match=r"have no segment of 'striker_end' within reach "
+                                         r"\S+ m, first at \(x=[-0-9.e]+, y=[-0-9.e]+\)"):
+        node_to_segment(model, "target_contact", "striker_end")

@@ -11,7 +11,9 @@ diagonal, A_ii = h_n (1/m_lo,r + 1/m_up,r) (m/(N s); 1/m = 0 on a fixed r dof an
 rigid part, which has no r slot). So the pass is one loop over the constraints, after
 the normal step, on the r components of the constraints' nodes (the *tangential slots*:
 one per deformable slot of the set, in the same order, and one with zero inverse mass in
-place of a rigid part's).
+place of a rigid part's). In plane strain a moving rigid part slides along x under FILM
+and DME: its slot gets 1/M and :func:`rigid_slide` solves the face's rows together
+(A = D + (h_n/M) 1 1', docs/friction.md 11).
 
 With t = e_r, the relative tangential velocity of constraint i is
 w_t = v_up,r - v_lo,r (m/s) and its multiplier λ_t (N) acts along +r on the upper side,
@@ -239,6 +241,125 @@ def dme_tangential(lo, up, active, force, mass, m_over_h, h_over_m, h, mu_s, mu_
 
 
 @njit(cache=True)
+def _slide_force(k, vt, mass, v, c, h_avg):
+    """F_i(V) = clip(m_k (v~_k - V) / h_n, -c, c) (N): the force on a sliding part along
+    +x of a row on node slot ``k`` at the part's velocity ``vt`` (docs/friction.md 11)."""
+    f = mass[k] * (v[k] - vt) / h_avg
+    if f > c:
+        return c
+    if f < -c:
+        return -c
+    return f
+
+
+@njit(cache=True)
+def _slide_phi(vt, v_tilde, hm_body, lo, up, body, mass, v, cap, state, h_avg):
+    """phi(V) = V - V~ - (h_n / M) sum_i F_i(V) (m/s) over the rows that take part
+    (``state`` 3; c_i in ``cap``): continuous, strictly increasing."""
+    total = 0.0
+    for i in range(lo.size):
+        if state[i] == 3:
+            k = up[i] if lo[i] == body else lo[i]
+            total += _slide_force(k, vt, mass, v, cap[i], h_avg)
+    return vt - v_tilde - hm_body * total
+
+
+@njit(cache=True)
+def rigid_slide(lo, up, active, force, mass, h_over_m, h_avg, h, mu_s, mu_d, decay, stick,
+                merge, u_now, v_now, u, v, lam, state, cap, brk):
+    """The tangential pass of a rigid face whose part slides along x (its slot the last;
+    docs/friction.md 11), FILM's (``merge`` False) or DME's (True), on the predicted x
+    state (u, v; m, m/s) after the normal step (``force``: λ_n, N; ``active``). The
+    part's V^{n+1/2} is the one root of phi(V) = V - V~ - (h_n/M) sum_i F_i(V),
+    F_i(V) = clip(m_k (v~_k - V)/h_n, -c_i, c_i), found exactly: the rows' breakpoints
+    v~_k -+ h_n c_i/m_k sorted in place in ``brk`` (2 n), a bisection over them for the
+    piece that holds the root, on which the stick set S and the slip forces are fixed,
+    and there the momentum average V = (M V~ + sum_S m_k v~_k + h_n sum_slip F_i) /
+    (M + sum_S m_k) ("stick": every row in S). Each row then takes F_i(V) (N, on the
+    part along +x; λ_t = s_i F_i into ``lam``, s_i = +1 where the part is the upper
+    side): FILM applies -F_i to the node, DME merges a stuck node (v_k = V) and applies
+    -F_i to a slipping one; u = u^n + h v on the moved slots (``h``: h_{n+1/2};
+    ``h_avg``: h_n; ``h_over_m``: h_n/m). ``cap`` receives c_i (N), ``state`` 0 (none),
+    1 (stick), 2 (slip)."""
+    body = u.size - 1
+    big_m = mass[body]
+    hm_body = h_over_m[body]
+    v_tilde = v[body]
+    nb = 0
+    n_part = 0
+    for i in range(lo.size):
+        lam[i] = 0.0
+        state[i] = 0
+        cap[i] = 0.0
+        fn = force[i]
+        if not active[i] or not fn > 0.0:
+            continue
+        state[i] = 3  # takes part (stick or slip decided below)
+        n_part += 1
+        if stick:
+            cap[i] = math.inf
+        else:
+            k = up[i] if lo[i] == body else lo[i]
+            c = _coefficient(mu_s, mu_d, decay, v_now[up[i]] - v_now[lo[i]]) * fn
+            cap[i] = c
+            half = h_avg * c / mass[k]
+            brk[nb] = v[k] - half
+            brk[nb + 1] = v[k] + half
+            nb += 2
+    # the piece (low, high) of phi that holds its root: between two sorted breakpoints
+    low, high = -math.inf, math.inf
+    if nb > 0:
+        b = brk[:nb]
+        b.sort()
+        a, z = -1, nb  # phi(b[a]) < 0 <= phi(b[z]), with phi(-inf) < 0 < phi(inf)
+        while z - a > 1:
+            mid = (a + z) // 2
+            if _slide_phi(b[mid], v_tilde, hm_body, lo, up, body, mass, v, cap, state,
+                          h_avg) < 0.0:
+                a = mid
+            else:
+                z = mid
+        if a >= 0:
+            low = b[a]
+        if z < nb:
+            high = b[z]
+    # on it each row sticks (its two breakpoints around the piece) or slips at +-c_i
+    num = big_m * v_tilde
+    den = big_m
+    slip = 0.0
+    for i in range(lo.size):
+        if state[i] != 3:
+            continue
+        k = up[i] if lo[i] == body else lo[i]
+        c = cap[i]
+        half = h_avg * c / mass[k]
+        if not stick and high <= v[k] - half:  # V below both: the node drags it up
+            slip += c
+        elif not stick and low >= v[k] + half:
+            slip -= c
+        else:
+            num += mass[k] * v[k]
+            den += mass[k]
+    v_part = (num + h_avg * slip) / den
+    for i in range(lo.size):
+        if state[i] != 3:
+            continue
+        node_up = lo[i] == body
+        k = up[i] if node_up else lo[i]
+        f = _slide_force(k, v_part, mass, v, cap[i], h_avg)
+        stuck = stick or abs(mass[k] * (v[k] - v_part) / h_avg) <= cap[i]
+        state[i] = 1 if stuck else 2
+        lam[i] = -f if node_up else f  # s_i F_i: s_i = -1 where the part is below
+        if merge and stuck:
+            v[k] = v_part
+        else:
+            v[k] -= f * h_over_m[k]
+        u[k] = u_now[k] + h * v[k]
+    v[body] = v_part
+    u[body] = u_now[body] + h * v_part
+
+
+@njit(cache=True)
 def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, decay, stick,
                        v_now, u, v, lam, state, s_e, d_slip, stats):
     """The penalty's tangential spring with a return to the cone (docs/friction.md 4) on
@@ -331,8 +452,9 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
 # entries of .scalars, packed so that the step's pass is one compiled call of few arguments
 (S_U, S_V, S_U_PRED, S_V_PRED, S_U_NOW, S_V_NOW, S_F_PREV, S_KU_PREV, S_JUMP, S_MASS,
  S_H_OVER_M, S_M_OVER_H) = range(12)
-R_LAM, R_A_INV, R_K_T, R_S_E, R_D_SLIP, R_SLIP_LIMIT = range(6)
-X_DT, X_H_AVG, X_MU_S, X_MU_D, X_DECAY, X_STICK, X_KERNEL, X_GATHERED, X_LIMITED = range(9)
+R_LAM, R_A_INV, R_K_T, R_S_E, R_D_SLIP, R_SLIP_LIMIT, R_CAP, R_BREAKS = range(8)  # (2 rows)
+X_DT, X_H_AVG, X_MU_S, X_MU_D, X_DECAY, X_STICK, X_KERNEL, X_GATHERED, X_LIMITED, X_SLIDES = (
+    range(10))
 
 
 @njit(cache=True)
@@ -360,7 +482,11 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
     mu_s, mu_d, decay, stick = x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] != 0.0
     kernel = int(x[X_KERNEL])
     before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
-    if kernel == FILM_T:
+    if x[X_SLIDES] != 0.0:  # a rigid part that slides along x (docs/friction.md 11)
+        rigid_slide(lo, up, active, force, mass, h_over_m, x[X_H_AVG], h, mu_s, mu_d, decay,
+                    stick, kernel == DME_T, u_now, v_now, u, v, lam, state, rows[R_CAP],
+                    rows[R_BREAKS:R_BREAKS + 2].reshape(2 * lo.size))
+    elif kernel == FILM_T:
         film_tangential(lo, up, active, force, rows[R_A_INV], h_over_m, h, mu_s, mu_d, decay,
                         stick, v_now, u, v, lam, state)
     elif kernel == DME_T:
@@ -441,6 +567,15 @@ class Tangential(FrictionFigures):
         free = np.zeros(ns)
         self._gather(integ.mass, free_owned, self.mass[:nd], free[:nd])
         self.free = free > 0.5
+        # a moving rigid part of a plane-strain face slides along x under FILM and DME
+        # (its slot gets 1/M); a fixed part, the axisymmetric axis, the penalty and a face
+        # with a held x node keep it held (docs/friction.md 11)
+        rigid = c.rigid
+        self.slides = bool(rigid is not None and not rigid.fixed and model.geometry.plane
+                           and kernel in (FILM_T, DME_T) and self.free[:nd].all())
+        if self.slides:
+            self.free[nd] = True
+            self.mass[nd] = rigid.mass
         self.mass[~self.free] = np.inf
         self.pairs = np.vstack([c.lo, c.up]).astype(np.int64)
         self.lo, self.up = self.pairs
@@ -448,8 +583,9 @@ class Tangential(FrictionFigures):
         self.stats = np.zeros(8)
         # per constraint: λ_t (N) of the last step, 1/A_ii, the penalty's tangential
         # stiffness k_t (N/m), committed elastic slip s_e (m) and c |Δs_p| of the step (J)
-        self.rows = np.zeros((6, c.n))
-        self.lam, self.a_inv, self.k_t, self.s_e, self.d_slip, self.slip_limit = self.rows
+        # (then a sliding part's c_i and its 2 n breakpoints, docs/friction.md 11)
+        self.rows = np.zeros((9, c.n))
+        self.lam, self.a_inv, self.k_t, self.s_e, self.d_slip, self.slip_limit = self.rows[:6]
         # a node pair keeps its partner (docs/friction.md 6): past half the smaller facet
         # at the pair the slave is nearer another master node, and the run says so once
         self.slip_limit[:] = np.inf
@@ -502,6 +638,20 @@ class Tangential(FrictionFigures):
         integ = self.c.integrator
         nd = self.c.n_deformable
         self._gather(integ.u_owned, integ.v_owned, self.u_now[:nd], self.v_now[:nd])
+        if self.slides:
+            self.u_now[nd], self.v_now[nd] = self.c.rigid.u_x, self.c.rigid.v_x
+
+    def predict_rigid(self, t: float) -> None:
+        """A sliding part's x prediction (U~, V~) at t^n into its slot (before the pass)."""
+        c = self.c
+        nd = c.n_deformable
+        self.u_pred[nd], self.v_pred[nd] = c.rigid.predict_x(t, c.dt, c.h_avg)
+
+    def commit_rigid(self) -> None:
+        """A sliding part's U^{n+1}, V^{n+1/2} from its slot (after the pass)."""
+        nd = self.c.n_deformable
+        rigid = self.c.rigid
+        rigid.u_x, rigid.v_x = float(self.u[nd]), float(self.v[nd])
 
     def _bind(self) -> None:
         """The step's one compiled call: its scalars (the steps, the law, the kernel)
@@ -509,7 +659,7 @@ class Tangential(FrictionFigures):
         the run, bound to its compiled entry once."""
         law, c = self.law, self.c
         if not hasattr(self, "scalars"):
-            self.scalars = np.zeros(9)
+            self.scalars = np.zeros(10)
             integ = c.integrator
             self._args = (integ.u_owned, integ.v_owned, self._own, self._recv, self._unpack,
                           self.slots, self.rows, self.pairs, c.active, c.force, self.state,
@@ -521,6 +671,7 @@ class Tangential(FrictionFigures):
                                                         float(law.stick))
         x[X_KERNEL], x[X_GATHERED] = float(self.kernel), float(c.comm.size > 1)
         x[X_LIMITED] = float(np.isfinite(self.slip_limit).any())
+        x[X_SLIDES] = float(self.slides)
 
     @property
     def fused_args(self) -> tuple:

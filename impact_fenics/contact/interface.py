@@ -96,6 +96,13 @@ class RigidBody:
     A *fixed* part (``fixed=True``: a wall, an anvil's seat) has infinite mass (zero
     inverse mass, so kappa = 0 in its sets), no force and no rod; it never moves, and it
     may be in any number of contact sets. A moving part belongs to one set.
+
+    In plane strain a moving part also translates along x (docs/friction.md 11): ``u_x``,
+    ``v_x`` (m, m/s) and the external x force ``force_x(t)`` (N, None: none), its mass M
+    (the rod acts along y only). Its set makes the x dof live (``slides``) where the part
+    has a sideways velocity or force, or where FILM's or DME's friction couples it; then
+    V^{n+1/2} = V^{n-1/2} + h_n (f_x + sum of the tangential forces) / M and
+    U^{n+1} = U^n + h_{n+1/2} V^{n+1/2}. No rotation: the face keeps its orientation.
     """
 
     name: str
@@ -109,10 +116,15 @@ class RigidBody:
     wave_reflected: float = 0.0
     wave_delivered: float = 0.0
     fixed: bool = False
+    u_x: float = 0.0
+    v_x: float = 0.0
+    force_x: Callable[[float], float] | None = None
+    slides: bool = False  # the x dof is live (set by its contact set)
 
     def __post_init__(self) -> None:
         if self.fixed:
-            if self.v != 0.0 or self.impedance != 0.0 or self.incident is not None:
+            if (self.v != 0.0 or self.impedance != 0.0 or self.incident is not None
+                    or self.v_x != 0.0 or self.force_x is not None):
                 raise InputError(f"rigid body '{self.name}': a fixed part has no velocity, "
                                  "rod or incident wave")
             self.mass = np.inf
@@ -124,6 +136,19 @@ class RigidBody:
         if (self.incident is not None) and not self.impedance > 0:
             raise InputError(f"rigid body '{self.name}': an incident wave needs a rod "
                              "impedance > 0 (kg/s)")
+
+    @property
+    def sideways(self) -> bool:
+        """Whether the part is given a sideways (x) velocity or force."""
+        return self.v_x != 0.0 or self.force_x is not None
+
+    def predict_x(self, t: float, dt: float, h_avg: float) -> tuple[float, float]:
+        """(U~, V~) at t + dt without contact (m, m/s): V~ = V^{n-1/2} + h_n f_x(t^n) / M,
+        U~ = U^n + h_{n+1/2} V~."""
+        v_tilde = self.v_x
+        if self.force_x is not None:
+            v_tilde = v_tilde + h_avg * float(self.force_x(t)) / self.mass
+        return self.u_x + dt * v_tilde, v_tilde
 
     def effective_mass(self, dt: float) -> float:
         """m + Z dt/2 (kg): the mass a contact force accelerates within a step (``dt`` the
@@ -160,6 +185,15 @@ class RigidBody:
             force = self.force(t) - rod
         self.u, self.v = float(u_next), float(v_next)
         return force
+
+
+def profiled(constraints) -> bool:
+    """Whether a rigid face's initial gaps b differ (a button's profile) by more than the
+    round-off of its nodes' coordinates (1e-12 of the face's extent in r, m)."""
+    b, r = np.asarray(constraints.b), np.asarray(constraints.r)
+    if b.size == 0:
+        return False
+    return float(np.ptp(b)) > 1e-12 * max(float(np.abs(r).max()), float(np.abs(b).max()))
 
 
 def refuse_shared_rigid(rigid: RigidBody, names: tuple[str, str], sets) -> None:
@@ -233,6 +267,9 @@ class ContactSet:
             raise InputError("a rigid contact face needs exactly one rigid body, "
                              "and node pairs need none")
         self.rigid = rigid
+        if rigid is not None and rigid.sideways:
+            self._refuse_sideways(rigid, constraints, model)
+            rigid.slides = True
         self.kind = RIGID_FACE if rigid is not None else PAIRS
         self.r = constraints.r
         dofs = (constraints.upper if below else constraints.lower if rigid else
@@ -412,12 +449,22 @@ class ContactSet:
             kernel = DME_T
         else:
             raise InputError(f"{what}: friction needs method film, dme or penalty")
-        if np.any(self.constraints.b != self.constraints.b[0]) and self.rigid is not None \
-                and not self.rigid.fixed:
+        if self.rigid is not None and not self.rigid.fixed and profiled(self.constraints):
             raise InputError(f"{what}: a button (a rigid face with a profile) with friction is "
                              "not built: its tangent is tilted, which the rigid kind does not "
                              "have")
         tangential = Tangential(self, law, kernel, tangential_penalty)
+        rigid = self.rigid
+        if rigid is not None and not rigid.fixed:
+            if tangential.slides:  # its x dof is coupled by the pass (docs/friction.md 11)
+                rigid.slides = True
+                tangential.initialize()
+            elif rigid.sideways:
+                why = ("the penalty's spring on a sliding part is not built"
+                       if kernel == PENALTY_T else "a node of its face is held in x (a "
+                       "symmetry plane holds the part)")
+                raise InputError(f"rigid body '{rigid.name}' with {what}: a sideways velocity "
+                                 f"or force is refused: {why}")
         if kernel == PENALTY_T and tangential.beta_max > STABILITY_BOUND and not force:
             raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t = "
                              f"{tangential.beta_max:.3g} passes the stable bound 4/3 (k_t h "
@@ -749,6 +796,9 @@ class ContactSet:
                 f_in = float(rigid.incident(integ.t))
         tangential = self.friction
         folded = tangential is not None and tangential.folds
+        slides = rigid is not None and rigid.slides
+        if slides:
+            self._slide_before(integ.t)
         if self._gathered:
             _pack(integ.u_owned, integ.v_owned, self._local, self._send)
             self.comm.Allgatherv(self._send, [self._recv, self._counts, self._displs, MPI.DOUBLE])
@@ -770,6 +820,8 @@ class ContactSet:
                     float(misc[WAVES]), float(misc[WAVES + 1]), float(misc[WAVES + 2]))
         if tangential is not None:  # the tangential pass as a call of its own
             self._misc[LEDGER] += tangential.step()
+        if slides:
+            self._slide_after(integ.t)
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
@@ -779,8 +831,11 @@ class ContactSet:
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
+        slides = self.rigid is not None and self.rigid.slides
         if self.rigid is not None:
             self._predict_rigid(integ.t)
+            if slides:
+                self._slide_before(integ.t)
         if self.comm.size == 1:
             _detect_local(integ.u_owned, integ.v_owned, self._local, self._pos, self.u_pred,
                           self.v_pred, self.u, self.v, self.b, self.lo, self.up, self.gap,
@@ -801,6 +856,8 @@ class ContactSet:
         self._ledger.book(integ.n)
         if self.friction is not None:
             self._misc[LEDGER] += self.friction.step()
+        if slides:
+            self._slide_after(integ.t)
         t3 = clock()
         times = self.times
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
@@ -830,6 +887,51 @@ class ContactSet:
         times.detection, times.solve, times.update = t1 - t0, t2 - t1, t3 - t2
 
     # ------------------------------------------------------------ the rigid body
+    @staticmethod
+    def _refuse_sideways(rigid: RigidBody, constraints, model) -> None:
+        """A sideways (x) velocity or force needs a plane-strain model and a flat face
+        (docs/friction.md 11); refused in one line elsewhere."""
+        if not model.geometry.plane:
+            raise InputError(f"rigid body '{rigid.name}': a sideways velocity or force is "
+                             "refused in an axisymmetric model (the axis: a body of "
+                             "revolution moves along z only)")
+        if profiled(constraints):
+            raise InputError(f"rigid body '{rigid.name}': a button (a face with a profile) "
+                             "cannot move sideways (its profile would move along x)")
+
+    def _advance_rigid_x(self, t: float) -> None:
+        """A sliding part's x dof over a step without a tangential pass on it:
+        V^{n+1/2} = V~, U^{n+1} = U~, and the work of f_x by the kinetic identity,
+        1/2 h_n (V^{n-1/2} + V^{n+1/2}) f_x(t^n), into the part's external work (J)."""
+        rigid = self.rigid
+        v_old = rigid.v_x
+        rigid.u_x, rigid.v_x = rigid.predict_x(t, self.dt, self.h_avg)
+        self._book_rigid_x(t, v_old)
+
+    def _book_rigid_x(self, t: float, v_old: float) -> None:
+        """The work of the part's x force f_x(t^n) in the step that took its V from
+        ``v_old`` to the present one (kinetic identity, J)."""
+        rigid = self.rigid
+        if rigid.force_x is not None:
+            self._misc[RIGID_WORK] += (0.5 * self.h_avg * (v_old + rigid.v_x)
+                                       * float(rigid.force_x(t)))
+
+    def _slide_before(self, t: float) -> None:
+        """Before the step: a sliding part's x prediction into the tangential pass's slot."""
+        if self.friction is not None and self.friction.slides:
+            self.friction.predict_rigid(t)
+
+    def _slide_after(self, t: float) -> None:
+        """After the step: a sliding part's x dof from the tangential pass's slot, or
+        advanced on its own without one."""
+        rigid = self.rigid
+        if self.friction is not None and self.friction.slides:
+            v_old = rigid.v_x
+            self.friction.commit_rigid()
+            self._book_rigid_x(t, v_old)
+        else:
+            self._advance_rigid_x(t)
+
     # The two places that know how a rigid body moves on its own: its slot mass and
     # its prediction without contact. Everything else treats it as one more slot.
     def _rigid_slot_mass(self) -> float:
@@ -865,8 +967,14 @@ class ContactSet:
         return self.rigid if self.rigid is not None and not self.rigid.fixed else None
 
     def kinetic_energy_rigid(self, v_next: float) -> float:
-        """1/2 m_p (v^{n+1/2})^2 (J) of the rigid body."""
-        return 0.0 if self.rigid is None else 0.5 * self.rigid.mass * v_next * v_next
+        """1/2 m_p (v^{n+1/2})^2 (J) of the rigid body, and 1/2 m_p V_x^2 of its present x
+        velocity where it slides (docs/friction.md 11)."""
+        if self.rigid is None:
+            return 0.0
+        rigid = self.rigid
+        if rigid.slides:
+            return 0.5 * rigid.mass * (v_next * v_next + rigid.v_x * rigid.v_x)
+        return 0.5 * rigid.mass * v_next * v_next
 
     def committed_gap(self) -> np.ndarray:
         """Gap (m) of the committed state, in global constraint order (a reused buffer)."""

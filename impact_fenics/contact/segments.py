@@ -411,14 +411,15 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
           master_dofs: np.ndarray, segments: np.ndarray, inside: np.ndarray,
           names: tuple[str, str] = ("slave", "master"), reach: float | None = None,
           gap_tol: float | None = None, xi_tol: float = 1e-6,
-          axis: bool = True) -> SegmentConstraints:
+          axis: bool = True, axes: tuple[str, str] = ("r", "z")) -> SegmentConstraints:
     """Constraints from replicated arrays (any order: sorted here into the global order).
 
     ``segments`` (k, 2) index ``master_xy``; ``inside`` (k, 2) a point inside the
     master body behind each segment. ``reach`` (m) defaults to :func:`default_reach`,
     ``gap_tol`` (m) to 1e-6 of the shortest segment; ``xi_tol`` is relative. ``axis``:
     x = 0 is a symmetry line (the axis of axisymmetry, a declared symmetry plane) and
-    its rules apply."""
+    its rules apply; ``axes`` name the coordinates in its messages ((x, y) in plane
+    strain)."""
     slave_xy = np.asarray(slave_xy, dtype=float)
     master_xy = np.asarray(master_xy, dtype=float)
     # sort keys rounded to 1e-9 of the extent: dof coordinates differ by round-off
@@ -468,14 +469,14 @@ def build(slave_xy: np.ndarray, slave_dofs: np.ndarray, master_xy: np.ndarray,
         away = float(np.min(np.linalg.norm(p - a - foot[:, None] * t, axis=1)))
         raise InputError(f"contact: {int(far.sum())} node(s) of '{names[0]}' have no segment of "
                          f"'{names[1]}' within reach {reach:.4g} m, first at "
-                         f"(r={p[0]:.6g}, z={p[1]:.6g}), {away:.4g} m away: "
+                         f"({axes[0]}={p[0]:.6g}, {axes[1]}={p[1]:.6g}), {away:.4g} m away: "
                          "are these the faces that meet? (else give reach, m)")
     deep = g0 < -gap_tol
     if np.any(deep):
         k = np.flatnonzero(deep)[0]
         raise InputError(f"contact: '{names[0]}' penetrates '{names[1]}' initially by "
                          f"{-g0[k]:.4g} m (tolerance {gap_tol:.3g} m) at "
-                         f"(r={slave_xy[k, 0]:.6g}, z={slave_xy[k, 1]:.6g})")
+                         f"({axes[0]}={slave_xy[k, 0]:.6g}, {axes[1]}={slave_xy[k, 1]:.6g})")
     g0[np.abs(g0) <= gap_tol] = 0.0
     return SegmentConstraints(slave_xy=slave_xy, slave_dofs=slave_dofs, master_xy=master_xy,
                               master_dofs=master_dofs, segments=segments, seg=seg,
@@ -766,4 +767,5 @@ def node_to_segment(model: DeformableModel, slave: str, master: str, reach: floa
     if slave_xy.shape[0] == 0:
         raise InputError(f"facet group '{slave}' has no node")
     return build(slave_xy, slave_dofs, master_xy, master_dofs, segments, inside,
-                 (slave, master), reach, gap_tol, xi_tol, axis=model.geometry.held_first)
+                 (slave, master), reach, gap_tol, xi_tol, axis=model.geometry.held_first,
+                 axes=model.geometry.axes)

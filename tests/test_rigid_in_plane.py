@@ -1,0 +1,293 @@
+"""A rigid part that moves in the plane (plane strain; docs/friction.md 11): its x dof.
+
+A small steel block (W x H, one cell through its height) pressed by a pressure p on its
+top onto a rigid plate below it (the plate is the lower side of every constraint) that
+moves sideways at V, Coulomb μ between them. Oracles:
+
+* (a) the existing path: a fixed part keeps today's kernels (its pass does not slide) and
+  a moving part without friction runs the same normal step whether it moves sideways or
+  not (a flat frictionless face does not see x): every node's u and v equal bit for bit;
+  a sideways velocity in axisymmetry, with the penalty's friction or over a symmetry
+  plane is refused in one line;
+* (b) x momentum: Σ m v_x of the nodes + M V of the plate is unchanged by every step
+  (no external x force) to the round-off of its sums, FILM and DME, and the ledger closes
+  with the plate's 1/2 M V^2 in the kinetic energy;
+* (c) the closed form of a block dragged by a heavy plate (M = 1000 m): while every row
+  slips the block's mean x velocity is μ (F t + P_y(t)) / m, F = p W t_s the load and P_y
+  the block's y momentum, which the pressure wave keeps within F H / c (the bottom's
+  force is 0 until the wave arrives at H / c, then 2F for 2H / c, ...); so it rises at
+  μ F / m, reaches V at t* = m V / (μ F) and then moves with the plate;
+* (d) a plate without friction moving sideways keeps V exactly and U = Σ h V.
+
+Serial, 2 and 3 ranks (the plate's state is taken on every rank from the gathered data).
+"""
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from impact_fenics import loads, meshing
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.contact import DME, FILM, Penalty, RigidBody
+from impact_fenics.contact.friction import N_SLIP, N_STICK, X_SLIDES
+from impact_fenics.contact.plane import plane_below, wall_part
+from impact_fenics.errors import InputError
+from impact_fenics.geometry import PLANE_STRAIN, Geometry
+from impact_fenics.materials import LinearElastic
+from impact_fenics.simulation import Settings, Simulation
+from roundoff import EPS, ledger
+
+COMM = MPI.COMM_WORLD
+STEEL = LinearElastic(E=200e9, nu=0.0, density=7850.0)  # nu = 0: c_L = sqrt(E / rho)
+C_L = math.sqrt(STEEL.E / STEEL.density)
+C_S = C_L / math.sqrt(2.0)  # nu = 0: mu_shear = E / 2
+TS, W, H = 0.01, 0.02, 0.005  # m: the slab's thickness, the block's width and height
+P, MU, V = 1e5, 0.3, 0.05  # Pa, -, m/s
+DT = 0.3 * H / C_L
+MASS = STEEL.density * W * H * TS  # the block's mass (kg)
+F = P * W * TS  # the load on its top (N)
+
+
+def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None):
+    """The block on the plate for ``n_steps``; per step (after its contact step) the
+    block's P_x, P_y (kg m/s), the plate's V (m/s) and the stick and slip counts, then
+    the summary, the simulation, the set and the plate."""
+    tmesh = meshing.block(W, H, h=H, comm=COMM)
+    model = DeformableModel(tmesh, [Body("block", STEEL)],
+                            geometry=Geometry(PLANE_STRAIN, TS, symmetry))
+    press = loads.SurfaceLoad(model, "top", lambda t: P, traction=(0.0, -1.0))
+    sim = Simulation(model, Settings(dt=DT, n_steps=n_steps, out=None, quiet=True),
+                     loads=[press])
+    bottom = np.unique(model.facet_dofs("bottom", 1) // 2)
+    cons = plane_below(COMM, bottom, model.node_xy, model.offset, 0.0, model.length_scale)
+    if plate is None:
+        plate = RigidBody("plate", 1000.0 * MASS, v_x=v_x)
+    methods = {"film": FILM, "dme": lambda: DME(restitution=0.0), "penalty": Penalty,
+               "film_dense": lambda: FILM("dense")}  # (dense: the unfused step)
+    c = sim.add_contact(cons, methods[method](), rigid=plate)
+    c.set_friction(friction)
+    mass = sim.integrator.mass
+    rows = []
+    step = c.step
+
+    def recorded():
+        step()
+        v = sim.integrator.v_owned
+        px = COMM.allreduce(float(np.dot(mass[0::2], v[0::2])))
+        py = COMM.allreduce(float(np.dot(mass[1::2], v[1::2])))
+        t = c.friction.stats if c.friction is not None else np.zeros(8)
+        rows.append((px, py, plate.v_x, t[N_STICK], t[N_SLIP]))
+
+    c.step = recorded
+    summary = sim.run()
+    return np.array(rows), summary, sim, c, plate
+
+
+def _state(sim):
+    integ = sim.integrator
+    return integ.u_owned.copy(), integ.v_owned.copy()
+
+
+# ----------------------------------------------------------------------------- (a)
+
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
+def test_a_fixed_part_keeps_todays_pass(method):
+    """A fixed part (M = inf, V = 0): its tangential slot keeps zero inverse mass and the
+    pass runs today's kernel (X_SLIDES = 0), so its arithmetic is main's (checked bit for
+    bit against main when this was built; the friction suites pin its figures)."""
+    _, summary, _, c, _ = _run(method, 20, plate=wall_part())
+    assert not c.friction.slides and not c.rigid.slides
+    assert c.friction.scalars[X_SLIDES] == 0.0
+    assert np.isinf(c.friction.mass[-1]) and c.friction.h_over_m[-1] == 0.0
+    assert summary["energy_balance_error_rel"] <= ledger(summary["n_steps"], summary["n_dofs"])
+
+
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
+def test_frictionless_sideways_motion_leaves_the_nodes_bit_for_bit(method):
+    """(a) and (d): without friction a flat face does not see x, so a plate moving sideways
+    gives every node the same u and v, bit for bit, as one that does not (the normal step
+    is the same code on the same numbers); the plate keeps V exactly (no x force acts)
+    and U^n = Σ h V, the same additions in the same order as the loop's."""
+    n = 40
+    rows, s, sim, _, plate = _run(method, n, friction=0.0, v_x=V)
+    u_s, v_s = _state(sim)
+    _, s0, sim0, _, plate0 = _run(method, n, friction=0.0, v_x=0.0)
+    u_0, v_0 = _state(sim0)
+    assert np.array_equal(u_s, u_0) and np.array_equal(v_s, v_0)
+    assert plate.u == plate0.u and plate.v == plate0.v
+    assert np.all(rows[:, 2] == V) and plate.v_x == V  # (d): exactly
+    u_x = 0.0
+    for _ in range(n):
+        u_x += DT * V
+    assert plate.u_x == u_x
+    assert not plate0.slides and plate.slides
+    # the ledger holds the plate's 1/2 M V^2 in its kinetic energy and initial energy
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+
+
+def test_sideways_refusals():
+    """One line each: the penalty's friction on a sliding part, a part over a symmetry
+    plane (with friction), a fixed part given a sideways velocity, a button."""
+    with pytest.raises(InputError, match="penalty's spring on a sliding part"):
+        _run("penalty", 1)
+    with pytest.raises(InputError, match="held in x"):
+        _run("film", 1, symmetry="x=0")
+    with pytest.raises(InputError, match="a fixed part has no velocity"):
+        RigidBody("seat", 1.0, v_x=1.0, fixed=True)
+    from impact_fenics.contact import rigid_face
+    from impact_fenics.contact.pairing import spherical_button
+
+    tmesh = meshing.block(W, H, h=H, comm=COMM)
+    model = DeformableModel(tmesh, [Body("block", STEEL)],
+                            geometry=Geometry(PLANE_STRAIN, TS))
+    sim = Simulation(model, Settings(dt=DT, n_steps=1, out=None, quiet=True))
+    with pytest.raises(InputError, match="a button .* cannot move sideways"):
+        sim.add_contact(rigid_face(model, "top", W, "punch", spherical_button(10 * W)), FILM(),
+                        rigid=RigidBody("punch", 1.0, v_x=V))
+
+
+def test_axisymmetric_sideways_is_refused():
+    """In axisymmetry a rigid part is a body of revolution: a sideways velocity is refused
+    in one line (the axis)."""
+    tmesh = meshing.block(W, H, h=H, comm=COMM)
+    model = DeformableModel(tmesh, [Body("block", STEEL)], geometry=Geometry())
+    sim = Simulation(model, Settings(dt=DT, n_steps=1, out=None, quiet=True))
+    bottom = np.unique(model.facet_dofs("bottom", 1) // 2)
+    cons = plane_below(COMM, bottom, model.node_xy, model.offset, 0.0, model.length_scale)
+    with pytest.raises(InputError, match="axisymmetric model"):
+        sim.add_contact(cons, FILM(), rigid=RigidBody("plate", 1.0, v_x=V))
+
+
+# ----------------------------------------------------------------------------- (b), (c)
+
+N_STEPS = 320  # t* = m V / (μ F) is 220 steps
+
+
+@pytest.mark.parametrize("method", ["film", "dme", "film_dense"])
+def test_x_momentum_of_block_and_plate_is_conserved(method):
+    """(b) Σ m v_x + M V unchanged to round-off at every step. Bound: a step rounds each
+    node's x velocity (prediction v + h f/m and the pass's correction: 4 roundings), the
+    pass's sums over its n rows (the average's two sums and each row's force: 4 n + 4)
+    and the two dot products of the check (2 N): 8 (N + n + 2) roundings a step on the
+    largest momentum |M V| + Σ m |v_x|, added over the steps."""
+    rows, s, sim, c, plate = _run(method, N_STEPS)
+    p = rows[:, 0] + plate.mass * rows[:, 2]
+    p0 = plate.mass * V  # the block starts at rest
+    n_nodes = COMM.allreduce(sim.integrator.mass.size // 2)
+    scale = plate.mass * V + MASS * V
+    bound = EPS * 8 * (n_nodes + c.n + 2) * scale * np.arange(1, N_STEPS + 1)
+    drift = np.abs(p - p0)
+    print(f"{method}: x momentum of block + plate within {drift.max():.3g} kg m/s of "
+          f"{p0:.4g} (bound at the end {bound[-1]:.3g})")
+    assert np.all(drift <= bound)
+    assert rows[:, 4].max() > 0 and rows[-1, 3] > 0  # it slipped, and it sticks at the end
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+    assert s["friction"][0]["slip_work"] > 0.0
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_block_dragged_by_a_heavy_plate(method):
+    """(c) The closed form. While every loaded row slips, λ_t = μ λ_n exactly, so the
+    block's x impulse is μ Σ h λ_n = μ (F t + P_y): v̄ = μ F t / m within
+    δ = μ F (H / c_L + h) / m (|P_y| <= F H / c_L, the pressure wave's bound, plus one
+    step's offset of the impulse's time). Hence:
+    - the slope over the slipping window [2 H / c_L, t_1] (t_1 the first stick) is μ F / m
+      within 2 δ / (t_1 - 2 H / c_L) (two ends, each within δ of the line);
+    - v̄ reaches V at t* = m V / (μ F) within 2 δ m / (μ F) (the line's band) plus the
+      bottom's lead: rows stick once V - v̄ is below the shear wave's particle velocity
+      2 μ p / (ρ c_s) (the bottom node leads the mean by that, its reflection doubled),
+      after which the mean closes the gap no slower than the slip rate μ F / m;
+    - afterwards v̄ stays within that lead of V (the shear released at the stick rings
+      with particle velocity <= 2 μ p / (ρ c_s)) and the plate's V within m (V + that) / M
+      of V (its momentum is the block's, given up)."""
+    rows, s, _, c, plate = _run(method, N_STEPS)
+    t = DT * np.arange(1, N_STEPS + 1)  # v^{n+1/2} holds the impulses of steps 0..n
+    v_bar = rows[:, 0] / MASS
+    slope = MU * F / MASS
+    t_star = MASS * V / (MU * F)
+    delta = MU * F * (H / C_L + DT) / MASS
+    lead = 2.0 * MU * P / (STEEL.density * C_S)
+    first_stick = int(np.argmax(rows[:, 3] > 0))
+    slipping = slice(0, first_stick)
+    assert first_stick > 0 and np.all(rows[slipping, 3] == 0)
+    off_line = np.abs(v_bar[slipping] - slope * t[slipping]).max()
+    assert off_line <= delta
+    k1 = int(np.ceil(2 * H / C_L / DT))
+    k2 = first_stick - 1
+    measured = (v_bar[k2] - v_bar[k1]) / (t[k2] - t[k1])
+    slope_tol = 2 * delta / (t[k2] - t[k1])
+    reach = t[int(np.argmax(v_bar >= V - delta))]
+    reach_tol = 2 * delta / slope + lead / slope
+    after = t > t_star + reach_tol
+    ring = np.abs(v_bar[after] - V).max()
+    print(f"{method}: slope {measured:.6g} m/s^2 against μF/m = {slope:.6g} (within "
+          f"{abs(measured / slope - 1):.3g}, tolerance {slope_tol / slope:.3g}); off the "
+          f"line by {off_line:.3g} m/s (δ = {delta:.3g}); reaches V at {reach:.5g} s against "
+          f"t* = {t_star:.5g} s (within {abs(reach - t_star):.3g}, tolerance "
+          f"{reach_tol:.3g}); after it |v̄ - V| <= {ring:.3g} m/s (lead {lead:.3g}); "
+          f"first stick at step {first_stick}")
+    assert abs(measured - slope) <= slope_tol
+    assert abs(reach - t_star) <= reach_tol
+    assert ring <= lead
+    # the plate gives up what the block gains: M (V - V_p) = m v̄ <= m (V + lead)
+    assert np.all(np.abs(rows[:, 2] - V) <= MASS * (V + lead) / plate.mass)
+
+
+
+@pytest.mark.parametrize("method", ["film", "dme"])
+def test_an_x_force_on_the_plate(method):
+    """An external x force f_x on the plate (from rest, with friction): the x momentum of
+    block + plate grows by Σ h f_x (its impulse) within test (b)'s bound, and the ledger,
+    which books f_x's work by the kinetic identity of the plate's x slot and its 1/2 M V^2,
+    closes within tests/roundoff.py's bound."""
+    f_x = 0.5 * MU * F  # N: the plate accelerates the block through friction
+    plate = RigidBody("plate", 1000.0 * MASS, force_x=lambda t: f_x)
+    n = 200
+    rows, s, sim, c, _ = _run(method, n, plate=plate)
+    p = rows[:, 0] + plate.mass * rows[:, 2]
+    impulse = f_x * DT * np.arange(1, n + 1)
+    n_nodes = COMM.allreduce(sim.integrator.mass.size // 2)
+    scale = float(np.abs(p).max())
+    bound = EPS * 8 * (n_nodes + c.n + 2) * scale * np.arange(1, n + 1)
+    print(f"{method}: x momentum within {np.abs(p - impulse).max():.3g} kg m/s of the "
+          f"impulse {impulse[-1]:.4g} (bound {bound[-1]:.3g}); ledger "
+          f"{s['energy_balance_error_rel']:.3g}; plate V = {plate.v_x:.4g} m/s")
+    assert np.all(np.abs(p - impulse) <= bound)
+    assert plate.v_x > 0.0 and rows[-1, 0] > 0.0
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+
+# ----------------------------------------------------------------------------- scene files
+
+@pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")
+def test_scene_key_velocity_x(tmp_path):
+    """[rigid.NAME] velocity_x: a plane-strain punch pressed onto a block and moving
+    sideways with friction runs from the command line; its history has the part's u_x and
+    v_x, its energy table M V (momentum_x_punch), its contact_pairs.h5 the pairs' x, the
+    ledger closes (the run's own check) and friction slows the punch. In an axisymmetric scene the key is refused in one line."""
+    from scene_texts import RIGID, assert_refused, launch, read_history, replace
+
+    text = replace(RIGID, "radius = 0.1\n", 'half_width = 0.1\nfriction = 0.3\n')
+    text = replace(text, 'method = "dme"', 'method = "film"')
+    text = replace(text, 'components = ["z"]', 'components = ["y"]')
+    text = replace(text, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n")
+    scene = tmp_path / "slide.toml"
+    scene.write_text('geometry = "plane_strain"\nthickness = 0.01\n' + text)
+    out = tmp_path / "out"
+    proc = launch(["run", scene, "--out", out], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    h = read_history(out)
+    assert h["punch_v_x"][0] <= 0.5 and h["punch_v_x"][-1] < 0.5  # friction drags it back
+    assert np.all(np.diff(h["punch_u_x"]) > 0)
+    e = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
+    assert "momentum_x_punch" in e.dtype.names
+    assert e["momentum_x_punch"][-1] == pytest.approx(0.1 * h["punch_v_x"][-1], rel=1e-15)
+    from impact_fenics.output import read_pairs  # its pairs are labelled x in plane strain
+
+    pairs = read_pairs(str(out / "contact_pairs.h5"))
+    assert "x" in pairs and "r" not in pairs and np.all(np.abs(pairs["x"]) <= 0.1 + 1e-12)
+    axi = tmp_path / "axi.toml"
+    axi.write_text(replace(RIGID, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n"))
+    assert_refused(["run", axi, "--out", tmp_path / "out_axi"],
+                   "error: [rigid.punch] velocity_x: an axisymmetric rigid body moves along z "
+                   "only (the axis)", tmp_path / "out_axi")

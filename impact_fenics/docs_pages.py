@@ -667,7 +667,8 @@ def _whole_nonlinear(runs: list) -> list[str]:
             "loop", "checks", "publish", "other")
     out += ["", "Where W went (s): the run's own clocks (`setup_time`, the loop's wall time) "
             "and the harness's around reading, building and running; *other* is the run "
-            "less its timed parts (the ledger set up, the tables closed, the summary).", ""]
+            "less its timed parts (the set-up's objects collected before the loop, "
+            "the ledger set up, the tables closed, the summary).", ""]
     out += _table(["scene", "read", "build (mesh, model)", "stability", "operators",
                    "contact set-up", "outputs", "kernels", "loop", "checks",
                    "plots, summary, publish", "other"],

@@ -26,8 +26,9 @@ around read_scene, build and run:
     checks    the scene's checks after the loop (the run's ``extra``: contact duration,
               the Taylor bar's length and radius)
     publish   after the checks: the history plots, summary.json, the directory moved
-    other     run() less the above: the ledger and timers set up before the loop, the
-              tables and the field writer closed after it, the summary's reductions
+    other     run() less the above: before the loop the set-up's objects collected
+              (gc.collect, then frozen), the ledger and the timers set up; after it the
+              tables and the field writer closed, the summary's reductions
 
 The parts are disjoint intervals of one rank's clock, so they sum to W with ``other``
 >= 0 up to the clock's resolution; the figures are those of the rank whose W is the

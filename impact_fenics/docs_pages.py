@@ -632,6 +632,7 @@ def _whole(wh: dict, bench: dict) -> list[str]:
                     f"{1e3 * r['loop_wall']:.1f}", f"{1e6 * r['step_median']:.1f}",
                     f"{r['wall_over_steps_median']:.2f}", f"{r['wall_over_steps_matmult']:.2f}"]
                    for r in scenes])
+    out += _whole_nonlinear(wh.get("nonlinear") or [])
     share = wh.get("contact_share")
     if share:
         out += ["", "The contact's share of the step at Sim3 (no outputs): " + ", ".join(
@@ -642,6 +643,37 @@ def _whole(wh: dict, bench: dict) -> list[str]:
         out += ["", "A history row costs " + " and ".join(
             f"{1e6 * r['row']:.2f} µs ({r['columns']} columns)" for r in rows)
             + " to fill and write."]
+    return out
+
+
+def _whole_nonlinear(runs: list) -> list[str]:
+    """The nonlinear scenes' whole runs (bench/whole_nonlinear.py): the whole against its
+    steps, and where the whole went."""
+    if not runs:
+        return []
+    out = ["", "The nonlinear scenes run whole, as `impact-fenics run` runs the shipped scene "
+           "file with its default outputs (fields, history, energy rows, the plots): the whole "
+           "W (read, build, run, publish) over steps × the median step, against the goal "
+           f"{runs[0]['goal']:g}, beside the loop alone over the same; the bit-rock blow with "
+           "the Drucker–Prager granite of `scenes/wedge_rock.toml`.", ""]
+    out += _table(["scene", "cells", "steps", "W (s)", "median step (µs)",
+                   "W / (steps × median step)", "loop / (steps × median step)",
+                   "ns/element/cycle (W)", "ns/element/cycle (loop)"],
+                  [[r["scene"], _thousands(r["n_cells"]), str(r["n_steps"]),
+                    f"{r['whole']:.2f}", f"{1e6 * r['step_median']:.1f}",
+                    f"{r['whole_over_steps_median']:.1f}", f"{r['loop_over_steps_median']:.2f}",
+                    f"{r['ns_per_element_cycle_whole']:,.0f}",
+                    f"{r['ns_per_element_cycle_loop']:,.0f}"] for r in runs])
+    keys = ("read", "build", "stability", "operators", "contact", "outputs", "kernels",
+            "loop", "checks", "publish", "other")
+    out += ["", "Where W went (s): the run's own clocks (`setup_time`, the loop's wall time) "
+            "and the harness's around reading, building and running; *other* is the run "
+            "less its timed parts (the set-up's objects collected before the loop, "
+            "the ledger set up, the tables closed, the summary).", ""]
+    out += _table(["scene", "read", "build (mesh, model)", "stability", "operators",
+                   "contact set-up", "outputs", "kernels", "loop", "checks",
+                   "plots, summary, publish", "other"],
+                  [[r["scene"]] + [f"{r['parts'][k]:.3f}" for k in keys] for r in runs])
     return out
 
 

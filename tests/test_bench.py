@@ -255,3 +255,38 @@ def test_smoke_akantu_runs_our_problem(tmp_path_factory):
         assert ak["check"][check]["u_max"] > 0
         assert ak["check"][check]["u_rel_diff"] <= rounding(2 * STEP_ROUNDINGS * ak["steps"])
     assert any(line.startswith("## A peer: Akantu") for line in docs_pages._akantu(ak, bench))
+
+
+def test_smoke_whole_nonlinear_scenes_split_their_whole_run():
+    """The nonlinear scenes of part whole (bench/whole_nonlinear.py) in smoke mode: a row
+    per scene, run to the shortened end, and the whole W split into disjoint intervals of
+    one rank's clock. Each part that is a difference of intervals (build: build() less the
+    Simulation's own set-up within it; other: run() less its timed parts) is >= 0 up to the
+    clock: at most 2 reads per interval, 6 intervals each, so 12 x the clock's resolution,
+    plus the float rounding of the ~12 additions (16 eps W). The parts sum to W to that
+    rounding. The plastic bar steps dt = 1e-6 s to 0.02 x t_end = 4e-6 s: 4 steps exactly.
+    The page renders a row per scene (docs_pages)."""
+    import sys
+    import time
+
+    from impact_fenics import docs_pages
+    from impact_fenics.bench.whole_nonlinear import NONLINEAR, PARTS as WHOLE_PARTS
+    from impact_fenics.bench.whole_nonlinear import measure_nonlinear
+
+    runs = measure_nonlinear(MPI.COMM_WORLD, "smoke")
+    assert [r["scene"] for r in runs] == [label for label, _, _ in NONLINEAR]
+    resolution = time.get_clock_info("perf_counter").resolution
+    for r in runs:
+        assert r["status"].startswith("completed") and r["n_steps"] >= 1
+        parts, whole = r["parts"], r["whole"]
+        assert set(parts) == set(WHOLE_PARTS)
+        rounding_w = 16 * sys.float_info.epsilon * whole
+        assert min(parts.values()) >= -(12 * resolution + rounding_w), parts
+        assert abs(sum(parts.values()) - whole) <= rounding_w + 12 * resolution
+        assert parts["loop"] <= whole
+        for key in ("whole_over_steps_median", "loop_over_steps_median",
+                    "ns_per_element_cycle_whole", "ns_per_element_cycle_loop"):
+            assert math.isfinite(r[key]) and r[key] > 0
+    assert runs[0]["n_steps"] == 4
+    text = "\n".join(docs_pages._whole({"nonlinear": runs}, {}))
+    assert all(f"| {label} |" in text for label, _, _ in NONLINEAR)

@@ -31,7 +31,9 @@ taylor    the Taylor bar's whole run in element-steps per second, 1 and 2 ranks.
 akantu    Akantu's explicit lumped-mass plane-strain step in its own venv         peers.py
           (benchmarks/akantu_peer.py).
 whole     whole runs against their steps (punch Sim3, bars; default outputs),    whole_run.py
-          the set-up by phase, the contact share at Sim3, history and field cost.
+          the set-up by phase, the contact share at Sim3, history and field cost;
+          the nonlinear scenes (plastic bar, bit-rock with a Drucker-Prager    whole_nonlinear.py
+          rock, Taylor bar) run whole from their scene files, the whole by part.
 shpb      the SHPB scene's whole run (whole time, ns per element-cycle) and its    shpb.py
           internal forces split between the linear bars and the J2 specimen.
 

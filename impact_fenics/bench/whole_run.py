@@ -16,7 +16,8 @@ kernel compiled inside the loop, and the set-up by phase (mesh; the
 Simulation's stability bound, operators and contact set-up; the run's outputs
 before the first step). Then the contact share of the step at Sim3 for DME,
 penalty and FILM fast (median contact time of a step over the median step,
-without outputs).
+without outputs). Between the two, the nonlinear scenes run whole from their scene
+files, the whole split by part (whole_nonlinear.py).
 
 Run as a script (``python -m impact_fenics.bench.whole_run``) it prints the same
 rows for whatever code is importable, so the figures of an older tree can be taken
@@ -30,6 +31,8 @@ import time
 
 import numpy as np
 from mpi4py import MPI
+
+from .whole_nonlinear import beyond_median, measure_nonlinear, report as report_nonlinear
 
 PUNCH_DT, PUNCH_STEPS, PUNCH_EVERY = 3.64e-7, 400, 20
 BAR_DT, BAR_T_END, BAR_EVERY = 1e-6, 5e-4, 25
@@ -114,8 +117,7 @@ def measure(kind: str, comm: MPI.Comm, h: float = BAR_H, compiled: bool = True) 
     medians = summary.get("time_per_step_median", {})
     # the loop beyond its median steps, by phase (s): total - steps x median; the rest is
     # what no phase timer holds (timers, progress, checks, the loop's Python)
-    beyond = {k: totals[k] - n * medians.get(k, 0.0) for k in totals}
-    beyond["rest"] = wall - sum(totals.values())
+    beyond = beyond_median(summary)
     label = kind if kind != "bars" or h == BAR_H else f"bars h={h:g}"
     if not compiled:
         label += " (Python steps)"
@@ -264,8 +266,9 @@ def contact_share(comm: MPI.Comm, steps: int = PUNCH_STEPS) -> list[dict]:
 
 
 def part_whole_run(ctx) -> dict:
-    """The whole-run table (both scenes), the contact share at Sim3 and the cost per
-    field write and history row."""
+    """The whole-run table (both scenes), the nonlinear scenes' whole runs
+    (whole_nonlinear.py), the contact share at Sim3 and the cost per field write and
+    history row."""
     res, runs = {}, []
     for kind, h, compiled in _RUNS:
         r = measure(kind, ctx.comm, h, compiled)
@@ -275,6 +278,8 @@ def part_whole_run(ctx) -> dict:
               "bars: the demo's 500 steps, dt scaled with h)", HEADERS, [_row(r) for r in runs])
     ctx.table("   where the loop went beyond steps x median (ms), by phase; set-up (s) by phase",
               BEYOND_HEADERS, [_beyond_row(r) for r in runs])
+    res["nonlinear"] = measure_nonlinear(ctx.comm, ctx.mode.name)
+    report_nonlinear(ctx, res["nonlinear"])
     res["contact_share"] = contact_share(ctx.comm)
     ctx.table("Contact share of the step at Sim3 (punch R_z = 6 m, no outputs; medians in us)",
               ["method", "constraints", "contact", "step", "share", "compiled in loop"],

@@ -60,13 +60,24 @@ import math
 
 from numba import njit
 
-SQRT_3_2 = math.sqrt(1.5)
+THIRD = 1.0 / 3.0
+# u = (d / m)^2 at most this for the series of atanh (|eps_1 - eps_2| = atanh(d / m) <= 0.0626)
+U_SERIES = 1.0 / 256.0
+# 1 / (2k + 1), k = 0..6: atanh(t) / t = sum_k u^k / (2k + 1), u = t^2; the first term left
+# out, u^7 / 15, is below 1e-18 (relative) for u <= U_SERIES
+_A1, _A2, _A3, _A4, _A5, _A6 = 1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0, 1.0 / 11.0, 1.0 / 13.0
+# 1 / (2k)! and 1 / (2k + 1)!, k = 1..4: cosh w and sinh(w) / w in x = w^2 for x <= X_SERIES
+# (the first terms left out, x^5 / 10! and x^5 / 11!, below 1e-18 relative)
+X_SERIES = 4.0 * U_SERIES
+_C1, _C2, _C3, _C4 = 1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0
+_S1, _S2, _S3, _S4 = 1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362880.0
 
 
+# ------------------------------------------------------------ the point update, in scalars
 @njit(cache=True, error_model="numpy", inline="always")
-def trial_log_strains(F, state, work) -> None:
-    """Principal trial elastic log strains into work[0:3], (cos 2 theta, sin 2 theta) into
-    work[3:5], the principal values of the trial b_e into work[5:8]."""
+def log_strains(F, state):
+    """The trial b_e = F a F' and its log strains: (eps_m, g, eps_3, h, s, d^2, det b_e),
+    eps_m = (eps_1 + eps_2) / 2 and g = (eps_1 - eps_2) / (2 d) (-, 1 / d's unit: -)."""
     frr, frz, fzr, fzz, ftt = F[0], F[1], F[2], F[3], F[4]
     arr, azz, arz, att = state[1], state[2], state[3], state[4]
     # F a (2x2), then b = (F a) F'
@@ -77,83 +88,83 @@ def trial_log_strains(F, state, work) -> None:
     p = m00 * frr + m01 * frz
     q = m10 * fzr + m11 * fzz
     s = m00 * fzr + m01 * fzz
-    half = 0.5 * (p - q)
-    d = math.sqrt(half * half + s * s)
+    h = 0.5 * (p - q)
     mean = 0.5 * (p + q)
-    l1, l2, l3 = mean + d, mean - d, ftt * ftt * att
-    work[0] = 0.5 * math.log(l1)
-    work[1] = 0.5 * math.log(l2)
-    work[2] = 0.5 * math.log(l3)
-    if d > 0.0:
-        inv = 1.0 / d
-        work[3] = half * inv
-        work[4] = s * inv
-    else:  # b_e = m I in the plane: every direction is principal
-        work[3] = 1.0
-        work[4] = 0.0
-    work[5], work[6], work[7] = l1, l2, l3
+    dd = h * h + s * s
+    l3 = ftt * ftt * att
+    inv_m = 1.0 / mean
+    u = dd * inv_m * inv_m
+    if u <= U_SERIES:  # eps_1 - eps_2 = atanh(d / m): no square root, no 1 / d
+        det2 = mean * mean - dd
+        em = 0.25 * math.log(det2)
+        g = 0.5 * inv_m * (1.0 + u * (_A1 + u * (_A2 + u * (_A3 + u * (_A4 + u * (
+            _A5 + u * _A6))))))
+    else:
+        d = math.sqrt(dd)
+        l1, l2 = mean + d, mean - d
+        det2 = l1 * l2
+        e1, e2 = math.log(l1), math.log(l2)
+        em = 0.25 * (e1 + e2)
+        g = 0.25 * (e1 - e2) / d
+    return em, g, 0.5 * math.log(l3), h, s, dd, det2 * l3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def principal_kirchhoff(lmbda, mu, work) -> float:
-    """Trial Kirchhoff principal stresses tau_i = lambda tr eps + 2 mu eps_i into work[8:11]
-    (Pa) from the log strains in work[0:3]; returns the von Mises value sqrt(3/2 s:s)."""
-    tr = work[0] + work[1] + work[2]
-    t0 = work[8] = lmbda * tr + 2.0 * mu * work[0]
-    t1 = work[9] = lmbda * tr + 2.0 * mu * work[1]
-    t2 = work[10] = lmbda * tr + 2.0 * mu * work[2]
-    m = (t0 + t1 + t2) / 3.0
-    d0, d1, d2 = t0 - m, t1 - m, t2 - m
-    return SQRT_3_2 * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+def stresses(lmbda, mu, em, g, e3, dd):
+    """The Kirchhoff stress of the log strains (Pa): (tau_m, tau_d, tau_tt, q), tau_m =
+    lambda tr eps + 2 mu eps_m the in-plane mean, tau_d = 2 mu g (half the in-plane
+    difference over d), q = sqrt(3/2 dev tau : dev tau) = 2 mu sqrt(9 a^2 + 3 g^2 d^2),
+    a = (eps_m - eps_3) / 3."""
+    a = (em - e3) * THIRD
+    vol = lmbda * (2.0 * em + e3)
+    two_mu = 2.0 * mu
+    return (vol + two_mu * em, two_mu * g, vol + two_mu * e3,
+            two_mu * math.sqrt(9.0 * a * a + 3.0 * g * g * dd))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def radial_return(mu, dgamma, q_trial, work) -> None:
-    """Scale the deviator of the principal stresses (work[8:11]) by 1 - 3 mu dgamma / q_trial, take
-    dgamma 3/2 dev tau / q_trial off the log strains (the exponential-map return) and
-    multiply the principal values of b_e by x_i = exp(-3 dgamma dev tau_i / q_trial)
-    (x_3 = 1 / (x_1 x_2): the deviator's principal values sum to zero)."""
-    t0, t1, t2 = work[8], work[9], work[10]
-    m = (t0 + t1 + t2) / 3.0
+def flow(mu, dgamma, q_trial, em, g, e3, tau_m, tau_d, tau_tt):
+    """The exponential-map return: dev tau scaled by k = 1 - 3 mu dgamma / q_trial, the log
+    strains moved by -dgamma 3/2 dev tau / q_trial (eps_m by -(1 - k) a, eps_3 by
+    2 (1 - k) a, g to k g); returns (eps_m, g, eps_3, tau_m, tau_d, tau_tt)."""
     k = 1.0 - 3.0 * mu * dgamma / q_trial
-    r = 1.5 * dgamma / q_trial
-    dev0, dev1, dev2 = t0 - m, t1 - m, t2 - m
-    work[0] -= r * dev0
-    work[1] -= r * dev1
-    work[2] -= r * dev2
-    work[8] = m + k * dev0
-    work[9] = m + k * dev1
-    work[10] = m + k * dev2
-    x0 = math.exp(-2.0 * r * dev0)
-    x1 = math.exp(-2.0 * r * dev1)
-    work[5] *= x0
-    work[6] *= x1
-    work[7] /= x0 * x1
+    c = 1.0 - k
+    ca = c * (em - e3) * THIRD
+    two_mu_ca = 2.0 * mu * ca
+    return (em - ca, k * g, e3 + 2.0 * ca, tau_m - two_mu_ca, k * tau_d,
+            tau_tt + 2.0 * two_mu_ca)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kirchhoff(work, tau) -> None:
-    """tau (rr, tt, zz, rz) (Pa) from the principal stresses in work[8:11] and the directions
-    in work[3:5]."""
-    c2, s2 = work[3], work[4]
-    mean = 0.5 * (work[8] + work[9])
-    half = 0.5 * (work[8] - work[9])
-    tau[0] = mean + half * c2
-    tau[2] = mean - half * c2
-    tau[3] = half * s2
-    tau[1] = work[10]
+def left_cauchy_green(em, g, dd, det_b):
+    """b_e = exp(2 eps) of the log strains: (its in-plane mean exp(2 eps_m) cosh w, its
+    half difference over d exp(2 eps_m) sinh(w) / d, w = 2 g d, and its hoop value
+    det b_e / exp(2 eps_m)^2) (-)."""
+    x = 4.0 * g * g * dd  # w^2
+    if x <= X_SERIES:
+        ch = 1.0 + x * (_C1 + x * (_C2 + x * (_C3 + x * _C4)))
+        sh = 2.0 * g * (1.0 + x * (_S1 + x * (_S2 + x * (_S3 + x * _S4))))
+    else:
+        d = math.sqrt(dd)
+        ch = math.cosh(2.0 * g * d)
+        sh = math.sinh(2.0 * g * d) / d
+    e2m = math.exp(2.0 * em)
+    return e2m * ch, e2m * sh, det_b / (e2m * e2m)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def finish(F, work, state, tau) -> None:
-    """tau as :func:`kirchhoff`, and a = C_p^-1 = F^-1 b_e F^-T from the returned principal
-    values of b_e in work[5:8] (after plastic flow only: an elastic step leaves a
-    unchanged)."""
-    kirchhoff(work, tau)
-    c2, s2 = work[3], work[4]
-    mean = 0.5 * (work[5] + work[6])
-    half = 0.5 * (work[5] - work[6])
-    brr, bzz, brz = mean + half * c2, mean - half * c2, half * s2
+def set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s) -> None:
+    """tau (rr, tt, zz, rz) (Pa) = tau_m I + tau_d (h, s) in the plane, tau_tt."""
+    tau[0] = tau_m + tau_d * h
+    tau[1] = tau_tt
+    tau[2] = tau_m - tau_d * h
+    tau[3] = tau_d * s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def set_plastic_state(F, state, b_m, b_d, b_tt, h, s) -> None:
+    """a = C_p^-1 = F^-1 b_e F^-T into state[1:5] from b_e = b_m I + b_d (h, s), b_tt."""
+    brr, bzz, brz = b_m + b_d * h, b_m - b_d * h, b_d * s
     frr, frz, fzr, fzz, ftt = F[0], F[1], F[2], F[3], F[4]
     inv = 1.0 / (frr * fzz - frz * fzr)
     i00, i01, i10, i11 = fzz * inv, -frz * inv, -fzr * inv, frr * inv  # F^-1
@@ -164,21 +175,68 @@ def finish(F, work, state, tau) -> None:
     state[1] = n00 * i00 + n01 * i01  # (F^-1 b F^-T)_rr
     state[2] = n10 * i10 + n11 * i11
     state[3] = n00 * i10 + n01 * i11
-    state[4] = work[7] / (ftt * ftt)
+    state[4] = b_tt / (ftt * ftt)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def elastic_energy(lmbda, mu, work) -> float:
-    """psi_e = mu |dev eps_e|^2 + K/2 (tr eps_e)^2 (J/m^3) of the log strains in work[0:3]."""
-    tr = work[0] + work[1] + work[2]
-    m = tr / 3.0
-    d0, d1, d2 = work[0] - m, work[1] - m, work[2] - m
-    return mu * (d0 * d0 + d1 * d1 + d2 * d2) + 0.5 * (lmbda + 2.0 * mu / 3.0) * tr * tr
+def energy_density(lmbda, mu, em, g, e3, dd) -> float:
+    """psi_e = mu |dev eps_e|^2 + K/2 (tr eps_e)^2 (J/m^3), |dev eps|^2 = 6 a^2 + 2 g^2 d^2,
+    a = (eps_m - eps_3) / 3."""
+    tr = 2.0 * em + e3
+    a = (em - e3) * THIRD
+    return mu * (6.0 * a * a + 2.0 * g * g * dd) + 0.5 * (lmbda + 2.0 * mu * THIRD) * tr * tr
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def stored_energy(F, state, params, work) -> float:
     """psi_e (J/m^3) at F with the plastic state a = C_p^-1 in state[1:5]; params[0:2] =
-    (lambda, mu) in Pa (the ``energy`` of every Hencky model)."""
-    trial_log_strains(F, state, work)
-    return elastic_energy(params[0], params[1], work)
+    (lambda, mu) in Pa (the ``energy`` of every Hencky model; ``work`` unused)."""
+    em, g, e3, h, s, dd, det_b = log_strains(F, state)
+    return energy_density(params[0], params[1], em, g, e3, dd)
+
+
+# ------------------------------------------------------------ the same through ``work``
+# For a material written against a scratch array (the demos' FiniteVoceJ2): work[0:8] =
+# the tuple of log_strains, work[8:11] = (tau_m, tau_d, tau_tt), work[11:14] the returned
+# b_e of left_cauchy_green. (The package's materials use the scalar functions: a store to
+# and load from work costs about 10 ns a point, as the compiler cannot keep the values in
+# registers across stores it cannot prove apart from F, state and tau.)
+@njit(cache=True, error_model="numpy", inline="always")
+def trial_log_strains(F, state, work) -> None:
+    """The tuple of :func:`log_strains` into work[0:7]."""
+    work[0], work[1], work[2], work[3], work[4], work[5], work[6] = log_strains(F, state)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def principal_kirchhoff(lmbda, mu, work) -> float:
+    """(tau_m, tau_d, tau_tt) of :func:`stresses` into work[8:11]; returns q (Pa)."""
+    work[8], work[9], work[10], q = stresses(lmbda, mu, work[0], work[1], work[2], work[5])
+    return q
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def radial_return(mu, dgamma, q_trial, work) -> None:
+    """:func:`flow` on work[0:3] and work[8:11], and the returned b_e into work[11:14]."""
+    work[0], work[1], work[2], work[8], work[9], work[10] = flow(
+        mu, dgamma, q_trial, work[0], work[1], work[2], work[8], work[9], work[10])
+    work[11], work[12], work[13] = left_cauchy_green(work[0], work[1], work[5], work[6])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def kirchhoff(work, tau) -> None:
+    """tau (rr, tt, zz, rz) (Pa) of work[8:11] (:func:`set_kirchhoff`)."""
+    set_kirchhoff(tau, work[8], work[9], work[10], work[3], work[4])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def finish(F, work, state, tau) -> None:
+    """tau as :func:`kirchhoff`, and a = C_p^-1 from the returned b_e in work[11:14]
+    (after plastic flow only: an elastic step leaves a unchanged)."""
+    kirchhoff(work, tau)
+    set_plastic_state(F, state, work[11], work[12], work[13], work[3], work[4])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def elastic_energy(lmbda, mu, work) -> float:
+    """:func:`energy_density` of the log strains in work."""
+    return energy_density(lmbda, mu, work[0], work[1], work[2], work[5])

@@ -111,15 +111,16 @@ def log_strains(F, state):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def stresses(lmbda, mu, em, g, e3, dd):
-    """The Kirchhoff stress of the log strains (Pa): (tau_m, tau_d, tau_tt, q), tau_m =
+    """The Kirchhoff stress of the log strains (Pa): (tau_m, tau_d, tau_tt, q^2), tau_m =
     lambda tr eps + 2 mu eps_m the in-plane mean, tau_d = 2 mu g (half the in-plane
-    difference over d), q = sqrt(3/2 dev tau : dev tau) = 2 mu sqrt(9 a^2 + 3 g^2 d^2),
-    a = (eps_m - eps_3) / 3."""
+    difference over d), q^2 = 3/2 dev tau : dev tau = 4 mu^2 (9 a^2 + 3 g^2 d^2) (Pa^2),
+    a = (eps_m - eps_3) / 3: the square, so that an elastic point compares q^2 with
+    sigma_y^2 and takes no square root."""
     a = (em - e3) * THIRD
     vol = lmbda * (2.0 * em + e3)
     two_mu = 2.0 * mu
     return (vol + two_mu * em, two_mu * g, vol + two_mu * e3,
-            two_mu * math.sqrt(9.0 * a * a + 3.0 * g * g * dd))
+            two_mu * two_mu * (9.0 * a * a + 3.0 * g * g * dd))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -210,8 +211,8 @@ def trial_log_strains(F, state, work) -> None:
 @njit(cache=True, error_model="numpy", inline="always")
 def principal_kirchhoff(lmbda, mu, work) -> float:
     """(tau_m, tau_d, tau_tt) of :func:`stresses` into work[8:11]; returns q (Pa)."""
-    work[8], work[9], work[10], q = stresses(lmbda, mu, work[0], work[1], work[2], work[5])
-    return q
+    work[8], work[9], work[10], q2 = stresses(lmbda, mu, work[0], work[1], work[2], work[5])
+    return math.sqrt(q2)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

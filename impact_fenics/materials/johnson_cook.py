@@ -157,12 +157,14 @@ def update(F, state, params, dt, tau, work) -> float:
     chi, rho_cp = params[CHI], params[RHO] * params[CP]
     eps_bar, power_n, temperature = state[0], state[POWER], state[TEMPERATURE]
     em, g, e3, h, s, dd, det_b = hencky.log_strains(F, state)
-    tau_m, tau_d, tau_tt, q = hencky.stresses(lmbda, mu, em, g, e3, dd)
+    tau_m, tau_d, tau_tt, q2 = hencky.stresses(lmbda, mu, em, g, e3, dd)
     thermal = thermal_factor(params, temperature)
     wp = 0.0
     hard_n = a + power_n  # A + B eps_bar_p^n
-    x = hard = visc = power = 0.0
-    if q > hard_n * thermal:  # sigma_y at the rate 0 (rate factor 1); no array in this branch
+    x = hard = visc = power = q = 0.0
+    y0 = hard_n * thermal  # sigma_y at the rate 0 (rate factor 1)
+    if q2 > y0 * y0:  # q > y0; no array in this branch
+        q = math.sqrt(q2)
         x, hard, visc, power = return_increment(a, b, n, c, rate0, mu, q, eps_bar, dt, power_n,
                                                 thermal)
     if x > 0.0:

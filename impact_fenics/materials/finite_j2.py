@@ -43,7 +43,6 @@ def update(F, state, params, dt, tau, work) -> float:
     em, g, e3, h, s, dd, det_b = hencky.log_strains(F, state)
     tau_m, tau_d, tau_tt, q2 = hencky.stresses(lmbda, mu, em, g, e3, dd)
     sy = sy0 + hard * state[0]
-    wp = 0.0
     if q2 > sy * sy:  # q > sigma_y without the square root at an elastic point
         q = math.sqrt(q2)
         f = q - sy
@@ -55,8 +54,13 @@ def update(F, state, params, dt, tau, work) -> float:
             state[0] += dg
             b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)
             hencky.set_plastic_state(F, state, b_m, b_d, b_tt, h, s)
+            hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
+            return wp
+    # (tau written in each branch: written once after them, where they join, it keeps numba
+    # from pruning the reference counts of the kernel's views of state and tau, a call and
+    # an atomic operation each, six a point)
     hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
-    return wp
+    return 0.0
 
 
 @dataclass(frozen=True)

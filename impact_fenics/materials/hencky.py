@@ -7,33 +7,37 @@ elastic left Cauchy-Green tensor and its principal logarithmic strains are
 
     b_e = F a F',    eps_e,i = 1/2 ln lambda_i(b_e)     (Simo 1992; Simo & Hughes 1998, ch. 9).
 
-Without torsion the hoop direction is principal; the (r, z) block is a
-symmetric 2x2 matrix, split in closed form by its mean m, half-difference h and
-shear s:
+Without torsion the hoop direction is principal, lambda_3 = F_tt^2 a_tt; the (r, z)
+block is a symmetric 2x2 matrix of mean m, half-difference h = (b_rr - b_zz) / 2 and
+shear s, with eigenvalues lambda_1,2 = m +- d, d^2 = h^2 + s^2. Every tensor with its
+principal axes is X = x_m I + x_d (h, s) in the plane (X_rr, X_zz = x_m +- x_d h,
+X_rz = x_d s), x_m the mean of its two principal values and x_d half their difference
+over d; so the eigenvectors, and d itself, are never needed:
 
-    lambda_1,2 = m +- d,   d = sqrt(h^2 + s^2),   (cos 2 theta, sin 2 theta) = (h, s) / d,
+    eps_m = (eps_1 + eps_2) / 2 = 1/4 ln(lambda_1 lambda_2) = 1/4 ln(m^2 - d^2),
+    g = (eps_1 - eps_2) / (2 d) = atanh(t) / (2 m t),   t = d / m,
 
-theta the angle of the eigenvector of lambda_1 from the r axis. Every tensor
-with these principal axes is then written from its two in-plane principal values
-x_1, x_2 without the eigenvectors themselves:
+and atanh(t) / t = sum_k u^k / (2k + 1) in u = t^2 = d^2 / m^2 (series to u^6 for
+u <= 1/256, i.e. |eps_1 - eps_2| <= 0.0626: every point within the elastic strains of
+a metal; else g and eps_m from ln(m +- d) and 1 / d). The Kirchhoff stress
+tau = lambda tr eps I + 2 mu eps is then (tau_m, tau_d, tau_tt) = (lambda tr eps +
+2 mu eps_m, 2 mu g, lambda tr eps + 2 mu eps_3), tr eps = 2 eps_m + eps_3, and with
+a = (eps_m - eps_3) / 3 the deviator's principal values are (a +- g d, -2a):
 
-    X_rr, X_zz = (x_1 + x_2)/2 +- (x_1 - x_2)/2 cos 2 theta,   X_rz = (x_1 - x_2)/2 sin 2 theta.
+    q^2 = 3/2 dev tau : dev tau = 4 mu^2 (9 a^2 + 3 g^2 d^2).
 
-For equal eigenvalues (d = 0: b_e = I at F = I, and on the axis) every direction
-is principal; the split takes (cos 2 theta, sin 2 theta) = (1, 0), and since then
-x_1 = x_2 exactly the tensors do not depend on it. Near equal eigenvalues the
-direction is ill-conditioned (its error is EPS m / d), but it enters multiplied by
-x_1 - x_2, which is of order d / m: the tensors keep an error of EPS times their
-scale. The explicit scheme needs no derivative of the logarithm, so equal
-eigenvalues need no other guard. The return mapping acts on the principal values
-(the exponential map keeps the directions), then
+An elastic point takes two logarithms, one division (1 / m) and no square root. The
+return (the exponential map keeps the principal axes) scales the deviator by
+k = 1 - 3 mu Delta gamma / q_trial: eps_m -> eps_m - (1 - k) a, eps_3 -> eps_3 +
+2 (1 - k) a, g -> k g, the trace unchanged. The returned b_e = exp(2 eps) is
 
-    b_e,new = sum_i exp(2 eps_e,i) n_i n_i',   a_new = F^-1 b_e,new F^-T,
-    tau = sum_i tau_i n_i n_i'   (Kirchhoff stress, Pa),
+    b_m = exp(2 eps_m) cosh w,   b_d = exp(2 eps_m) sinh(w) / d,   w = 2 g d,
+    b_tt = det b_e,trial / exp(2 eps_m)^2   (the return is isochoric),
 
-where exp(2 eps_e,i) = lambda_i,trial x_i with the return's factors
-x_i = exp(-3 Delta gamma dev tau_i / q_trial), whose product is 1 (the return is
-isochoric): two exponentials per yielding point.
+cosh w and sinh(w) / w from their series in w^2 (to w^10, for w^2 <= 1/64; else the
+library's): one exponential per yielding point. Then a_new = F^-1 b_e,new F^-T.
+Equal eigenvalues (d = 0: b_e = I at F = I, and on the axis) need no guard: h = s = 0
+and g is the series' 1 / (2m).
 
 Layout of F: (F_rr, F_rz, F_zr, F_zz, F_tt) with F_rz = d u_r / d Z.
 The point update of every finite-strain material (the seam of
@@ -43,10 +47,11 @@ The point update of every finite-strain material (the seam of
     energy(F, state, params, work) -> stored elastic energy (J/m^3)
 
 ``tau`` receives the Kirchhoff stress (rr, tt, zz, rz) in Pa; ``work`` is a
-float64 scratch array of 16 entries (no allocation per point): here
-work[0:3] the principal log strains (1, 2 in the (r, z) plane, 3 hoop),
-work[3:5] (cos 2 theta, sin 2 theta), work[5:8] the principal values of b_e
-(trial, then returned), work[8:11] the principal stresses.
+float64 scratch array of 16 entries (no allocation per point). The package's models
+call the functions below that take and return scalars (:func:`log_strains`,
+:func:`stresses`, :func:`flow`, :func:`left_cauchy_green`, :func:`set_kirchhoff`,
+:func:`set_plastic_state`); the functions of the same steps through ``work`` serve a
+material written against the scratch array.
 
 Compiled with numpy's error model (a float division by zero gives inf or nan, as
 in numpy, instead of a test and a Python exception at every division) and inlined
@@ -66,11 +71,12 @@ U_SERIES = 1.0 / 256.0
 # 1 / (2k + 1), k = 0..6: atanh(t) / t = sum_k u^k / (2k + 1), u = t^2; the first term left
 # out, u^7 / 15, is below 1e-18 (relative) for u <= U_SERIES
 _A1, _A2, _A3, _A4, _A5, _A6 = 1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0, 1.0 / 11.0, 1.0 / 13.0
-# 1 / (2k)! and 1 / (2k + 1)!, k = 1..4: cosh w and sinh(w) / w in x = w^2 for x <= X_SERIES
-# (the first terms left out, x^5 / 10! and x^5 / 11!, below 1e-18 relative)
-X_SERIES = 4.0 * U_SERIES
-_C1, _C2, _C3, _C4 = 1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0
-_S1, _S2, _S3, _S4 = 1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362880.0
+# 1 / (2k)! and 1 / (2k + 1)!, k = 1..5: cosh w and sinh(w) / w in x = w^2 for x <= X_SERIES
+# (|w| <= 1/8; the first terms left out, x^6 / 12! and x^6 / 13!, below 1e-19 relative)
+X_SERIES = 1.0 / 64.0
+_C1, _C2, _C3, _C4, _C5 = 1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0, 1.0 / 3628800.0
+_S1, _S2, _S3, _S4, _S5 = (1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362880.0,
+                           1.0 / 39916800.0)
 
 
 # ------------------------------------------------------------ the point update, in scalars
@@ -143,8 +149,8 @@ def left_cauchy_green(em, g, dd, det_b):
     det b_e / exp(2 eps_m)^2) (-)."""
     x = 4.0 * g * g * dd  # w^2
     if x <= X_SERIES:
-        ch = 1.0 + x * (_C1 + x * (_C2 + x * (_C3 + x * _C4)))
-        sh = 2.0 * g * (1.0 + x * (_S1 + x * (_S2 + x * (_S3 + x * _S4))))
+        ch = 1.0 + x * (_C1 + x * (_C2 + x * (_C3 + x * (_C4 + x * _C5))))
+        sh = 2.0 * g * (1.0 + x * (_S1 + x * (_S2 + x * (_S3 + x * (_S4 + x * _S5)))))
     else:
         d = math.sqrt(dd)
         ch = math.cosh(2.0 * g * d)

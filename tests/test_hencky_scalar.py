@@ -188,3 +188,50 @@ def test_the_cases_cover_both_branches_and_both_outcomes():
         >= 30
     edge = [u_of(F, a) - 1.0 / 256.0 for _, F, a in series_edge_cases()]
     assert edge[0] < 0.0 < edge[2]
+
+
+def barely_yielding():
+    """(name, F, a, material): the large random cases of test_hencky_split with the yield
+    stress at 0.9 of the trial q, so that the return keeps 0.9 of the trial's in-plane
+    difference: w = 2 g d = k (eps_1 - eps_2) beyond the series' 1/8, the library's cosh
+    and sinh."""
+    out = []
+    for name, F, a in CASES:
+        if not name.startswith("random"):
+            continue
+        state = COPPER.initial_state().copy()
+        state[1:5] = a
+        lmbda, mu = COPPER.lmbda, COPPER.mu
+        eps, t = previous_update(F, state.copy(), (lmbda, mu, 1e300, 0.0), np.zeros(4))
+        m = sum(t) / 3.0
+        q = SQRT_3_2 * math.sqrt(sum((x - m) ** 2 for x in t))
+        material = FiniteJ2(E=COPPER.E, nu=COPPER.nu, yield_stress=0.9 * q, hardening=100e6)
+        k = 1.0 - 3.0 * mu * (0.1 * q / (3.0 * mu + 100e6)) / q
+        if k * abs(eps[0] - eps[1]) > 0.125:
+            out.append((f"barely_{name}", F, a, material))
+    return out
+
+
+BARELY = barely_yielding()
+
+
+@pytest.mark.parametrize("name, F, a, material", BARELY, ids=[c[0] for c in BARELY])
+def test_the_returned_b_e_beyond_the_series(name, F, a, material):
+    """The return's library branch of cosh and sinh: the same comparison and bounds."""
+    state0 = material.initial_state().copy()
+    state0[1:5] = a
+    new, old = state0.copy(), state0.copy()
+    tau_new, tau_old = np.zeros(4), np.zeros(4)
+    material.update(F, new, material.params(), 1e-7, tau_new, np.zeros(16))
+    eps, t = previous_update(F, old, tuple(material.params()), tau_old)
+    d_tau, d_b, _ = bounds(material, F, a, eps, t)
+    assert old[0] > 0.0 and new[0] > 0.0, name
+    assert np.abs(tau_new - tau_old).max() <= 3.0 * d_tau, name
+    assert abs(new[0] - old[0]) <= 2.2 * d_tau / (3.0 * material.mu + material.hardening) \
+        + rounding(8, old[0]), name
+    assert np.abs(b_e(F, new) - b_e(F, old)).max() <= d_b, name
+
+
+def test_some_returns_go_beyond_the_series():
+    """At least ten of the barely yielding cases take the library's cosh and sinh."""
+    assert len(BARELY) >= 10

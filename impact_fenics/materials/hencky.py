@@ -203,11 +203,11 @@ def stored_energy(F, state, params, work) -> float:
 
 
 # ------------------------------------------------------------ the same through ``work``
-# For a material written against a scratch array (the demos' FiniteVoceJ2): work[0:8] =
+# For a material written against a scratch array (the demos' FiniteVoceJ2): work[0:7] =
 # the tuple of log_strains, work[8:11] = (tau_m, tau_d, tau_tt), work[11:14] the returned
-# b_e of left_cauchy_green. (The package's materials use the scalar functions: a store to
-# and load from work costs about 10 ns a point, as the compiler cannot keep the values in
-# registers across stores it cannot prove apart from F, state and tau.)
+# b_e of left_cauchy_green. (The package's materials use the scalar functions: a value
+# stored to work and loaded back does not stay in a register, as the compiler cannot prove
+# work apart from F, state and tau.)
 @njit(cache=True, error_model="numpy", inline="always")
 def trial_log_strains(F, state, work) -> None:
     """The tuple of :func:`log_strains` into work[0:7]."""

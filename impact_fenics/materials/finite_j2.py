@@ -21,6 +21,7 @@ a = C_p^-1 (see :mod:`.hencky`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -38,20 +39,28 @@ LAMBDA, MU, YIELD_STRESS, HARDENING = range(4)
 @njit(cache=True, error_model="numpy", inline="always")
 def update(F, state, params, dt, tau, work) -> float:
     """Exponential-map radial return at one point; returns the plastic work increment (J/m^3)."""
-    lmbda, mu, sy0, h = params[LAMBDA], params[MU], params[YIELD_STRESS], params[HARDENING]
-    hencky.trial_log_strains(F, state, work)
-    q = hencky.principal_kirchhoff(lmbda, mu, work)
-    f = q - (sy0 + h * state[0])
-    wp = 0.0
-    if f > 0.0:
-        dg = f / (3.0 * mu + h)
-        hencky.radial_return(mu, dg, q, work)
-        wp = dg * (sy0 + h * state[0] + 0.5 * h * dg)
-        state[0] += dg
-        hencky.finish(F, work, state, tau)
-    else:
-        hencky.kirchhoff(work, tau)
-    return wp
+    lmbda, mu, sy0, hard = params[LAMBDA], params[MU], params[YIELD_STRESS], params[HARDENING]
+    em, g, e3, h, s, dd, det_b = hencky.log_strains(F, state)
+    tau_m, tau_d, tau_tt, q2 = hencky.stresses(lmbda, mu, em, g, e3, dd)
+    sy = sy0 + hard * state[0]
+    if q2 > sy * sy:  # q > sigma_y without the square root at an elastic point
+        q = math.sqrt(q2)
+        f = q - sy
+        if f > 0.0:
+            dg = f / (3.0 * mu + hard)
+            em, g, e3, tau_m, tau_d, tau_tt = hencky.flow(mu, dg, q, em, g, e3, tau_m, tau_d,
+                                                          tau_tt)
+            wp = dg * (sy + 0.5 * hard * dg)
+            state[0] += dg
+            b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)
+            hencky.set_plastic_state(F, state, b_m, b_d, b_tt, h, s)
+            hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
+            return wp
+    # (tau written in each branch: written once after them, where they join, it keeps numba
+    # from pruning the reference counts of the kernel's views of state and tau, a call and
+    # an atomic operation each, six a point)
+    hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
+    return 0.0
 
 
 @dataclass(frozen=True)

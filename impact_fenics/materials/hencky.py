@@ -7,33 +7,37 @@ elastic left Cauchy-Green tensor and its principal logarithmic strains are
 
     b_e = F a F',    eps_e,i = 1/2 ln lambda_i(b_e)     (Simo 1992; Simo & Hughes 1998, ch. 9).
 
-Without torsion the hoop direction is principal; the (r, z) block is a
-symmetric 2x2 matrix, split in closed form by its mean m, half-difference h and
-shear s:
+Without torsion the hoop direction is principal, lambda_3 = F_tt^2 a_tt; the (r, z)
+block is a symmetric 2x2 matrix of mean m, half-difference h = (b_rr - b_zz) / 2 and
+shear s, with eigenvalues lambda_1,2 = m +- d, d^2 = h^2 + s^2. Every tensor with its
+principal axes is X = x_m I + x_d (h, s) in the plane (X_rr, X_zz = x_m +- x_d h,
+X_rz = x_d s), x_m the mean of its two principal values and x_d half their difference
+over d; so the eigenvectors, and d itself, are never needed:
 
-    lambda_1,2 = m +- d,   d = sqrt(h^2 + s^2),   (cos 2 theta, sin 2 theta) = (h, s) / d,
+    eps_m = (eps_1 + eps_2) / 2 = 1/4 ln(lambda_1 lambda_2) = 1/4 ln(m^2 - d^2),
+    g = (eps_1 - eps_2) / (2 d) = atanh(t) / (2 m t),   t = d / m,
 
-theta the angle of the eigenvector of lambda_1 from the r axis. Every tensor
-with these principal axes is then written from its two in-plane principal values
-x_1, x_2 without the eigenvectors themselves:
+and atanh(t) / t = sum_k u^k / (2k + 1) in u = t^2 = d^2 / m^2 (series to u^6 for
+u <= 1/256, i.e. |eps_1 - eps_2| <= 0.0626: every point within the elastic strains of
+a metal; else g and eps_m from ln(m +- d) and 1 / d). The Kirchhoff stress
+tau = lambda tr eps I + 2 mu eps is then (tau_m, tau_d, tau_tt) = (lambda tr eps +
+2 mu eps_m, 2 mu g, lambda tr eps + 2 mu eps_3), tr eps = 2 eps_m + eps_3, and with
+a = (eps_m - eps_3) / 3 the deviator's principal values are (a +- g d, -2a):
 
-    X_rr, X_zz = (x_1 + x_2)/2 +- (x_1 - x_2)/2 cos 2 theta,   X_rz = (x_1 - x_2)/2 sin 2 theta.
+    q^2 = 3/2 dev tau : dev tau = 4 mu^2 (9 a^2 + 3 g^2 d^2).
 
-For equal eigenvalues (d = 0: b_e = I at F = I, and on the axis) every direction
-is principal; the split takes (cos 2 theta, sin 2 theta) = (1, 0), and since then
-x_1 = x_2 exactly the tensors do not depend on it. Near equal eigenvalues the
-direction is ill-conditioned (its error is EPS m / d), but it enters multiplied by
-x_1 - x_2, which is of order d / m: the tensors keep an error of EPS times their
-scale. The explicit scheme needs no derivative of the logarithm, so equal
-eigenvalues need no other guard. The return mapping acts on the principal values
-(the exponential map keeps the directions), then
+An elastic point takes two logarithms, one division (1 / m) and no square root. The
+return (the exponential map keeps the principal axes) scales the deviator by
+k = 1 - 3 mu Delta gamma / q_trial: eps_m -> eps_m - (1 - k) a, eps_3 -> eps_3 +
+2 (1 - k) a, g -> k g, the trace unchanged. The returned b_e = exp(2 eps) is
 
-    b_e,new = sum_i exp(2 eps_e,i) n_i n_i',   a_new = F^-1 b_e,new F^-T,
-    tau = sum_i tau_i n_i n_i'   (Kirchhoff stress, Pa),
+    b_m = exp(2 eps_m) cosh w,   b_d = exp(2 eps_m) sinh(w) / d,   w = 2 g d,
+    b_tt = det b_e,trial / exp(2 eps_m)^2   (the return is isochoric),
 
-where exp(2 eps_e,i) = lambda_i,trial x_i with the return's factors
-x_i = exp(-3 Delta gamma dev tau_i / q_trial), whose product is 1 (the return is
-isochoric): two exponentials per yielding point.
+cosh w and sinh(w) / w from their series in w^2 (to w^10, for w^2 <= 1/64; else the
+library's): one exponential per yielding point. Then a_new = F^-1 b_e,new F^-T.
+Equal eigenvalues (d = 0: b_e = I at F = I, and on the axis) need no guard: h = s = 0
+and g is the series' 1 / (2m).
 
 Layout of F: (F_rr, F_rz, F_zr, F_zz, F_tt) with F_rz = d u_r / d Z.
 The point update of every finite-strain material (the seam of
@@ -43,10 +47,11 @@ The point update of every finite-strain material (the seam of
     energy(F, state, params, work) -> stored elastic energy (J/m^3)
 
 ``tau`` receives the Kirchhoff stress (rr, tt, zz, rz) in Pa; ``work`` is a
-float64 scratch array of 16 entries (no allocation per point): here
-work[0:3] the principal log strains (1, 2 in the (r, z) plane, 3 hoop),
-work[3:5] (cos 2 theta, sin 2 theta), work[5:8] the principal values of b_e
-(trial, then returned), work[8:11] the principal stresses.
+float64 scratch array of 16 entries (no allocation per point). The package's models
+call the functions below that take and return scalars (:func:`log_strains`,
+:func:`stresses`, :func:`flow`, :func:`left_cauchy_green`, :func:`set_kirchhoff`,
+:func:`set_plastic_state`); the functions of the same steps through ``work`` serve a
+material written against the scratch array.
 
 Compiled with numpy's error model (a float division by zero gives inf or nan, as
 in numpy, instead of a test and a Python exception at every division) and inlined
@@ -60,13 +65,25 @@ import math
 
 from numba import njit
 
-SQRT_3_2 = math.sqrt(1.5)
+THIRD = 1.0 / 3.0
+# u = (d / m)^2 at most this for the series of atanh (|eps_1 - eps_2| = atanh(d / m) <= 0.0626)
+U_SERIES = 1.0 / 256.0
+# 1 / (2k + 1), k = 0..6: atanh(t) / t = sum_k u^k / (2k + 1), u = t^2; the first term left
+# out, u^7 / 15, is below 1e-18 (relative) for u <= U_SERIES
+_A1, _A2, _A3, _A4, _A5, _A6 = 1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0, 1.0 / 11.0, 1.0 / 13.0
+# 1 / (2k)! and 1 / (2k + 1)!, k = 1..5: cosh w and sinh(w) / w in x = w^2 for x <= X_SERIES
+# (|w| <= 1/8; the first terms left out, x^6 / 12! and x^6 / 13!, below 1e-19 relative)
+X_SERIES = 1.0 / 64.0
+_C1, _C2, _C3, _C4, _C5 = 1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0, 1.0 / 3628800.0
+_S1, _S2, _S3, _S4, _S5 = (1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362880.0,
+                           1.0 / 39916800.0)
 
 
+# ------------------------------------------------------------ the point update, in scalars
 @njit(cache=True, error_model="numpy", inline="always")
-def trial_log_strains(F, state, work) -> None:
-    """Principal trial elastic log strains into work[0:3], (cos 2 theta, sin 2 theta) into
-    work[3:5], the principal values of the trial b_e into work[5:8]."""
+def log_strains(F, state):
+    """The trial b_e = F a F' and its log strains: (eps_m, g, eps_3, h, s, d^2, det b_e),
+    eps_m = (eps_1 + eps_2) / 2 and g = (eps_1 - eps_2) / (2 d) (-, 1 / d's unit: -)."""
     frr, frz, fzr, fzz, ftt = F[0], F[1], F[2], F[3], F[4]
     arr, azz, arz, att = state[1], state[2], state[3], state[4]
     # F a (2x2), then b = (F a) F'
@@ -77,83 +94,84 @@ def trial_log_strains(F, state, work) -> None:
     p = m00 * frr + m01 * frz
     q = m10 * fzr + m11 * fzz
     s = m00 * fzr + m01 * fzz
-    half = 0.5 * (p - q)
-    d = math.sqrt(half * half + s * s)
+    h = 0.5 * (p - q)
     mean = 0.5 * (p + q)
-    l1, l2, l3 = mean + d, mean - d, ftt * ftt * att
-    work[0] = 0.5 * math.log(l1)
-    work[1] = 0.5 * math.log(l2)
-    work[2] = 0.5 * math.log(l3)
-    if d > 0.0:
-        inv = 1.0 / d
-        work[3] = half * inv
-        work[4] = s * inv
-    else:  # b_e = m I in the plane: every direction is principal
-        work[3] = 1.0
-        work[4] = 0.0
-    work[5], work[6], work[7] = l1, l2, l3
+    dd = h * h + s * s
+    l3 = ftt * ftt * att
+    inv_m = 1.0 / mean
+    u = dd * inv_m * inv_m
+    if u <= U_SERIES:  # eps_1 - eps_2 = atanh(d / m): no square root, no 1 / d
+        det2 = mean * mean - dd
+        em = 0.25 * math.log(det2)
+        g = 0.5 * inv_m * (1.0 + u * (_A1 + u * (_A2 + u * (_A3 + u * (_A4 + u * (
+            _A5 + u * _A6))))))
+    else:
+        d = math.sqrt(dd)
+        l1, l2 = mean + d, mean - d
+        det2 = l1 * l2
+        e1, e2 = math.log(l1), math.log(l2)
+        em = 0.25 * (e1 + e2)
+        g = 0.25 * (e1 - e2) / d
+    return em, g, 0.5 * math.log(l3), h, s, dd, det2 * l3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def principal_kirchhoff(lmbda, mu, work) -> float:
-    """Trial Kirchhoff principal stresses tau_i = lambda tr eps + 2 mu eps_i into work[8:11]
-    (Pa) from the log strains in work[0:3]; returns the von Mises value sqrt(3/2 s:s)."""
-    tr = work[0] + work[1] + work[2]
-    t0 = work[8] = lmbda * tr + 2.0 * mu * work[0]
-    t1 = work[9] = lmbda * tr + 2.0 * mu * work[1]
-    t2 = work[10] = lmbda * tr + 2.0 * mu * work[2]
-    m = (t0 + t1 + t2) / 3.0
-    d0, d1, d2 = t0 - m, t1 - m, t2 - m
-    return SQRT_3_2 * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+def stresses(lmbda, mu, em, g, e3, dd):
+    """The Kirchhoff stress of the log strains (Pa): (tau_m, tau_d, tau_tt, q^2), tau_m =
+    lambda tr eps + 2 mu eps_m the in-plane mean, tau_d = 2 mu g (half the in-plane
+    difference over d), q^2 = 3/2 dev tau : dev tau = 4 mu^2 (9 a^2 + 3 g^2 d^2) (Pa^2),
+    a = (eps_m - eps_3) / 3: the square, so that an elastic point compares q^2 with
+    sigma_y^2 and takes no square root."""
+    a = (em - e3) * THIRD
+    vol = lmbda * (2.0 * em + e3)
+    two_mu = 2.0 * mu
+    return (vol + two_mu * em, two_mu * g, vol + two_mu * e3,
+            two_mu * two_mu * (9.0 * a * a + 3.0 * g * g * dd))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def radial_return(mu, dgamma, q_trial, work) -> None:
-    """Scale the deviator of the principal stresses (work[8:11]) by 1 - 3 mu dgamma / q_trial, take
-    dgamma 3/2 dev tau / q_trial off the log strains (the exponential-map return) and
-    multiply the principal values of b_e by x_i = exp(-3 dgamma dev tau_i / q_trial)
-    (x_3 = 1 / (x_1 x_2): the deviator's principal values sum to zero)."""
-    t0, t1, t2 = work[8], work[9], work[10]
-    m = (t0 + t1 + t2) / 3.0
+def flow(mu, dgamma, q_trial, em, g, e3, tau_m, tau_d, tau_tt):
+    """The exponential-map return: dev tau scaled by k = 1 - 3 mu dgamma / q_trial, the log
+    strains moved by -dgamma 3/2 dev tau / q_trial (eps_m by -(1 - k) a, eps_3 by
+    2 (1 - k) a, g to k g); returns (eps_m, g, eps_3, tau_m, tau_d, tau_tt)."""
     k = 1.0 - 3.0 * mu * dgamma / q_trial
-    r = 1.5 * dgamma / q_trial
-    dev0, dev1, dev2 = t0 - m, t1 - m, t2 - m
-    work[0] -= r * dev0
-    work[1] -= r * dev1
-    work[2] -= r * dev2
-    work[8] = m + k * dev0
-    work[9] = m + k * dev1
-    work[10] = m + k * dev2
-    x0 = math.exp(-2.0 * r * dev0)
-    x1 = math.exp(-2.0 * r * dev1)
-    work[5] *= x0
-    work[6] *= x1
-    work[7] /= x0 * x1
+    c = 1.0 - k
+    ca = c * (em - e3) * THIRD
+    two_mu_ca = 2.0 * mu * ca
+    return (em - ca, k * g, e3 + 2.0 * ca, tau_m - two_mu_ca, k * tau_d,
+            tau_tt + 2.0 * two_mu_ca)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kirchhoff(work, tau) -> None:
-    """tau (rr, tt, zz, rz) (Pa) from the principal stresses in work[8:11] and the directions
-    in work[3:5]."""
-    c2, s2 = work[3], work[4]
-    mean = 0.5 * (work[8] + work[9])
-    half = 0.5 * (work[8] - work[9])
-    tau[0] = mean + half * c2
-    tau[2] = mean - half * c2
-    tau[3] = half * s2
-    tau[1] = work[10]
+def left_cauchy_green(em, g, dd, det_b):
+    """b_e = exp(2 eps) of the log strains: (its in-plane mean exp(2 eps_m) cosh w, its
+    half difference over d exp(2 eps_m) sinh(w) / d, w = 2 g d, and its hoop value
+    det b_e / exp(2 eps_m)^2) (-)."""
+    x = 4.0 * g * g * dd  # w^2
+    if x <= X_SERIES:
+        ch = 1.0 + x * (_C1 + x * (_C2 + x * (_C3 + x * (_C4 + x * _C5))))
+        sh = 2.0 * g * (1.0 + x * (_S1 + x * (_S2 + x * (_S3 + x * (_S4 + x * _S5)))))
+    else:
+        d = math.sqrt(dd)
+        ch = math.cosh(2.0 * g * d)
+        sh = math.sinh(2.0 * g * d) / d
+    e2m = math.exp(2.0 * em)
+    return e2m * ch, e2m * sh, det_b / (e2m * e2m)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def finish(F, work, state, tau) -> None:
-    """tau as :func:`kirchhoff`, and a = C_p^-1 = F^-1 b_e F^-T from the returned principal
-    values of b_e in work[5:8] (after plastic flow only: an elastic step leaves a
-    unchanged)."""
-    kirchhoff(work, tau)
-    c2, s2 = work[3], work[4]
-    mean = 0.5 * (work[5] + work[6])
-    half = 0.5 * (work[5] - work[6])
-    brr, bzz, brz = mean + half * c2, mean - half * c2, half * s2
+def set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s) -> None:
+    """tau (rr, tt, zz, rz) (Pa) = tau_m I + tau_d (h, s) in the plane, tau_tt."""
+    tau[0] = tau_m + tau_d * h
+    tau[1] = tau_tt
+    tau[2] = tau_m - tau_d * h
+    tau[3] = tau_d * s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def set_plastic_state(F, state, b_m, b_d, b_tt, h, s) -> None:
+    """a = C_p^-1 = F^-1 b_e F^-T into state[1:5] from b_e = b_m I + b_d (h, s), b_tt."""
+    brr, bzz, brz = b_m + b_d * h, b_m - b_d * h, b_d * s
     frr, frz, fzr, fzz, ftt = F[0], F[1], F[2], F[3], F[4]
     inv = 1.0 / (frr * fzz - frz * fzr)
     i00, i01, i10, i11 = fzz * inv, -frz * inv, -fzr * inv, frr * inv  # F^-1
@@ -164,21 +182,68 @@ def finish(F, work, state, tau) -> None:
     state[1] = n00 * i00 + n01 * i01  # (F^-1 b F^-T)_rr
     state[2] = n10 * i10 + n11 * i11
     state[3] = n00 * i10 + n01 * i11
-    state[4] = work[7] / (ftt * ftt)
+    state[4] = b_tt / (ftt * ftt)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def elastic_energy(lmbda, mu, work) -> float:
-    """psi_e = mu |dev eps_e|^2 + K/2 (tr eps_e)^2 (J/m^3) of the log strains in work[0:3]."""
-    tr = work[0] + work[1] + work[2]
-    m = tr / 3.0
-    d0, d1, d2 = work[0] - m, work[1] - m, work[2] - m
-    return mu * (d0 * d0 + d1 * d1 + d2 * d2) + 0.5 * (lmbda + 2.0 * mu / 3.0) * tr * tr
+def energy_density(lmbda, mu, em, g, e3, dd) -> float:
+    """psi_e = mu |dev eps_e|^2 + K/2 (tr eps_e)^2 (J/m^3), |dev eps|^2 = 6 a^2 + 2 g^2 d^2,
+    a = (eps_m - eps_3) / 3."""
+    tr = 2.0 * em + e3
+    a = (em - e3) * THIRD
+    return mu * (6.0 * a * a + 2.0 * g * g * dd) + 0.5 * (lmbda + 2.0 * mu * THIRD) * tr * tr
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def stored_energy(F, state, params, work) -> float:
     """psi_e (J/m^3) at F with the plastic state a = C_p^-1 in state[1:5]; params[0:2] =
-    (lambda, mu) in Pa (the ``energy`` of every Hencky model)."""
-    trial_log_strains(F, state, work)
-    return elastic_energy(params[0], params[1], work)
+    (lambda, mu) in Pa (the ``energy`` of every Hencky model; ``work`` unused)."""
+    em, g, e3, h, s, dd, det_b = log_strains(F, state)
+    return energy_density(params[0], params[1], em, g, e3, dd)
+
+
+# ------------------------------------------------------------ the same through ``work``
+# For a material written against a scratch array (the demos' FiniteVoceJ2): work[0:7] =
+# the tuple of log_strains, work[8:11] = (tau_m, tau_d, tau_tt), work[11:14] the returned
+# b_e of left_cauchy_green. (The package's materials use the scalar functions: a value
+# stored to work and loaded back does not stay in a register, as the compiler cannot prove
+# work apart from F, state and tau.)
+@njit(cache=True, error_model="numpy", inline="always")
+def trial_log_strains(F, state, work) -> None:
+    """The tuple of :func:`log_strains` into work[0:7]."""
+    work[0], work[1], work[2], work[3], work[4], work[5], work[6] = log_strains(F, state)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def principal_kirchhoff(lmbda, mu, work) -> float:
+    """(tau_m, tau_d, tau_tt) of :func:`stresses` into work[8:11]; returns q (Pa)."""
+    work[8], work[9], work[10], q2 = stresses(lmbda, mu, work[0], work[1], work[2], work[5])
+    return math.sqrt(q2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def radial_return(mu, dgamma, q_trial, work) -> None:
+    """:func:`flow` on work[0:3] and work[8:11], and the returned b_e into work[11:14]."""
+    work[0], work[1], work[2], work[8], work[9], work[10] = flow(
+        mu, dgamma, q_trial, work[0], work[1], work[2], work[8], work[9], work[10])
+    work[11], work[12], work[13] = left_cauchy_green(work[0], work[1], work[5], work[6])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def kirchhoff(work, tau) -> None:
+    """tau (rr, tt, zz, rz) (Pa) of work[8:11] (:func:`set_kirchhoff`)."""
+    set_kirchhoff(tau, work[8], work[9], work[10], work[3], work[4])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def finish(F, work, state, tau) -> None:
+    """tau as :func:`kirchhoff`, and a = C_p^-1 from the returned b_e in work[11:14]
+    (after plastic flow only: an elastic step leaves a unchanged)."""
+    kirchhoff(work, tau)
+    set_plastic_state(F, state, work[11], work[12], work[13], work[3], work[4])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def elastic_energy(lmbda, mu, work) -> float:
+    """:func:`energy_density` of the log strains in work."""
+    return energy_density(lmbda, mu, work[0], work[1], work[2], work[5])

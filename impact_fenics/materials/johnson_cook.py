@@ -156,25 +156,27 @@ def update(F, state, params, dt, tau, work) -> float:
     b, n, c, rate0 = params[B_], params[N_], params[C_], params[RATE0]
     chi, rho_cp = params[CHI], params[RHO] * params[CP]
     eps_bar, power_n, temperature = state[0], state[POWER], state[TEMPERATURE]
-    hencky.trial_log_strains(F, state, work)
-    q = hencky.principal_kirchhoff(lmbda, mu, work)
+    em, g, e3, h, s, dd, det_b = hencky.log_strains(F, state)
+    tau_m, tau_d, tau_tt, q2 = hencky.stresses(lmbda, mu, em, g, e3, dd)
     thermal = thermal_factor(params, temperature)
     wp = 0.0
     hard_n = a + power_n  # A + B eps_bar_p^n
-    x = hard = visc = power = 0.0
-    if q > hard_n * thermal:  # sigma_y at the rate 0 (rate factor 1); no array in this branch
+    x = hard = visc = power = q = 0.0
+    y0 = hard_n * thermal  # sigma_y at the rate 0 (rate factor 1)
+    if q2 > y0 * y0:  # q > y0; no array in this branch
+        q = math.sqrt(q2)
         x, hard, visc, power = return_increment(a, b, n, c, rate0, mu, q, eps_bar, dt, power_n,
                                                 thermal)
     if x > 0.0:
-        hencky.radial_return(mu, x, q, work)
+        em, g, e3, tau_m, tau_d, tau_tt = hencky.flow(mu, x, q, em, g, e3, tau_m, tau_d, tau_tt)
         # the trapezoid of sigma_y over the increment at the step's rate and T_n
         wp = 0.5 * x * (hard_n * visc * thermal + hard * visc * thermal)
         state[0] = eps_bar + x
         state[POWER] = power
         state[TEMPERATURE] = temperature + chi * wp / rho_cp
-        hencky.finish(F, work, state, tau)
-    else:
-        hencky.kirchhoff(work, tau)
+        b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)
+        hencky.set_plastic_state(F, state, b_m, b_d, b_tt, h, s)
+    hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
     return wp
 
 

@@ -149,6 +149,10 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         if frictional:  # the dissipation (both parts, J) and the peak tangential force (N)
             summary["friction"] = [{"surfaces": list(c.constraints.names), **c.friction.summary()}
                                    for c in frictional]
+        moving = [c.rigid for c in sim.contacts
+                  if c.rigid is not None and not c.rigid.fixed]
+        if moving:  # each moving rigid body's state at the end (m, m/s; x: in the plane)
+            summary["rigid_bodies"] = {r.name: rigid_state(r) for r in moving}
         for c in sim.contacts:  # a rigid body driven by a rod: its wave energies (J)
             if c.rigid is not None and c.rigid.impedance > 0:
                 summary.setdefault("rod_waves", {})[c.rigid.name] = {
@@ -213,6 +217,15 @@ def provenance() -> dict:
         version = "unknown"
     return {"version": version, "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "command_line": " ".join(sys.argv)}
+
+
+def rigid_state(rigid) -> dict[str, float]:
+    """A moving rigid body's mass (kg) and its displacement and velocity along the axis or
+    y (m, m/s), with x where it translates in the plane (plane strain)."""
+    out = {"mass": float(rigid.mass), "u": float(rigid.u), "v": float(rigid.v)}
+    if rigid.slides or rigid.v_x != 0.0:
+        out.update(u_x=float(rigid.u_x), v_x=float(rigid.v_x))
+    return out
 
 
 def mean_velocities(integ, body_z: dict[str, np.ndarray], body_mass: dict[str, float],

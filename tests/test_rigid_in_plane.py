@@ -282,6 +282,12 @@ def test_scene_key_velocity_x(tmp_path):
     e = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
     assert "momentum_x_punch" in e.dtype.names
     assert e["momentum_x_punch"][-1] == pytest.approx(0.1 * h["punch_v_x"][-1], rel=1e-15)
+    # the summary and the console give the part's state at the end: the history's last row
+    import json
+
+    end = json.loads((out / "summary.json").read_text())["rigid_bodies"]["punch"]
+    assert (end["v_x"], end["u_x"]) == (h["punch_v_x"][-1], h["punch_u_x"][-1])
+    assert f"rigid punch: mass 0.1 kg, v_y {end['v']:.4g} m/s" in proc.stdout
     from impact_fenics.output import read_pairs  # its pairs are labelled x in plane strain
 
     pairs = read_pairs(str(out / "contact_pairs.h5"))

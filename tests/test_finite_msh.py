@@ -31,23 +31,19 @@ from impact_fenics import cli, meshing
 from impact_fenics.quad_meshes import quad_bar
 from impact_fenics.xdmf import FieldSeries
 from roundoff import assert_within_spread, one_ulp
+from scene_texts import COPPER_J2
 from test_cli import _disk_msh
 
 COMM = MPI.COMM_WORLD
 R, L, N_R, N_Z = 4e-3, 20e-3, 2, 10  # m, m, cells across and along (square cells)
 V0 = 150.0  # m/s
-SCENE = """title = "finite-strain bar"
+SCENE = ("""title = "finite-strain bar"
 [mesh]
 {mesh}
 
-[materials.copper]
-model = "j2"
-E = 117e9
-nu = 0.35
-density = 8930.0
-yield_stress = 400e6
-hardening = 100e6
-
+"""
+         + COPPER_J2  # no braces: SCENE.format leaves it as it is
+         + """
 [bodies.bar]
 material = "copper"
 velocity = [0.0, {v}]
@@ -64,7 +60,7 @@ dt_interval = 10
 
 [output]
 output_every = 5
-"""
+""")
 GENERATOR = f'generator = "quad_bar"\nradius = {R!r}\nlength = {L!r}\nn_r = {N_R}'
 FILE = 'file = "bar.msh"'
 

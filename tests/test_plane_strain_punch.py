@@ -105,25 +105,61 @@ def test_prandtl_punch_coarse_mesh_above_the_limit_within_one_corner_cell():
 
 @pytest.mark.study
 def test_prandtl_punch_refinement_study():
-    """Three meshes, the corner cell halved each time: the error falls from above; the
-    finest's is within Richardson's prediction from the coarser pair, e_1^2 / e_0 (the
-    pair's own rate kept), plus the reading's uncertainty (the ringing spread and the
-    curve's rise over the last tenth, both read off the run)."""
+    """Three meshes, every cell halved each time: the error falls from above; the
+    finest's is within the O(h) convergence from the finer of the coarser pair,
+    e_2 <= e_1 h_c2 / h_c1 (the error's coefficient e / h_c does not grow: the smeared
+    edge's excess is linear in the corner cell, and the higher-order terms fall with h),
+    plus the reading's uncertainty (the ringing spread and the curve's rise over the
+    last tenth, both read off the run). Richardson's prediction with the pair's own rate
+    in h_c is printed beside it."""
     _slow_enough()
     rows = []
     for refine in range(3):
         summary, hist, h_c = punch_run(refine)
         error, spread, creep = limit_error(hist)
         rows.append((h_c, error, spread, creep))
-        rate = math.log2(rows[-2][1] / error) if refine else float("nan")
+        rate = (math.log(rows[-2][1] / error) / math.log(rows[-2][0] / h_c) if refine
+                else float("nan"))
         print(f"refine {refine}: h_c/a = {h_c / A:.4f}, F'/(a(2+pi)k) - 1 = {error:+.4e}, "
-              f"rate {rate:.2f} (ringing spread {spread:.1e}, rise over the last tenth "
+              f"rate in h_c {rate:.3f} (ringing spread {spread:.1e}, rise over the last tenth "
               f"{creep:.1e}, {summary['n_steps']} steps)")
         assert summary["energy_balance_error_rel"] <= ledger(summary["n_steps"],
                                                               summary["n_dofs"])
-    (_, e0, _, _), (_, e1, _, _), (_, e2, s2, c2) = rows
+    (h0, e0, _, _), (h1, e1, _, _), (h2, e2, s2, c2) = rows
     assert 0 < e2 < e1 < e0  # from above, falling
-    bound = e1 * e1 / e0 + s2 + abs(c2)
-    print(f"finest error {e2:.4e} against Richardson's e1^2/e0 = {e1 * e1 / e0:.4e} "
-          f"+ reading {s2 + abs(c2):.1e} = {bound:.4e}")
+    rate = math.log(e0 / e1) / math.log(h0 / h1)  # the coarser pair's rate in h_c
+    bound = e1 * h2 / h1 + s2 + abs(c2)
+    print(f"rates in h_c: {rate:.3f}, {math.log(e1 / e2) / math.log(h1 / h2):.3f}; finest "
+          f"error {e2:.4e} against O(h) e1 h_c2/h_c1 = {e1 * h2 / h1:.4e} + reading "
+          f"{s2 + abs(c2):.1e} = {bound:.4e} (Richardson with the pair's rate: "
+          f"{e1 * (h2 / h1) ** rate:.4e})")
     assert e2 <= bound
+
+
+def _nodes(tmesh) -> np.ndarray:
+    """Every rank's node coordinates (x, y), m, gathered (rounded to 1e-12 m to merge the
+    ranks' copies of a shared node)."""
+    xy = np.round(tmesh.mesh.geometry.x[:, :2], 12)
+    return np.unique(np.vstack(COMM.allgather(xy)), axis=0)
+
+
+def test_flat_punch_block_is_nested_with_a_node_at_the_corner():
+    """The generator: a node at the punch's corner (a, 0), the grid's lines shrinking
+    toward the corner, every node of the coarse mesh a node of the refined one (nested, each cell halved, h_c more than halved by the
+    square-rooted ratio); bad sizes refused in one line."""
+    coarse = meshing.flat_punch_block(A, WIDTH, DEPTH, N_PUNCH, GRADING, 0, comm=COMM)
+    fine = meshing.flat_punch_block(A, WIDTH, DEPTH, N_PUNCH, GRADING, 1, comm=COMM)
+    nodes_c, nodes_f = _nodes(coarse), _nodes(fine)
+    assert np.any(np.all(np.abs(nodes_c - [A, 0.0]) < 1e-12, axis=1))
+    # a coarse node is a fine node if one lies within a thousandth of the fine mesh's
+    # smallest cell (any other fine node is at least a cell away; gmsh places a
+    # progression's nodes by its own sums, to about 1e-9 of the block here)
+    gap = np.min(np.linalg.norm(nodes_c[:, None, :] - nodes_f[None, :, :], axis=2), axis=1)
+    assert np.all(gap <= 1e-3 * fine.info["h_corner"])
+    xs = np.unique(nodes_c[:, 0])
+    steps = np.diff(xs)
+    k = int(np.searchsorted(xs, A))  # xs[k] = a
+    assert np.all(steps[:k - 1] > steps[1:k]) and np.all(steps[k:-1] < steps[k + 1:])
+    assert 0.5 * coarse.info["h_corner"] > fine.info["h_corner"]
+    with pytest.raises(meshing.InputError, match="flat_punch_block"):
+        meshing.flat_punch_block(A, 0.5 * A, DEPTH, comm=COMM)

@@ -145,8 +145,9 @@ def _nodes(tmesh) -> np.ndarray:
 
 def test_flat_punch_block_is_nested_with_a_node_at_the_corner():
     """The generator: a node at the punch's corner (a, 0), the grid's lines shrinking
-    toward the corner, every node of the coarse mesh a node of the refined one (nested, each cell halved, h_c more than halved by the
-    square-rooted ratio); bad sizes refused in one line."""
+    toward the corner, every node of the coarse mesh a node of the refined one (nested,
+    each cell halved; h_c more than halved by the square-rooted ratio); bad sizes
+    refused in one line."""
     coarse = meshing.flat_punch_block(A, WIDTH, DEPTH, N_PUNCH, GRADING, 0, comm=COMM)
     fine = meshing.flat_punch_block(A, WIDTH, DEPTH, N_PUNCH, GRADING, 1, comm=COMM)
     nodes_c, nodes_f = _nodes(coarse), _nodes(fine)

@@ -78,7 +78,7 @@ study-hertz-cylinder: setup
 
 # the Prandtl punch in plane strain: a flat rigid punch on a J2 block, three meshes, the
 # corner cell halved each time (tests/test_plane_strain_punch.py, docs/plane_strain.md;
-# about half an hour on one core)
+# about five minutes on one core)
 study-prandtl-punch: setup
 	$(PY) -m pytest tests/test_plane_strain_punch.py -m study -q -s
 

@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 MPIRUN := scripts/mpirun.sh
 NP ?= 2
 
-.PHONY: setup demo test test-serial test-mpi study study-taylor study-taylor-anvil study-shpb study-upsetting study-upsetting-finite study-hertz-cylinder docs clean setup-modern demo-modern test-modern
+.PHONY: setup demo test test-serial test-mpi study study-taylor study-taylor-anvil study-shpb study-upsetting study-upsetting-finite study-hertz-cylinder study-prandtl-punch docs clean setup-modern demo-modern test-modern
 
 setup:
 	@scripts/setup.sh
@@ -75,6 +75,12 @@ study-upsetting-finite: setup
 # docs/plane_strain.md; about 20 s on one core)
 study-hertz-cylinder: setup
 	$(PY) -m pytest tests/test_plane_strain_hertz_study.py -m study -q -s
+
+# the Prandtl punch in plane strain: a flat rigid punch on a J2 block, three meshes, the
+# corner cell halved each time (tests/test_plane_strain_punch.py, docs/plane_strain.md;
+# about five minutes on one core)
+study-prandtl-punch: setup
+	$(PY) -m pytest tests/test_plane_strain_punch.py -m study -q -s
 
 # the generated pages: docs/scenes.md from the scene reader's table of keys, and
 # docs/performance.md from docs/bench.json (BENCH=results/bench.json takes a new benchmark

@@ -522,6 +522,78 @@ def block(width: float = 0.1, height: float = 1.0, h: float = 0.01,
                                      "h": h})
 
 
+def flat_punch_block(half_width: float = 0.01, width: float = 0.05, depth: float = 0.05,
+                     n_punch: int = 4, grading: float = 1.25, refine: int = 0,
+                     quadrilaterals: bool = True, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
+    """The half section x in [0, width], y in [-depth, 0] (m) of a block under a flat punch
+    of half-width ``half_width`` (m; the symmetry plane x = 0), for a plane-strain scene
+    with ``symmetry = "x=0"``: a structured grid graded toward the punch's corner
+    (half_width, 0), Q1 with ``quadrilaterals`` (else each cell two triangles).
+
+    Its lines are x = 0, half_width, width and y = -depth, 0; along x and y the cells
+    shrink geometrically by ``grading`` per cell toward x = half_width and y = 0:
+    ``n_punch`` cells on [0, half_width] and as many on [half_width, width] and on
+    [-depth, 0] as make the first cell there no larger than the corner's. ``refine``
+    halves every cell that many times (each line's count doubled and its ratio
+    square-rooted: nested meshes, the corner's cell h_corner halved each time).
+
+    Groups: cells "block"; facets "punch_face" (y = 0, x <= half_width), "surface" (y = 0,
+    x >= half_width), "side" (x = width), "bottom" (y = -depth), "axis" (x = 0).
+    """
+    require(half_width > 0 and width > half_width and depth > 0,
+            "flat_punch_block: need half_width > 0 and width > half_width, depth > 0 (m)")
+    require(n_punch >= 1 and grading >= 1.0 and refine >= 0,
+            "flat_punch_block: need n_punch >= 1, grading >= 1 and refine >= 0")
+    q = grading
+    h0 = half_width / n_punch if q == 1.0 else half_width * (q - 1) / (q ** n_punch - 1)
+
+    def count(length: float) -> int:
+        """Cells of ratio q from h0 that cover ``length`` (m): the least n with
+        h0 (q^n - 1) / (q - 1) >= length, so gmsh's first cell is at most h0."""
+        if q == 1.0:
+            return max(1, math.ceil(length / h0 - 1e-9))
+        return max(1, math.ceil(math.log1p(length * (q - 1) / h0) / math.log(q) - 1e-9))
+
+    split = 2 ** refine
+    n_p, n_out, n_y = (n * split for n in (n_punch, count(width - half_width), count(depth)))
+    q_fine = q ** (1.0 / split)
+    h_corner = h0 if q == 1.0 else half_width * (q_fine - 1) / (q_fine ** n_p - 1)
+
+    def build(gmsh):
+        geo = gmsh.model.geo
+        xs, ys = (0.0, half_width, width), (-depth, 0.0)
+        p = {(i, j): geo.addPoint(xs[i], ys[j], 0, h0) for i in range(3) for j in range(2)}
+        # every line drawn away from the corner's lines, so the progression grows outward
+        top0 = geo.addLine(p[1, 1], p[0, 1])      # punch face, from the corner to the axis
+        top1 = geo.addLine(p[1, 1], p[2, 1])      # free surface, from the corner outward
+        bot0 = geo.addLine(p[1, 0], p[0, 0])
+        bot1 = geo.addLine(p[1, 0], p[2, 0])
+        axis = geo.addLine(p[0, 1], p[0, 0])      # vertical lines, from y = 0 downward
+        mid = geo.addLine(p[1, 1], p[1, 0])
+        side = geo.addLine(p[2, 1], p[2, 0])
+        for line, n in ((top0, n_p), (bot0, n_p), (top1, n_out), (bot1, n_out),
+                        (axis, n_y), (mid, n_y), (side, n_y)):
+            geo.mesh.setTransfiniteCurve(line, n + 1, "Progression", q_fine)
+        left = geo.addPlaneSurface([geo.addCurveLoop([-top0, mid, bot0, -axis])])
+        right = geo.addPlaneSurface([geo.addCurveLoop([top1, side, -bot1, -mid])])
+        for s in (left, right):
+            geo.mesh.setTransfiniteSurface(s, "Alternate")
+            if quadrilaterals:
+                geo.mesh.setRecombine(2, s)
+        geo.synchronize()
+        _group(gmsh, 2, [left, right], "block", 1)
+        for name, curves, tag in (("punch_face", [top0], 11), ("surface", [top1], 12),
+                                  ("side", [side], 13), ("bottom", [bot0, bot1], 14),
+                                  ("axis", [axis], 15)):
+            _group(gmsh, 1, curves, name, tag)
+        _generate(gmsh)
+
+    return _to_dolfinx(comm, build, {"scene": "flat_punch_block", "half_width": half_width,
+                                     "width": width, "depth": depth, "n_punch": n_punch,
+                                     "grading": grading, "refine": refine,
+                                     "h_corner": h_corner})
+
+
 def coaxial_bars(radius: float = 0.1, striker_length: float = 0.8, target_length: float = 0.85,
                  h: float = 0.02, structured: bool = False,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:

@@ -30,8 +30,8 @@ rigid bodies (a ``"constant"`` pulse may end at ``t_end``: the heavy platen of
 [[probes]] (on quad_bar and rod_on_anvil, not named as the bar's tracked nodes'
 probes: u_z_top, u_z_bottom, u_r_corner) and a ``[wall]``: the rigid plane z (m,
 default 0, at or below the bodies), a fixed rigid part under every boundary node with
-its contact set (:mod:`.contact.plane`), frictionless or with ``friction`` (film and
-dme: contact/friction.py; the penalty's tangential spring is refused at finite strain),
+its contact set (:mod:`.contact.plane`), frictionless or with ``friction`` (film,
+dme and the penalty's tangential spring: contact/friction.py),
 with ``method`` = "film", "dme" or "penalty" and, for penalty, ``penalty`` = a
 stiffness in N/m or "scaled"; ``face`` = "contact" (default: every boundary node a
 unilateral candidate, so the rim of the impact face may lift off) or, on quad_bar only,
@@ -148,11 +148,6 @@ def check_kind(scene) -> None:
     if scene.wall is not None and scene.wall.face == "held" and not bar:
         raise InputError('[wall] face = "held": it holds the face Z = 0 of the bar of generator '
                          '= "quad_bar"; hold a face of another mesh with [[fixed]]')
-    if scene.wall is not None and scene.wall.friction is not None \
-            and scene.wall.method == "penalty":
-        raise InputError(f"[wall] friction = {scene.wall.friction.text()}: the penalty's "
-                         "tangential spring is not built for a finite-strain body (use method "
-                         "= \"film\" or \"dme\")")
     if scene.mesh.generator in QUAD_GENERATORS:  # the bar's (the rod's) tracked nodes' probes
         tracked = {f"{a}_{end}" for a, end in (("u_z", "top"), ("u_z", "bottom"),
                                                ("u_r", "corner"), ("u_y", "top"),

@@ -349,8 +349,6 @@ CASES = [
      '[wall] method = "glue": use one of film, dme, penalty'),
     ("unknown wall key", ('method = "film"', 'method = "film"\nroughness = 0.2'),
      "[wall] unknown key 'roughness'"),
-    ("penalty friction", ('method = "film"', 'method = "penalty"\nfriction = 0.2'),
-     "[wall] friction = 0.2: the penalty's tangential spring is not built for a finite-strain"),
     ("negative penalty", ('method = "film"', 'method = "penalty"\npenalty = -1e9'),
      "[wall] penalty = -1000000000.0: must be > 0"),
     ("penalty above the bound", ('method = "film"', 'method = "penalty"\npenalty = 1e15'),

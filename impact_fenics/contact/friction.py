@@ -53,7 +53,7 @@ import numpy as np
 from mpi4py import MPI
 from numba import njit
 
-from ..errors import InputError
+from ..errors import InputError, UnstableRunError
 from ..jit_watch import direct, drop_stale_cache
 from ..plausibility import warn
 from . import state as _state
@@ -404,6 +404,30 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
 
 
 @njit(cache=True)
+def rescale_springs(a_inv, h, scaled, given, k_t, s_e):
+    """The penalty's springs at a new step (docs/friction.md 4.3): k_t' = 1 / (h A_ii)
+    (``scaled``; ``a_inv`` = 1/A_ii, 1/(m/(N s)), ``h`` = h_{n+1/2}, s) or ``given`` (N/m)
+    where A_ii > 0, else 0; each spring keeps its force, s_e' = k_t s_e / k_t' (m), in
+    place. Returns (E_s - E_s', E_s') (J): the stored energy given up (signed: >= 0 where
+    k_t grows) and the stored energy 1/2 k_t' s_e'^2 after. A spring whose k_t is
+    unchanged is left as it is (bit for bit)."""
+    released = 0.0
+    stored = 0.0
+    for i in range(k_t.size):
+        k_new = 0.0
+        if a_inv[i] > 0.0:
+            k_new = a_inv[i] / h if scaled else given
+        k_old = k_t[i]
+        if k_new != k_old:
+            before = 0.5 * k_old * s_e[i] * s_e[i]
+            s_e[i] = k_old * s_e[i] / k_new if k_new > 0.0 else 0.0
+            k_t[i] = k_new
+            released += before - 0.5 * k_new * s_e[i] * s_e[i]
+        stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
+    return released, stored
+
+
+@njit(cache=True)
 def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pred, u_now,
                        v_now, f_prev, ku_prev, jump, lo, up, lam, state, stats, slip_limit,
                        penalty, d_slip, spring_change):
@@ -542,6 +566,9 @@ class Tangential(FrictionFigures):
     def __init__(self, c, law: FrictionLaw, kernel: int, stiffness: float | str = "scaled"):
         self.c, self.law, self.kernel = c, law, kernel
         self.stiffness = stiffness
+        # a given k_t whose beta_t passes 4/3 at a change of step in the run stops it
+        # unless forced (set by ContactSet.set_friction; at set-up it is refused there)
+        self.forced = False
         # the set's one compiled call of a step runs this pass too
         # (:func:`.fused.contact_step_friction`); False: the set calls :meth:`step`, the
         # pass as a call of its own (the tests compare the two paths)
@@ -626,11 +653,22 @@ class Tangential(FrictionFigures):
         self.a_inv[:] = 0.0
         np.divide(1.0, a, out=self.a_inv, where=a > 0.0)
         if self.kernel == PENALTY_T:  # beta_t = k_t h A_ii
-            if isinstance(self.stiffness, str):
-                self.k_t[:] = self.a_inv / self.c.dt
-            else:
-                self.k_t[:] = np.where(a > 0.0, float(self.stiffness), 0.0)
+            scaled = isinstance(self.stiffness, str)
+            given = 0.0 if scaled else float(self.stiffness)
+            released, stored = rescale_springs(self.a_inv, self.c.dt, scaled, given, self.k_t,
+                                               self.s_e)
+            # the springs' force k_t s_e kept: the stored energy's change booked into the
+            # return loss (signed, docs/friction.md 4.3), the stored column at its new value
+            self.stats[RETURN_LOSS] += released
+            self.stats[STORED] = stored
             self.beta_max = float((self.k_t * self.c.dt * a).max(initial=0.0))
+            if not scaled and self.beta_max > STABILITY_BOUND and not self.forced \
+                    and hasattr(self, "scalars"):  # a change of step in the run
+                raise UnstableRunError(
+                    f"tangential_penalty = {self.stiffness!r} N/m: beta_t = "
+                    f"{self.beta_max:.3g} passes the stable bound 4/3 (k_t h h_n (1/m_lo + "
+                    f"1/m_up)) at the re-estimated dt = {self.c.dt:.4g} s: the run stops; "
+                    "lower it, use 'scaled' or force")
         self._bind()
 
     def initialize(self) -> None:

@@ -306,8 +306,9 @@ _FRICTION = Key("friction", "friction", "-", 0.0, "Coulomb friction: a coefficie
         "(frictionless)", note="Built for film, dme and penalty on node pairs, a rigid face (not a button), "
         "a small-strain wall and node to segment (film and dme on a curved master by the "
         "Tresca iteration, with e = 0; all three re-paired by repair_every, the penalty's "
-        "spring carried with its segment), for film and dme on a finite-strain wall; "
-        "refused in one line elsewhere (the penalty on a finite-strain wall; the penalty's "
+        "spring carried with its segment), for all three on a finite-strain wall (the "
+        "penalty's spring keeping its force at each change of step); refused in one line "
+        "elsewhere (the penalty's "
         "friction on a curved master or re-paired with a normal bound past 1). "
         "[friction.md](friction.md).")
 _TANGENTIAL_PENALTY = Key("tangential_penalty", "stiffness", "N/m", "scaled", "penalty with "

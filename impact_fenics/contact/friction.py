@@ -29,7 +29,9 @@ c = μ λ_n (``"stick"``: no cone):
 - penalty: a tangential spring k_t (N/m) on the committed elastic slip s_e (m), trial
   λ_tr = -k_t (s_e + h_{n+1/2} w~_t), returned to the cone where it lies outside it
   (plastic slip Δs_p), applied as FILM's; s_e += h_{n+1/2} w_t^{n+1/2} - Δs_p. k_t is
-  "scaled" (beta_t = k_t h_{n+1/2} A_ii = 1: the penalty's stick is FILM's) or given.
+  "scaled" (beta_t = k_t h_{n+1/2} A_ii = 1: the penalty's stick is FILM's) or given;
+  at a change of step a scaled k_t follows it and each spring keeps its force k_t s_e
+  (:func:`rescale_springs`), a given one is checked against beta_t <= 4/3.
 
 μ_i = μ_d + (μ_s - μ_d) exp(-d_c |w_t^{n-1/2}|) with the previous step's slip speed.
 

@@ -20,8 +20,12 @@ import sys
 import textwrap
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 # (a plane-strain run names the same slots sigma_xx, sigma_yy, sigma_out, sigma_xy, u_x, u_y)
 STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises",
@@ -66,12 +70,13 @@ def _finite(y: np.ndarray) -> np.ndarray:
 
 
 # the fixed layout of history.png and energy.png, inches: margins that hold the labels (left: a
-# y label of two lines and tick labels of 8 characters, "-0.00125"; top: the title; bottom:
-# the x tick labels and label); no layout engine measures the texts at every save
-MARGINS = {"left": 1.15, "right": 0.15, "top": 0.35, "bottom": 0.58}
+# y label of two lines and tick labels of 7 characters, "-120000"; right: half of a last time
+# tick label "100000" at the edge; top: the title; bottom: the x tick labels and label); no
+# layout engine measures the texts at every save
+MARGINS = {"left": 1.15, "right": 0.3, "top": 0.35, "bottom": 0.58}
 
 
-def _figure(n_rows: int, height: float, gap: float, **gridspec):
+def _figure(n_rows: int, height: float, gap: float, **gridspec) -> tuple[Figure, np.ndarray]:
     """A figure of 8 in x ``height`` in on the Agg canvas (no pyplot, no window) with
     ``n_rows`` axes over each other sharing x, laid out once: :data:`MARGINS` and ``gap``
     inches between the axes (room for a panel's offset text, e.g. "1e6")."""
@@ -123,7 +128,8 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
     return True
 
 
-def history_figure(h: dict[str, np.ndarray], probes: list[tuple[str, str]], title: str):
+def history_figure(h: dict[str, np.ndarray], probes: list[tuple[str, str]],
+                   title: str) -> Figure | None:
     """The figure of history.png (None when there is nothing to draw)."""
     if "time" not in h or h["time"].size == 0:
         return None
@@ -201,7 +207,7 @@ def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
     return True
 
 
-def energy_figure(e: dict[str, np.ndarray], title: str):
+def energy_figure(e: dict[str, np.ndarray], title: str) -> Figure | None:
     """The figure of energy.png: :func:`energy_curves` and the relative balance error
     (None without outputs)."""
     if "time" not in e or e["time"].size == 0:

@@ -357,8 +357,10 @@ def _wide_ledgers() -> tuple[dict, dict, list]:
     """History and energy columns whose tick labels are as wide as a run's get: a probe
     stress to -1500 MPa ("-1500"), a probe displacement to -2.5e-6 m ("-0.0025" mm), a
     contact force of 5e7 N (offset text "1e7"), rigid body columns, an energy of
-    -123456 J ("-120000") and a balance error over four decades (log ticks "10^-17")."""
-    t = np.linspace(0.0, 2e-4, 201)
+    -123456 J ("-120000"), a balance error over four decades (log ticks "10^-17") and a
+    time axis whose last tick, "100000" (µs), sits at the right edge of the view (the
+    data's end, 95240 µs, plus matplotlib's 5 % margin: 100002 µs)."""
+    t = np.linspace(0.0, 0.09524, 201)
     s = np.sin(np.linspace(0.0, 3.0, t.size))
     history = {"time": t, "s_mid": -1.5e9 * s, "u_mid": -2.5e-6 * s, "eps": 0.06 * s,
                "contact_force": 5e7 * s, "min_gap": -1e-4 * s, "striker_u": -3e-3 * s,

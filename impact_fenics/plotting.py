@@ -20,8 +20,12 @@ import sys
 import textwrap
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 # (a plane-strain run names the same slots sigma_xx, sigma_yy, sigma_out, sigma_xy, u_x, u_y)
 STRESSES = ("sigma_rr", "sigma_zz", "sigma_tt", "sigma_rz", "von_mises",
@@ -47,9 +51,6 @@ def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
     (a scene's title; default: the directory's name). A failure to plot never loses a
     run: it is reported in one line on stderr and skipped."""
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
         title = title or _run_name(run_dir)
         written = []
         path = os.path.join(run_dir, "history.png")
@@ -66,6 +67,31 @@ def write_history_plots(run_dir: str, history: dict[str, np.ndarray],
 
 def _finite(y: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(y), y, np.nan)
+
+
+# the fixed layout of history.png and energy.png, inches: margins that hold the labels (left: a
+# y label of two lines and tick labels of 7 characters, "-120000"; right: half of a last time
+# tick label "100000" at the edge; top: the title; bottom: the x tick labels and label); no
+# layout engine measures the texts at every save
+MARGINS = {"left": 1.15, "right": 0.3, "top": 0.35, "bottom": 0.58}
+
+
+def _figure(n_rows: int, height: float, gap: float, **gridspec) -> tuple[Figure, np.ndarray]:
+    """A figure of 8 in x ``height`` in on the Agg canvas (no pyplot, no window) with
+    ``n_rows`` axes over each other sharing x, laid out once: :data:`MARGINS` and ``gap``
+    inches between the axes (room for a panel's offset text, e.g. "1e6")."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    width = 8.0
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    m = MARGINS
+    mean_axes = (height - m["top"] - m["bottom"] - (n_rows - 1) * gap) / n_rows
+    fig.subplots_adjust(left=m["left"] / width, right=1.0 - m["right"] / width,
+                        top=1.0 - m["top"] / height, bottom=m["bottom"] / height,
+                        hspace=gap / mean_axes)
+    return fig, fig.subplots(n_rows, 1, sharex=True, squeeze=False, gridspec_kw=gridspec)[:, 0]
 
 
 # the probe panels: (quantities, y label, factor to the plotted unit)
@@ -95,10 +121,18 @@ def probe_panels(h: dict[str, np.ndarray], probes: list[tuple[str, str]]) -> lis
 
 def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, str]],
                   title: str) -> bool:
-    import matplotlib.pyplot as plt
-
-    if "time" not in h or h["time"].size == 0:
+    fig = history_figure(h, probes, title)
+    if fig is None:
         return False
+    fig.savefig(path, dpi=110)
+    return True
+
+
+def history_figure(h: dict[str, np.ndarray], probes: list[tuple[str, str]],
+                   title: str) -> Figure | None:
+    """The figure of history.png (None when there is nothing to draw)."""
+    if "time" not in h or h["time"].size == 0:
+        return None
     t = h["time"] * 1e6
     probe_names = {name for name, _ in probes}
     panels = probe_panels(h, probes)  # (ylabel, [(label, values)])
@@ -113,21 +147,17 @@ def _plot_history(path: str, h: dict[str, np.ndarray], probes: list[tuple[str, s
         panels.append(("rigid body displacement (mm)", rigid_u))
         panels.append(("rigid body velocity (m/s)", rigid_v))
     if not panels:
-        return False
-    fig, axes = plt.subplots(len(panels), 1, sharex=True, squeeze=False,
-                             figsize=(8, 1.0 + 2.2 * len(panels)))
-    for ax, (label, curves) in zip(axes[:, 0], panels):
+        return None
+    fig, axes = _figure(len(panels), 1.0 + 2.2 * len(panels), gap=0.35)
+    for ax, (label, curves) in zip(axes, panels):
         for name, y in curves:
             ax.plot(t, _finite(y), lw=1.2, label=name)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small", loc="best")
-    axes[-1, 0].set_xlabel("t (µs)")
-    axes[0, 0].set_title(f"{title}: histories")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+    axes[-1].set_xlabel("t (µs)")
+    axes[0].set_title(f"{title}: histories")
+    return fig
 
 
 # the energy panel's curves: (column, label); a column that is zero at every output is
@@ -170,14 +200,20 @@ def energy_curves(e: dict[str, np.ndarray]) -> list[tuple[str, str, np.ndarray]]
 
 
 def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
-    """energy.png: :func:`energy_curves` and the relative balance error."""
-    import matplotlib.pyplot as plt
-
-    if "time" not in e or e["time"].size == 0:
+    fig = energy_figure(e, title)
+    if fig is None:
         return False
+    fig.savefig(path, dpi=110)
+    return True
+
+
+def energy_figure(e: dict[str, np.ndarray], title: str) -> Figure | None:
+    """The figure of energy.png: :func:`energy_curves` and the relative balance error
+    (None without outputs)."""
+    if "time" not in e or e["time"].size == 0:
+        return None
     t = e["time"] * 1e6
-    fig, (ax, ax_err) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5),
-                                     gridspec_kw={"height_ratios": [2, 1]})
+    fig, (ax, ax_err) = _figure(2, 6.5, gap=0.25, height_ratios=[2, 1])
     marker = "." if t.size < 40 else None
     for name, label, y in energy_curves(e):
         if name == "balance":
@@ -197,10 +233,7 @@ def _plot_energy(path: str, e: dict[str, np.ndarray], title: str) -> bool:
     if not np.any(np.isfinite(shown)):
         ax_err.text(0.5, 0.5, "balance error 0 at every output step", ha="center",
                     va="center", transform=ax_err.transAxes)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+    return fig
 
 
 # ----------------------------------------------------------------------------- fields

@@ -351,3 +351,51 @@ def test_pictures_keep_r_to_the_right_and_z_up_with_straight_edges(taylor_run, p
         assert "small punch: von_mises" in plotting.plan_pictures(punch_run, "von_mises",
                                                                  [2e-6])[0].title
     MPI.COMM_WORLD.barrier()
+
+
+def _wide_ledgers() -> tuple[dict, dict, list]:
+    """History and energy columns whose tick labels are as wide as a run's get: a probe
+    stress to -1500 MPa ("-1500"), a probe displacement to -2.5e-6 m ("-0.0025" mm), a
+    contact force of 5e7 N (offset text "1e7"), rigid body columns, an energy of
+    -123456 J ("-120000"), a balance error over four decades (log ticks "10^-17") and a
+    time axis whose last tick, "100000" (µs), sits at the right edge of the view (the
+    data's end, 95240 µs, plus matplotlib's 5 % margin: 100002 µs)."""
+    t = np.linspace(0.0, 0.09524, 201)
+    s = np.sin(np.linspace(0.0, 3.0, t.size))
+    history = {"time": t, "s_mid": -1.5e9 * s, "u_mid": -2.5e-6 * s, "eps": 0.06 * s,
+               "contact_force": 5e7 * s, "min_gap": -1e-4 * s, "striker_u": -3e-3 * s,
+               "striker_v": 27.0 * s}
+    probes = [("s_mid", "sigma_zz"), ("u_mid", "u_z"), ("eps", "eps_p_eq")]
+    energy = {"time": t, "kinetic": 122041.0 * (1 - s), "strain": 4875.0 * s,
+              "plastic_work": 52240.0 * s, "total": np.full(t.size, 122041.0),
+              "contact_work": -123456.0 * s, "balance_error_rel": np.logspace(-17, -13, t.size)}
+    return history, energy, probes
+
+
+def test_the_fixed_layout_keeps_every_text_in_the_picture():
+    """history.png and energy.png are laid out once with fixed margins (no layout engine
+    at save): with the widest tick labels of a run, everything drawn of each panel (its
+    title, axis and tick labels, offset texts, legend: the renderer's tight box of the
+    panel) lies inside the picture, and no text of a panel reaches into another panel.
+    Geometry of the renderer's extents in pixels at the saved dpi: containment is exact,
+    no tolerance."""
+    history, energy, probes = _wide_ledgers()
+    figures = [plotting.history_figure(history, probes, "a run"),
+               plotting.energy_figure(energy, "a run")]
+    for fig in figures:
+        fig.set_dpi(110)  # as saved
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        page = fig.bbox
+        for ax in fig.axes:
+            box = ax.get_tightbbox(renderer)
+            assert (page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0
+                    and box.y1 <= page.y1), (ax.get_ylabel(), box, page)
+            texts = [ax.yaxis.get_tightbbox(renderer), ax.xaxis.get_tightbbox(renderer),
+                     ax.title.get_window_extent(renderer) if ax.get_title() else None]
+            for other in fig.axes:
+                if other is not ax:
+                    frame = other.get_window_extent(renderer)
+                    for text in texts:
+                        assert text is None or not text.overlaps(frame), (
+                            ax.get_ylabel(), text, frame)

@@ -243,8 +243,16 @@ def _scene_checks(sim, scene_path: str) -> dict:
     contact = sim.summary.get("contact")
     if contact is not None:
         first, last = contact["first_contact_step"], contact["last_contact_step"]
-        extra["contact_duration"] = ((last - first + 1) * sim.settings.dt
-                                     if first is not None else 0.0)
+        if first is None:
+            extra["contact_duration"] = 0.0
+        elif sim.integrator.step.constant:
+            extra["contact_duration"] = (last - first + 1) * sim.settings.dt
+        else:  # a varying step: between the history's first and last rows with contact
+            rows = [c for c in sim.summary.get("impact", [])
+                    if c.get("first_contact_time") is not None]
+            if rows:
+                extra["contact_duration"] = (max(c["last_contact_time"] for c in rows)
+                                             - min(c["first_contact_time"] for c in rows))
     return extra
 
 
@@ -270,7 +278,8 @@ def _report(title: str, s: dict, out_dir: str) -> None:
     if "contact" in s:
         c = s["contact"]
         first, last = c["first_contact_step"], c["last_contact_step"]
-        span = (f"active from step {first} to {last} ({(last - first + 1) * s['dt'] * 1e6:.1f} us)"
+        span = (f"active from step {first} to {last}"
+                + (f" ({s['contact_duration'] * 1e6:.1f} us)" if "contact_duration" in s else "")
                 if first is not None else "never active")
         repaired = (f", re-paired every {c['repair_every']} step(s) ({c['repairs']} times)"
                     if "repair_every" in c else "")

@@ -131,6 +131,13 @@ def test_run_directory_and_summary(taylor_run):
     assert abs(s["energy"]["balance_error"]) <= ledger(s["n_steps"], s["n_dofs"]) * K0
     assert s["eps_p_max"] > 0.5 and s["contact"]["method"] == "film"
     assert 0 < s["dt_range"][0] <= s["dt_range"][1]
+    # in contact from the first step to the last: under a varying step the duration runs
+    # between the history's first and last rows with contact, t^1 and t_end (a count of
+    # steps times the first dt overstates it once the cells crush and the step shrinks)
+    (c,) = s["impact"]
+    assert c["last_contact_time"] == s["t_end"]
+    assert s["contact_duration"] == c["last_contact_time"] - c["first_contact_time"]
+    assert s["contact_duration"] == pytest.approx(s["t_end"] - s["dt_range"][1], rel=1e-9)
     for key in ("final_length", "final_face_radius", "plastic_work", "stored_elastic",
                 "j_min", "version", "date", "command_line", "setup_time", "scene_file",
                 "timing", "step_time_median"):

@@ -565,12 +565,14 @@ class Tangential(FrictionFigures):
     stiffness ``stiffness`` (N/m, or ``"scaled"``: beta_t = 1 per row, k_t = m_red /
     (h_{n+1/2} h_n)). Made by ``ContactSet.set_friction``."""
 
-    def __init__(self, c, law: FrictionLaw, kernel: int, stiffness: float | str = "scaled"):
+    def __init__(self, c, law: FrictionLaw, kernel: int, stiffness: float | str = "scaled",
+                 force: bool = False):
         self.c, self.law, self.kernel = c, law, kernel
         self.stiffness = stiffness
         # a given k_t whose beta_t passes 4/3 at a change of step in the run stops it
-        # unless forced (set by ContactSet.set_friction; at set-up it is refused there)
-        self.forced = False
+        # unless forced (``force``, as ContactSet.set_friction was given; at set-up it is
+        # refused there)
+        self.forced = force
         # the set's one compiled call of a step runs this pass too
         # (:func:`.fused.contact_step_friction`); False: the set calls :meth:`step`, the
         # pass as a call of its own (the tests compare the two paths)

@@ -453,8 +453,7 @@ class ContactSet:
             raise InputError(f"{what}: a button (a rigid face with a profile) with friction is "
                              "not built: its tangent is tilted, which the rigid kind does not "
                              "have")
-        tangential = Tangential(self, law, kernel, tangential_penalty)
-        tangential.forced = force
+        tangential = Tangential(self, law, kernel, tangential_penalty, force)
         rigid = self.rigid
         if rigid is not None and not rigid.fixed:
             if tangential.slides:  # its x dof is coupled by the pass (docs/friction.md 11)

@@ -26,3 +26,9 @@ with _interrupts.held_at_start():  # a signal during MPI's start-up: one line, e
         import petsc4py as _petsc4py
 
         _petsc4py.init(["impact_fenics", "-no_signal_handler"])  # (program name, option)
+
+# numba's on-disk cache of the package's kernels is valid for the sources that filled it
+# only (kernel_cache): swept before any kernel loads, once for ranks that import at once
+from . import kernel_cache as _kernel_cache  # noqa: E402
+
+_kernel_cache.sweep(_os.path.dirname(_os.path.abspath(__file__)))

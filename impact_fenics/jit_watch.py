@@ -66,33 +66,6 @@ def contiguous_float64(a, ndim: int) -> bool:
             and a.flags.c_contiguous and a.flags.aligned and a.flags.writeable)
 
 
-def drop_stale_cache(kernel, modules) -> None:
-    """Delete numba's on-disk cache of ``kernel`` if a source file of ``modules`` (the
-    modules whose kernels it calls, compiled into it) is newer than that cache: numba
-    checks a cached kernel against its own file only, so an edit of a kernel it calls
-    would otherwise keep running the old code. Call at import, before the kernel
-    compiles or loads. (A fresh clone has no cache: nothing to do.)"""
-    import glob
-    import os
-
-    cache = getattr(kernel, "_cache", None)
-    where = getattr(cache, "_cache_path", None)
-    if not where or not os.path.isdir(where):
-        return
-    stem = os.path.splitext(os.path.basename(kernel.py_func.__code__.co_filename))[0]
-    entries = glob.glob(os.path.join(where, f"{stem}.{kernel.py_func.__name__}-*"))
-    if not entries:
-        return
-    newest = max(os.path.getmtime(m.__file__) for m in modules)
-    if newest <= min(os.path.getmtime(e) for e in entries):
-        return
-    for entry in entries:  # (another process may be deleting them too)
-        try:
-            os.remove(entry)
-        except OSError:
-            pass
-
-
 def cold_share(kernels) -> float:
     """The share (0 to 1) of numba ``kernels`` that will compile rather than load from
     numba's on-disk cache: those whose cache index is absent (a first run) or holds

@@ -54,7 +54,6 @@ from .contact.fused import contact_step
 from .cell_fields import STRESS_NAMES, isotropic_stress_range, track_peaks
 from .energy import (STABLE, _output_sums, copy_state, energy_verdict, half_dot,
                      strain_from_prediction)
-from .jit_watch import drop_stale_cache
 from .contact.interface import ContactSet
 from .contact.state import (B, FORCE, LEDGER, LO, MISC_SIZE, N_CONS, RIGID_MASS, RIGID_WORK,
                             STATS, U, U_NOW, UP, V, V_NOW, WAVES, _committed_gap, _pack)
@@ -351,16 +350,6 @@ def run_steps(ints, dt, limit, src_u, src_v, recv, F, c_ints, flags, misc, f_ext
     ints[I_N_FRAMES] = n_frames
 
 
-# run_steps compiles the kernels of these modules into itself: its cache goes with theirs
-def _callees():
-    from . import cell_fields, energy, output, probes, timers, xdmf
-    from .contact import dme, film, fused, penalty, state
-
-    return (native, cell_fields, energy, output, probes, timers, xdmf, dme, film, fused,
-            penalty, state)
-
-
-drop_stale_cache(run_steps, _callees())
 
 
 class StepBlock:

@@ -56,9 +56,8 @@ from mpi4py import MPI
 from numba import njit
 
 from ..errors import InputError, UnstableRunError
-from ..jit_watch import direct, drop_stale_cache
+from ..jit_watch import direct
 from ..plausibility import warn
-from . import state as _state
 from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
 
 # the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
@@ -528,9 +527,6 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
                               rows[R_SLIP_LIMIT][:lo.size if x[X_LIMITED] != 0.0 else 0],
                               kernel == PENALTY_T, d_slip, change)
 
-
-# numba checks a cached kernel against its own file only: the pass compiles state's in
-drop_stale_cache(_tangential_pass, (_state,))
 
 
 # ----------------------------------------------------------------------------- the pass

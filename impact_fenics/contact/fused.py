@@ -37,8 +37,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..jit_watch import drop_stale_cache
-from . import dme, film, friction, penalty, state
 from .dme import _cluster, _pairs
 from .film import _film_fast
 from .friction import _tangential_pass
@@ -56,9 +54,11 @@ PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
 
 def _make_face_step(code: int):
     """The rigid-face step of method ``code``, compiled for it alone (``code`` is a
-    constant of the closure: no branch on the method inside the loops)."""
+    constant of the closure: no branch on the method inside the loops). Each method's
+    closure has a name of its own: a cached kernel that calls it holds it under that
+    name, and one name for the three would let a process that loads two caches made by
+    two processes link one method's step to another's (kernel_cache)."""
 
-    @njit(cache=True)
     def _face_step(src_u, src_v, recv, F, ints, flags, misc):
         """The step of a rigid face (constraint i ties node slot i to the body's slot) for
         penalty, FILM fast and DME's cluster in two passes over the nodes: A takes the
@@ -233,7 +233,9 @@ def _make_face_step(code: int):
         misc[STATS + 2] = min_gap
         return inc + inc_jump, jumped_now, grew, True
 
-    return _face_step
+    name = {PENALTY: "penalty", FILM_FAST: "film_fast", DME_CLUSTER: "dme_cluster"}[code]
+    _face_step.__name__ = _face_step.__qualname__ = f"_face_step_{name}"
+    return njit(cache=True)(_face_step)
 
 
 _FACE_STEP = {code: _make_face_step(code) for code in (PENALTY, FILM_FAST, DME_CLUSTER)}
@@ -369,7 +371,3 @@ def contact_step_friction(src_u, src_v, recv, F, ints, flags, misc, t_own, t_rec
     misc[LEDGER] += w_t
     return u_r, v_r, far
 
-
-# contact_step compiles the method kernels into itself: its cache goes with theirs
-drop_stale_cache(contact_step, (dme, film, penalty, state))
-drop_stale_cache(contact_step_friction, (dme, film, friction, penalty, state))

@@ -1,0 +1,141 @@
+"""A rigid part of prescribed velocity (docs/friction.md 12): serial and mpirun -n 2, 3.
+
+The scene: the coarse punch block, free but for its axis, under a flat rigid face of
+radius 1 m (penalty, FILM and DME). The oracles do not come from the code under test:
+
+(a) exact equivalences: a prescribed velocity 0 is the fixed part bit for bit (the same
+    expressions: h/m = m/h = 0 at its slot, v = 0 added); and Galilean invariance: the
+    punch driven down at V against the block at rest is, relative to the punch, the
+    fixed punch hit by the block moving up at V. The two runs differ by round-off at
+    every step (K u of the drifting state, the positions' sums), compared by the
+    project's whole-run rule (tests/roundoff.py, assert_within_spread: the spread of a
+    one-ulp change of V, plus a step's 32 roundings of the quantity, times the steps);
+(b) the energy ledger closes with the motion's work booked, to the ledger's bound
+    (roundoff.ledger, drifting: the block is pushed away);
+(c) conservation of momentum: the reaction impulse sum h R^n on the punch is minus the
+    block's momentum change, and the motion's work is V times it.
+"""
+import numpy as np
+import pytest
+
+from impact_fenics.bodies import Body, DeformableModel
+from impact_fenics.contact import DME, FILM, Penalty, RigidBody, rigid_face
+from impact_fenics.contact.prescribed import PrescribedVelocity, prescribed_velocity
+from impact_fenics.errors import InputError
+from impact_fenics.materials import STEEL
+from impact_fenics.simulation import Settings, Simulation
+from roundoff import EPS, STEP_ROUNDINGS, assert_within_spread, ledger, one_ulp
+
+V = 2.0  # m/s, the punch's speed
+N_STEPS = 40
+METHODS = {"penalty": lambda: Penalty("scaled", beta_target=0.9), "film": FILM, "dme": DME}
+
+
+def _run(mesh, method: str, body_v: float, punch: RigidBody):
+    """The block (initial z velocity ``body_v``) under ``punch``; (sim, summary)."""
+    model = DeformableModel(mesh, [Body("block", STEEL)])
+    sim = Simulation(model, Settings(cfl=0.9, n_steps=N_STEPS, output_every=1,
+                                     quiet=True, plots=False),
+                     initial_velocity={"block": (0.0, body_v)} if body_v else None)
+    sim.add_contact(rigid_face(model, "surface", 1.0, "punch"), METHODS[method](), rigid=punch)
+    return sim, sim.run()
+
+
+def _prescribed(v: float) -> RigidBody:
+    return RigidBody("punch", np.inf, prescribed=prescribed_velocity("punch", v))
+
+
+def _z(sim) -> np.ndarray:
+    return sim.model.body_dofs("block", 1)
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_a_prescribed_velocity_0_is_the_fixed_part_bit_for_bit(punch_mesh, method):
+    fixed, s_fixed = _run(punch_mesh, method, V, RigidBody("punch", 1.0, fixed=True))
+    still, s_still = _run(punch_mesh, method, V, _prescribed(0.0))
+    assert s_fixed["status"] == s_still["status"] == "completed"
+    assert fixed.contacts[0].any_active or fixed.track.first is not None  # contact was made
+    for a, b in ((fixed.integrator.u_owned, still.integrator.u_owned),
+                 (fixed.integrator.v_owned, still.integrator.v_owned)):
+        assert np.array_equal(a, b)
+    e_fixed, e_still = fixed.energy.data(), still.energy.data()
+    assert list(e_fixed) == list(e_still)  # a prescribed part keeps no momentum column
+    for name in e_fixed:
+        assert np.array_equal(e_fixed[name], e_still[name]), name
+    h = still.history.data()
+    assert np.all(h["punch_u"] == 0.0) and np.all(h["punch_v"] == 0.0)
+    assert s_still["rigid_bodies"]["punch"]["prescribed"] is True
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_galilean_invariance_and_the_ledger(punch_mesh, method):
+    lab, s_lab = _run(punch_mesh, method, 0.0, _prescribed(-V))
+    frame, _ = _run(punch_mesh, method, V, _prescribed(0.0))
+    nudged, _ = _run(punch_mesh, method, one_ulp(V), _prescribed(0.0))
+    assert s_lab["status"] == "completed"
+    punch = lab.contacts[0].rigid
+    # the punch moved by -V t exactly per step (a constant: v^{n+1/2} = V, u += h V)
+    t_end = lab.integrator.t
+    assert abs(punch.u + V * t_end) <= N_STEPS * EPS * V * t_end  # a rounding a step
+    assert punch.v == -V
+    z = _z(lab)
+    for name, got, ref, pert, shift in (
+            ("u", lab.integrator.u_owned, frame.integrator.u_owned, nudged.integrator.u_owned,
+             punch.u),
+            ("v", lab.integrator.v_owned, frame.integrator.v_owned, nudged.integrator.v_owned,
+             punch.v)):
+        rel = got.copy()
+        rel[z] -= shift  # relative to the punch
+        # the quantity's scale is the lab's (|u| ~ V t, |v| ~ V): its roundings are on it
+        assert_within_spread(rel, ref, pert, N_STEPS, f"{method} {name} relative to the punch",
+                             scale=float(np.abs(got).max()) + abs(shift))
+    # (b) the ledger closes with the motion's work booked (as the punch's external work)
+    e = lab.energy.data()
+    assert e["external_work"][-1] > 0.0  # the punch does work on the block
+    assert np.all(np.abs(e["balance_error_rel"]) <= ledger(N_STEPS, s_lab["n_dofs"],
+                                                            drifting=True))
+    # (c) momentum: sum h R^n = -(p^{N} - p^0) of the block; its roundings: each step's
+    # K u sums to zero over the z dofs in exact arithmetic (a rigid translation strains
+    # nothing), in floats within 18 roundings of |K| |u| a dof, whose impulse h |K u| <=
+    # (omega h)^2 / h |u| m <= 4 m |v| (|u| <= n h |v|): STEP_ROUNDINGS x n x sum m |v| a
+    # step, the sum of the steps' impulses the same per step
+    h = lab.history.data()  # a row after each step (1 ... N), h["dt"] its step
+    impulse = float(np.sum(h["dt"] * h["punch_reaction"]))
+    p_block = e["momentum_z_block"]  # the block starts at rest: p^0 = 0
+    mv = lab.comm.allreduce(float(np.dot(lab.integrator.mass[z], np.abs(lab.integrator.v_owned[z]))))
+    tol = EPS * STEP_ROUNDINGS * N_STEPS ** 2 * mv
+    assert p_block[-1] < 0.0
+    assert abs(impulse + p_block[-1]) <= tol, (impulse, p_block[-1], tol)
+    # the motion's work, -sum h 1/2 (v^{n-1/2} + v^{n+1/2}) R^n at v = -V: V times the impulse
+    assert abs(e["external_work"][-1] - V * impulse) <= rounding_of_sum(h, V)
+    assert s_lab["rigid_bodies"]["punch"] == {"prescribed": True, "u": punch.u, "v": -V,
+                                              "reaction": punch.reaction}
+
+
+def rounding_of_sum(h, v) -> float:
+    """The two sums of h R (the history's and the ledger's) round each term: 3 a step
+    on |v h R| (a product and an add each, the ledger's 1/2 (v + v))."""
+    return 3 * EPS * v * float(np.sum(np.abs(h["dt"] * h["punch_reaction"])))
+
+
+def test_the_table_moves_the_part_by_its_integral():
+    """v linear between points, held after the last: the step's mean is the exact integral
+    (trapezoids of a linear v), so sum h v^{n+1/2} telescopes to int_0^t v dt."""
+    law = PrescribedVelocity("p", points=[(0.0, 0.0), (1e-3, -2.0), (3e-3, -2.0), (4e-3, 1.0)])
+    t, u, h = 0.0, 0.0, 0.37e-3
+    for _ in range(20):  # steps that straddle the points, and past the last
+        u += h * law.mean(t, h)
+        t += h
+    # int_0^t v: 1/2 (1e-3)(-2) + (2e-3)(-2) + 1/2 (1e-3)(-2 + 1) + (t - 4e-3)(1)
+    exact = -1e-3 - 4e-3 - 0.5e-3 + (t - 4e-3)
+    assert abs(u - exact) <= 20 * 8 * EPS * 1e-2  # 8 roundings a step on |u|, |h v| <= 1e-2 m
+    assert law(2e-3) == -2.0 and law(5e-3) == 1.0 and law(0.5e-3) == -1.0
+
+
+def test_refusals():
+    law = prescribed_velocity("punch", -1.0)
+    for kw in (dict(v=1.0), dict(impedance=1e3), dict(v_x=1.0), dict(fixed=True)):
+        with pytest.raises(InputError, match="a prescribed velocity takes no"):
+            RigidBody("punch", np.inf, prescribed=law, **kw)
+    with pytest.raises(InputError, match="increase strictly"):
+        PrescribedVelocity("p", points=[(0.0, 1.0), (0.0, 2.0)])

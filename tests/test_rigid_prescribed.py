@@ -18,6 +18,8 @@ radius 1 m (penalty, FILM and DME). The oracles do not come from the code under 
 import numpy as np
 import pytest
 
+from mpi4py import MPI
+
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact import DME, FILM, Penalty, RigidBody, rigid_face
 from impact_fenics.contact.prescribed import PrescribedVelocity, prescribed_velocity
@@ -28,6 +30,7 @@ from roundoff import EPS, STEP_ROUNDINGS, assert_within_spread, ledger, one_ulp
 
 V = 2.0  # m/s, the punch's speed
 N_STEPS = 40
+COMM = MPI.COMM_WORLD
 METHODS = {"penalty": lambda: Penalty("scaled", beta_target=0.9), "film": FILM, "dme": DME}
 
 
@@ -139,3 +142,44 @@ def test_refusals():
             RigidBody("punch", np.inf, prescribed=law, **kw)
     with pytest.raises(InputError, match="increase strictly"):
         PrescribedVelocity("p", points=[(0.0, 1.0), (0.0, 2.0)])
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")
+def test_scene_key_prescribed_velocity(tmp_path):
+    """[rigid.NAME] prescribed_velocity: a table drives the punch into the block from the
+    command line; the history has its u, v and reaction, the summary says it is
+    prescribed, its stroke is the table's integral (a rounding a step: the step's mean
+    times h into a running sum), the ledger closes (the run's own check). A mass with it,
+    a bad table and a force on it are refused in one line."""
+    import json
+
+    from scene_texts import RIGID, assert_refused, launch, read_history, replace
+
+    base = RIGID[:RIGID.index("[[loads]]")] + RIGID[RIGID.index("[time]"):]  # no force
+    text = replace(base, "mass = 0.1\n", "prescribed_velocity = [[0.0, 0.0], [1e-6, -1.0]]\n")
+    scene = tmp_path / "drive.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    proc = launch(["run", scene, "--out", out], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    h = read_history(out)
+    t = h["time"]
+    stroke = np.where(t <= 1e-6, -0.5 * t ** 2 / 1e-6, -0.5e-6 - (t - 1e-6))  # int_0^t v dt
+    assert np.all(np.abs(h["punch_u"] - stroke) <= 8 * EPS * np.arange(1, t.size + 1) * 1e-6)
+    assert h["punch_v"][-1] == -1.0 and h["punch_reaction"].max() > 0.0
+    end = json.loads((out / "summary.json").read_text())["rigid_bodies"]["punch"]
+    assert end["prescribed"] is True and end["u"] == h["punch_u"][-1]
+    assert "rigid punch: prescribed" in proc.stdout
+    for old, new, expected in (
+            ("mass = 0.1\n", "mass = 0.1\nprescribed_velocity = -1.0\n",
+             "error: [rigid.punch] mass with prescribed_velocity"),
+            ("mass = 0.1\n", "prescribed_velocity = [[1.0]]\n",
+             "error: [rigid.punch] prescribed_velocity = [[1.0]]: give a velocity")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(replace(base, old, new))
+        assert_refused(["run", bad, "--out", tmp_path / "bad_out"], expected,
+                       tmp_path / "bad_out")
+    bad.write_text(replace(RIGID, "mass = 0.1\n", "prescribed_velocity = -1.0\n"))
+    assert_refused(["run", bad, "--out", tmp_path / "bad_out"],
+                   "error: [loads #1] rigid = \"punch\": [rigid.punch] has a prescribed_velocity",
+                   tmp_path / "bad_out")

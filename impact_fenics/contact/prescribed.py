@@ -63,10 +63,16 @@ class PrescribedVelocity:
         return float(self._u[k]) + 0.5 * (t - self.t[k]) * (self.v[k] + self(t))
 
     def mean(self, t0: float, h: float) -> float:
-        """v^{n+1/2} = (1/h) int_{t0}^{t0+h} v dt (m/s); V itself for a constant."""
+        """v^{n+1/2} = (1/h) int_{t0}^{t0+h} v dt (m/s); V itself for a constant. Within
+        one segment of the table (v linear there) the mean of its two ends, so a held
+        value is the value itself; across points the difference of the integrals."""
         if self.constant:
             return float(self.v[0])
-        return (self.displacement(t0 + h) - self.displacement(t0)) / h
+        t1 = t0 + h
+        t = self.t
+        if np.searchsorted(t, t0, side="right") == np.searchsorted(t, t1, side="left"):
+            return 0.5 * (self(t0) + self(t1))
+        return (self.displacement(t1) - self.displacement(t0)) / h
 
 
 def prescribed_velocity(name: str, velocity: float | list[tuple[float, float]]

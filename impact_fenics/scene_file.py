@@ -591,13 +591,16 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
         energy_columns = 0
     else:
-        columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
-                                              for c in scene.contacts)
+        columns = 3 + len(scene.probes) + sum(
+            6 + 2 * (c.rigid is not None)
+            + (c.rigid is not None and scene.rigid[c.rigid].prescribed is not None)
+            for c in scene.contacts)  # (a prescribed part's reaction)
         columns += 6 if scene.wall is not None else 0
         if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
             columns += 3  # the bar's (the rod's) tracked nodes
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
-        energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
+        energy_columns = 13 + len(scene.bodies) + sum(r.prescribed is None  # (momentum)
+                                                      for r in scene.rigid.values())
     shape = resources.RunShape(
         cells, nodes, n_steps, comm.size, finite=scene.finite, finite_cells=finite_cells,
         plastic=plastic,

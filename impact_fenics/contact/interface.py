@@ -340,7 +340,8 @@ class ContactSet:
         self.stats = self._misc[STATS:STATS + 3]
         self.stats[:] = 0.0, 0.0, np.inf
         self._gap_out = np.empty(n)
-        self._node_forces = self.f_prev[:nd]  # the deformable slots' F^n (N; a prescribed part's reaction)
+        # the deformable slots' F^n (N): minus their sum is a prescribed part's reaction
+        self._node_forces = self.f_prev[:nd]
         self._v_prescribed_prev = 0.0
         self.jumps = bool(getattr(method, "jumps", False))
         self._ledger = _ContactWork(self)

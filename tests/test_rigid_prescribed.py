@@ -220,3 +220,41 @@ def test_scene_key_prescribed_velocity(tmp_path):
     assert_refused(["run", bad, "--out", tmp_path / "bad_out"],
                    "error: [loads #1] rigid = \"punch\": [rigid.punch] has a prescribed_velocity",
                    tmp_path / "bad_out")
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")
+def test_a_finite_strain_upsetting_under_a_varying_step(tmp_path):
+    """scenes/upsetting_finite.toml with its platen driven by a table (ramp to 0.5 m/s over
+    50 us, then held) instead of a heavy mass, run short: the step follows the cells
+    (varying), and the platen's stroke is the table's integral at every history row to a
+    few roundings a step (the mean's integrals and h v: 8 on |u|; the history's time, a
+    sum of the steps, 1 on t, times |v|), the reaction compressive, the ledger closed to
+    its bound (the run's own check and the table's column)."""
+    import json
+    import os
+
+    from scene_texts import ROOT, launch, read_history, replace
+
+    with open(os.path.join(ROOT, "scenes", "upsetting_finite.toml")) as f:
+        text = f.read()
+    text = replace(text, "mass = 1e6              # kg",
+                   "prescribed_velocity = [[0.0, 0.0], [50e-6, -0.5]]")
+    text = text[:text.index("[[loads]]")] + text[text.index("[wall]"):]
+    text = replace(replace(text, "t_end = 1e-3            # s", "t_end = 8e-5  # s"),
+                   "n_r = 8", "n_r = 4")
+    scene = tmp_path / "upsetting.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    proc = launch(["run", scene, "--out", out], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    h = read_history(out)
+    t, n = h["time"], h["step"]
+    assert np.ptp(h["dt"]) > 0.0  # the step varied
+    stroke = np.where(t <= 50e-6, -0.5 * 0.5 * t ** 2 / 50e-6, -12.5e-6 - 0.5 * (t - 50e-6))
+    assert np.all(np.abs(h["c0_platen_u"] - stroke)
+                  <= n * EPS * (8 * np.abs(stroke) + 0.5 * t))
+    assert np.all(h["c0_platen_reaction"][t > 0.0] >= 0.0)  # the billet pushes it up
+    e = np.genfromtxt(out / "energy.csv", delimiter=",", names=True)
+    assert "momentum_z_platen" not in e.dtype.names
+    n_dofs = json.loads((out / "summary.json").read_text())["n_dofs"]
+    assert np.all(np.abs(e["balance_error_rel"]) <= ledger(int(n[-1]), n_dofs))

@@ -50,7 +50,8 @@ def _toml(value: Any) -> str:
 
 _KIND = {"number": "number", "positive": "number > 0", "count": "integer ≥ 1",
          "flag": "true / false", "pair": "[a, b]", "breaks": "[[r, n], ...]",
-         "table": "table", "tables": "tables", "array": "array of tables"}
+         "table": "table", "tables": "tables", "array": "array of tables",
+         "velocity_table": "number or [[t, v], ...]"}
 
 
 def _kind(k: Key) -> str:

@@ -24,9 +24,10 @@ ENERGY_COLUMNS = ("kinetic", "strain", "total", "external_work", "contact_work",
 
 def momentum_columns(bodies: Iterable[str], contacts: list) -> list[str]:
     """The z momentum columns (kg m/s): the total, then per body and per moving rigid body
-    of the contact sets (a fixed one takes any impulse and keeps none); then the x
+    of the contact sets (a fixed or prescribed one takes any impulse and keeps none); then the x
     momentum M V of each rigid body that slides (plane strain, docs/friction.md 11)."""
-    names = list(bodies) + [c.rigid.name for c in contacts if c.moving_rigid is not None]
+    names = list(bodies) + [c.rigid.name for c in contacts if c.moving_rigid is not None
+                            and c.rigid.prescribed is None]
     sliding = [c.rigid.name for c in contacts
                if c.moving_rigid is not None and c.rigid.slides]
     return (["momentum_z"] + [f"momentum_z_{n}" for n in names]
@@ -53,6 +54,8 @@ def open_tables(staging: str | None, probes, contacts: list, integ, dt: float,
         cols += [f"{tag}n_active", f"{tag}{force}", f"{tag}min_gap"]
         if c.moving_rigid is not None:  # (a fixed part's would be zeros)
             cols += [f"{tag}{c.rigid.name}_u", f"{tag}{c.rigid.name}_v"]
+            if c.rigid.prescribed is not None:  # the contact's z force on it (N)
+                cols += [f"{tag}{c.rigid.name}_reaction"]
             if c.rigid.slides:  # its x dof (plane strain)
                 cols += [f"{tag}{c.rigid.name}_u_x", f"{tag}{c.rigid.name}_v_x"]
         cols += [f"{tag}cpu_detection", f"{tag}cpu_solve", f"{tag}cpu_update"]
@@ -113,6 +116,7 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
         slides = rigid is not None and rigid.slides
         layout.append((memoryview(c.stats), c.times, rigid, slides, k))
         k += 6 + (2 if rigid is not None else 0) + (2 if slides else 0)
+        k += 1 if rigid is not None and rigid.prescribed is not None else 0
         if getattr(c, "friction", None) is not None:
             which = tuple(i for _, i in c.friction.history_columns)
             friction.append((c.friction.stats, which, k))
@@ -143,6 +147,9 @@ def history_filler(table: output.Table, probes, offset: int, integ, dt: float,
                 cells[k + 3] = rigid.u
                 cells[k + 4] = rigid.v
                 k += 2
+                if rigid.prescribed is not None:
+                    cells[k + 3] = rigid.reaction
+                    k += 1
                 if slides:
                     cells[k + 3] = rigid.u_x
                     cells[k + 4] = rigid.v_x

@@ -109,9 +109,11 @@ def console_lines(s: dict) -> list[str]:
                      f"{b['strain_energy']:.4g} J"
                      + (f", plastic work {b['plastic_work']:.4g} J" if "plastic_work" in b else ""))
     for name, r in s.get("rigid_bodies", {}).items():
-        lines.append(f"rigid {name}: mass {r['mass']:.6g} kg, {v_axial} {r['v']:.4g} m/s, "
+        what = ("prescribed" if r.get("prescribed") else f"mass {r['mass']:.6g} kg")
+        lines.append(f"rigid {name}: {what}, {v_axial} {r['v']:.4g} m/s, "
                      f"{'u_y' if plane else 'u_z'} {r['u']:.4g} m"
                      + (f", v_x {r['v_x']:.4g} m/s, u_x {r['u_x']:.4g} m" if "v_x" in r else "")
+                     + (f", reaction {r['reaction']:.4g} N" if "reaction" in r else "")
                      + " at the end")
     for c in s.get("impact", []):
         if "peak_force" not in c:

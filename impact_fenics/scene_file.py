@@ -59,6 +59,7 @@ class RigidSpec:
     velocity: float  # m/s along z
     impedance: float = 0.0  # kg/s, of a rod driving the body (percussive drilling)
     velocity_x: float = 0.0  # m/s sideways (plane strain)
+    prescribed: float | list | None = None  # m/s, or [(t, v)] (s, m/s): a prescribed z velocity
 
 
 @dataclass
@@ -345,6 +346,24 @@ def _read_rigid(name: str, data: dict) -> RigidSpec:
         spec.impedance = t.value("impedance")
     if "velocity_x" in t:
         spec.velocity_x = t.value("velocity_x")
+    if "prescribed_velocity" not in t:
+        if spec.mass is None:
+            raise InputError(f"[rigid.{name}] mass is missing: mass (kg), or a "
+                             "prescribed_velocity (m/s)")
+        return spec
+    given = [k for k in ("mass", "velocity", "velocity_x", "impedance") if k in t]
+    if given:
+        raise InputError(f"[rigid.{name}] {given[0]} with prescribed_velocity: a prescribed "
+                         "body's motion is given (no mass, initial or sideways velocity, rod)")
+    v = t.data["prescribed_velocity"]
+    if is_number(v):
+        spec.prescribed = float(v)
+    elif (isinstance(v, list) and v and all(isinstance(p, list) and len(p) == 2
+                                            and all(is_number(x) for x in p) for p in v)):
+        spec.prescribed = [(float(p[0]), float(p[1])) for p in v]
+    else:
+        raise t.error("prescribed_velocity", "give a velocity (m/s) or a table "
+                      "[[t, v], ...] of times (s) and velocities (m/s)")
     return spec
 
 
@@ -430,6 +449,9 @@ def _read_load(where: str, data: dict, rigid: dict[str, RigidSpec]) -> LoadSpec:
         load.incident = t.value("incident")
         if load.incident and load.area is not None:
             raise t.error("area", "an incident wave is a force in N: give no area")
+        if rigid[load.rigid].prescribed is not None:
+            raise t.error("rigid", f"[rigid.{load.rigid}] has a prescribed_velocity: its "
+                                   "motion is given, a force on it does nothing")
         if load.incident and not rigid[load.rigid].impedance > 0:
             raise t.error("incident", f"[rigid.{load.rigid}] needs impedance (kg/s) > 0")
     else:
@@ -569,13 +591,16 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         columns, cell_fields = 19, 6  # (the bar's probes, dt, contact and energy columns)
         energy_columns = 0
     else:
-        columns = 3 + len(scene.probes) + sum(6 + 2 * (c.rigid is not None)
-                                              for c in scene.contacts)
+        columns = 3 + len(scene.probes) + sum(
+            6 + 2 * (c.rigid is not None)
+            + (c.rigid is not None and scene.rigid[c.rigid].prescribed is not None)
+            for c in scene.contacts)  # (a prescribed part's reaction)
         columns += 6 if scene.wall is not None else 0
         if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
             columns += 3  # the bar's (the rod's) tracked nodes
         cell_fields = 5 + (2 if plastic else 0)  # the stresses (+ eps_p_eq, yielded)
-        energy_columns = 13 + len(scene.bodies) + len(scene.rigid)
+        energy_columns = 13 + len(scene.bodies) + sum(r.prescribed is None  # (momentum)
+                                                      for r in scene.rigid.values())
     shape = resources.RunShape(
         cells, nodes, n_steps, comm.size, finite=scene.finite, finite_cells=finite_cells,
         plastic=plastic,
@@ -647,6 +672,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
     from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
+    from .contact.prescribed import prescribed_velocity
     from .probes import locate_cell, outer_radius
     from .scenes import make_method
     from .simulation import Settings, Simulation
@@ -732,11 +758,15 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
                 sim.add_contact(pair_surfaces(model, c.lower, c.upper), method)
             else:
                 spec = scene.rigid[c.rigid]
-                body = RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]),
-                                 v=spec.velocity, impedance=spec.impedance,
-                                 v_x=spec.velocity_x,
-                                 incident=_force(incident[spec.name]) if incident[spec.name]
-                                 else None)
+                if spec.prescribed is not None:
+                    body = RigidBody(spec.name, math.inf,
+                                     prescribed=prescribed_velocity(spec.name, spec.prescribed))
+                else:
+                    body = RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]),
+                                     v=spec.velocity, impedance=spec.impedance,
+                                     v_x=spec.velocity_x,
+                                     incident=_force(incident[spec.name]) if incident[spec.name]
+                                     else None)
                 profile = None if c.button is None else spherical_button(c.button)
                 sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
                                 method, rigid=body)

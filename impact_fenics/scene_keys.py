@@ -287,8 +287,17 @@ _RIGID = Section("rigid", "[rigid.NAME]", (
     "A rigid body with one z degree of freedom (a punch, a drill bit; in plane strain y "
     "and a sideways x, its mass, forces and impedance those of the slab t), in exactly one "
     "[[contact]]."), (
-    Key("mass", "positive", "kg", REQUIRED, "mass"),
+    Key("mass", "positive", "kg", None, "mass", default_text="required (without "
+        "prescribed_velocity)"),
     Key("velocity", "number", "m/s", 0.0, "initial z velocity"),
+    Key("prescribed_velocity", "velocity_table", "m/s", None, "a prescribed z velocity (in "
+        "plane strain y): a constant, or a table [[t, v], ...] (s, m/s) linear between its "
+        "points and held after the last", default_text="none (the body moves by its mass "
+        "and forces)", note="The body has no mass (infinite: the contact serves it as a "
+        "fixed part that moves), each step moves it by the exact integral of v(t) over "
+        "the step; mass, velocity, velocity_x, impedance and [[loads]] on it are refused. "
+        "The history gets its u, v and reaction (N), the energy ledger the work of the "
+        "motion. [friction.md](friction.md) section 12."),
     Key("velocity_x", "number", "m/s", 0.0, "plane strain: initial sideways (x) velocity",
         note="The body translates along x too (no rotation: an oblique face keeps its "
         "orientation); film and dme friction couple it to the face's nodes, the penalty's "

@@ -923,6 +923,9 @@ class Simulation:
             m += 1
         v_next = first_rigid + 1
         for c in rigid:
+            if c.rigid.prescribed is not None:  # infinite mass: it keeps no momentum (a column)
+                v_next += 3
+                continue
             p = c.rigid.mass * rec[v_next]
             cells[m] = p
             m += 1

@@ -149,8 +149,7 @@ def run_summary(sim, times, stopped_at: int, wall: float, last_energy: dict | No
         if frictional:  # the dissipation (both parts, J) and the peak tangential force (N)
             summary["friction"] = [{"surfaces": list(c.constraints.names), **c.friction.summary()}
                                    for c in frictional]
-        moving = [c.rigid for c in sim.contacts
-                  if c.rigid is not None and not c.rigid.fixed]
+        moving = [c.moving_rigid for c in sim.contacts if c.moving_rigid is not None]
         if moving:  # each moving rigid body's state at the end (m, m/s; x: in the plane)
             summary["rigid_bodies"] = {r.name: rigid_state(r) for r in moving}
         for c in sim.contacts:  # a rigid body driven by a rod: its wave energies (J)
@@ -222,6 +221,9 @@ def provenance() -> dict:
 def rigid_state(rigid) -> dict[str, float]:
     """A moving rigid body's mass (kg) and its displacement and velocity along the axis or
     y (m, m/s), with x where it translates in the plane (plane strain)."""
+    if rigid.prescribed is not None:  # its motion given: no mass (infinite), its reaction (N)
+        return {"prescribed": True, "u": float(rigid.u), "v": float(rigid.v),
+                "reaction": float(rigid.reaction)}
     out = {"mass": float(rigid.mass), "u": float(rigid.u), "v": float(rigid.v)}
     if rigid.slides or rigid.v_x != 0.0:
         out.update(u_x=float(rigid.u_x), v_x=float(rigid.v_x))

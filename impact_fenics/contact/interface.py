@@ -57,6 +57,7 @@ from .banded import apply_multipliers, band_of_s_steps, bandwidth, bandwidth_of,
 from .dme import DME
 from .film import FILM
 from .pairing import Constraints
+from .prescribed import PrescribedVelocity
 from .penalty import Penalty, lambda_max_diag_plus_rank_one
 from .segments import (END_TOLERANCE, Repairing, SegmentConstraints, current_positions,
                        repair_reach, rows_of_pairs)
@@ -103,6 +104,14 @@ class RigidBody:
     has a sideways velocity or force, or where FILM's or DME's friction couples it; then
     V^{n+1/2} = V^{n-1/2} + h_n (f_x + sum of the tangential forces) / M and
     U^{n+1} = U^n + h_{n+1/2} V^{n+1/2}. No rotation: the face keeps its orientation.
+
+    A *prescribed* part (``prescribed``: its v(t), :class:`.prescribed.PrescribedVelocity`)
+    is a fixed part that moves: infinite mass (``fixed`` is True: zero inverse mass, so
+    the methods serve it as a fixed part), no force, rod or sideways motion, and each step
+    its v^{n+1/2} is the mean of v(t) over the step (ContactSet.drive_prescribed). Its
+    ``reaction`` is the z force the contact exerts on it in the last step (N), and the
+    work of the motion that holds it, -sum h_n 1/2 (v^{n-1/2} + v^{n+1/2}) reaction, is its
+    external work (docs/friction.md 12). It belongs to one contact set.
     """
 
     name: str
@@ -120,13 +129,24 @@ class RigidBody:
     v_x: float = 0.0
     force_x: Callable[[float], float] | None = None
     slides: bool = False  # the x dof is live (set by its contact set)
+    prescribed: PrescribedVelocity | None = None
+    reaction: float = 0.0  # N, z: the contact's force on a prescribed part in the last step
 
     def __post_init__(self) -> None:
-        if self.fixed:
+        if self.prescribed is not None:
+            if (self.v != 0.0 or self.impedance != 0.0 or self.incident is not None
+                    or self.v_x != 0.0 or self.force_x is not None or self.fixed):
+                raise InputError(f"rigid body '{self.name}': a prescribed velocity takes no "
+                                 "initial velocity, rod, sideways motion or fixed flag")
+            self.fixed = True
+            self.v = self.prescribed(0.0)
+        if self.fixed and self.prescribed is None:
             if (self.v != 0.0 or self.impedance != 0.0 or self.incident is not None
                     or self.v_x != 0.0 or self.force_x is not None):
                 raise InputError(f"rigid body '{self.name}': a fixed part has no velocity, "
                                  "rod or incident wave")
+            self.mass = np.inf
+        if self.prescribed is not None:
             self.mass = np.inf
         if not self.mass > 0:
             raise InputError(f"rigid body '{self.name}': mass = {self.mass} kg must be > 0")
@@ -202,7 +222,7 @@ def refuse_shared_rigid(rigid: RigidBody, names: tuple[str, str], sets) -> None:
     them. Refuse ``rigid`` for a new set of surfaces ``names`` if one of ``sets`` holds
     it, in one line naming both; a fixed part (kappa = 0) couples nothing and may be in
     any number of sets."""
-    if rigid.fixed:
+    if rigid.fixed and rigid.prescribed is None:
         return
     for c in sets:
         if getattr(c, "rigid", None) is rigid:
@@ -320,6 +340,9 @@ class ContactSet:
         self.stats = self._misc[STATS:STATS + 3]
         self.stats[:] = 0.0, 0.0, np.inf
         self._gap_out = np.empty(n)
+        # the deformable slots' F^n (N): minus their sum is a prescribed part's reaction
+        self._node_forces = self.f_prev[:nd]
+        self._v_prescribed_prev = 0.0
         self.jumps = bool(getattr(method, "jumps", False))
         self._ledger = _ContactWork(self)
         method.setup(self)
@@ -782,9 +805,18 @@ class ContactSet:
         if self.kind == SEGMENTS:
             self._step_segments()
             return
+        prescribed = self.rigid is not None and self.rigid.prescribed is not None
+        if prescribed:
+            self._drive_prescribed(self.integrator.t)
         if self._fused is None:
             self._step_unfused()
-            return
+        else:
+            self._step_fused()
+        if prescribed:
+            self._book_prescribed()
+
+    def _step_fused(self) -> None:
+        """The step of penalty, FILM fast and DME as one compiled call (:meth:`step`)."""
         integ = self.integrator
         clock = time.perf_counter
         t0 = clock()
@@ -932,6 +964,28 @@ class ContactSet:
         else:
             self._advance_rigid_x(t)
 
+    def _drive_prescribed(self, t: float) -> None:
+        """A prescribed part before step n: keep v^{n-1/2}, set v^{n+1/2} the mean of v(t)
+        over [t^n, t^n + h_{n+1/2}] (PrescribedVelocity.mean) in the body and its committed
+        slot, from which both step paths predict it as a fixed part's, u~ = u^n + h v."""
+        rigid = self.rigid
+        self._v_prescribed_prev = rigid.v
+        rigid.v = self.v_now[-1] = rigid.prescribed.mean(t, self.dt)
+
+    def _book_prescribed(self) -> None:
+        """A prescribed part after step n: its reaction R^n = -sum of the nodes' contact
+        forces F_k^n = (m_k / h_n)(v_k^{n+1/2} - v~_k^{n+1/2}) (N, z; the force on it by
+        Newton's third law), the body's share B^n = 1/2 h_n (v^{n-1/2} + v^{n+1/2}) R^n of
+        the contact work into the set's work, and -B^n, the work of the motion that holds
+        it, into its external work (J; docs/friction.md 12)."""
+        rigid = self.rigid
+        reaction = -float(self._node_forces.sum())
+        rigid.reaction = reaction
+        share = 0.5 * self.h_avg * (self._v_prescribed_prev + rigid.v) * reaction
+        misc = self._misc
+        misc[LEDGER] += share
+        misc[RIGID_WORK] -= share
+
     # The two places that know how a rigid body moves on its own: its slot mass and
     # its prediction without contact. Everything else treats it as one more slot.
     def _rigid_slot_mass(self) -> float:
@@ -963,8 +1017,10 @@ class ContactSet:
     @property
     def moving_rigid(self) -> RigidBody | None:
         """The set's rigid part if it moves (its kinetic energy, momentum and work are the
-        run's), None without one or for a fixed part (a wall: it never moves)."""
-        return self.rigid if self.rigid is not None and not self.rigid.fixed else None
+        run's; a prescribed part's work alone), None without one or for a fixed part (a
+        wall: it never moves)."""
+        return (self.rigid if self.rigid is not None
+                and (not self.rigid.fixed or self.rigid.prescribed is not None) else None)
 
     def kinetic_energy_rigid(self, v_next: float) -> float:
         """1/2 m_p (v^{n+1/2})^2 (J) of the rigid body, and 1/2 m_p V_x^2 of its present x
@@ -972,6 +1028,8 @@ class ContactSet:
         if self.rigid is None:
             return 0.0
         rigid = self.rigid
+        if rigid.prescribed is not None:  # infinite mass: its motion is the work it is given
+            return 0.0
         if rigid.slides:
             return 0.5 * rigid.mass * (v_next * v_next + rigid.v_x * rigid.v_x)
         return 0.5 * rigid.mass * v_next * v_next

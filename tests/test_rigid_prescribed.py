@@ -34,9 +34,11 @@ COMM = MPI.COMM_WORLD
 METHODS = {"penalty": lambda: Penalty("scaled", beta_target=0.9), "film": FILM, "dme": DME}
 
 
-def _run(mesh, method: str, body_v: float, punch: RigidBody, separate: bool = False):
+def _run(mesh, method: str, body_v: float, punch: RigidBody, separate: bool = False,
+         friction: float = 0.0):
     """The block (initial z velocity ``body_v``) under ``punch``; (sim, summary).
-    ``separate``: the step as three calls with the part in Python (use_separate_calls)."""
+    ``separate``: the step as three calls with the part in Python (use_separate_calls);
+    ``friction``: Coulomb's mu on the punch's face."""
     model = DeformableModel(mesh, [Body("block", STEEL)])
     sim = Simulation(model, Settings(cfl=0.9, n_steps=N_STEPS, output_every=1,
                                      quiet=True, plots=False),
@@ -45,6 +47,8 @@ def _run(mesh, method: str, body_v: float, punch: RigidBody, separate: bool = Fa
                         rigid=punch)
     if separate:
         c.use_separate_calls()
+    if friction:
+        c.set_friction(friction)
     return sim, sim.run()
 
 
@@ -94,11 +98,18 @@ def test_the_separate_calls_drive_the_part_as_the_fused_call(punch_mesh, method)
     assert fused.history.data()["punch_reaction"].max() > 0.0
 
 
+@pytest.mark.parametrize("mu", [0.0, 0.3], ids=["frictionless", "mu0.3"])
 @pytest.mark.parametrize("method", list(METHODS))
-def test_galilean_invariance_and_the_ledger(punch_mesh, method):
-    lab, s_lab = _run(punch_mesh, method, 0.0, _prescribed(-V))
-    frame, _ = _run(punch_mesh, method, V, _prescribed(0.0))
-    nudged, _ = _run(punch_mesh, method, one_ulp(V), _prescribed(0.0))
+def test_galilean_invariance_and_the_ledger(punch_mesh, method, mu):
+    """With friction too: the tangential (r) law sees the relative r velocity and the
+    normal force, both the same in the two frames (the platen squeezing a cylinder)."""
+    lab, s_lab = _run(punch_mesh, method, 0.0, _prescribed(-V), friction=mu)
+    frame, _ = _run(punch_mesh, method, V, _prescribed(0.0), friction=mu)
+    nudged, _ = _run(punch_mesh, method, one_ulp(V), _prescribed(0.0), friction=mu)
+    if mu:  # the face spreads under the punch and friction holds it: rows stick and slip
+        rows = lab.history.data()
+        assert rows["tangential_force"].max() > 0.0 and rows["n_slip"].max() > 0.0
+        assert rows["n_stick"].max() > 0.0
     assert s_lab["status"] == "completed"
     punch = lab.contacts[0].rigid
     # the punch moved by -V t exactly per step (a constant: v^{n+1/2} = V, u += h V)

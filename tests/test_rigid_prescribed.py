@@ -151,6 +151,19 @@ def test_galilean_invariance_and_the_ledger(punch_mesh, method, mu):
                                               "reaction": punch.reaction}
 
 
+def _run_scene(tmp_path, name: str, text: str):
+    """``impact-fenics run`` of scene ``text`` (written as NAME.toml): (the process, the
+    run directory, its history.csv)."""
+    from scene_texts import launch, read_history
+
+    scene = tmp_path / f"{name}.toml"
+    scene.write_text(text)
+    out = tmp_path / f"{name}_out"
+    proc = launch(["run", scene, "--out", out], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc, out, read_history(out)
+
+
 def rounding_of_sum(h, v) -> float:
     """The two sums of v h R over the N steps (the ledger's running sums, the history's
     np.sum) round each term (3: the ledger's products 1/2 h (v + v) R) and each partial sum
@@ -190,16 +203,11 @@ def test_scene_key_prescribed_velocity(tmp_path):
     a bad table and a force on it are refused in one line."""
     import json
 
-    from scene_texts import RIGID, assert_refused, launch, read_history, replace
+    from scene_texts import RIGID, assert_refused, replace
 
     base = RIGID[:RIGID.index("[[loads]]")] + RIGID[RIGID.index("[time]"):]  # no force
     text = replace(base, "mass = 0.1\n", "prescribed_velocity = [[0.0, 0.0], [1e-6, -1.0]]\n")
-    scene = tmp_path / "drive.toml"
-    scene.write_text(text)
-    out = tmp_path / "out"
-    proc = launch(["run", scene, "--out", out], timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    h = read_history(out)
+    proc, out, h = _run_scene(tmp_path, "drive", text)
     t = h["time"]
     stroke = np.where(t <= 1e-6, -0.5 * t ** 2 / 1e-6, -0.5e-6 - (t - 1e-6))  # int_0^t v dt
     assert np.all(np.abs(h["punch_u"] - stroke) <= 8 * EPS * np.arange(1, t.size + 1) * 1e-6)
@@ -211,10 +219,8 @@ def test_scene_key_prescribed_velocity(tmp_path):
     plane = replace(replace(replace(base, "mass = 0.1\n", "prescribed_velocity = -1.0\n"),
                             "radius = 0.1\n", "half_width = 0.1\n"),
                     'components = ["z"]', 'components = ["y"]')
-    scene.write_text('geometry = "plane_strain"\nthickness = 0.01\n' + plane)
-    proc = launch(["run", scene, "--out", tmp_path / "plane"], timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    h = read_history(tmp_path / "plane")
+    _, _, h = _run_scene(tmp_path, "plane", 'geometry = "plane_strain"\nthickness = 0.01\n'
+                         + plane)
     assert np.all(h["punch_v"] == -1.0) and h["punch_reaction"].max() > 0.0
     assert np.all(np.abs(h["punch_u"] + h["time"]) <= 2 * EPS * h["step"]
                   * h["time"])
@@ -244,7 +250,7 @@ def test_a_finite_strain_upsetting_under_a_varying_step(tmp_path):
     import json
     import os
 
-    from scene_texts import ROOT, launch, read_history, replace
+    from scene_texts import ROOT, replace
 
     with open(os.path.join(ROOT, "scenes", "upsetting_finite.toml")) as f:
         text = f.read()
@@ -253,12 +259,7 @@ def test_a_finite_strain_upsetting_under_a_varying_step(tmp_path):
     text = text[:text.index("[[loads]]")] + text[text.index("[wall]"):]
     text = replace(replace(text, "t_end = 1e-3            # s", "t_end = 8e-5  # s"),
                    "n_r = 8", "n_r = 4")
-    scene = tmp_path / "upsetting.toml"
-    scene.write_text(text)
-    out = tmp_path / "out"
-    proc = launch(["run", scene, "--out", out], timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    h = read_history(out)
+    _, out, h = _run_scene(tmp_path, "upsetting", text)
     t, n = h["time"], h["step"]
     assert np.ptp(h["dt"]) > 0.0  # the step varied
     stroke = np.where(t <= 50e-6, -0.5 * 0.5 * t ** 2 / 50e-6, -12.5e-6 - 0.5 * (t - 50e-6))

@@ -21,6 +21,7 @@ from mpi4py import MPI
 from scene_texts import ROOT, replace, scene_on_every_rank
 
 SHIPPED_PAIRS = 11  # node pairs of the striker's face at 10 cells across the radius
+H_HALVED = 0.000125  # m, the halved specimen's cells
 
 
 def _scene(halved: bool) -> str:
@@ -28,12 +29,15 @@ def _scene(halved: bool) -> str:
         text = replace(f.read(), "output_every = 400", "fields = false")
     if halved:
         # every cell halved (dt with it); the shaper's total stiffness kept: its per-pair
-        # penalty over the 21 pairs of the finer face; the probes one (finer) cell inside
+        # penalty over the 21 pairs of the finer face; the probes at the centroids of the
+        # (finer) axis cells at the faces
         for old, new in (("h_bar = 0.001 ", "h_bar = 0.0005 "),
                          ("h_specimen = 0.00025 ", "h_specimen = 0.000125 "),
                          ("penalty = 2.8e7 ", f"penalty = {2.8e7 * SHIPPED_PAIRS / 21!r} "),
-                         ("point = [0.0, 0.60025]", "point = [0.0, 0.600125]"),
-                         ("point = [0.0, 0.60475]", "point = [0.0, 0.604875]")):
+                         ("point = [8.333333333333333e-05, 0.8500833333333333]",
+                          f"point = [{H_HALVED / 3!r}, {0.85 + H_HALVED / 3!r}]"),
+                         ("point = [8.333333333333333e-05, 0.8549166666666667]",
+                          f"point = [{H_HALVED / 3!r}, {0.855 - H_HALVED / 3!r}]")):
             text = replace(text, old, new)
     return text
 

@@ -141,11 +141,11 @@ def _checked(path: str, method: str | None, out: str | None, force: bool, quiet:
     scene_file.check_output_dir(out_dir, where, comm)
     plausibility.warn_implausible(scene, comm)
     if scene.mesh.generator == "shpb":
-        from .shpb.run_analysis import bar_stress_warning
+        from .shpb.run_analysis import bar_length_warning, bar_stress_warning
 
-        warning = bar_stress_warning(scene)
-        if warning and comm.rank == 0:
-            print(warning, file=sys.stderr, flush=True)
+        for warning in (bar_stress_warning(scene), bar_length_warning(scene)):
+            if warning and comm.rank == 0:
+                print(warning, file=sys.stderr, flush=True)
     scene_file.check_resources(scene, comm, quiet, out_dir, running)
     return scene, out_dir
 

@@ -58,15 +58,15 @@ def _short_scene() -> str:
         text = f.read()
     for old, new in (("bar_diameter = 0.02 ", "bar_diameter = 0.01 "),
                      ("striker_length = 0.2 ", "striker_length = 0.05 "),
-                     ("incident_length = 0.6 ", "incident_length = 0.12 "),
-                     ("transmitter_length = 0.25 ", "transmitter_length = 0.07 "),
+                     ("incident_length = 0.85 ", "incident_length = 0.12 "),
+                     ("transmitter_length = 0.48 ", "transmitter_length = 0.07 "),
                      ("specimen_diameter = 0.01 ", "specimen_diameter = 0.005 "),
                      ("specimen_length = 0.005 ", "specimen_length = 0.0025 "),
                      ('method = "penalty"\npenalty = 2.8e7 ', 'method = "dme" '),
-                     ("t_end = 2.900063991546631e-4 ", "t_end = 6.000697612762451e-05 "),
-                     ("z = 0.25 ", "z = 0.06 "), ("z = 0.655 ", "z = 0.145 "),
-                     ("point = [0.0, 0.60025]", "point = [0.0, 0.12025]"),
-                     ("point = [0.0, 0.60475]", "point = [0.0, 0.12225]"),
+                     ("t_end = 4.2000412940979004e-4 ", "t_end = 6.000697612762451e-05 "),
+                     ("z = 0.425 ", "z = 0.06 "), ("z = 0.905 ", "z = 0.145 "),
+                     ("point = [0.0, 0.85025]", "point = [0.0, 0.12025]"),
+                     ("point = [0.0, 0.85475]", "point = [0.0, 0.12225]"),
                      ("output_every = 400", "fields = false\nenergy_every = 1")):
         text = replace(text, old, new)
     return text
@@ -120,17 +120,18 @@ def test_the_command_analyses_the_finite_specimen(short_run, options):
     assert math.isfinite(float(np.nanmax(d["equilibrium_ratio"])))
 
 
-# the longer incident bar of docs/shpb.md ("The dispersion-corrected curve"): the gauge
-# 0.5 m from the struck end and 0.35 m from the specimen (d_I as shipped), so the
-# reflected wave passes the gauge before its own reflection from the struck end returns
-# (436 us); the transmitter 0.45 m; 28857 steps of 2^-26 s (430 us)
-LONGER_T_END = 28857 * 2.0 ** -26
-LONGER = (("incident_length = 0.6 ", "incident_length = 0.85 "),
-          ("transmitter_length = 0.25 ", "transmitter_length = 0.45 "),
-          ("t_end = 2.900063991546631e-4 ", f"t_end = {LONGER_T_END!r} "),
-          ("z = 0.25 ", "z = 0.5 "), ("z = 0.655 ", "z = 0.905 "),
-          ("point = [0.0, 0.60025]", "point = [0.0, 0.85025]"),
-          ("point = [0.0, 0.60475]", "point = [0.0, 0.85475]"))
+# a longer incident bar (docs/shpb.md, "The dispersion-corrected curve"): the gauge
+# 0.55 m from the struck end and from the specimen, so the record runs on past the
+# reflected wave (at the gauge from 327 us, 167 us long) and ends before its reflection
+# from the struck end returns (545 us): 36239 steps of 2^-26 s (540 us); the transmitter
+# 0.6 m
+LONGER_T_END = 36239 * 2.0 ** -26
+LONGER = (("incident_length = 0.85 ", "incident_length = 1.1 "),
+          ("transmitter_length = 0.48 ", "transmitter_length = 0.6 "),
+          ("t_end = 4.2000412940979004e-4 ", f"t_end = {LONGER_T_END!r} "),
+          ("z = 0.425 ", "z = 0.55 "), ("z = 0.905 ", "z = 1.155 "),
+          ("point = [0.0, 0.85025]", "point = [0.0, 1.10025]"),
+          ("point = [0.0, 0.85475]", "point = [0.0, 1.10475]"))
 
 
 def _finite_run(tmp_path_factory, specimen_halved: bool = False, longer: bool = False) -> str:
@@ -145,8 +146,8 @@ def _finite_run(tmp_path_factory, specimen_halved: bool = False, longer: bool = 
     if specimen_halved:
         for old, new in (("h_specimen = 0.00025 ", "h_specimen = 0.000125 "),
                          ("dt = 1.4901161193847656e-08 ", f"dt = {2.0 ** -27!r} "),
-                         ("point = [0.0, 0.60025]", "point = [0.0, 0.600125]"),
-                         ("point = [0.0, 0.60475]", "point = [0.0, 0.604875]")):
+                         ("point = [0.0, 0.85025]", "point = [0.0, 0.850125]"),
+                         ("point = [0.0, 0.85475]", "point = [0.0, 0.854875]")):
             text = replace(text, old, new)
     if longer:
         for old, new in LONGER:

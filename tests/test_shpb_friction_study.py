@@ -27,7 +27,7 @@ from scene_texts import ROOT, read_history, replace, scene_on_every_rank
 from test_upsetting_study import slab
 
 MUS = (0.0, 0.1, 0.2)
-FRONT, L0, R0 = 0.6, 0.005, 0.005  # the shaped scene's front face z, specimen length, radius (m)
+FRONT, L0, R0 = 0.85, 0.005, 0.005  # the shaped scene's front face z, specimen length, radius (m)
 N_RIM = 21  # one r probe per node row of the rim (20 cells along the specimen)
 NUDGE = 1e-7  # m: the probe points just inside the specimen (not on the faces' interface)
 FIGURES = os.path.join(ROOT, "docs", "figures")

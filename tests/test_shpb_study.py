@@ -8,8 +8,9 @@ A_s at the strain of the face displacement probes), the 1-wave and the 3-wave an
 The bounds are the page's: the truth within 1 %, the 1- and 3-wave stresses within 2 %.
 
 The shipped mesh (10 cells across the bars' radius, 20 across the specimen's) runs in the
-suite and meets them as plateau means; point by point the truth is within 1 % only on
-the halved mesh, which `make study-shpb` runs (pytest -m study).
+suite and meets them point by point on the plateau (on the bars the sizing rule asks for,
+the faces' probes at their cells' centroids); so does the halved mesh, which
+`make study-shpb` runs (pytest -m study).
 """
 import math
 import os
@@ -21,6 +22,7 @@ from mpi4py import MPI
 from scene_texts import ROOT, replace, scene_on_every_rank
 
 SHIPPED_PAIRS = 11  # node pairs of the striker's face at 10 cells across the radius
+H_HALVED = 0.000125  # m, the halved specimen's cells
 
 
 def _scene(halved: bool) -> str:
@@ -28,12 +30,15 @@ def _scene(halved: bool) -> str:
         text = replace(f.read(), "output_every = 400", "fields = false")
     if halved:
         # every cell halved (dt with it); the shaper's total stiffness kept: its per-pair
-        # penalty over the 21 pairs of the finer face; the probes one (finer) cell inside
+        # penalty over the 21 pairs of the finer face; the probes at the centroids of the
+        # (finer) axis cells at the faces
         for old, new in (("h_bar = 0.001 ", "h_bar = 0.0005 "),
                          ("h_specimen = 0.00025 ", "h_specimen = 0.000125 "),
                          ("penalty = 2.8e7 ", f"penalty = {2.8e7 * SHIPPED_PAIRS / 21!r} "),
-                         ("point = [0.0, 0.60025]", "point = [0.0, 0.600125]"),
-                         ("point = [0.0, 0.60475]", "point = [0.0, 0.604875]")):
+                         ("point = [8.333333333333333e-05, 0.8500833333333333]",
+                          f"point = [{H_HALVED / 3!r}, {0.85 + H_HALVED / 3!r}]"),
+                         ("point = [8.333333333333333e-05, 0.8549166666666667]",
+                          f"point = [{H_HALVED / 3!r}, {0.855 - H_HALVED / 3!r}]")):
             text = replace(text, old, new)
     return text
 
@@ -75,9 +80,9 @@ def shipped(tmp_path_factory):
 
 def test_the_shaped_pulse_recovers_the_law_on_the_shipped_mesh(shipped):
     e = shipped
-    assert abs(np.mean(e["truth"])) <= 0.01
-    assert abs(np.mean(e["1-wave"])) <= 0.02
-    assert abs(np.mean(e["3-wave"])) <= 0.02
+    assert np.max(np.abs(e["truth"])) <= 0.01
+    assert np.max(np.abs(e["1-wave"])) <= 0.02
+    assert np.max(np.abs(e["3-wave"])) <= 0.02
     # the faces reach equilibrium (R <= 5 %) within the rise of the shaped pulse, about
     # Z / (2 k) = 20 us = 20 transits of the specimen (scenes/shpb_shaped.toml)
     assert e["transits"] < 20.0
@@ -93,8 +98,12 @@ def test_the_truth_converges_to_the_law_point_by_point(shipped, tmp_path_factory
                   f"equilibrium after {e['transits']:.3g} transits")
     assert np.max(np.abs(halved["truth"])) <= 0.01
     assert np.max(np.abs(halved["3-wave"])) <= 0.02
-    assert abs(np.mean(halved["1-wave"])) <= 0.02
-    # converging with h: the truth's largest error and the gauges' strain error shrink
+    assert np.max(np.abs(halved["1-wave"])) <= 0.02
+    # converging with h: the truth's largest error shrinks
     assert np.max(np.abs(halved["truth"])) < np.max(np.abs(shipped["truth"]))
-    assert np.max(np.abs(halved["strain"])) < np.max(np.abs(shipped["strain"]))
+    # the gauges' 3-wave strain less the faces' is no mesh error: it is the same on both
+    # meshes (+0.0029), where an error of first order in h would change by half of itself;
+    # a tenth of it separates the two (docs/shpb.md, "The shaped scene on the rule's bars")
+    offset = np.mean(shipped["strain"])
+    assert abs(np.mean(halved["strain"]) - offset) <= 0.1 * abs(offset)
     assert math.isfinite(halved["transits"])

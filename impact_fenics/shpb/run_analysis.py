@@ -33,7 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .waves import Analysis, Bars, Dispersion, Gauges, Specimen, Waves, analyse, separate
+from .sizing import needed, pulse_duration, shaper_rise_time
+from .waves import (REST_FRACTION, Analysis, Bars, Dispersion, Gauges, Specimen, Waves, analyse,
+                    separate)
 
 FILES = ("shpb.csv", "shpb_waves.png", "shpb_stress_strain.png", "shpb_equilibrium.png")
 BODIES = ("striker", "incident", "specimen", "transmitter")
@@ -46,6 +48,8 @@ R_EQUILIBRIUM = 0.05
 # without a warning: the bar's surface carries the Pochhammer-Chree overshoot of the rise
 # (some 10 % of the plateau at a sharp impact) and the gauges need the bars elastic
 BAR_YIELD_FRACTION = 0.8
+# the relative slack of the bars' length checks (bar_length_warning): 64 roundings
+LENGTH_SLACK = 64 * np.finfo(float).eps
 
 
 def bar_stress_warning(scene) -> str | None:
@@ -63,6 +67,60 @@ def bar_stress_warning(scene) -> str | None:
     return (f"warning: the incident stress rho c0 v / 2 = {stress / 1e6:.4g} MPa exceeds "
             f"{BAR_YIELD_FRACTION:g} of the bars' yield stress ({yield_stress / 1e6:.4g} MPa): "
             "real bars would not stay elastic; lower the striker's speed")
+
+
+def shaper_stiffness(scene, h_bar: float, radius: float) -> float:
+    """k (N/m) of the pulse shaper: the penalty p (N/m per node pair) of the ``[[contact]]``
+    set between ``striker_face`` and ``incident_struck`` times its round(radius / h_bar) + 1
+    node pairs; infinite when the striker meets the bar otherwise (DME, FILM, a scaled
+    penalty: a flat pulse)."""
+    for c in scene.contacts:
+        if {c.lower, c.upper} == {"striker_face", "incident_struck"}:
+            if c.method == "penalty" and not isinstance(c.penalty, str):
+                return float(c.penalty) * (int(round(radius / h_bar)) + 1)
+    return math.inf
+
+
+def bar_length_warning(scene) -> str | None:
+    """A warning line when an SHPB scene's bars (or its t_end) are too short for the pulse
+    they will carry (docs/shpb.md, "Sizing rule"; :mod:`.sizing`): naming each key and the
+    length (m) or time (s) it needs; None when they suffice or the scene lacks a gauge."""
+    g = _geometry(scene.mesh.params)
+    bodies = {b.name: b for b in scene.bodies}
+    probes = {p.name: p for p in scene.probes}
+    if "incident" not in bodies or any(name not in probes for name in GAUGES):
+        return None
+    m = scene.materials[bodies["incident"].material]
+    c0 = math.sqrt(m.E / m.density)
+    radius = 0.5 * g["bar_diameter"]
+    impedance = m.density * c0 * math.pi * radius ** 2
+    rise = shaper_rise_time(impedance, shaper_stiffness(scene, g["h_bar"], radius))
+    pulse = pulse_duration(2.0 * g["striker_length"] / c0, rise, REST_FRACTION)
+    z_i = probes["incident_gauge"].point[1]
+    d_i = g["incident_length"] - z_i
+    d_t = probes["transmitter_gauge"].point[1] - g["incident_length"] - g["specimen_length"]
+    need = needed(pulse, c0, z_i, d_i)
+    # the distances are differences of positions summed from the scene's lengths: a few
+    # roundings of the bars' whole length, far below LENGTH_SLACK of it
+    slack = LENGTH_SLACK * (g["striker_length"] + g["incident_length"] + g["transmitter_length"])
+    short = []
+    if z_i < need.gauge_from_struck_end - slack or d_i < need.gauge_from_specimen - slack:
+        short.append(f"[mesh] incident_length = {g['incident_length']:.4g} m needs "
+                     f"{need.gauge_from_struck_end + need.gauge_from_specimen:.4g} m, the "
+                     f"incident gauge at z >= {need.gauge_from_struck_end:.4g} m and "
+                     f">= {need.gauge_from_specimen:.4g} m from the specimen")
+    if g["transmitter_length"] - d_t < need.transmitter_length - slack:
+        short.append(f"[mesh] transmitter_length = {g['transmitter_length']:.4g} m needs "
+                     f"{d_t + need.transmitter_length:.4g} m")
+    t_end = scene.time.get("t_end")
+    if t_end is not None and t_end < need.t_end:
+        short.append(f"[time] t_end = {t_end:.4g} s needs {need.t_end:.4g} s")
+    if not short:
+        return None
+    shaped = f"shaper rise {rise * 1e6:.3g} us" if rise > 0.0 else "flat"
+    return (f"warning: the bars are too short for the pulse of {pulse * 1e6:.4g} us ({shaped}, "
+            f"its end at {REST_FRACTION:g} of its peak): " + "; ".join(short)
+            + " (docs/shpb.md, \"Sizing rule\")")
 
 
 @dataclass

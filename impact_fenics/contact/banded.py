@@ -187,6 +187,21 @@ def band_matvec(band, bw, x, out):
             out[j] += band[i, k] * x[i]
 
 
+# The pivotings' tolerances are 1e-13 of their problem's scale, never below the least
+# normal double: a problem whose values are all subnormal (the gaps of a wave's numerical
+# precursor, 5e-321 m, ahead of the wave itself) would otherwise compare with a tolerance
+# that underflows to 0 while the subnormals' few bits make w and lam change sign from one
+# pivot to the next, and the pivoting cycles. Below it every value is 0 to the physics.
+RELATIVE_TOL = 1e-13
+TINY = float(np.finfo(np.float64).tiny)  # 2.2e-308
+
+
+@njit(cache=True)
+def tolerance(scale):
+    """1e-13 ``scale``, or the least normal double if that is smaller (the unit's)."""
+    return max(RELATIVE_TOL * scale, TINY)
+
+
 @njit(cache=True)
 def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, allowed):
     """Block principal pivoting for w = gap + S lam >= 0, lam >= 0, lam . w = 0 on the
@@ -203,7 +218,7 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, a
     scale = 0.0
     for i in range(n):
         scale = max(scale, abs(gap[i]))
-    tol_w = 1e-13 * scale
+    tol_w = tolerance(scale)
     best = n + 1
     budget = 3
     for it in range(1, max_iter + 1):
@@ -243,7 +258,7 @@ def lcp_bpp(band, bw, gap, lam, w, free, idx, rhs, sol, L, max_iter, factored, a
             band_matvec(band, bw, lam, w)
             for i in range(n):
                 w[i] += gap[i]
-        tol_lam = 1e-13 * lam_max
+        tol_lam = tolerance(lam_max)
         count = 0
         last = -1
         for i in range(n):
@@ -286,7 +301,7 @@ def lcp_dense(S: np.ndarray, gap: np.ndarray, lam: np.ndarray, max_iter: int = 2
     Returns the iterations."""
     n = gap.size
     free = gap < 0.0
-    tol_w = 1e-13 * float(np.abs(gap).max(initial=0.0))
+    tol_w = tolerance(float(np.abs(gap).max(initial=0.0)))
     best, budget = n + 1, 3
     for it in range(1, max_iter + 1):
         lam[:] = 0.0
@@ -294,7 +309,7 @@ def lcp_dense(S: np.ndarray, gap: np.ndarray, lam: np.ndarray, max_iter: int = 2
         if A.size:
             lam[A] = np.linalg.solve(S[np.ix_(A, A)], -gap[A])
         w = gap + S @ lam
-        tol_lam = 1e-13 * float(np.abs(lam).max(initial=0.0))
+        tol_lam = tolerance(float(np.abs(lam).max(initial=0.0)))
         bad = (free & (lam < -tol_lam)) | (~free & (w < -tol_w))
         if not bad.any():
             np.maximum(lam, 0.0, out=lam)

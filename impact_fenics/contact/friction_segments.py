@@ -68,7 +68,7 @@ from ..errors import InputError
 from ..plausibility import warn
 from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, \
     band_of_s_steps, band_solve, bandwidth, bandwidth_of, gap_of, gershgorin_beta, \
-    gershgorin_of
+    gershgorin_of, tolerance
 from .friction import HISTORY, N_SLIP, N_STICK, PENALTY_HISTORY, RETURN_LOSS, SLIP_WORK, \
     STABILITY_BOUND, STORED, T_FORCE, T_LOSS, T_PEAK, FrictionFigures, FrictionLaw, \
     _coefficient, _return_to_cone
@@ -154,7 +154,7 @@ def box_bpp(band, bw, wt, cap, lam, w, state, idx, rhs, sol, L, factored, max_it
     for i in range(n):
         if state[i] != OFF:
             scale = max(scale, abs(wt[i]))
-    tol_w = 1e-13 * scale
+    tol_w = tolerance(scale)
     best = n + 1
     budget = 3
     for it in range(1, max_iter + 1):
@@ -193,7 +193,7 @@ def box_bpp(band, bw, wt, cap, lam, w, state, idx, rhs, sol, L, factored, max_it
         for i in range(n):
             w[i] += wt[i]
             lam_max = max(lam_max, abs(lam[i]))
-        tol_lam = 1e-13 * lam_max
+        tol_lam = tolerance(lam_max)
         count = 0
         last = -1
         for i in range(n):
@@ -251,7 +251,7 @@ def _settled(lam, lam_last, force, force_last, state, state_last, active, active
     scale = 0.0
     for i in range(lam.size):
         scale = max(scale, abs(lam[i]), abs(force[i]))
-    tol = 1e-13 * scale
+    tol = tolerance(scale)
     for i in range(lam.size):
         if (state[i] != state_last[i] or active[i] != active_last[i]
                 or abs(lam[i] - lam_last[i]) > tol or abs(force[i] - force_last[i]) > tol):

@@ -3,7 +3,7 @@ triad's gain from the second rank in the same run."""
 from __future__ import annotations
 
 from . import finite, plastic
-from .scaling import launch, part_stream
+from .scaling import STREAM_OPS, launch, part_stream
 
 # the steps of the nonlinear parts whose gain from the second rank is measured, by part
 GAIN_STEPS = {"j2": ("linear_step", "j2_fast_elastic", "j2_fast", "dp_fast"),
@@ -26,7 +26,9 @@ def part_gain(ctx) -> dict:
         ctx.log(f"   the 2-rank run failed: {child['error']}")
         return {"error": child["error"]}
     triad = child["stream"]["waxpy_triad"]["gbs"] / stream1["waxpy_triad"]["gbs"]
-    res = {"triad_gain": triad, "steps": {}, "meta_two_ranks": child.get("meta", {})}
+    res = {"triad_gain": triad, "steps": {}, "meta_two_ranks": child.get("meta", {}),
+           "stream_gbs": {str(n): {op: s[op]["gbs"] for op in STREAM_OPS}
+                          for n, s in ((1, stream1), (2, child["stream"]))}}
     rows = []
     for part, keys in GAIN_STEPS.items():
         t1, t2 = one[part]["timings"], child[part]["timings"]

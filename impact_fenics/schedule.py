@@ -40,12 +40,17 @@ class StopFlag:
             self._guard.__exit__(None, None, None)
 
 
-class Progress:
-    """Step, simulated time, steps/s and ETA on rank 0, when stdout is a terminal.
+# a log redirected to a file (a batch job): a whole line this often (s), none in a short run
+LOG_INTERVAL = 30.0
 
-    The loop calls :meth:`update` only at step :attr:`due` (which it returns anew): a
-    line is due every 0.5 s, so the next look is about 0.1 s of steps ahead at the rate
-    so far; never when disabled (due past the last step)."""
+
+class Progress:
+    """Step, simulated time, steps/s and ETA on rank 0: on a terminal one line rewritten
+    every 0.5 s; into a file (a batch job's log) a whole line every LOG_INTERVAL s.
+
+    The loop calls :meth:`update` only at step :attr:`due` (which it returns anew): the
+    next look is about 0.1 s of steps ahead at the rate so far (5 s into a file); never
+    when disabled (due past the last step)."""
 
     def __init__(self, n_steps: int, dt: float, quiet: bool, t_end: float | None = None,
                  time_of=None):
@@ -53,7 +58,9 @@ class Progress:
         reached (s): its line shows the time of t_end and an ETA by the time left."""
         self.n_steps, self.dt = n_steps, dt
         self.t_end, self.time_of = t_end, time_of
-        self.enabled = (not quiet) and console.on_terminal()
+        self.enabled = not quiet
+        self.terminal = self.enabled and console.on_terminal()
+        self.interval, self.ahead = (0.5, 0.1) if self.terminal else (LOG_INTERVAL, 5.0)
         self.t0 = time.perf_counter()
         self.last = self.t0
         self.due = 1 if self.enabled else n_steps + 1
@@ -65,32 +72,36 @@ class Progress:
         now = time.perf_counter()
         rate = n / max(now - self.t0, 1e-9)
         if self.t_end is not None:  # (the count of steps is not known: the time is)
-            self.due = n + max(1, int(0.1 * rate))
+            self.due = n + max(1, int(self.ahead * rate))
             t = self.time_of()
-            if now - self.last >= 0.5 or t >= self.t_end * (1.0 - 1e-12):  # the last always
+            last = t >= self.t_end * (1.0 - 1e-12)
+            if now - self.last >= self.interval or (last and self.terminal):  # the last always
                 self.last = now
                 self._line(n, t, rate, now)
             return self.due
-        self.due = min(self.n_steps, n + max(1, int(0.1 * rate)))
-        if now - self.last < 0.5 and n < self.n_steps:
+        self.due = min(self.n_steps, n + max(1, int(self.ahead * rate)))
+        if now - self.last < self.interval and (n < self.n_steps or not self.terminal):
             return self.due
         self.last = now
         eta = (self.n_steps - n) / max(rate, 1e-9)
-        sys.stdout.write(f"\rstep {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
-                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
-        sys.stdout.flush()
+        self._write(f"step {n}/{self.n_steps}  t = {n * self.dt:.4e} s  "
+                    f"{rate:,.0f} steps/s  ETA {eta:,.0f} s")
         return self.due
 
     def _line(self, n: int, t: float, rate: float, now: float) -> None:
         frac = t / self.t_end
         eta = (now - self.t0) * (1.0 - frac) / max(frac, 1e-12)
-        sys.stdout.write(f"\rt = {t:.4e} of {self.t_end:.4e} s  step {n}  "
-                         f"{rate:,.0f} steps/s  ETA {eta:,.0f} s   ")
+        self._write(f"t = {t:.4e} of {self.t_end:.4e} s  step {n}  "
+                    f"{rate:,.0f} steps/s  ETA {eta:,.0f} s")
+
+    def _write(self, text: str) -> None:
+        """On a terminal the line rewritten in place; into a file a line of its own."""
+        sys.stdout.write(f"\r{text}   " if self.terminal else f"progress: {text}\n")
         sys.stdout.flush()
 
     def done(self, n: int | None = None) -> None:
         """End the line; a run that follows the time shows its last step's (``n``)."""
-        if self.enabled:
+        if self.terminal:
             if self.t_end is not None and n is not None:
                 now = time.perf_counter()
                 self._line(n, self.time_of(), n / max(now - self.t0, 1e-9), now)

@@ -1,4 +1,4 @@
-"""Point probes: a field's value in the cell that contains a point (DG0, as CST gives it).
+"""Point probes: a field's value at a point (stresses in the cell that holds it: DG0, as CST gives it).
 
 A probe reads the six displacement dofs of its triangle's three nodes: each rank
 copies the ones it owns into the history row (one compiled call for all probes,
@@ -6,7 +6,10 @@ no communication), the rows are summed over the ranks once per block of rows,
 and the values follow from the dofs. In the cell of a linear body the stress is
 :func:`~impact_fenics.cell_fields.triangle_strain` and the material's constant
 stiffness D, the value a UFL Expression of the stress gives at the cell's
-midpoint, to round-off. u_r and u_z probes are the cell means of the nodal values.
+midpoint, to round-off. u_r and u_z are the P1 interpolation at the point,
+sum_a w_a u_a with w_a the point's barycentric coordinates in its triangle (fixed at
+set-up): the field's own value there, the same whichever of the cells touching a
+point on a cell edge holds it.
 
 In a quadrilateral (Q1) cell the row holds the eight dofs of its four nodes; u_r
 and u_z are the Q1 interpolation at the point, sum_a N_a(xi) u_a with xi the
@@ -253,9 +256,9 @@ def _section_force(raw, start, c, p, out) -> None:
 
 
 @njit(cache=True)
-def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out, plane) -> None:
+def _values(raw, xy, point_w, D, code, pointwise, X, gauge_w, gauge_l, out, plane) -> None:
     """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
-    the cell means of the nodal values (m); in the cell of a linear body a stress D eps
+    the interpolation sum_a point_w[p, a] u_a at the point (m); in the cell of a linear body a stress D eps
     (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); a gauge's strain from
     its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); a section is left
     to :func:`_section_force`; the other values
@@ -274,7 +277,7 @@ def _values(raw, xy, D, code, pointwise, X, gauge_w, gauge_l, out, plane) -> Non
                 out[i, p] = X[p, c - _R] + q[c - _R]
             elif c == _U_R or c == _U_Z:
                 k = c - _U_R
-                out[i, p] = (q[k] + q[k + 2] + q[k + 4]) / 3.0
+                out[i, p] = point_w[p, 0] * q[k] + point_w[p, 1] * q[k + 2] + point_w[p, 2] * q[k + 4]
             elif pointwise[p]:
                 continue
             elif c > _U_Z:  # eps_p_eq, yielded
@@ -403,7 +406,7 @@ class CellPoints:
 
 class Probes:
     """Cell values at points: ``quantity`` in QUANTITIES (stresses in Pa, u_r, u_z in m)
-    of the cell holding each point (r, z) in m (on quadrilaterals u_r, u_z at the point);
+    of the cell holding each point (r, z) in m (u_r, u_z interpolated at the point);
     r and z (m) the current position of the node nearest the point; a strain_gauge's axial
     strain (-) over its length centred at the point; a section's force (N, compression
     positive) through the plane z of the point (its r is not read)."""
@@ -429,6 +432,7 @@ class Probes:
         self._quad = _QuadCells(n) if quad else None
         self.n_raw = width * n
         self.xy = np.zeros((n, width // 2, 2))
+        self.point_w = np.zeros((n, 3))  # a triangle's barycentric weights at the point
         self.D = np.zeros((n, 4, 4))
         self.code = np.zeros(n, dtype=np.int64)
         self.midpoints = np.zeros((n, 2))  # (r, z) in m of each probe's cell
@@ -470,6 +474,8 @@ class Probes:
                 dofs[width * k: width * (k + 1)] = scene[np.column_stack([2 * nodes,
                                                                           2 * nodes + 1]).ravel()]
                 self.xy[k] = model.node_xy[nodes]
+                if not quad:
+                    self.point_w[k] = interpolation_weights(self.xy[k], point)
                 if quad:
                     self._quad.fill(k, model.cell_dofs, model.node_xy, cell, point,
                                     model.geometry)
@@ -487,7 +493,7 @@ class Probes:
                 if X is not None:
                     dofs[width * k: width * k + 2] = scene[2 * node: 2 * node + 2]
                     self.X[k] = X
-        for arr in ((dofs, self.xy, self.midpoints, self.X, self.gauge_w)
+        for arr in ((dofs, self.xy, self.point_w, self.midpoints, self.X, self.gauge_w)
                     + (self._quad.arrays() if quad else ())):
             self.comm.Allreduce(MPI.IN_PLACE, arr, op=MPI.SUM)
         # probes of a stress or a plastic quantity in the cell of a path-dependent body:
@@ -583,7 +589,7 @@ class Probes:
         for _, start, c in self._sections[:1]:
             load(_section_force, raw, start, c, 0, out)
         if self._quad is None:
-            load(_values, raw, self.xy, self.D, self.code, self.pointwise, self.X,
+            load(_values, raw, self.xy, self.point_w, self.D, self.code, self.pointwise, self.X,
                  self.gauge_w, self.gauge_l, out, self.plane)
         else:
             qc = self._quad
@@ -614,7 +620,7 @@ class Probes:
             out = np.empty((raw.shape[0], self.code.size))
         raw = np.ascontiguousarray(raw)
         if self._quad is None:
-            _values(raw, self.xy, self.D, self.code, self.pointwise, self.X, self.gauge_w,
+            _values(raw, self.xy, self.point_w, self.D, self.code, self.pointwise, self.X, self.gauge_w,
                     self.gauge_l, out, self.plane)
         else:
             qc = self._quad

@@ -175,3 +175,40 @@ def test_two_ranks_report_what_one_rank_does(tmp_path, generator):
             col = f"{q}_{name}"
             bound = 2 * _translation_bound(one["step"], vt, np.abs(one[col]))
             assert np.all(np.abs(two[col] - one[col]) <= bound), col
+
+
+@pytest.mark.parametrize("generator", sorted(MESHES))
+def test_a_displacement_probe_reads_the_field_at_its_point(tmp_path, generator):
+    """u_z probes against the node probes of the same run (the bar pushed at one end, held
+    at the other): on a node a u_z probe reads that node's u_z = z - Z; at the midpoint of
+    a cell edge on a node row, the mean of the edge's two nodes' u_z, whichever of the two
+    cells touching the edge holds the point (the field is continuous there; a cell mean
+    would take in a node above or below the row).
+
+    Bound per row: the node probe's X + u and the test's z - Z round once each (eps |Z|
+    with Z <= L); the interpolation weights come from differences of coordinates up to L
+    on cells of H (L / H of their digits cancel), a few roundings each, then 3-4 products
+    and sums on nodal values up to max |u|: EPS (6 L / H + 5) max |u|; and the mesh's own
+    offset of its nodes from the points (below)."""
+    _, held, pushed = MESHES[generator]
+    node, left = (0.01, 0.02), (0.0, 0.02)  # two neighbouring nodes of the row z = 0.02
+    mid = (0.005, 0.02)  # the midpoint of their edge
+    more = (f'[[fixed]]\nfacet = "{held}"\ncomponents = ["r", "z"]\n\n'
+            f'[[loads]]\nfacet = "{pushed}"\npulse = "constant"\nvalue = 1e6\n\n'
+            + "".join(f'[[probes]]\nname = "uz_{name}"\npoint = [{p[0]}, {p[1]}]\n'
+                      f'quantity = "u_z"\n\n' for name, p in (("node", node), ("mid", mid))))
+    points = (("node", node), ("left", left))
+    h = _run(tmp_path, "field", _scene(generator, 200e9, 0.0, "cfl = 0.5\nn_steps = 40",
+                                       more, points))
+    nodes = _nodes(generator)
+    Xn, Xl = _nearest(nodes, node), _nearest(nodes, left)
+    # the mesh's nodes are the points to the round-off of the generator's arithmetic; an
+    # offset delta moves the interpolated value by at most |grad u| delta <= 2 max|u| / H delta
+    delta = max(np.abs(Xn - node).max(), np.abs(Xl - left).max())
+    assert delta <= 1e-6 * H  # the probes' nodes are these, not neighbours
+    u_node, u_left = h["z_node"] - Xn[1], h["z_left"] - Xl[1]
+    u_max = max(np.abs(u_node).max(), np.abs(u_left).max())
+    assert u_max > 1e-3 * (1e6 / 200e9) * L  # the wave has moved the row
+    bound = 2 * EPS * L + EPS * (6 * L / H + 5) * u_max + 2 * u_max / H * delta
+    assert np.all(np.abs(h["uz_node"] - u_node) <= bound)
+    assert np.all(np.abs(h["uz_mid"] - 0.5 * (u_node + u_left)) <= bound)

@@ -14,9 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from impact_fenics.materials.johnson_cook import (BRACKET_TOL, CHI, CP, POWER, RESIDUAL_TOL, THERMAL,
-                                                  JohnsonCook, RHO, flow_stress, return_increment,
-                                                  strain_hardening, thermal_factor)
+from impact_fenics.materials.johnson_cook import (BRACKET_TOL, CHI, CP, POWER, RESIDUAL_TOL,
+                                                  THERMAL, JohnsonCook, RHO, flow_stress,
+                                                  return_increment, strain_hardening,
+                                                  thermal_factor)
 from roundoff import LIBM, rounding
 
 

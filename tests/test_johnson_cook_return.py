@@ -14,9 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from impact_fenics.materials.johnson_cook import (BRACKET_TOL, CHI, CP, POWER, RESIDUAL_TOL, JohnsonCook,
-                                                  RHO, flow_stress, return_increment,
-                                                  strain_hardening, thermal_factor)
+from impact_fenics.materials.johnson_cook import (BRACKET_TOL, CHI, CP, POWER, RESIDUAL_TOL,
+                                                  THERMAL, JohnsonCook, RHO, flow_stress,
+                                                  return_increment, strain_hardening,
+                                                  thermal_factor)
 from roundoff import LIBM, rounding
 
 
@@ -128,6 +129,7 @@ def test_update_books_the_trapezoid_of_flow_stress():
     p = m.params()
     state = m.initial_state().copy()
     state[5] = 400.0
+    state[THERMAL] = thermal_factor(p, 400.0)  # a state keeps the factor of its T
     dt = 1e-8
     F = np.array([math.exp(-0.01), 0.0, 0.0, math.exp(0.02), math.exp(-0.01)])
     wp = m.update(F, state, p, dt, np.zeros(4), np.zeros(16))

@@ -25,8 +25,10 @@ sigma_y(eps_bar_p,n+1)) / 2 at the step's rate and T_n (the trapezoid of sigma_y
 increment, exact for linear hardening), and the heating uses the same sigma_y:
 T_{n+1} = T_n + chi Delta W_p / (rho_0 c_p), so the heat in the body is chi times the
 plastic work in the ledger, to round-off. State: [eps_bar_p, a_rr, a_zz, a_rz, a_tt, T (K),
-B eps_bar_p^n (Pa)]: the last is the hardening of eps_bar_p, kept from the return that made
-it (bit for bit the power of the stored eps_bar_p) so that an elastic point computes no power.
+B eps_bar_p^n (Pa), 1 - T*^m (-)]: the last two are the hardening of eps_bar_p and the thermal
+factor of T, each kept from the return that made its variable (bit for bit the power of the
+stored eps_bar_p, and :func:`thermal_factor` of the stored T: the temperature changes only
+where a point flows) so that an elastic point computes no power.
 """
 from __future__ import annotations
 
@@ -45,6 +47,7 @@ from . import hencky
 (LAMBDA, MU, A_, B_, N_, C_, RATE0, M_, T_ROOM, T_MELT, CHI, RHO, CP) = range(13)
 TEMPERATURE = 5  # index of T in the state
 POWER = 6  # index of B eps_bar_p^n in the state
+THERMAL = 7  # index of 1 - T*^m in the state
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -156,9 +159,9 @@ def update(F, state, params, dt, tau, work) -> float:
     b, n, c, rate0 = params[B_], params[N_], params[C_], params[RATE0]
     chi, rho_cp = params[CHI], params[RHO] * params[CP]
     eps_bar, power_n, temperature = state[0], state[POWER], state[TEMPERATURE]
+    thermal = state[THERMAL]  # thermal_factor(params, temperature), kept
     em, g, e3, h, s, dd, det_b = hencky.log_strains(F, state)
     tau_m, tau_d, tau_tt, q2 = hencky.stresses(lmbda, mu, em, g, e3, dd)
-    thermal = thermal_factor(params, temperature)
     wp = 0.0
     hard_n = a + power_n  # A + B eps_bar_p^n
     x = hard = visc = power = q = 0.0
@@ -173,7 +176,9 @@ def update(F, state, params, dt, tau, work) -> float:
         wp = 0.5 * x * (hard_n * visc * thermal + hard * visc * thermal)
         state[0] = eps_bar + x
         state[POWER] = power
-        state[TEMPERATURE] = temperature + chi * wp / rho_cp
+        temperature = temperature + chi * wp / rho_cp
+        state[TEMPERATURE] = temperature
+        state[THERMAL] = thermal_factor(params, temperature)  # T changes only here
         b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)
         hencky.set_plastic_state(F, state, b_m, b_d, b_tt, h, s)
     hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
@@ -200,7 +205,7 @@ class JohnsonCook(IsotropicConstants):
     c_p: float = 383.0
     linear: bool = False
     finite: bool = True
-    n_state: int = 7
+    n_state: int = 8
     temperature_index: int = TEMPERATURE
     # the force kernel runs the update on a copy of the point's state and stress: around
     # the return's loop numba keeps the reference counts of array views (internal_force.finite)
@@ -231,8 +236,8 @@ class JohnsonCook(IsotropicConstants):
                          self.t_room, self.t_melt, self.chi, self.density, self.c_p])
 
     def initial_state(self) -> np.ndarray:
-        """[eps_bar_p, C_p^-1 = I, T = t_room, B eps_bar_p^n = 0]."""
-        return np.array([0.0, 1.0, 1.0, 0.0, 1.0, self.t_room, 0.0])
+        """[eps_bar_p, C_p^-1 = I, T = t_room, B eps_bar_p^n = 0, 1 - T*^m = 1]."""
+        return np.array([0.0, 1.0, 1.0, 0.0, 1.0, self.t_room, 0.0, 1.0])
 
     update = staticmethod(update)
     energy = staticmethod(hencky.stored_energy)

@@ -70,7 +70,9 @@ def errors(r) -> dict[str, np.ndarray]:
             "1-wave": rel(c["stress_1"], c["strain_1"]),
             "3-wave": rel(c["stress_3"], c["strain_3"]),
             "strain": c["strain_3"][p] - c["strain_true"][p],
-            "transits": r.equilibrium_time(truth=True) / r.setup.transit}
+            "transits": r.equilibrium_time(truth=True) / r.setup.transit,
+            "window": (float(r.analysis.t[-1] - r.analysis.t[0]),
+                       float(r.analysis.t[1] - r.analysis.t[0]))}
 
 
 @pytest.fixture(scope="module")
@@ -86,6 +88,15 @@ def test_the_shaped_pulse_recovers_the_law_on_the_shipped_mesh(shipped):
     # the faces reach equilibrium (R <= 5 %) within the rise of the shaped pulse, about
     # Z / (2 k) = 20 us = 20 transits of the specimen (scenes/shpb_shaped.toml)
     assert e["transits"] < 20.0
+    # the face window is the whole shaped pulse, T of docs/shpb.md's (S-1) for the shaper
+    # k = p x 11 pairs and Z = rho c0 A_b, to within a sample (the window starts on one)
+    from impact_fenics.shpb.sizing import pulse_duration
+
+    E, rho, a = 200e9, 7850.0, 0.01  # the bars (Pa, kg/m^3) and their radius (m)
+    c0 = math.sqrt(E / rho)
+    T = pulse_duration(2 * 0.2 / c0, rho * c0 * math.pi * a ** 2 / (2 * 2.8e7 * SHIPPED_PAIRS), 0.01)
+    window, dt = e["window"]
+    assert abs(window - T) <= dt and T > 2 * 0.2 / c0 * 2
 
 
 @pytest.mark.study
@@ -94,7 +105,7 @@ def test_the_truth_converges_to_the_law_point_by_point(shipped, tmp_path_factory
     if MPI.COMM_WORLD.rank == 0:
         for name, e in (("shipped", shipped), ("halved", halved)):
             print(name, {k: (f"{np.mean(v):+.4f}", f"{np.max(np.abs(v)):.4f}")
-                         for k, v in e.items() if k != "transits"},
+                         for k, v in e.items() if k not in ("transits", "window")},
                   f"equilibrium after {e['transits']:.3g} transits")
     assert np.max(np.abs(halved["truth"])) <= 0.01
     assert np.max(np.abs(halved["3-wave"])) <= 0.02

@@ -308,3 +308,23 @@ def test_the_command_warns_of_a_cut_record_in_one_line():
     line = cut_warning(Waves(t, t, t, t, cut=("reflected",)))
     assert line.startswith("warning: ") and "reflected wave" in line and "\n" not in line
     assert cut_warning(Waves(t, t, t, t)) is None
+
+
+def test_the_plateau_is_the_loadings_rate_not_the_unloadings():
+    """A window that holds a whole pulse (a shaped one: loading, then unloading): the rate
+    rises to 2000 1/s over 100 samples, holds 400 and falls to 0 over the last 500, in
+    equilibrium throughout. The plateau is the 400 held samples (and the ramps' samples
+    within 10 % of 2000), by hand; the median of every sample would be about 1600 1/s
+    and miss them."""
+    from impact_fenics.shpb.waves import Analysis
+
+    rate = np.concatenate([np.linspace(0.0, RATE, 100, endpoint=False), np.full(400, RATE),
+                           np.linspace(RATE, 0.0, 500)])
+    n = rate.size
+    zero = np.zeros(n)
+    a = Analysis(t=np.arange(n) * 1e-8, force_front=zero, force_back=zero, equilibrium=zero,
+                 rate_1=rate, rate_3=rate, strain_1=zero, strain_3=zero, stress_1=zero,
+                 stress_2=zero, stress_3=zero)
+    assert abs(float(np.median(rate)) - RATE) > 0.1 * RATE  # what the whole window's median misses
+    assert np.array_equal(a.plateau(), np.abs(rate - RATE) <= 0.1 * RATE)
+    assert a.plateau().sum() >= 400

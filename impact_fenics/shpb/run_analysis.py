@@ -28,7 +28,7 @@ import math
 import os
 import sys
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -69,16 +69,25 @@ def bar_stress_warning(scene) -> str | None:
             "real bars would not stay elastic; lower the striker's speed")
 
 
-def shaper_stiffness(scene, h_bar: float, radius: float) -> float:
+def shaper_stiffness(contacts: list[dict], h_bar: float, radius: float) -> float:
     """k (N/m) of the pulse shaper: the penalty p (N/m per node pair) of the ``[[contact]]``
-    set between ``striker_face`` and ``incident_struck`` times its round(radius / h_bar) + 1
-    node pairs; infinite when the striker meets the bar otherwise (DME, FILM, a scaled
-    penalty: a flat pulse)."""
-    for c in scene.contacts:
-        if {c.lower, c.upper} == {"striker_face", "incident_struck"}:
-            if c.method == "penalty" and not isinstance(c.penalty, str):
-                return float(c.penalty) * (int(round(radius / h_bar)) + 1)
+    table (``contacts``: the scene file's tables) between ``striker_face`` and
+    ``incident_struck`` times its round(radius / h_bar) + 1 node pairs; infinite when the
+    striker meets the bar otherwise (DME, FILM, a scaled penalty: a flat pulse)."""
+    for c in contacts:
+        if {c.get("lower"), c.get("upper")} == {"striker_face", "incident_struck"}:
+            penalty = c.get("penalty")
+            if c.get("method") == "penalty" and isinstance(penalty, (int, float)):
+                return float(penalty) * (int(round(radius / h_bar)) + 1)
     return math.inf
+
+
+def incident_pulse(contacts: list[dict], g: dict, c0: float, impedance: float) -> float:
+    """T (s): the incident pulse from its front until it stays below REST_FRACTION of its
+    peak, 2 L_striker / c0 for a flat striker (:func:`.sizing.pulse_duration`)."""
+    rise = shaper_rise_time(impedance, shaper_stiffness(contacts, g["h_bar"],
+                                                        0.5 * g["bar_diameter"]))
+    return pulse_duration(2.0 * g["striker_length"] / c0, rise, REST_FRACTION)
 
 
 def bar_length_warning(scene) -> str | None:
@@ -94,8 +103,10 @@ def bar_length_warning(scene) -> str | None:
     c0 = math.sqrt(m.E / m.density)
     radius = 0.5 * g["bar_diameter"]
     impedance = m.density * c0 * math.pi * radius ** 2
-    rise = shaper_rise_time(impedance, shaper_stiffness(scene, g["h_bar"], radius))
-    pulse = pulse_duration(2.0 * g["striker_length"] / c0, rise, REST_FRACTION)
+    contacts = [{"lower": c.lower, "upper": c.upper, "method": c.method, "penalty": c.penalty}
+                for c in scene.contacts]
+    rise = shaper_rise_time(impedance, shaper_stiffness(contacts, g["h_bar"], radius))
+    pulse = incident_pulse(contacts, g, c0, impedance)
     z_i = probes["incident_gauge"].point[1]
     d_i = g["incident_length"] - z_i
     d_t = probes["transmitter_gauge"].point[1] - g["incident_length"] - g["specimen_length"]
@@ -128,12 +139,14 @@ class Setup:
     """What the analysis needs of the run: the bars, the specimen, the gauges, the incident
     pulse (s), the bars' radius (m) and Poisson's ratio, the striker speed (m/s), the
     specimen's material table (with its body's kinematics as ``strain``, "small" or
-    "finite"), the gauges' and the contact columns of history.csv."""
+    "finite"), the gauges' and the contact columns of history.csv. ``pulse`` is the
+    whole incident pulse (a shaped one lasts longer than 2 L_striker / c0, ``flat``)."""
 
     bars: Bars
     specimen: Specimen
     gauges: Gauges
     pulse: float
+    flat: float
     radius: float
     nu: float
     speed: float
@@ -222,8 +235,10 @@ def read_setup(run_dir: str, columns: list[str]) -> Setup:
     if all(n in probes and n in columns for n in FACE_PROBES):
         face_probes = (_probe_z(probes[FACE_PROBES[0]]), _probe_z(probes[FACE_PROBES[1]]))
     velocity = bodies["striker"].get("velocity", [0.0, 0.0])
+    flat = 2.0 * g["striker_length"] / c0
     return Setup(bars=bars, specimen=specimen, gauges=gauges,
-                 pulse=2.0 * g["striker_length"] / c0, radius=radius, nu=nu,
+                 pulse=incident_pulse(scene.get("contact", []), g, c0, rho * c0 * bars.area),
+                 flat=flat, radius=radius, nu=nu,
                  speed=abs(float(velocity[1])),
                  specimen_material={**materials.get(bodies["specimen"].get("material"), {}),
                                     "strain": bodies["specimen"].get("strain", "small")},
@@ -366,6 +381,14 @@ def analyse_run(run_dir: str, dispersion: bool = False) -> Result:
     t = h["time"][rows]
     gauge_i, gauge_t = -h["incident_gauge"][rows], -h["transmitter_gauge"][rows]
     disp = Dispersion(setup.radius, setup.nu) if dispersion else None
+    # the window: the whole pulse where the incident gauge and the record hold it (bars
+    # sized by docs/shpb.md's rule); else the flat striker's 2 L_st / c0, as the run's
+    # bar-length warning said
+    g = setup.gauges
+    if (setup.pulse > 2.0 * g.incident / setup.bars.c0
+            or g.arrival + (g.incident + max(g.incident, g.transmitter)) / setup.bars.c0
+            + setup.pulse > t[-1]):
+        setup = replace(setup, pulse=setup.flat)
     waves = separate(t, gauge_i, gauge_t, setup.bars, setup.gauges, setup.pulse, disp)
     result = analyse(waves, setup.bars, setup.specimen)
 

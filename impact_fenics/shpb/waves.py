@@ -197,11 +197,16 @@ class Analysis:
 
     def plateau(self, r_max: float = 0.05, band: float = 0.1) -> np.ndarray:
         """Where the analysis can be trusted: the equilibrium ratio at most ``r_max`` and the
-        3-wave strain rate within ``band`` of its median there (a boolean mask of t)."""
+        3-wave strain rate within ``band`` of the loading's median rate: the median over
+        the samples of ratio at most ``r_max`` whose rate is at least half the largest
+        there (the unloading at a pulse's end, which a whole shaped pulse holds, is not
+        the test's rate; a boolean mask of t)."""
         ok = self.equilibrium <= r_max
         if not ok.any():
             return ok
-        median = float(np.median(self.rate_3[ok]))
+        rate = self.rate_3[ok]
+        loading = rate[rate >= 0.5 * rate.max()] if rate.max() > 0.0 else rate
+        median = float(np.median(loading))
         return ok & (np.abs(self.rate_3 - median) <= band * abs(median))
 
     def columns(self) -> dict[str, np.ndarray]:

@@ -1,4 +1,5 @@
-"""Point probes: a field's value at a point (stresses in the cell that holds it: DG0, as CST gives it).
+"""Point probes: a field's value at a point (stresses in the cell that holds it: DG0, as
+CST gives it).
 
 A probe reads the six displacement dofs of its triangle's three nodes: each rank
 copies the ones it owns into the history row (one compiled call for all probes,
@@ -258,13 +259,12 @@ def _section_force(raw, start, c, p, out) -> None:
 @njit(cache=True)
 def _values(raw, xy, point_w, D, code, pointwise, X, gauge_w, gauge_l, out, plane) -> None:
     """Probe values of each row of ``raw`` (rows x n_raw, RAW per probe first): u_r and u_z
-    the interpolation sum_a point_w[p, a] u_a at the point (m); in the cell of a linear body a stress D eps
-    (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); a gauge's strain from
-    its ends' barycentric weights gauge_w[p] and length gauge_l[p] (m); a section is left
-    to :func:`_section_force`; the other values
-    of a probe in a path-dependent body's cell (``pointwise`` true) are left to
-    :class:`CellPoints`. ``plane``: plane strain, the strain out of the plane 0 (no hoop
-    term u_r / r)."""
+    the interpolation sum_a point_w[p, a] u_a at the point (m); in the cell of a linear
+    body a stress D eps (Pa), eps_p_eq and yielded 0; r and z the node's X[p] + u (m); a
+    gauge's strain from its ends' barycentric weights gauge_w[p] and length gauge_l[p]
+    (m); a section is left to :func:`_section_force`; the other values of a probe in a
+    path-dependent body's cell (``pointwise`` true) are left to :class:`CellPoints`.
+    ``plane``: plane strain, the strain out of the plane 0 (no hoop term u_r / r)."""
     for i in range(raw.shape[0]):
         for p in range(code.size):
             q = raw[i, RAW * p: RAW * p + RAW]
@@ -277,7 +277,8 @@ def _values(raw, xy, point_w, D, code, pointwise, X, gauge_w, gauge_l, out, plan
                 out[i, p] = X[p, c - _R] + q[c - _R]
             elif c == _U_R or c == _U_Z:
                 k = c - _U_R
-                out[i, p] = point_w[p, 0] * q[k] + point_w[p, 1] * q[k + 2] + point_w[p, 2] * q[k + 4]
+                out[i, p] = (point_w[p, 0] * q[k] + point_w[p, 1] * q[k + 2]
+                             + point_w[p, 2] * q[k + 4])
             elif pointwise[p]:
                 continue
             elif c > _U_Z:  # eps_p_eq, yielded
@@ -474,11 +475,11 @@ class Probes:
                 dofs[width * k: width * (k + 1)] = scene[np.column_stack([2 * nodes,
                                                                           2 * nodes + 1]).ravel()]
                 self.xy[k] = model.node_xy[nodes]
-                if not quad:
-                    self.point_w[k] = interpolation_weights(self.xy[k], point)
                 if quad:
                     self._quad.fill(k, model.cell_dofs, model.node_xy, cell, point,
                                     model.geometry)
+                else:
+                    self.point_w[k] = interpolation_weights(self.xy[k], point)
             if mine:
                 which[k] = next(b for b, body in enumerate(bodies)
                                 if cell in model.tmesh.cells(body.name))
@@ -522,8 +523,9 @@ class Probes:
             elif self.code[k] < len(STRESS_NAMES):
                 D = stiffness_matrix(material)
                 if D is None:
-                    raise InputError(f"probe '{name}': {quantity} of body '{bodies[which[k]].name}' "
-                                     "needs a material with a constant (elastic) stiffness")
+                    raise InputError(f"probe '{name}': {quantity} of body "
+                                     f"'{bodies[which[k]].name}' needs a material with a constant "
+                                     "(elastic) stiffness")
                 self.D[k] = D
         # the sections' dofs after the points' states: (probe, start in a raw row, c)
         self._sections: list[tuple[int, int, np.ndarray]] = []
@@ -620,8 +622,8 @@ class Probes:
             out = np.empty((raw.shape[0], self.code.size))
         raw = np.ascontiguousarray(raw)
         if self._quad is None:
-            _values(raw, self.xy, self.point_w, self.D, self.code, self.pointwise, self.X, self.gauge_w,
-                    self.gauge_l, out, self.plane)
+            _values(raw, self.xy, self.point_w, self.D, self.code, self.pointwise, self.X,
+                    self.gauge_w, self.gauge_l, out, self.plane)
         else:
             qc = self._quad
             _quad_values(raw, qc.weights, qc.dNdR, qc.dNdZ, qc.N, qc.inv_R, qc.w, qc.dofs,

@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import InputError
 from .sizing import needed, pulse_duration, shaper_rise_time
 from .waves import (REST_FRACTION, Analysis, Bars, Dispersion, Gauges, Specimen, Waves, analyse,
-                    separate)
+                    misfit, separate)
 
 FILES = ("shpb.csv", "shpb_waves.png", "shpb_stress_strain.png", "shpb_equilibrium.png")
 BODIES = ("striker", "incident", "specimen", "transmitter")
@@ -82,12 +82,14 @@ def shaper_stiffness(contacts: list[dict], h_bar: float, radius: float) -> float
     return math.inf
 
 
-def incident_pulse(contacts: list[dict], g: dict, c0: float, impedance: float) -> float:
+def incident_pulse(contacts: list[dict], g: dict, c0: float,
+                   impedance: float) -> tuple[float, float]:
     """T (s): the incident pulse from its front until it stays below REST_FRACTION of its
-    peak, 2 L_striker / c0 for a flat striker (:func:`.sizing.pulse_duration`)."""
+    peak, 2 L_striker / c0 for a flat striker (:func:`.sizing.pulse_duration`); and the
+    shaper's rise time (s, 0 for a flat striker) it follows from."""
     rise = shaper_rise_time(impedance, shaper_stiffness(contacts, g["h_bar"],
                                                         0.5 * g["bar_diameter"]))
-    return pulse_duration(2.0 * g["striker_length"] / c0, rise, REST_FRACTION)
+    return pulse_duration(2.0 * g["striker_length"] / c0, rise, REST_FRACTION), rise
 
 
 def bar_length_warning(scene) -> str | None:
@@ -105,8 +107,7 @@ def bar_length_warning(scene) -> str | None:
     impedance = m.density * c0 * math.pi * radius ** 2
     contacts = [{"lower": c.lower, "upper": c.upper, "method": c.method, "penalty": c.penalty}
                 for c in scene.contacts]
-    rise = shaper_rise_time(impedance, shaper_stiffness(contacts, g["h_bar"], radius))
-    pulse = incident_pulse(contacts, g, c0, impedance)
+    pulse, rise = incident_pulse(contacts, g, c0, impedance)
     z_i = probes["incident_gauge"].point[1]
     d_i = g["incident_length"] - z_i
     d_t = probes["transmitter_gauge"].point[1] - g["incident_length"] - g["specimen_length"]
@@ -237,7 +238,7 @@ def read_setup(run_dir: str, columns: list[str]) -> Setup:
     velocity = bodies["striker"].get("velocity", [0.0, 0.0])
     flat = 2.0 * g["striker_length"] / c0
     return Setup(bars=bars, specimen=specimen, gauges=gauges,
-                 pulse=incident_pulse(scene.get("contact", []), g, c0, rho * c0 * bars.area),
+                 pulse=incident_pulse(scene.get("contact", []), g, c0, rho * c0 * bars.area)[0],
                  flat=flat, radius=radius, nu=nu,
                  speed=abs(float(velocity[1])),
                  specimen_material={**materials.get(bodies["specimen"].get("material"), {}),
@@ -384,10 +385,7 @@ def analyse_run(run_dir: str, dispersion: bool = False) -> Result:
     # the window: the whole pulse where the incident gauge and the record hold it (bars
     # sized by docs/shpb.md's rule); else the flat striker's 2 L_st / c0, as the run's
     # bar-length warning said
-    g = setup.gauges
-    if (setup.pulse > 2.0 * g.incident / setup.bars.c0
-            or g.arrival + (g.incident + max(g.incident, g.transmitter)) / setup.bars.c0
-            + setup.pulse > t[-1]):
+    if misfit(t, setup.bars, setup.gauges, setup.pulse) is not None:
         setup = replace(setup, pulse=setup.flat)
     waves = separate(t, gauge_i, gauge_t, setup.bars, setup.gauges, setup.pulse, disp)
     result = analyse(waves, setup.bars, setup.specimen)

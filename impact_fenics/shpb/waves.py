@@ -106,6 +106,28 @@ class Dispersion:
     nu: float
 
 
+def misfit(t: np.ndarray, bars: Bars, gauges: Gauges, pulse: float) -> str | None:
+    """Why the waves of an incident pulse lasting ``pulse`` (s) cannot be separated from
+    gauge records sampled at the increasing times ``t`` (s); None when they can. They
+    overlap at the incident gauge when the pulse is longer than 2 d_I / c0, and the last
+    face sample, arrival + d_I / c0 + pulse (on the records' step), must have reached the
+    farther gauge, max(d_I, d_T) / c0 later, before the record ends."""
+    c0 = bars.c0
+    d_i, d_t = gauges.incident, gauges.transmitter
+    if pulse > 2.0 * d_i / c0:
+        return (f"shpb: the incident pulse ({pulse * 1e6:.1f} us) is longer than the time the "
+                f"incident gauge has before the reflection returns ({2e6 * d_i / c0:.1f} us): "
+                "the waves overlap at the gauge; move it farther from the specimen or shorten "
+                "the striker")
+    dt = float(t[1] - t[0])
+    last = gauges.arrival + d_i / c0 + dt * math.floor(pulse / dt)
+    if last + max(d_i, d_t) / c0 > t[-1]:
+        return (f"shpb: the record ends at {t[-1] * 1e6:.1f} us, before the transmitted and "
+                "reflected waves have passed their gauges "
+                f"({(last + max(d_i, d_t) / c0) * 1e6:.1f} us): run longer")
+    return None
+
+
 def separate(t: np.ndarray, incident_gauge: np.ndarray, transmitter_gauge: np.ndarray,
              bars: Bars, gauges: Gauges, pulse: float,
              dispersion: Dispersion | None = None) -> Waves:
@@ -132,19 +154,12 @@ def separate(t: np.ndarray, incident_gauge: np.ndarray, transmitter_gauge: np.nd
     if not (d_i > 0.0 and d_t > 0.0):
         raise InputError("shpb: the gauges must lie on the bars, away from the specimen "
                          f"(distances {d_i} m and {d_t} m)")
-    if pulse > 2.0 * d_i / c0:
-        raise InputError(f"shpb: the incident pulse ({pulse * 1e6:.1f} us) is longer than the "
-                         f"time the incident gauge has before the reflection returns "
-                         f"({2e6 * d_i / c0:.1f} us): the waves overlap at the gauge; move it "
-                         "farther from the specimen or shorten the striker")
+    problem = misfit(t, bars, gauges, pulse)
+    if problem is not None:
+        raise InputError(problem)
     dt = float(t[1] - t[0])
     start = gauges.arrival + d_i / c0  # the incident front at the front face
-    n = int(math.floor(pulse / dt)) + 1
-    face = start + dt * np.arange(n)
-    if face[-1] + max(d_i, d_t) / c0 > t[-1]:
-        raise InputError(f"shpb: the record ends at {t[-1] * 1e6:.1f} us, before the "
-                         "transmitted and reflected waves have passed their gauges "
-                         f"({(face[-1] + max(d_i, d_t) / c0) * 1e6:.1f} us): run longer")
+    face = start + dt * np.arange(int(math.floor(pulse / dt)) + 1)
     switch = gauges.arrival + 2.0 * d_i / c0  # the reflection's first arrival at the gauge
     before = np.where(t < switch, incident_gauge, 0.0)
     after = np.where(t >= switch, incident_gauge, 0.0)

@@ -102,7 +102,7 @@ def console_lines(s: dict) -> list[str]:
     plastic = any("plastic_work" in b for b in s.get("bodies", {}).values())
     if plastic and "eps_p_max" in s and "final_length" not in s:  # (a bar's shape line has it)
         lines.append(f"plastic strain: largest equivalent plastic strain {s['eps_p_max']:.4g} "
-                     "at the end (at a point of the stiffness rule)")
+                     "at the end (at a quadrature point)")
     for name, b in s.get("bodies", {}).items():
         lines.append(f"body {name}: mass {b['mass']:.6g} kg, {v_axial} {b['velocity_z_final']:.4g} m/s "
                      f"at the end, kinetic {b['kinetic_energy']:.4g} J, strain "

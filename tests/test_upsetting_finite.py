@@ -114,7 +114,9 @@ def test_friction_keeps_every_pair_in_the_cone(tmp):
     peak = max(np.abs(h["c0_platen_force"]).max(), np.abs(h["c1_wall_force"]).max())  # N
     if COMM.rank == 0:
         print(f"\nmu = {mu}: max over pairs and steps of |lambda_t| - mu lambda_n = {excess:.3g} N "
-              f"(peak platen force {peak:.4g} N), slip work {s['friction'][0]['slip_work']:.4g} J")
+              f"(peak platen force {peak:.4g} N), slip work {s['friction'][0]['slip_work']:.4g} J, "
+              f"ledger {s['energy_balance_error_rel']:.2g} (bound "
+              f"{ledger(s['n_steps'], s['n_dofs']):.2g})")
     # |lambda_t| <= mu lambda_n at every active pair and step, to the rounding of the
     # product mu lambda_n (the slip force is the cone's own value: one rounding)
     assert excess <= 4 * np.finfo(float).eps * mu * peak

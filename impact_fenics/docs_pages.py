@@ -200,9 +200,11 @@ faces); `"rod_on_anvil"` makes the rod `rod` on the anvil block `anvil` (facet g
 `anvil_lateral`, `axis`). On these two the summary has the bar's (the rod's) final
 length and face radius, and history.csv the displacements of its tracked nodes
 (`u_z_top`, `u_z_bottom`, `u_r_corner`: a probe of one of these names is refused).
-A rigid body's motion follows from its mass and forces: a platen that should move at
-a given speed is a heavy one driven by a force over a ramp (a `"constant"` pulse with
-`t_end`), as in `scenes/upsetting_finite.toml`; prescribed motion is not available yet.
+A rigid body's motion follows from its mass and forces, or is prescribed: a platen that
+should move at a given speed is a crosshead, `prescribed_velocity` a constant or a
+table ramped to the speed and held, as in `scenes/upsetting_finite.toml` (no mass and
+no `[[loads]]` on it; the work of its reaction is booked as external work,
+[friction.md](friction.md) section 12).
 
 Refused in a finite-strain scene, one line each: `n_steps`, `force_dt` and
 `converged_dt`; `[wall] face = "held"` off `quad_bar` (hold another face with

@@ -25,8 +25,8 @@ its bodies, each small or finite strain, on a mesh of quadrilaterals, which is
 with, as on triangles, [[contact]] between bodies (node pairs, node to segment with
 ``repair_every``; on quad_bar, one body, a rigid face only), [rigid.NAME] bodies in
 contact with a face ([[contact]] rigid, surface, radius), [[loads]] on facets and on
-rigid bodies (a ``"constant"`` pulse may end at ``t_end``: the heavy platen of
-``scenes/upsetting_finite.toml``, a force held over the ramp), [[fixed]] faces,
+rigid bodies (a ``"constant"`` pulse may end at ``t_end``), [rigid.NAME] parts of
+``prescribed_velocity`` (the crosshead of ``scenes/upsetting_finite.toml``), [[fixed]] faces,
 [[probes]] (on quad_bar and rod_on_anvil, not named as the bar's tracked nodes'
 probes: u_z_top, u_z_bottom, u_r_corner) and a ``[wall]``: the rigid plane z (m,
 default 0, at or below the bodies), a fixed rigid part under every boundary node with
@@ -43,8 +43,8 @@ bar's (the rod's) final length and face radius (:func:`.scenes.track_bar`).
 Its materials have a finite-strain form (``"j2"``: multiplicative J2, Hencky elasticity,
 linear hardening, rate-independent; ``"johnson_cook"``; ``"neo_hookean"``) or are a class
 of one's own with ``strain = "finite"`` (the kinematics is checked with the materials,
-:mod:`.scene_materials`). A rigid body's motion follows from its mass and forces (no
-prescribed motion yet: a heavy body driven by a force instead).
+:mod:`.scene_materials`). A rigid body's motion follows from its mass and forces, or is
+prescribed (``prescribed_velocity``: a constant or a table, docs/friction.md 12).
 
 ``[time]`` gives t_end (s) and either cfl (<= 1) or dt (a fixed step, s);
 dt_interval (steps, default 10); n_steps, force_dt and converged_dt are refused.

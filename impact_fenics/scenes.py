@@ -336,37 +336,39 @@ def taylor_anvil(settings: Settings, material, anvil=STEEL, anvil_scale: float =
 
 def upsetting(settings: Settings, material, radius: float = 5e-3, height: float = 5e-3,
               n_r: int = 8, n_z: int = 8, friction: float = 0.0, method="dme",
-              speed: float = 0.5, t_ramp: float = 50e-6, platen_mass: float = 1e6,
-              t_end: float = 1e-3, cfl: float = 0.5, dt_interval: int = 10,
+              speed: float = 0.5, t_ramp: float = 50e-6, t_end: float = 1e-3,
+              cfl: float = 0.5, dt_interval: int = 10,
               comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
     """Upsetting at finite strain: a ``material`` cylinder (finite strain; radius, height in
     m, n_r x n_z Q1 cells, the body "billet") standing on the fixed plane z = 0 and
     compressed by a rigid platen on its top face, both faces with Coulomb ``friction``
     (μ, or "stick") by ``method`` (film or dme; a name of :func:`make_method` or a method).
 
-    The rigid bodies have no prescribed motion, so the platen (the rigid body "platen",
-    ``platen_mass`` kg, starting at rest on the top face) is driven by the z force
-    -M V / t_ramp (N) for 0 <= t < t_ramp: its speed ramps to V = ``speed`` (m/s)
-    downward, changed afterwards only by the contact impulse over M. The platen's
+    The platen (the rigid body "platen", starting at rest on the top face) is a testing
+    machine's crosshead: a rigid part of prescribed velocity (docs/friction.md 12), v(t)
+    ramped linearly from 0 to -V (V = ``speed``, m/s) over ``t_ramp`` (s) and held after,
+    whatever the billet pushes back; its stroke is int_0^t v dt and its reaction is
+    booked as the motion's external work. The platen's
     candidates are the top face's nodes, g_i = u_platen - u_z,i >= 0 (m; a flat face: the
     rigid kind's friction takes no profile, so a side node folding over onto the platen
     is not caught: the study measures it); the plane's are every boundary
     node, as the Taylor bar's wall. The step
     follows the cells (cfl x the current limit every dt_interval steps) to ``t_end`` (s).
-    History: c0_platen_force (N) and c0_platen_u (m) from the platen's set (the first)."""
+    History: c0_platen_force (N), c0_platen_u (m), c0_platen_v (m/s) and
+    c0_platen_reaction (N) from the platen's set (the first)."""
     from .contact.plane import boundary_nodes, plane_below, wall_part
+    from .contact.prescribed import prescribed_velocity
     from .quad_meshes import quad_rectangle
     from .stepping import FollowingStep
 
-    require(speed > 0 and t_ramp > 0 and platen_mass > 0,
-            "upsetting: speed (m/s), t_ramp (s) and platen_mass (kg) must be > 0")
+    require(speed > 0 and t_ramp > 0,
+            "upsetting: speed (m/s) and t_ramp (s) must be > 0")
     model = DeformableModel(quad_rectangle(comm, 0.0, 0.0, radius, height, n_r, n_z, "billet"),
                             [Body("billet", material)])
     sim = Simulation(model, settings, policy=FollowingStep(None, t_end, None, cfl, dt_interval))
     top = rigid_face(model, "top", radius, "platen")
-    drive = -platen_mass * speed / t_ramp  # N
-
-    platen = RigidBody("platen", platen_mass, force=lambda t: drive if t < t_ramp else 0.0)
+    platen = RigidBody("platen", math.inf, prescribed=prescribed_velocity(
+        "platen", [(0.0, 0.0), (t_ramp, -speed)]))
     chosen = (lambda: make_method(method) if isinstance(method, str) else method)
     sim.add_contact(top, chosen(), rigid=platen)
     nodes = boundary_nodes(model.V, model.n_owned // 2)

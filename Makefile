@@ -66,7 +66,7 @@ study-upsetting: setup
 	$(PY) -m pytest tests/test_upsetting_study.py -m study -q -s
 
 # upsetting at finite strain, 10-30 % reduction, against the slab estimate
-# (tests/test_upsetting_finite_study.py, docs/friction.md; about ten minutes on one core)
+# (tests/test_upsetting_finite_study.py, docs/friction.md; about seven minutes on one core)
 study-upsetting-finite: setup
 	$(PY) -m pytest tests/test_upsetting_finite_study.py -m study -q -s
 

@@ -237,3 +237,70 @@ def test_a_tie_without_its_face_held_radially_is_refused(bar_mesh):
         sim.add_contact(tie_face(model, "free_end", RADIUS, "mass"), Tie(),
                         rigid=RigidBody("mass", 1.0))
     assert "must be fixed" in _one_line(err)
+
+
+def _scene_text(mass: float) -> str:
+    return f"""\
+[mesh]
+generator = "bar"
+radius = {RADIUS!r}
+length = {LENGTH!r}
+h = {H!r}
+
+[materials.steel]
+E = {BAR.E!r}
+nu = 0.0
+density = {BAR.density!r}
+
+[bodies.bar]
+material = "steel"
+
+[rigid.mass]
+mass = {mass!r}
+velocity = {V0!r}
+
+[[tie]]
+surface = "free_end"
+rigid = "mass"
+radius = {RADIUS!r}
+
+[time]
+cfl = 0.9
+n_steps = 40
+"""
+
+
+def test_the_scene_tie_is_the_python_tie(bar_mesh, tmp_path_factory):
+    """A [[tie]] builds the Python route's set (the face selected as a rigid [[contact]]'s,
+    its u_r held, its nodes at the part's velocity): the same run bit for bit."""
+    from impact_fenics.scene_file import build, read_scene
+    from scene_texts import scene_on_every_rank
+
+    m_face, _ = _face_and_bar_mass(bar_mesh)
+    M = MASS_RATIO * m_face
+    _, path = scene_on_every_rank(tmp_path_factory, "tie", _scene_text(M))
+    from_file = build(read_scene(path), {"out": None, "quiet": True, "plots": False,
+                                         "fields": False, "timers": False})
+    from_file.run()
+    built, _ = _run(from_file.model.tmesh, RigidBody("mass", M, v=V0), n_steps=40)
+    assert np.array_equal(from_file.integrator.u_owned, built.integrator.u_owned)
+    assert np.array_equal(from_file.integrator.v_owned, built.integrator.v_owned)
+    assert from_file.contacts[0].rigid.v == built.contacts[0].rigid.v != V0
+
+
+@pytest.mark.parametrize("change, expected", [
+    (("radius = 0.005\n\n[time]", 'radius = 0.005\nfriction = 0.3\n\n[time]'),
+     "[tie #1] unknown key 'friction'"),
+    (("[time]", '[[contact]]\nsurface = "loaded_end"\nrigid = "mass"\nradius = 0.005\n'
+                'method = "dme"\n\n[time]'),
+     "[rigid.mass] a rigid body must be in exactly one [[contact]] or [[tie]] (it is in 2"),
+], ids=["friction", "another_set"])
+def test_the_scene_refuses(tmp_path_factory, change, expected):
+    from impact_fenics.scene_file import read_scene
+    from scene_texts import replace, scene_on_every_rank
+
+    _, path = scene_on_every_rank(tmp_path_factory, "tie_refused",
+                                  replace(_scene_text(1.0), *change))
+    with pytest.raises(InputError) as err:
+        read_scene(path)
+    assert _one_line(err).startswith(expected)

@@ -693,7 +693,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     ``settings_overrides`` sets fields of the Settings (e.g. out, quiet)."""
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
-    from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
+    from .contact import pair_surfaces, rigid_face, spherical_button
     from .contact.tie import Tie, tie_face, tie_radial_dofs
     from .probes import locate_cell, outer_radius
     from .scenes import make_method

@@ -122,7 +122,7 @@ def test_a_mass_on_a_long_bar(bar_mesh):
     # the face stress: sigma = -(total tie force) / A (the force is compressive-positive),
     # the force of step n (its impulse takes v^{n-1/2} to v^{n+1/2}) at t^n. The face
     # rings at the lumped chain's highest frequency (a step's front excites it and the
-    # scheme does not damp it), some ten per cent about the mean: the amplitude is the
+    # scheme does not damp it), 10 to 25 per cent about the mean: the amplitude is the
     # least-squares one of the closed form's shape, sum sigma s / sum s s with
     # s = exp(-t / tau), which the ringing, changing sign every few steps, averages out of
     sigma = -h["mass_force"] / area

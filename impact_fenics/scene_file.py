@@ -784,7 +784,7 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             else:
                 body = _rigid_body(scene.rigid[c.rigid], rigid_loads, incident)
                 profile = None if c.button is None else spherical_button(c.button)
-                sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
+                sim.add_contact(rigid_face(model, c.surface, c.radius, body.name, profile),
                                 method, rigid=body)
             if c.friction is not None:
                 sim.contacts[-1].set_friction(c.friction, c.tangential_penalty, scene.force)

@@ -109,14 +109,15 @@ def test_a_mass_on_a_long_bar(bar_mesh):
     slope, intercept = np.polyfit(t_mid[keep], np.log(v[keep] / V0), 1)
     tau_fit = -1.0 / slope
     amp = float(np.exp(intercept))
-    # the amplitude's bound: the face's lumped mass joins the part at t = 0, and the bar's
-    # lumped chain, whose end node carries half a cell, sees M + m_face for the first half
-    # cell's transit a / (2 c0) = m_face / Z: the exponential starts that much late, an
-    # amplitude exp(m_face / M) ~ 1 + m_face / M; the front, carried by waves of the mesh's speed
-    # c_p (the lumped chain's at the shortest wave 2 a: c_p = 2 c0 / pi) instead of c0,
-    # leaves the face late or early by |c_p / c0 - 1| a / c0 per cell it crosses, and
-    # the fit of exp(-t / tau) through it moves by that time over tau, twice (the
-    # front's lead and its tail)
+    # the amplitude's bound: the bar's lumped chain, ended by a node of half a cell's
+    # mass, has the impedance Z (1 + O((omega a / c0)^2)) (no added mass to first order),
+    # so the face's own mass m_face, at v0 with the part at t = 0, is momentum the bar
+    # carries away beside the part's: A v0 M = (M + m_face) v0 gives the amplitude
+    # A = 1 + m_face / M (the impulse of v = A v0 exp(-t / tau) through Z is A v0 Z tau);
+    # and the front, carried by waves of the mesh's speed c_p (the lumped chain's at the
+    # shortest wave 2 a: c_p = 2 c0 / pi) instead of c0, leaves the face late or early by
+    # |c_p / c0 - 1| a / c0 per cell it crosses, and the fit of exp(-t / tau) through it
+    # moves by that time over tau, twice (the front's lead and its tail)
     c_p = 2.0 * C0 / np.pi
     amp_tol = 2.0 * abs(c_p / C0 - 1.0) * (H / C0) / tau + m_face / M
     # the face stress: sigma = -(total tie force) / A (the force is compressive-positive),
@@ -137,6 +138,39 @@ def test_a_mass_on_a_long_bar(bar_mesh):
     assert abs(amp - 1.0) <= amp_tol
     assert abs(s_amp - 1.0) <= amp_tol
     # the ledger closes (the tie's work booked as a contact's)
+    assert np.all(np.abs(e["balance_error_rel"]) <= ledger(n, summary["n_dofs"]))
+
+
+def test_a_mass_driven_by_a_rod_on_a_long_bar(bar_mesh):
+    """The mass with a rod of impedance Z_rod = Z above it (no incident wave): the rod
+    takes -Z_rod v, the bar -Z v, so M dv/dt = -(Z + Z_rod) v and tau = M / (Z + Z_rod).
+    The tie merges the part's slot mass M + Z_rod h/2 (the rod's implicit half) with
+    the face. The amplitude's bound is the first test's: the impulse through Z + Z_rod
+    is A v0 (Z + Z_rod) tau = A v0 M, the momentum (M + m_face) v0, so again
+    A = 1 + m_face / M, plus the front's term over the new tau. The ledger closes with
+    the rod's waves booked."""
+    m_face, m_bar = _face_and_bar_mass(bar_mesh)
+    area = m_bar / (BAR.density * LENGTH)
+    z = BAR.density * C0 * area
+    M = MASS_RATIO * m_face
+    z_rod = z
+    tau = M / (z + z_rod)
+    part = RigidBody("mass", M, v=V0, impedance=z_rod)
+    sim, summary = _run(bar_mesh, part, t_end=WINDOW * M / z)  # the window of the bar
+    e, h = sim.energy.data(), sim.history.data()
+    n = len(h["time"])
+    t_mid = h["time"] - 0.5 * h["dt"]
+    keep = t_mid >= 5.0 * H / C0
+    slope, intercept = np.polyfit(t_mid[keep], np.log(h["mass_v"][keep] / V0), 1)
+    c_p = 2.0 * C0 / np.pi
+    amp_tol = 2.0 * abs(c_p / C0 - 1.0) * (H / C0) / tau + m_face / M
+    amp = float(np.exp(intercept))
+    if COMM.rank == 0:
+        print(f"\ntie, mass with a rod: tau = {tau:.6g} s, fitted {-1.0 / slope:.6g} s "
+              f"({-1.0 / slope / tau - 1:+.3%}); v amplitude {amp:.5f} (tolerance "
+              f"{amp_tol:.3%}); {n} steps")
+    assert abs(-1.0 / slope / tau - 1.0) <= 0.01
+    assert abs(amp - 1.0) <= amp_tol
     assert np.all(np.abs(e["balance_error_rel"]) <= ledger(n, summary["n_dofs"]))
 
 

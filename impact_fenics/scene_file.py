@@ -601,7 +601,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
                        if r.body in finite_bodies or (not r.body and finite_bodies))
     h_min = min(r.h for r in regions)
     pairs = []
-    for c in scene.contacts:  # the nodes of the (slave, lower) face
+    for c in scene.contacts + scene.ties:  # the nodes of the (slave, lower, tied) face
         across = c.radius if c.rigid is not None else radius
         pairs.append(across / h_min + 1 if across else math.sqrt(cells))
     # the bar against the wall alone (the Taylor bar: its steps' flattening factor holds
@@ -616,7 +616,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         columns = 3 + len(scene.probes) + sum(
             6 + 2 * (c.rigid is not None)
             + (c.rigid is not None and scene.rigid[c.rigid].prescribed is not None)
-            for c in scene.contacts)  # (a prescribed part's reaction)
+            for c in scene.contacts + scene.ties)  # (a prescribed part's reaction)
         columns += 6 if scene.wall is not None else 0
         if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
             columns += 3  # the bar's (the rod's) tracked nodes

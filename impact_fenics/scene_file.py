@@ -133,6 +133,7 @@ class Scene:
     wall: Any = None     # scene_wall.WallSpec of a [wall] table, or None
     warned: set[str] = field(default_factory=set)  # the plausibility findings said so far
     geometry: Geometry = AXISYMMETRIC_GEOMETRY  # the section: axisymmetric or plane strain
+    ties: list[ContactSpec] = field(default_factory=list)  # [[tie]]: method "tie"
 
     @property
     def finite(self) -> bool:
@@ -192,12 +193,14 @@ def read_scene(path: str) -> Scene:
         if any(b.name == name for b in bodies):
             raise InputError(f"[rigid.{name}] the name '{name}' is also a deformable body")
     contacts = [_read_contact(where, d, rigid) for where, d in array_of(top, "contact")]
-    _check_contact_surfaces(contacts)
+    ties = [_read_tie(where, d, rigid) for where, d in array_of(top, "tie")]
+    _check_contact_surfaces(contacts + ties)
     for name in rigid:
-        users = [c.where for c in contacts if c.rigid == name]
+        users = [c.where for c in contacts + ties if c.rigid == name]
         if len(users) != 1:
             raise InputError(f"[rigid.{name}] a rigid body must be in exactly one [[contact]] "
-                             f"(it is in {len(users)})")
+                             f"or [[tie]] (it is in {len(users)}"
+                             + (f": {', '.join(users)})" if users else ")"))
     loads = [_read_load(where, d, rigid) for where, d in array_of(top, "loads")]
     fixed = [_read_fixed(where, d, geometry) for where, d in array_of(top, "fixed")]
     time = _read_time(top.data["time"])
@@ -216,6 +219,7 @@ def read_scene(path: str) -> Scene:
     force = top.value("force")
     scene = Scene(os.path.abspath(path), title, mesh, materials, bodies, rigid, contacts, loads,
                   fixed, time, output, probes, force)
+    scene.ties = ties
     if "wall" in top:
         scene.wall = read_wall(top.data["wall"])
     scene.geometry = geometry
@@ -227,7 +231,7 @@ def read_scene(path: str) -> Scene:
                 raise InputError(f"[rigid.{spec.name}] velocity_x: an axisymmetric rigid body "
                                  "moves along z only (the axis); a sideways velocity needs "
                                  'geometry = "plane_strain"')
-        for c in contacts:
+        for c in contacts + ties:
             if "half_width" in c.given:
                 raise InputError(f"{c.where} half_width: an axisymmetric rigid face has a "
                                  "radius (m) instead")
@@ -260,7 +264,7 @@ def _check_plane_strain(scene: Scene) -> None:
     what): on ``quad_bar`` the rectangle x in [0, radius], y in [0, length] (with
     ``symmetry = "x=0"`` the half of a strip 2 radius wide), its kernel compiled for plane
     strain (docs/plane_strain.md)."""
-    for c in scene.contacts:
+    for c in scene.contacts + scene.ties:
         if c.rigid is not None and "radius" in c.given:
             raise InputError(f"{c.where} radius: a plane-strain rigid face has a half_width "
                              "(m; |x| <= half_width) instead")
@@ -407,6 +411,24 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
     c.film_solver = t.value("film_solver")
     c.friction = read_friction(t)
     c.tangential_penalty = t.value("tangential_penalty")
+    return c
+
+
+def _read_tie(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpec:
+    """A [[tie]]: a facet group bonded to a rigid body, its face selected as a rigid
+    [[contact]]'s (``radius``, or ``half_width`` in plane strain)."""
+    t = Table(data, where, "tie")
+    c = ContactSpec(where, "tie", given=tuple(t.data))
+    c.surface = t.value("surface")
+    c.rigid = t.value("rigid")
+    if c.rigid not in rigid:
+        raise t.error("rigid", f"no table [rigid.{c.rigid}] "
+                               f"(rigid bodies: {', '.join(rigid) or 'none'})")
+    size = "half_width" if "half_width" in t.data else "radius"
+    if size not in t.data:
+        raise InputError(f"{where} radius is missing: give the tied face's radius (m; "
+                         "half_width in plane strain)")
+    c.radius = t.value(size)
     return c
 
 
@@ -579,7 +601,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
                        if r.body in finite_bodies or (not r.body and finite_bodies))
     h_min = min(r.h for r in regions)
     pairs = []
-    for c in scene.contacts:  # the nodes of the (slave, lower) face
+    for c in scene.contacts + scene.ties:  # the nodes of the (slave, lower, tied) face
         across = c.radius if c.rigid is not None else radius
         pairs.append(across / h_min + 1 if across else math.sqrt(cells))
     # the bar against the wall alone (the Taylor bar: its steps' flattening factor holds
@@ -594,7 +616,7 @@ def estimate(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD,
         columns = 3 + len(scene.probes) + sum(
             6 + 2 * (c.rigid is not None)
             + (c.rigid is not None and scene.rigid[c.rigid].prescribed is not None)
-            for c in scene.contacts)  # (a prescribed part's reaction)
+            for c in scene.contacts + scene.ties)  # (a prescribed part's reaction)
         columns += 6 if scene.wall is not None else 0
         if scene.finite and scene.mesh.generator in QUAD_GENERATORS:
             columns += 3  # the bar's (the rod's) tracked nodes
@@ -671,8 +693,8 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     ``settings_overrides`` sets fields of the Settings (e.g. out, quiet)."""
     from . import loads as ld, meshing
     from .bodies import Body, DeformableModel
-    from .contact import RigidBody, pair_surfaces, rigid_face, spherical_button
-    from .contact.prescribed import prescribed_velocity
+    from .contact import pair_surfaces, rigid_face, spherical_button
+    from .contact.tie import Tie, tie_face, tie_radial_dofs
     from .probes import locate_cell, outer_radius
     from .scenes import make_method
     from .simulation import Settings, Simulation
@@ -702,6 +724,9 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     for f in scene.fixed:
         with within(f.where):
             fixed += [model.facet_dofs(f.facet, components[c]) for c in f.components]
+    for c in scene.ties:  # a bonded face does not slide: its u_r (u_x) held
+        with within(c.where):
+            fixed.append(tie_radial_dofs(model, c.surface, c.radius))
     surface_loads, rigid_loads = [], {name: [] for name in scene.rigid}
     incident = {name: [] for name in scene.rigid}
     for spec in scene.loads:
@@ -757,21 +782,16 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
             elif c.rigid is None:
                 sim.add_contact(pair_surfaces(model, c.lower, c.upper), method)
             else:
-                spec = scene.rigid[c.rigid]
-                if spec.prescribed is not None:
-                    body = RigidBody(spec.name, math.inf,
-                                     prescribed=prescribed_velocity(spec.name, spec.prescribed))
-                else:
-                    body = RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]),
-                                     v=spec.velocity, impedance=spec.impedance,
-                                     v_x=spec.velocity_x,
-                                     incident=_force(incident[spec.name]) if incident[spec.name]
-                                     else None)
+                body = _rigid_body(scene.rigid[c.rigid], rigid_loads, incident)
                 profile = None if c.button is None else spherical_button(c.button)
-                sim.add_contact(rigid_face(model, c.surface, c.radius, spec.name, profile),
+                sim.add_contact(rigid_face(model, c.surface, c.radius, body.name, profile),
                                 method, rigid=body)
             if c.friction is not None:
                 sim.contacts[-1].set_friction(c.friction, c.tangential_penalty, scene.force)
+    for c in scene.ties:
+        with within(c.where):
+            sim.add_contact(tie_face(model, c.surface, c.radius, c.rigid), Tie(),
+                            rigid=_rigid_body(scene.rigid[c.rigid], rigid_loads, incident))
     if scene.wall is not None:  # a fixed rigid part under every boundary node
         from .contact.plane import boundary_nodes, plane_below, wall_part
 
@@ -821,6 +841,20 @@ def build(scene: Scene, settings_overrides: dict[str, Any] | None = None,
     plausibility.report(plausibility.findings(scene, dt=sim.settings.dt, n_steps=sim.n_steps,
                                               **plausibility.mesh_sizes(scene, size)), scene.warned, comm)
     return sim
+
+
+def _rigid_body(spec: RigidSpec, rigid_loads: dict, incident: dict):
+    """The RigidBody of [rigid.NAME] ``spec``: prescribed, or free with its loads' force,
+    its rod and its rod's incident wave (the [[loads]] on it, by body name)."""
+    from .contact import RigidBody
+    from .contact.prescribed import prescribed_velocity
+
+    if spec.prescribed is not None:
+        return RigidBody(spec.name, math.inf,
+                         prescribed=prescribed_velocity(spec.name, spec.prescribed))
+    return RigidBody(spec.name, spec.mass, _force(rigid_loads[spec.name]), v=spec.velocity,
+                     impedance=spec.impedance, v_x=spec.velocity_x,
+                     incident=_force(incident[spec.name]) if incident[spec.name] else None)
 
 
 def quad_bar_mesh(scene: Scene, comm: MPI.Comm):
@@ -943,7 +977,7 @@ def _check_groups(scene: Scene, tmesh) -> None:
         if name not in bodies:
             raise InputError(f"[bodies] the mesh cell group '{name}' is not a body: add a table "
                              f"[bodies.{name}] with its material")
-    refs = [(c.where, k, getattr(c, k)) for c in scene.contacts
+    refs = [(c.where, k, getattr(c, k)) for c in scene.contacts + scene.ties
             for k in ("lower", "upper", "surface", "slave", "master") if getattr(c, k) is not None]
     refs += [(ld.where, "facet", ld.facet) for ld in scene.loads if ld.facet is not None]
     refs += [(f.where, "facet", f.facet) for f in scene.fixed]

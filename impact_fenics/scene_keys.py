@@ -286,7 +286,7 @@ _BODIES = Section("bodies", "[bodies.NAME]", (
 _RIGID = Section("rigid", "[rigid.NAME]", (
     "A rigid body with one z degree of freedom (a punch, a drill bit; in plane strain y "
     "and a sideways x, its mass, forces and impedance those of the slab t), in exactly one "
-    "[[contact]]."), (
+    "[[contact]] or one [[tie]]."), (
     Key("mass", "positive", "kg", None, "mass", default_text="required (without "
         "prescribed_velocity)"),
     Key("velocity", "number", "m/s", 0.0, "initial z velocity"),
@@ -385,6 +385,22 @@ _CONTACT = Section("contact", "[[contact]]", (
 ), variants="`rigid` makes a rigid face, `slave`/`master` node to segment, else `lower`/"
             "`upper` node pairs. `penalty`, `restitution`, `positions` and `film_solver` are "
             "read by their method only (a warning names a key the method ignores).")
+
+_TIE = Section("tie", "[[tie]]", (
+    "A facet group bonded to a rigid body (a button brazed on a bit, a platen bonded to a "
+    "specimen): every node of the face moves with the body at every step, in tension as "
+    "in compression, its u_r (u_x in plane strain) held at 0 and its initial velocity the "
+    "body's ([one_loop.md](one_loop.md#a-tie)). The body is in this [[tie]] only (no "
+    "[[contact]] besides); the face is in no [[contact]]. No friction keys (a bonded face "
+    "does not slide) and no method: the tie is DME's cluster without release."), (
+    Key("surface", "text", "", REQUIRED, "the facet group tied under the rigid body"),
+    Key("rigid", "text", "", REQUIRED, "the name of a [rigid.NAME] body (free, with a rod, "
+        "prescribed or fixed)"),
+    Key("radius", "positive", "m", None, "the tied nodes: those of `surface` with r <= radius "
+        "(as a rigid [[contact]] selects its face)", default_text="required (axisymmetric)"),
+    Key("half_width", "positive", "m", None, "plane strain: the tied nodes are those with "
+        "|x| <= half_width", default_text="required (plane strain)"),
+))
 
 _LOADS = Section("loads", "[[loads]]", (
     "A time-dependent load: a pressure or traction on a facet group, or a z force on "
@@ -504,8 +520,8 @@ _WALL = Section("wall", "[wall]", (
     _TANGENTIAL_PENALTY,
 ))
 
-_TABLES = (_MESH, _MATERIALS, _BODIES, _RIGID, _CONTACT, _LOADS, _FIXED, _TIME, _OUTPUT, _PROBES,
-           _WALL)
+_TABLES = (_MESH, _MATERIALS, _BODIES, _RIGID, _CONTACT, _TIE, _LOADS, _FIXED, _TIME, _OUTPUT,
+           _PROBES, _WALL)
 
 TOP = Section("top", "top level", "Keys outside every table.", (
     Key("title", "text", "", None, "a name for the run's report", default_text="the file name"),

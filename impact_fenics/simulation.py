@@ -247,7 +247,7 @@ class Simulation:
                              f"'{constraints.names[0]}'/'{constraints.names[1]}': load another "
                              "facet group (the contact bookkeeping assumes no load there)")
         if rigid is not None:
-            refuse_shared_rigid(rigid, constraints.names, self.contacts)
+            refuse_shared_rigid(rigid, constraints.names, self.contacts, method.name == "tie")
         t0 = time.perf_counter()
         c = ContactSet(constraints, self.integrator, method, rigid)
         c.initialize()

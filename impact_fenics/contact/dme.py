@@ -148,6 +148,41 @@ def _pairs(gap, b, lo, up, mass, h_avg, e, mass_weighted, u, v, force, active):
 
 
 @njit(cache=True)
+def _merged_velocity(members, k, nodes, body, mass, v):
+    """The velocity of a rigid body and the nodes of the first ``k`` constraints of
+    ``members`` moving as one: v_c = (m_p v~_p + sum m_i v~_i) / (m_p + sum m_i) (m/s), the
+    momentum average (paper eq. 8), summed in the order of ``members``. A fixed body
+    (infinite mass) keeps its own velocity. The merge DME's cluster and the tie share."""
+    if mass[body] == np.inf:
+        return v[body]
+    momentum = mass[body] * v[body]
+    total = mass[body]
+    for j in range(k):
+        node = nodes[members[j]]
+        momentum += mass[node] * v[node]
+        total += mass[node]
+    return momentum / total
+
+
+@njit(cache=True)
+def _join(members, k, b, nodes, body, side, m_over_dt, dt, u_now, v_c, u, v, force, active):
+    """Move the body and the nodes of the first ``k`` constraints of ``members`` as one at
+    v_c (m/s): the body to u_p^n + dt v_c, each node onto it, u_i = u_p + side b_i (m), its
+    reaction force_i = m_i (side (v~_i - v_c)) / h_n (N, compressive-positive; the row
+    ``m_over_dt``). The placement DME's cluster and the tie share."""
+    u_body = u_now[body] + dt * v_c
+    v[body] = v_c
+    u[body] = u_body
+    for j in range(k):
+        i = members[j]
+        node = nodes[i]
+        active[i] = True
+        force[i] = m_over_dt[node] * (side * (v[node] - v_c))
+        v[node] = v_c
+        u[node] = u_body + side * b[i]
+
+
+@njit(cache=True)
 def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force, active, work):
     """Case 1: the largest consistent set of penetrating nodes moves with the body.
     ``nodes``: each constraint's node slot; ``side`` +1 for a body above its nodes, -1
@@ -155,21 +190,15 @@ def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force,
     (kg/s); ``dt`` the position step h_{n+1/2} (s); ``work``: an int buffer of length n.
     A fixed body (infinite mass) keeps its velocity: the cluster's is the body's."""
     fixed = mass[body] == np.inf
-    momentum = 0.0 if fixed else mass[body] * v[body]
-    total = mass[body]
     v_min = np.inf  # of side x v: the node most ready to leave the body
     n_cand = 0
     for i in range(gap.size):
         if gap[i] < 0.0:
             work[n_cand] = i
             n_cand += 1
-            node = nodes[i]
-            if not fixed:
-                momentum += mass[node] * v[node]
-                total += mass[node]
-            v_min = min(v_min, side * v[node])
+            v_min = min(v_min, side * v[nodes[i]])
     cand = work[:n_cand]
-    v_c = v[body] if fixed else momentum / total
+    v_c = _merged_velocity(cand, n_cand, nodes, body, mass, v)
     if v_min >= side * v_c:  # no candidate would pull: all join (the usual case)
         order = cand
         k = cand.size
@@ -194,21 +223,12 @@ def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force,
             momentum += mass[node] * v[node]
             total += mass[node]
             k += 1
-        v_c = momentum / total
-    u_body = u_now[body] + dt * v_c
-    v[body] = v_c
-    u[body] = u_body
+        v_c = _merged_velocity(order, k, nodes, body, mass, v)
     if k < gap.size:
         for i in range(gap.size):
             active[i] = False
             force[i] = 0.0
-    for j in range(k):
-        i = order[j]
-        node = nodes[i]
-        active[i] = True
-        force[i] = m_over_dt[node] * (side * (v[node] - v_c))
-        v[node] = v_c
-        u[node] = u_body + side * b[i]
+    _join(order, k, b, nodes, body, side, m_over_dt, dt, u_now, v_c, u, v, force, active)
 
 
 @njit(cache=True)

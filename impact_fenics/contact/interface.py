@@ -216,18 +216,24 @@ def profiled(constraints) -> bool:
     return float(np.ptp(b)) > 1e-12 * max(float(np.abs(r).max()), float(np.abs(b).max()))
 
 
-def refuse_shared_rigid(rigid: RigidBody, names: tuple[str, str], sets) -> None:
+def refuse_shared_rigid(rigid: RigidBody, names: tuple[str, str], sets,
+                        tie: bool = False) -> None:
     """A moving rigid part belongs to one contact set: the sets correct one after another
     (a Gauss-Seidel sweep), not as the coupled solve its kappa 1 1' would need across
     them. Refuse ``rigid`` for a new set of surfaces ``names`` if one of ``sets`` holds
     it, in one line naming both; a fixed part (kappa = 0) couples nothing and may be in
-    any number of sets."""
-    if rigid.fixed and rigid.prescribed is None:
-        return
+    any number of sets, unless one of them is a tie (``tie``: the new set is one): a
+    tied part, fixed or not, is in its tie alone."""
     for c in sets:
         if getattr(c, "rigid", None) is rigid:
             old = "/".join(f"'{x}'" for x in c.constraints.names)
             new = "/".join(f"'{x}'" for x in names)
+            if tie or c.method.name == "tie":
+                raise InputError(f"rigid body '{rigid.name}' is in a tie and in another "
+                                 f"contact set, {old} and {new}: a tied part belongs to its "
+                                 "tie alone")
+            if rigid.fixed and rigid.prescribed is None:
+                continue
             raise InputError(f"rigid body '{rigid.name}' is in two contact sets, {old} and "
                              f"{new}: a moving rigid part belongs to one set (sets correct "
                              "one after another, not as one coupled solve)")
@@ -443,6 +449,10 @@ class ContactSet:
             self.friction = None
             return
         what = f"friction = {law.text()}"
+        if self.method.name == "tie":
+            raise InputError(f"{what} on the tie '{self.constraints.names[0]}'/"
+                             f"'{self.constraints.names[1]}': a bonded face does not slide "
+                             "(a tie takes no friction)")
         if isinstance(tangential_penalty, str):
             if tangential_penalty != "scaled":
                 raise InputError(f"tangential_penalty = '{tangential_penalty}': give a "
@@ -515,6 +525,8 @@ class ContactSet:
         A penalty keeps the p chosen at set-up, there bounded over every row a
         re-pairing can make (:meth:`.penalty.Penalty.setup`); its ``beta_max`` is the
         largest Gershgorin bound of the rows the run used."""
+        if self.method.name == "tie":
+            raise InputError("a tie does not re-pair: its nodes are bonded to the part")
         if self.kind != SEGMENTS:
             raise InputError("re-pairing is for node-to-segment contact")
         if self.friction is not None and int(every):  # refused: e > 0
@@ -682,6 +694,9 @@ class ContactSet:
     def initialize(self) -> None:
         """Read u^0 and v^0 of the contact dofs (call after the integrator's set_initial)."""
         integ = self.integrator
+        start = getattr(self.method, "start", None)  # a tie: its nodes at the part's v^0
+        if start is not None:
+            start(self)
         self._gather(integ.u_owned, integ.v_owned, self.u_now, self.v_now)
         if self.kind == SEGMENTS:
             self._load_segment_kernels()

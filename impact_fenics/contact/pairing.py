@@ -108,8 +108,7 @@ def rigid_face(model: DeformableModel, surface: str, radius: float, body_name: s
     if not radius > 0:
         raise InputError(f"rigid face radius = {radius} m: must be > 0")
     xy, dofs = _surface_nodes(model, surface)
-    tol = 1e-9 * max(model.length_scale, radius)
-    keep = np.abs(xy[:, 0]) <= radius + tol
+    keep = _on_face(model, xy, radius)
     if not np.any(keep):
         raise InputError(f"no node of '{surface}' lies within |r| <= {radius} m")
     r = xy[keep, 0]
@@ -118,6 +117,22 @@ def rigid_face(model: DeformableModel, surface: str, radius: float, body_name: s
         raise InputError("rigid face profile must give a finite gap b(r) >= 0 (m) at every node")
     return Constraints(r=r.copy(), b=b.copy(), lower=dofs[keep].copy(), upper=None,
                        names=(surface, body_name))
+
+
+def _on_face(model: DeformableModel, xy: np.ndarray, radius: float) -> np.ndarray:
+    """Which nodes (r, z) (m) lie on a rigid face of radius (half-width) ``radius`` (m):
+    |r| <= radius, within 1e-9 of the model's length scale."""
+    return np.abs(xy[:, 0]) <= radius + 1e-9 * max(model.length_scale, radius)
+
+
+def face_nodes(model: DeformableModel, surface: str, radius: float,
+               component: int) -> np.ndarray:
+    """The owned dofs of ``component`` of the nodes :func:`rigid_face` selects on
+    ``surface`` (|r| <= ``radius``, m)."""
+    if not radius > 0:
+        raise InputError(f"rigid face radius = {radius} m: must be > 0")
+    dofs = model.facet_dofs(surface, component)
+    return dofs[_on_face(model, model.dof_coordinates(dofs), radius)]
 
 
 def spherical_button(sphere_radius: float) -> Callable[[np.ndarray], np.ndarray]:

@@ -89,6 +89,12 @@ class Settings:
     max_steps: int | None = None  # a step that follows the limit: stop (exit 3) beyond these
 
 
+def _set_dofs(constraints) -> np.ndarray:
+    """The global z dofs of a contact set's nodes (replicated on every rank)."""
+    if isinstance(constraints, SegmentConstraints):
+        return constraints.dofs
+    return np.concatenate([d for d in (constraints.lower, constraints.upper) if d is not None])
+
 
 class Simulation:
     """Deformable bodies, their conditions, loads, contact and the run settings."""
@@ -236,11 +242,14 @@ class Simulation:
     def add_contact(self, constraints: Constraints, method, rigid: RigidBody | None = None) -> ContactSet:
         """Enforce ``constraints`` (node pairs, a rigid face or, from contact.segments, node
         to segment) with ``method`` (penalty, FILM or DME)."""
-        if isinstance(constraints, SegmentConstraints):
-            contact_dofs = constraints.dofs
-        else:
-            contact_dofs = np.concatenate([d for d in (constraints.lower, constraints.upper)
-                                           if d is not None])
+        contact_dofs = _set_dofs(constraints)
+        for c in self.contacts:  # a tied node is bonded: it belongs to its tie alone
+            if ("tie" in (method.name, c.method.name)
+                    and np.isin(contact_dofs, _set_dofs(c.constraints)).any()):
+                raise InputError(f"the faces '{constraints.names[0]}'/'{constraints.names[1]}' "
+                                 f"and '{c.constraints.names[0]}'/'{c.constraints.names[1]}' "
+                                 "share nodes and one of them is a tie: a tied node belongs "
+                                 "to its tie alone")
         loaded = [self.model.to_global(ld.dofs) for ld in self.loads]
         if loaded and self.comm.allreduce(int(np.isin(np.concatenate(loaded), contact_dofs).sum())):
             raise InputError(f"a surface load acts on nodes of the contact surfaces "

@@ -254,6 +254,22 @@ def test_a_tied_part_in_another_set_is_refused(bar_mesh, tie_first, fixed):
     assert len(sim.contacts) == 1
 
 
+@pytest.mark.parametrize("tie_first", [True, False], ids=["tie_first", "contact_first"])
+def test_a_tied_face_in_another_set_is_refused(bar_mesh, tie_first):
+    """A tied node is bonded: a second set on the same face (another part's contact) is
+    refused, whichever comes first."""
+    model, sim = _tie_set_up(bar_mesh)
+    sets = [(tie_face(model, "free_end", RADIUS, "mass"), Tie(), RigidBody("mass", 1.0)),
+            (rigid_face(model, "free_end", RADIUS, "other"), DME(), RigidBody("other", 1.0))]
+    if not tie_first:
+        sets.reverse()
+    sim.add_contact(sets[0][0], sets[0][1], rigid=sets[0][2])
+    with pytest.raises(InputError) as err:
+        sim.add_contact(sets[1][0], sets[1][1], rigid=sets[1][2])
+    assert "a tied node belongs to its tie alone" in _one_line(err)
+    assert len(sim.contacts) == 1
+
+
 def test_a_tie_between_two_deformable_bodies_is_refused():
     mesh = meshing.coaxial_bars_sized(radius=0.01, striker_length=0.02, target_length=0.02,
                                       h_striker=0.01, h_target=0.01, comm=COMM)

@@ -283,8 +283,11 @@ def _report(title: str, s: dict, out_dir: str) -> None:
                 if first is not None else "never active")
         repaired = (f", re-paired every {c['repair_every']} step(s) ({c['repairs']} times)"
                     if "repair_every" in c else "")
-        print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
-              f"max penetration {c['max_penetration']:.3g} m{repaired}")
+        if c["method"] == "tie":
+            print(f"tie: {c['n_constraints']} tied nodes")
+        else:
+            print(f"contact ({c['method']}): {c['n_constraints']} constraints, {span}, "
+                  f"max penetration {c['max_penetration']:.3g} m{repaired}")
     for line in console_lines(s):
         print(line)
     print(_results_line(out_dir, f"impact-fenics plot {out_dir} renders it"))

@@ -118,10 +118,12 @@ def console_lines(s: dict) -> list[str]:
     for c in s.get("impact", []):
         if "peak_force" not in c:
             continue
-        line = (f"contact {c['surfaces']}: peak force {c['peak_force']:.4g} N at "
-                f"{c['peak_force_time'] * 1e6:.2f} us, impulse {c['impulse']:.4g} N s, "
-                f"in contact {c['time_in_contact'] * 1e6:.1f} us, "
-                f"{c['n_separations']} separation(s)")
+        line = (f"{'tie' if c.get('tie') else 'contact'} {c['surfaces']}: peak force "
+                f"{c['peak_force']:.4g} N at {c['peak_force_time'] * 1e6:.2f} us, impulse "
+                f"{c['impulse']:.4g} N s")
+        if not c.get("tie"):  # a tie holds from the first step to the last
+            line += (f", in contact {c['time_in_contact'] * 1e6:.1f} us, "
+                     f"{c['n_separations']} separation(s)")
         if c.get("restitution") is not None and c["separated_at_end"]:
             line += (f"; rebound {c['velocity_lower_after']:.4g} / {c['velocity_upper_after']:.4g}"
                      f" m/s, restitution {c['restitution']:.3f}")

@@ -355,6 +355,8 @@ def impact_figures(history: dict[str, np.ndarray], contacts: list, v_start: dict
         bodies = contact_bodies(c, model, comm)
         lower, upper = bodies["lower"], bodies["upper"]
         fig = {"surfaces": "/".join(c.constraints.names), **bodies}
+        if c.method.name == "tie":
+            fig["tie"] = True
         fig.update(contact_figures(h["time"], h[force], h[f"{tag}n_active"], dt))
         fig.update(restitution((v_start[lower], v_end[lower]),
                                (v_start[upper], v_end[upper])))

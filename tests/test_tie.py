@@ -331,11 +331,17 @@ def test_the_scene_tie_is_the_python_tie(bar_mesh, tmp_path_factory):
     _, path = scene_on_every_rank(tmp_path_factory, "tie", _scene_text(M))
     from_file = build(read_scene(path), {"out": None, "quiet": True, "plots": False,
                                          "fields": False, "timers": False})
-    from_file.run()
+    summary = from_file.run()
     built, _ = _run(from_file.model.tmesh, RigidBody("mass", M, v=V0), n_steps=40)
     assert np.array_equal(from_file.integrator.u_owned, built.integrator.u_owned)
     assert np.array_equal(from_file.integrator.v_owned, built.integrator.v_owned)
     assert from_file.contacts[0].rigid.v == built.contacts[0].rigid.v != V0
+    # the console names it a tie, without a contact's time in contact and separations
+    from impact_fenics.report import console_lines
+
+    if COMM.rank == 0:
+        line = next(x for x in console_lines(summary) if "free_end/mass" in x)
+        assert line.startswith("tie free_end/mass: peak force") and "separation" not in line
 
 
 @pytest.mark.parametrize("change, expected", [

@@ -43,7 +43,6 @@ ELASTIC_BUTTON = NeoHookean(E=200e9, nu=0.3, density=7850.0)
 PULSE = loads.Trapezoid(150e3, 2e-6, 8e-6, 1e-5)  # N: the bit-rock blow's peak, short
 DT = 2.0 ** -24  # s (6.0e-8: 0.28 of the button's cell limit h / c_L = 2.1e-7 s at set-up)
 T_END = 2e-5  # s: the pulse and as long again (336 steps, the last one clipped to 3.2e-8 s)
-ROCK_SIZE = scenes.rock_extent(scenes.GRANITE, T_END, R)  # m: no echo within t_end
 
 
 def _settings(**kw) -> Settings:

@@ -379,3 +379,71 @@ def upsetting(settings: Settings, material, radius: float = 5e-3, height: float 
     sim.add_probe("r_mid", (radius, 0.5 * height), "r")
     sim.add_probe("r_top", (radius, height), "r")
     return sim
+
+
+# ------------------------------------------------------------------- the bit with a tied button
+
+def bit_button_rock(settings: Settings, button_material, rock=GRANITE,
+                    button_radius: float = 5e-3, button_length: float = 5e-3, n_r: int = 4,
+                    rock_radius: float | None = None, rock_depth: float | None = None,
+                    bit_mass: float = 0.5, impedance: float = ROD_IMPEDANCE,
+                    incident: loads.TimeFunction = loads.Trapezoid(50e3, 2e-6, 8e-6, 1e-5),
+                    method="dme", hold_rock: bool = False, t_end: float = 2e-5,
+                    dt: float = 2.0 ** -24, dt_interval: int = 10,
+                    comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """One blow of :func:`bit_rock` through a deformable button: the rigid bit (mass in kg,
+    one z dof, the rod of impedance Z in kg/s carrying ``incident(t)``, N) is tied by its
+    face to the top of a button (a finite-strain ``button_material`` cylinder, radius and
+    length in m, n_r x round(n_r length / radius) square Q1 cells, the body "rod" of
+    :func:`~.quad_meshes.rod_on_anvil`), whose face meets the ``rock`` (small strain, the
+    body "anvil": r <= rock_radius, -rock_depth <= z <= 0, default :func:`rock_extent`
+    for t_end, square cells of the button's size) through node-to-segment contact by
+    ``method`` (the button's face the slave). The tie (:mod:`.contact.tie`) holds the
+    button's top at the bit's u_z and at u_r = 0. ``hold_rock``: the rock's bottom held in
+    u_z (free otherwise). The step is the fixed ``dt`` (s) under the step that follows the
+    button's cells (checked every ``dt_interval`` steps), to ``t_end`` (s)."""
+    from .contact.segments import node_to_segment
+    from .contact.tie import Tie, tie_face, tie_radial_dofs
+    from .quad_meshes import rod_on_anvil
+    from .stepping import FollowingStep
+
+    size = rock_extent(rock, t_end, button_radius)
+    n_z = max(1, round(n_r * button_length / button_radius))
+    tmesh = rod_on_anvil(comm, button_radius, button_length, n_r, n_z,
+                         size if rock_radius is None else rock_radius,
+                         size if rock_depth is None else rock_depth)
+    model = DeformableModel(tmesh, [Body("rod", button_material), Body("anvil", rock)])
+    fixed = [tie_radial_dofs(model, "rod_end", button_radius)]
+    if hold_rock:
+        fixed.append(model.facet_dofs("anvil_bottom", 1))
+    sim = Simulation(model, settings, fixed=fixed,
+                     policy=FollowingStep(None, t_end, dt, 0.5, dt_interval))
+    bit = RigidBody("bit", bit_mass, impedance=impedance, incident=incident)
+    sim.add_contact(tie_face(model, "rod_end", button_radius, "bit"), Tie(), rigid=bit)
+    sim.add_contact(node_to_segment(model, "rod_contact", "anvil_contact"),
+                    make_method(method) if isinstance(method, str) else method)
+    return sim
+
+
+def rigid_bit_on_rock_block(settings: Settings, method, rock=GRANITE, bit_radius: float = 5e-3,
+                            h: float = 1.25e-3, rock_radius: float = 0.05,
+                            rock_depth: float = 0.05, bit_mass: float = 0.5,
+                            impedance: float = ROD_IMPEDANCE,
+                            incident: loads.TimeFunction = loads.Trapezoid(50e3, 2e-6, 8e-6,
+                                                                           1e-5),
+                            hold_rock: bool = False,
+                            comm: MPI.Comm = MPI.COMM_WORLD) -> Simulation:
+    """:func:`bit_rock`'s rigid flat bit (radius m) on a structured rock block of square Q1
+    cells of side ``h`` (m), r <= rock_radius, -rock_depth <= z <= 0: the rock of
+    :func:`bit_button_rock` cell for cell (its anvil), to compare the two blows.
+    ``hold_rock``: the bottom held in u_z."""
+    from .quad_meshes import quad_rectangle
+
+    m_r, m_z = max(1, round(rock_radius / h)), max(1, round(rock_depth / h))
+    model = DeformableModel(quad_rectangle(comm, 0.0, -rock_depth, rock_radius, 0.0, m_r, m_z,
+                                           "block"), [Body("block", rock)])
+    fixed = [model.facet_dofs("bottom", 1)] if hold_rock else []
+    sim = Simulation(model, settings, fixed=fixed)
+    bit = RigidBody("bit", bit_mass, impedance=impedance, incident=incident)
+    sim.add_contact(rigid_face(model, "top", bit_radius, "bit"), method, rigid=bit)
+    return sim

@@ -213,7 +213,9 @@ built for a finite-strain body). `[wall] face = "held"` and `dt_interval` are re
 a small-strain scene. `scenes/taylor_bar.toml` and `scenes/taylor_johnson_cook.toml` are
 the examples of a bar against a wall, `scenes/taylor_anvil.toml` of the rod on a linear
 elastic anvil, `scenes/upsetting_finite.toml` of a cylinder between the wall and a rigid
-platen, `scenes/shpb_finite.toml` of a finite-strain specimen between linear bars;
+platen, `scenes/shpb_finite.toml` of a finite-strain specimen between linear bars,
+`scenes/bit_button.toml` of a finite-strain button tied (`[[tie]]`) to a rigid bit
+and pressed on a small-strain rock;
 [materials.md](materials.md) describes the element and the materials.
 
 ## Small strain on quadrilaterals

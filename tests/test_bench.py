@@ -97,6 +97,12 @@ def test_smoke_run_writes_the_expected_figures(smoke):
         gain = smoke["gain"]  # every nonlinear step timed on 2 ranks beside its 1-rank time
         assert "error" not in gain, gain.get("error")
         assert gain["meta_two_ranks"]["ranks"] == 2 and gain["triad_gain"] > 0
+        # the compiled triad's gain: the two ranks' sum over one rank's (a product and a
+        # quotient: 2 roundings); PETSc's VecWAXPY gain beside it
+        gbs = gain["triad_gbs"]
+        triad = gain["triad_gain"]
+        assert abs(triad - 2.0 * gbs["2"] / gbs["1"]) <= rounding(2) * triad
+        assert gain["waxpy_gain"] > 0
         assert {"j2_fast", "dp_fast", "j2_finite_strain"} <= set(gain["steps"])
         for k, r in gain["steps"].items():
             # gain = t1 / t2; the ms columns are 1e3 t each: 3 more roundings

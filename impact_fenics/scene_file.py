@@ -378,16 +378,7 @@ def _read_contact(where: str, data: dict, rigid: dict[str, RigidSpec]) -> Contac
                ("rigid",) if is_rigid else ("segment",) if is_segment else ("pairs",))
     c = ContactSpec(where, t.value("method"), given=tuple(t.data))
     if is_rigid:
-        c.surface = t.value("surface")
-        c.rigid = t.value("rigid")
-        if c.rigid not in rigid:
-            raise t.error("rigid", f"no table [rigid.{c.rigid}] "
-                                   f"(rigid bodies: {', '.join(rigid) or 'none'})")
-        size = "half_width" if "half_width" in t.data else "radius"
-        if size not in t.data:
-            raise InputError(f"{where} radius is missing: give the rigid face's radius (m; "
-                             "half_width in plane strain)")
-        c.radius = t.value(size)
+        size = _rigid_face(t, c, rigid, "rigid face")
         c.button = t.value("button")
         if c.button is not None and c.button < c.radius:
             raise t.error("button", f"must be >= the face {size} {toml_text(t.data[size])} m")
@@ -419,6 +410,14 @@ def _read_tie(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpe
     [[contact]]'s (``radius``, or ``half_width`` in plane strain)."""
     t = Table(data, where, "tie")
     c = ContactSpec(where, "tie", given=tuple(t.data))
+    _rigid_face(t, c, rigid, "tied face")
+    return c
+
+
+def _rigid_face(t: Table, c: ContactSpec, rigid: dict[str, RigidSpec], what: str) -> str:
+    """The keys of a face under a rigid body into ``c``: ``surface``, ``rigid`` (a
+    [rigid.NAME] of ``rigid``) and its size, ``radius`` (m), or ``half_width`` (m) in plane
+    strain; returns the size's key. ``what`` names the face in the error."""
     c.surface = t.value("surface")
     c.rigid = t.value("rigid")
     if c.rigid not in rigid:
@@ -426,10 +425,10 @@ def _read_tie(where: str, data: dict, rigid: dict[str, RigidSpec]) -> ContactSpe
                                f"(rigid bodies: {', '.join(rigid) or 'none'})")
     size = "half_width" if "half_width" in t.data else "radius"
     if size not in t.data:
-        raise InputError(f"{where} radius is missing: give the tied face's radius (m; "
+        raise InputError(f"{c.where} radius is missing: give the {what}'s radius (m; "
                          "half_width in plane strain)")
     c.radius = t.value(size)
-    return c
+    return size
 
 
 def read_friction(t: Table):

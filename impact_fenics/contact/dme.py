@@ -223,7 +223,7 @@ def _cluster(gap, b, nodes, body, side, mass, m_over_dt, dt, u_now, u, v, force,
             momentum += mass[node] * v[node]
             total += mass[node]
             k += 1
-        v_c = _merged_velocity(order, k, nodes, body, mass, v)
+        v_c = momentum / total  # _merged_velocity of the first k, in the same order
     if k < gap.size:
         for i in range(gap.size):
             active[i] = False

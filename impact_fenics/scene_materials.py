@@ -206,12 +206,17 @@ def _build(spec: MaterialSpec, strain: str):
             raise InputError(f"{where} {key} = {toml_text(value)}: the "
                              f"{_adjective(strain)} form of model = {toml_text(spec.model)} "
                              f"({cls.__name__}) has no such parameter (it takes {takes})")
+    missing = [p for p in cls.parameters
+               if p.name not in spec.params and p.scene_default == REQUIRED]
+    if len(missing) == 1:
+        raise InputError(f"{where} {missing[0].name} is missing: {missing[0].described}")
+    if missing:  # every one in the one line, so that one edit mends the table
+        raise InputError(f"{where} {len(missing)} parameters are missing: "
+                         + "; ".join(f"{p.name} ({p.described})" for p in missing))
     for p in cls.parameters:
         if p.name in spec.params:
             kwargs[p.name] = spec.params[p.name]
-        elif p.scene_default == REQUIRED:
-            raise InputError(f"{where} {p.name} is missing: {p.described}")
-        elif p.scene_default != CLASS_DEFAULT:
+        elif p.scene_default not in (REQUIRED, CLASS_DEFAULT):
             kwargs[p.name] = p.scene_default
     try:
         return cls(**kwargs)

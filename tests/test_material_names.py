@@ -163,6 +163,11 @@ BAD = [
      "[materials.m] dilatancy_angle = 60.0 deg: must lie in [0, friction_angle = 50.0]"),
     ("missing", ("johnson_cook", "finite", KEYS["johnson_cook"].replace("A = 90e6\n", "")),
      "[materials.m] A is missing: yield stress at zero plastic strain, > 0 (Pa)"),
+    ("several missing", ("johnson_cook", "finite", KEYS["johnson_cook"].replace(
+        "A = 90e6\n", "").replace("chi = 0.9\n", "")),
+     "[materials.m] 2 parameters are missing: A (yield stress at zero plastic strain, > 0 "
+     "(Pa)); chi (Taylor-Quinney factor: the share of the plastic work that heats, in "
+     "[0, 1])"),
     ("key of another model", ("j2", "small", KEYS["j2"] + "A = 1e6\n"),
      '[materials.m] A = 1000000.0: only for model = "johnson_cook"'),
     ("key of two models", ("elastic", "small", "viscosity = 1.0\n"),

@@ -96,6 +96,22 @@ def _set_dofs(constraints) -> np.ndarray:
     return np.concatenate([d for d in (constraints.lower, constraints.upper) if d is not None])
 
 
+
+def position_booked(model: DeformableModel, integ: Integrator) -> np.ndarray:
+    """1.0 on the owned dofs of the bodies whose stored energy the ledger takes from their
+    positions, where a position jump (DME's) is work: a small-strain path-dependent body
+    (its trapezoid of f . du), a linear body whose energy telescopes (its force the
+    MatMultAdd of a constant step); 0.0 on the others, whose work is booked by the kinetic
+    identity (a finite-strain body, the linear per-step pass): one_loop.md 4.7. Collective."""
+    booked = np.zeros(model.n_owned)
+    bodies = [force.body for force in integ.nonlinear]
+    if integ.linear is not None and integ.linear.scaled:
+        bodies += integ.force_bodies[0]
+    for name in bodies:
+        for component in range(2):
+            booked[model.body_dofs(name, component)] = 1.0
+    return booked
+
 class Simulation:
     """Deformable bodies, their conditions, loads, contact and the run settings."""
 
@@ -362,9 +378,10 @@ class Simulation:
             self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms
             self._neg_mass = -integ.mass
             load(gap_dot, integ.mass, integ.mass, integ.mass)  # (its entry loaded now)
-            if not integ.nonlinear:  # every body's work by the kinetic identity: no jump
-                for c in self.contacts:  # term (one_loop.md 4.7)
-                    c.book_no_jumps()
+        if any(c.jumps for c in self.contacts):  # the jumps' work where it is due (4.7)
+            booked = position_booked(model, integ)
+            for c in self.contacts:
+                c.book_jumps_on(booked)
         times = PhaseTimers(PHASES) if s.timers else None
         # an output step's u^n, v^{n-1/2} and internal force f_int(u^n)
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "f")}

@@ -459,8 +459,8 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
             slip += d_slip[i]
         elif f != 0.0:
             slip += h_avg * abs(f) * abs(v[up[i]] - v[lo[i]])
-    w_t, _ = _book(h_avg, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, False,
-                   False)
+    w_t, _ = _book(h_avg, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, jump,
+                   False, False)  # no jump: the tangential pass keeps u = u^n + h v
     stats[0] = total
     stats[1] = n_stick
     stats[2] = n_slip

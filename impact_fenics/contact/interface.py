@@ -61,8 +61,8 @@ from .prescribed import PrescribedVelocity
 from .penalty import Penalty, lambda_max_diag_plus_rank_one
 from .segments import (END_TOLERANCE, Repairing, SegmentConstraints, current_positions,
                        repair_reach, rows_of_pairs)
-from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMPS, KAPPA, LEDGER,
-                    LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
+from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMP_BOOK, JUMPS, KAPPA,
+                    LEDGER, LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
                     RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_FACE, RIGID_MASS, RIGID_WORK,
                     SEGMENTS, STATS, TO, WAVES, PhaseTimes, _commit, _commit_segments,
                     _committed_gap, _detect_gathered, _detect_local, _detect_segments, _pack,
@@ -304,9 +304,11 @@ class ContactSet:
         self.n_slots = ns = nd + (1 if rigid else 0)
         # the state, packed in a few arrays for the one compiled call of a step (fused.py);
         # the attributes below are views of their rows (layout: state.py)
-        self._floats = np.zeros((18, ns))  # 12 slot rows, then 6 constraint rows (n <= ns)
+        self._floats = np.zeros((19, ns))  # 12 slot rows, 6 constraint rows (n <= ns), 1 slot row
         self._ints = np.zeros((11, nd), dtype=np.int32)  # 3 constraint rows, 8 slot maps
-        self._slots, self._cons = self._floats[:12], self._floats[12:, :n]
+        self._slots, self._cons = self._floats[:12], self._floats[12:JUMP_BOOK, :n]
+        self.jump_book = self._floats[JUMP_BOOK]  # every slot's jumps booked: book_jumps_on
+        self.jump_book[:] = 1.0
         self._flags = np.zeros((2, n), dtype=np.bool_)  # active, was_active
         self._misc = np.zeros(MISC_SIZE)
         (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.mass,
@@ -393,6 +395,7 @@ class ContactSet:
         self._recv = np.empty(2 * ns)
         (self.u, self.v, self.u_pred, self.v_pred, self.u_now, self.v_now, self.f_prev,
          self.ku_prev, self.jump) = np.zeros((9, ns))
+        self.jump_book = np.ones(ns)  # every slot's jumps booked: book_jumps_on
         self.mass = np.empty(ns)
         self._gather(integ.mass, integ.mass, self.mass, np.empty(ns))
         self.m_over_dt = self.mass / self.h_avg  # m / h_n (kg/s): the booking's (state._book)
@@ -625,6 +628,24 @@ class ContactSet:
         self.jumps = False
         self._misc[JUMPS] = 0.0
 
+    def book_jumps_on(self, owned: np.ndarray) -> None:
+        """Book the work of the position jumps on the slots whose dof ``owned`` (a flag per
+        owned dof of this rank) marks as a body's whose stored energy is booked from its
+        positions (a small-strain path-dependent body's trapezoid; a linear body's
+        telescoped energy under a constant step), and on no other: a finite-strain body's
+        work, and a linear body's per-step pass, are their kinetic shares, which no jump
+        enters (one_loop.md 4.7). Every slot booked: as before; none: :meth:`book_no_jumps`.
+        Collective (each rank knows the flags of the slots it owns)."""
+        if not self.jumps:
+            return
+        mine = np.zeros(self.n_slots)
+        mine[self._pos] = owned[self._local]
+        self.comm.Allreduce(mine, self.jump_book, op=MPI.MAX)
+        if self.rigid is not None:
+            self.jump_book[-1] = 0.0  # the part's slot: not deformable, never read
+        if not self.jump_book[:self.n_deformable].any():
+            self.book_no_jumps()
+
     def set_step(self, h: float, h_avg: float) -> None:
         """Steps h_{n+1/2} (positions) and h_n (velocities) of the next step (s): rewrite
         every constant that holds them (h_n / m, m / h_n, S's diagonal and kappa or its
@@ -749,8 +770,8 @@ class ContactSet:
         w = self._ledger
         load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt,
              self.h_avg, self.n_deformable, self.m_over_dt, self.u, self.v, self.u_pred,
-             self.v_pred, self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump, self.jumps,
-             w.jumped, self.active, self.was_active, self.b, self.lo, self.up, self.force,
+             self.v_pred, self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump,
+             self.jump_book, self.jumps, w.jumped, self.active, self.was_active, self.b, self.lo, self.up, self.force,
              self.stats)
         self.u[:], self.v[:] = self.u_now, self.v_now
         self.gap[:] = 1.0  # open: no constraint is active
@@ -769,7 +790,8 @@ class ContactSet:
                  (_commit_segments, (self._local, self._pos, integ.u_owned, integ.v_owned,
                                      self.dt, self.h_avg, self.m_over_dt, self.u, self.v,
                                      self.v_pred, self.u_now, self.v_now, self.f_prev,
-                                     self.ku_prev, self.jump, self.jumps, False, self.active,
+                                     self.ku_prev, self.jump, self.jump_book, self.jumps,
+                                     False, self.active,
                                      self.was_active,
                                      self.g0, self.cs, self.cc, self._gap_out))]
         if self.comm.size == 1:
@@ -1113,7 +1135,8 @@ class _ContactWork:
         self.add(*_commit(
             c._local, c._pos, integ.u_owned, integ.v_owned,
             c.dt, c.h_avg, c.n_deformable, c.m_over_dt, c.u, c.v, c.u_pred, c.v_pred,
-            c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped, c.active,
+            c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jump_book, c.jumps, self.jumped,
+            c.active,
             c.was_active, c.b, c.lo, c.up, c.force, c.stats))
 
     def add(self, inc: float, jumped: bool, grew: bool) -> None:
@@ -1135,7 +1158,8 @@ class _ContactWork:
         integ = c.integrator
         inc, jumped, grew, min_gap = _commit_segments(
             c._local, c._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg, c.m_over_dt, c.u,
-            c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jumps, self.jumped,
+            c.v, c.v_pred, c.u_now, c.v_now, c.f_prev, c.ku_prev, c.jump, c.jump_book, c.jumps,
+            self.jumped,
             c.active, c.was_active, c.g0, c.cs, c.cc, c._gap_out)
         self.add(inc - w_t, jumped, grew)
         self._state[0] += w_t

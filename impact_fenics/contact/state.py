@@ -50,6 +50,9 @@ MISC_SIZE = 26
 # of S = h_{n+1/2} h_n G M^-1 G' (m/N)
 U, V, U_PRED, V_PRED, U_NOW, V_NOW, MASS, F_PREV, DT_OVER_M, M_OVER_DT, KU_PREV, JUMP = range(12)
 B, GAP, FORCE, D, D_INV, P = range(12, 18)
+# and one more slot row: 1 where the slot's dof belongs to a body whose stored energy is
+# booked from its positions (its jumps are work, _book), else 0
+JUMP_BOOK = 18
 # the rows of ContactSet._ints (int32): per constraint lo, up and a scratch row; per
 # slot where its u and v are in the Allgatherv buffer and its slot (recv_u, recv_v,
 # all_pos: in gathered order), where its predicted u and v are read and the owned dof it
@@ -148,7 +151,7 @@ def _committed_gap(b, u_now, lo, up, out):
 
 @njit(cache=True)
 def _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump,
-          jumps, jumped, h=0.0):
+          books, jumps, jumped, h=0.0):
     """Book the contact work increment of step n by the kinetic identity of the half-step
     scheme (see impact_fenics.energy) and roll the slots' state to n+1: every kind's
     booking.
@@ -162,8 +165,10 @@ def _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_p
     ``n_deformable`` deformable slots, the previous step's jump j (``jumped``: was any
     nonzero) times 1/2 K (u^{n-1} + u^n), K u^n = -(m / h_n) (v~^{n+1/2} - v^{n-1/2}) on a
     contact dof, and records this step's jump u^{n+1} - u^n - h v^{n+1/2}: the work of
-    the jumps on a body whose stored energy is booked from its positions (a linear or
-    small-strain body under a constant step). ``f_prev`` keeps F^n.
+    the jumps on a body whose stored energy is booked from its positions (a small-strain
+    path-dependent body; a linear body under a constant step), on the slots where
+    ``books`` is not 0 (a finite-strain body's work is its kinetic share, which no jump
+    enters). ``f_prev`` keeps F^n.
     Returns (the increment (J), whether this step jumped)."""
     inc = 0.0  # the work of the slots' forces,
     inc_jump = 0.0  # and of the jumps (summed apart: the fused rigid-face pass sums both at once)
@@ -176,7 +181,7 @@ def _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_p
     if jumps:
         for k in range(n_deformable):
             ku = -m_over_dt[k] * (v_pred[k] - v_now[k])  # K u^n on this dof
-            if jumped:
+            if jumped and books[k] != 0.0:
                 inc_jump += 0.5 * jump[k] * (ku_prev[k] + ku)
             ku_prev[k] = ku
             jump[k] = u[k] - u_now[k] - h * v[k]
@@ -193,8 +198,8 @@ def _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_p
 
 @njit(cache=True)
 def _commit(local, pos, dst_u, dst_v, dt, h_n, n_deformable, m_over_dt, u, v, u_pred, v_pred,
-            u_now, v_now, f_prev, ku_prev, jump, jumps, jumped, active, was_active, b, lo, up,
-            force, stats):
+            u_now, v_now, f_prev, ku_prev, jump, books, jumps, jumped, active, was_active, b, lo,
+            up, force, stats):
     """The commit of node pairs and a rigid face: write the corrected state back to the
     owned dofs, then book step n and roll the state to n+1 (:func:`_book`; one call; ``dt``
     and ``h_n`` the position and velocity steps h_{n+1/2}, h_n, s).
@@ -215,7 +220,7 @@ def _commit(local, pos, dst_u, dst_v, dt, h_n, n_deformable, m_over_dt, u, v, u_
                 grew = True
         min_gap = min(min_gap, (b[i] - u[lo[i]]) + u[up[i]])
     inc, jumped_now = _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now,
-                            f_prev, ku_prev, jump, jumps, jumped, dt)
+                            f_prev, ku_prev, jump, books, jumps, jumped, dt)
     stats[0] = n_active
     stats[1] = total
     stats[2] = min_gap
@@ -236,8 +241,8 @@ def _detect_segments(u_pred, v_pred, u, v, g0, cs, cc, gap, active, was_active):
 
 @njit(cache=True)
 def _commit_segments(local, pos, dst_u, dst_v, dt, h_n, m_over_dt, u, v, v_pred, u_now, v_now,
-                     f_prev, ku_prev, jump, jumps, jumped, active, was_active, g0, cs, cc,
-                     gap_buf):
+                     f_prev, ku_prev, jump, books, jumps, jumped, active, was_active, g0, cs,
+                     cc, gap_buf):
     """The commit of node to segment: write the corrected state back to the owned dofs,
     then book step n and roll the state to n+1 (:func:`_book`, every slot deformable;
     one call). Returns (the increment (J), jumped, grew, the smallest committed gap
@@ -254,7 +259,7 @@ def _commit_segments(local, pos, dst_u, dst_v, dt, h_n, m_over_dt, u, v, v_pred,
     for i in range(gap_buf.size):
         min_gap = min(min_gap, gap_buf[i])
     inc, jumped_now = _book(h_n, m_over_dt.size, m_over_dt, u, v, v_pred, u_now, v_now,
-                            f_prev, ku_prev, jump, jumps, jumped, dt)
+                            f_prev, ku_prev, jump, books, jumps, jumped, dt)
     return inc, jumped_now, grew, min_gap
 
 

@@ -357,7 +357,7 @@ def upsetting(settings: Settings, material, radius: float = 5e-3, height: float 
     History: c0_platen_force (N), c0_platen_u (m), c0_platen_v (m/s) and
     c0_platen_reaction (N) from the platen's set (the first)."""
     from .contact.plane import boundary_nodes, plane_below, wall_part
-    from .contact.prescribed import prescribed_velocity
+    from .contact.prescribed import crosshead
     from .quad_meshes import quad_rectangle
     from .stepping import FollowingStep
 
@@ -367,8 +367,7 @@ def upsetting(settings: Settings, material, radius: float = 5e-3, height: float 
                             [Body("billet", material)])
     sim = Simulation(model, settings, policy=FollowingStep(None, t_end, None, cfl, dt_interval))
     top = rigid_face(model, "top", radius, "platen")
-    platen = RigidBody("platen", math.inf, prescribed=prescribed_velocity(
-        "platen", [(0.0, 0.0), (t_ramp, -speed)]))
+    platen = RigidBody("platen", math.inf, prescribed=crosshead("platen", speed, t_ramp))
     chosen = (lambda: make_method(method) if isinstance(method, str) else method)
     sim.add_contact(top, chosen(), rigid=platen)
     nodes = boundary_nodes(model.V, model.n_owned // 2)

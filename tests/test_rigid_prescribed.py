@@ -22,7 +22,7 @@ from mpi4py import MPI
 
 from impact_fenics.bodies import Body, DeformableModel
 from impact_fenics.contact import DME, FILM, Penalty, RigidBody, rigid_face
-from impact_fenics.contact.prescribed import PrescribedVelocity, prescribed_velocity
+from impact_fenics.contact.prescribed import PrescribedVelocity, crosshead, prescribed_velocity
 from impact_fenics.errors import InputError
 from impact_fenics.materials import STEEL
 from impact_fenics.simulation import Settings, Simulation
@@ -192,6 +192,24 @@ def test_refusals():
             RigidBody("punch", np.inf, prescribed=law, **kw)
     with pytest.raises(InputError, match="increase strictly"):
         PrescribedVelocity("p", points=[(0.0, 1.0), (0.0, 2.0)])
+    for speed, t_ramp in ((0.0, 1e-6), (1.0, 0.0), (-1.0, 1e-6)):
+        with pytest.raises(InputError, match="crosshead's speed"):
+            crosshead("platen", speed, t_ramp)
+
+
+def test_crosshead_is_the_ramp_table():
+    """A crosshead (speed 2 m/s, ramp 1e-4 s) is the table [(0, 0), (1e-4, -2)]: -V t / t_r
+    on the ramp, -V after, and its stroke -V t^2 / (2 t_r), then -V (t - t_r / 2), in
+    closed form to at most five roundings (on the ramp the interpolation's two and the
+    trapezoid's product, the closed form's two; after it fewer), each within EPS / 2 of
+    the stroke: 2.5 EPS, 4 EPS allowed."""
+    law, table = crosshead("platen", 2.0, 1e-4), prescribed_velocity("p", [(0.0, 0.0),
+                                                                          (1e-4, -2.0)])
+    for t in (0.0, 2.5e-5, 1e-4, 3e-4):
+        assert law(t) == table(t) and law.displacement(t) == table.displacement(t)
+        stroke = -t * t / 1e-4 if t <= 1e-4 else -2.0 * (t - 0.5e-4)
+        assert abs(law.displacement(t) - stroke) <= 4 * EPS * abs(stroke)
+    assert law(5e-5) == -1.0 and law(1.0) == -2.0
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")

@@ -81,3 +81,13 @@ def prescribed_velocity(name: str, velocity: float | list[tuple[float, float]]
     if isinstance(velocity, (int, float)):
         return PrescribedVelocity(name, value=float(velocity))
     return PrescribedVelocity(name, points=list(velocity))
+
+
+def crosshead(name: str, speed: float, t_ramp: float) -> PrescribedVelocity:
+    """A testing machine's crosshead for rigid body ``name``: v(t) ramped linearly from 0
+    to -``speed`` (m/s, down the axis of motion) over ``t_ramp`` (s) and held after, the
+    table [(0, 0), (t_ramp, -speed)]; its stroke is speed (t - t_ramp / 2) past the ramp."""
+    if not (speed > 0.0 and t_ramp > 0.0):
+        raise InputError(f"rigid body '{name}': a crosshead's speed ({speed} m/s) and ramp "
+                         f"({t_ramp} s) must be > 0")
+    return PrescribedVelocity(name, points=[(0.0, 0.0), (t_ramp, -speed)])

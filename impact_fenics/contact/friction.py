@@ -703,7 +703,8 @@ class Tangential(FrictionFigures):
                 raise UnstableRunError(
                     f"tangential_penalty = {self.stiffness!r} N/m: beta_t = "
                     f"{self.beta_max:.3g} passes the stable bound 4/3 (k_t h h_n (1/m_lo + "
-                    f"1/m_up)) at the re-estimated dt = {self.c.dt:.4g} s: the run stops; "
+                    f"1/m_up), + n/M on a sliding part) at the re-estimated dt = "
+                    f"{self.c.dt:.4g} s: the run stops; "
                     "lower it, use 'scaled' or force")
         self._bind()
 

@@ -13,9 +13,8 @@ the normal step, on the r components of the constraints' nodes (the *tangential 
 one per deformable slot of the set, in the same order, and one with zero inverse mass in
 place of a rigid part's). In plane strain a moving rigid part slides along x under FILM
 and DME: its slot gets 1/M and :func:`rigid_slide` solves the face's rows together
-(A = D + (h_n/M) 1 1', docs/friction.md 11); under the penalty (a part given a sideways
-velocity or force) the spring's kernel runs on the part's predicted V~ and
-:func:`slide_spring` gives the part the rows' sum.
+(A = D + (h_n/M) 1 1', docs/friction.md 11); under the penalty the spring's kernel runs
+on the part's predicted V~ and :func:`slide_spring` gives the part the rows' sum.
 
 With t = e_r, the relative tangential velocity of constraint i is
 w_t = v_up,r - v_lo,r (m/s) and its multiplier λ_t (N) acts along +r on the upper side,
@@ -627,12 +626,11 @@ class Tangential(FrictionFigures):
         free = np.zeros(ns)
         self._gather(integ.mass, free_owned, self.mass[:nd], free[:nd])
         self.free = free > 0.5
-        # a moving rigid part of a plane-strain face slides along x under FILM and DME
-        # (its slot gets 1/M); a fixed part, the axisymmetric axis, the penalty and a face
-        # with a held x node keep it held (docs/friction.md 11)
+        # a moving rigid part of a plane-strain face slides along x under every method
+        # (its slot gets 1/M); a fixed part, the axisymmetric axis and a face with a held
+        # x node keep it held (docs/friction.md 11)
         rigid = c.rigid
         self.slides = bool(rigid is not None and not rigid.fixed and model.geometry.plane
-                           and (kernel in (FILM_T, DME_T) or rigid.sideways)
                            and self.free[:nd].all())
         if self.slides:
             self.free[nd] = True

@@ -300,8 +300,8 @@ _RIGID = Section("rigid", "[rigid.NAME]", (
         "motion. [friction.md](friction.md) section 12."),
     Key("velocity_x", "number", "m/s", 0.0, "plane strain: initial sideways (x) velocity",
         note="The body translates along x too (no rotation: an oblique face keeps its "
-        "orientation); film and dme friction couple it to the face's nodes, the penalty's "
-        "friction is refused with it; refused in an axisymmetric scene (the axis). "
+        "orientation); film, dme and penalty friction couple it to the face's nodes; "
+        "refused in an axisymmetric scene (the axis). "
         "[friction.md](friction.md) section 11."),
     Key("impedance", "positive", "kg/s", None, "impedance Z = rho c A of a rod driving the body "
         "from above", default_text="none", note="The rod pushes with 2 F_i - Z w (w the "

@@ -7,16 +7,20 @@ moves sideways at V, Coulomb μ between them. Oracles:
 * (a) the existing path: a fixed part keeps today's kernels (its pass does not slide) and
   a moving part without friction runs the same normal step whether it moves sideways or
   not (a flat frictionless face does not see x): every node's u and v equal bit for bit;
-  a sideways velocity in axisymmetry, with the penalty's friction or over a symmetry
-  plane is refused in one line;
+  the penalty's friction keeps a part held in x unless it is given a sideways velocity
+  or force (a fixed part, a part moving along y only: the previous code's arrays);
+  a sideways velocity in axisymmetry or over a symmetry plane is refused in one line, and
+  a given tangential stiffness past the penalty's bound with the part's 1/M in it;
 * (b) x momentum: Σ m v_x of the nodes + M V of the plate is unchanged by every step
-  (no external x force) to the round-off of its sums, FILM and DME, and the ledger closes
-  with the plate's 1/2 M V^2 in the kinetic energy;
+  (no external x force) to the round-off of its sums, FILM, DME and the penalty (also on a
+  light plate, M = m), and the ledger closes with the plate's 1/2 M V^2 in the kinetic
+  energy;
 * (c) the closed form of a block dragged by a heavy plate (M = 1000 m): while every row
   slips the block's mean x velocity is μ (F t + P_y(t)) / m, F = p W t_s the load and P_y
   the block's y momentum, which the pressure wave keeps within F H / c (the bottom's
   force is 0 until the wave arrives at H / c, then 2F for 2H / c, ...); so it rises at
-  μ F / m, reaches V at t* = m V / (μ F) and then moves with the plate;
+  μ F / m, reaches V at t* = m V / (μ F) and then moves with the plate (the penalty: plus
+  its elastic lag, docs/friction.md 11);
 * (d) a plate without friction moving sideways keeps V exactly and U = Σ h V.
 
 Serial, 2 and 3 ranks (the plate's state is taken on every rank from the gathered data).
@@ -49,10 +53,12 @@ MASS = STEEL.density * W * H * TS  # the block's mass (kg)
 F = P * W * TS  # the load on its top (N)
 
 
-def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None):
+def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None, spring="scaled",
+         force=False):
     """The block on the plate for ``n_steps``; per step (after its contact step) the
     block's P_x, P_y (kg m/s), the plate's V (m/s) and the stick and slip counts, then
-    the summary, the simulation, the set and the plate."""
+    the summary, the simulation, the set and the plate (``spring``, ``force``: the
+    penalty's tangential stiffness and its forcing)."""
     tmesh = meshing.block(W, H, h=H, comm=COMM)
     model = DeformableModel(tmesh, [Body("block", STEEL)],
                             geometry=Geometry(PLANE_STRAIN, TS, symmetry))
@@ -66,7 +72,7 @@ def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None):
     methods = {"film": FILM, "dme": lambda: DME(restitution=0.0), "penalty": Penalty,
                "film_dense": lambda: FILM("dense")}  # (dense: the unfused step)
     c = sim.add_contact(cons, methods[method](), rigid=plate)
-    c.set_friction(friction)
+    c.set_friction(friction, spring, force)
     mass = sim.integrator.mass
     rows = []
     step = c.step
@@ -126,13 +132,40 @@ def test_frictionless_sideways_motion_leaves_the_nodes_bit_for_bit(method):
     assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
 
 
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
+def test_a_part_moving_along_y_slides_under_every_method(method):
+    """A free part in plane strain has its x dof whether or not it is given a sideways
+    velocity: one moving along y alone slides under every method (docs/friction.md 11),
+    its slot 1/M, the penalty's "scaled" bound with the part's n/M (beta_t = 1 in
+    Gershgorin's row sum). Nothing external acts along x, so Σ m v_x + M V stays 0: the
+    bound of the x-momentum test, 8 (N + n + 2) roundings a step, on the run's momentum
+    scale (M + m) |v_y| (the friction impulses are at most μ < 1 times the normal ones,
+    which exchange at most that momentum); and the ledger closes."""
+    v_y = -0.01  # m/s: the plate moves down, the block pressed onto it by p
+    plate = RigidBody("plate", 1000.0 * MASS, v=v_y)
+    rows, s, sim, c, plate = _run(method, N_STEPS, plate=plate)
+    t = c.friction
+    assert t.slides and c.rigid.slides and t.scalars[X_SLIDES] == 1.0
+    assert t.h_over_m[-1] > 0.0
+    if method == "penalty":
+        assert s["friction"][0]["beta_t_max"] <= 1.0 + 4 * EPS
+    p = rows[:, 0] + plate.mass * rows[:, 2]
+    n_nodes = COMM.allreduce(sim.integrator.mass.size // 2)
+    scale = (plate.mass + MASS) * abs(v_y)
+    bound = EPS * 8 * (n_nodes + c.n + 2) * scale * np.arange(1, N_STEPS + 1)
+    print(f"{method}: a y-only plate, x momentum within {np.abs(p).max():.3g} kg m/s of 0 "
+          f"(bound at the end {bound[-1]:.3g}), V_x at the end {plate.v_x:.3g} m/s")
+    assert np.all(np.abs(p) <= bound)
+    assert rows[:, 3].max() + rows[:, 4].max() > 0  # the rows were in contact
+    assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
+
+
 def test_sideways_refusals():
-    """One line each: the penalty's friction on a sliding part, a part over a symmetry
-    plane (with friction), a fixed part given a sideways velocity, a button."""
-    with pytest.raises(InputError, match="penalty's spring on a sliding part"):
-        _run("penalty", 1)
-    with pytest.raises(InputError, match="held in x"):
-        _run("film", 1, symmetry="x=0")
+    """One line each: a part over a symmetry plane (with friction), a fixed part given a
+    sideways velocity, a button."""
+    for method in ("film", "penalty"):
+        with pytest.raises(InputError, match="held in x"):
+            _run(method, 1, symmetry="x=0")
     with pytest.raises(InputError, match="a fixed part has no velocity"):
         RigidBody("seat", 1.0, v_x=1.0, fixed=True)
     from impact_fenics.contact import rigid_face
@@ -164,14 +197,19 @@ def test_axisymmetric_sideways_is_refused():
 N_STEPS = 320  # t* = m V / (μ F) is 220 steps
 
 
-@pytest.mark.parametrize("method", ["film", "dme", "film_dense"])
+@pytest.mark.parametrize("method", ["film", "dme", "film_dense", "penalty", "penalty_light"])
 def test_x_momentum_of_block_and_plate_is_conserved(method):
     """(b) Σ m v_x + M V unchanged to round-off at every step. Bound: a step rounds each
     node's x velocity (prediction v + h f/m and the pass's correction: 4 roundings), the
     pass's sums over its n rows (the average's two sums and each row's force: 4 n + 4)
     and the two dot products of the check (2 N): 8 (N + n + 2) roundings a step on the
-    largest momentum |M V| + Σ m |v_x|, added over the steps."""
-    rows, s, sim, c, plate = _run(method, N_STEPS)
+    largest momentum |M V| + Σ m |v_x|, added over the steps. The penalty's pass has the
+    same count (each node's update and the part's one sum over n rows). ``penalty_light``:
+    a plate as heavy as the block (the rows' coupling through 1/M is then of the order of
+    their own 1/m_k), with V = 0.05 m/s; its "scaled" k_t keeps beta_t = 1 in
+    Gershgorin's bound k_t h h_n (1/m_k + n/M)."""
+    plate = RigidBody("plate", MASS, v_x=V) if method == "penalty_light" else None
+    rows, s, sim, c, plate = _run(method.replace("_light", ""), N_STEPS, plate=plate)
     p = rows[:, 0] + plate.mass * rows[:, 2]
     p0 = plate.mass * V  # the block starts at rest
     n_nodes = COMM.allreduce(sim.integrator.mass.size // 2)
@@ -182,11 +220,15 @@ def test_x_momentum_of_block_and_plate_is_conserved(method):
           f"{p0:.4g} (bound at the end {bound[-1]:.3g})")
     assert np.all(drift <= bound)
     assert rows[:, 4].max() > 0 and rows[-1, 3] > 0  # it slipped, and it sticks at the end
+    print(f"{method}: ledger {s['energy_balance_error_rel']:.3g} (bound "
+          f"{ledger(s['n_steps'], s['n_dofs']):.3g})")
     assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
     assert s["friction"][0]["slip_work"] > 0.0
+    if method.startswith("penalty"):
+        assert c.friction.slides and s["friction"][0]["beta_t_max"] <= 1.0 + 4 * EPS
 
 
-@pytest.mark.parametrize("method", ["film", "dme"])
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
 def test_block_dragged_by_a_heavy_plate(method):
     """(c) The closed form. While every loaded row slips, λ_t = μ λ_n exactly, so the
     block's x impulse is μ Σ h λ_n = μ (F t + P_y): v̄ = μ F t / m within
@@ -200,7 +242,12 @@ def test_block_dragged_by_a_heavy_plate(method):
       after which the mean closes the gap no slower than the slip rate μ F / m;
     - afterwards v̄ stays within that lead of V (the shear released at the stick rings
       with particle velocity <= 2 μ p / (ρ c_s)) and the plate's V within m (V + that) / M
-      of V (its momentum is the block's, given up)."""
+      of V (its momentum is the block's, given up).
+    The penalty (docs/friction.md 11, "the elastic slip in a drag"): in slip its force is
+    ±c_i as FILM's; its trials see the part's V~ rather than V^{n+1/2} and its stick
+    threshold is c_i h_n (1/m_k + n/M) against c_i h_n / m_k, which together shift a row's
+    stick by at most δ_p = 2 n c_max h_n / M in velocity (c_max <= μ 2F, the bottom's
+    largest force): δ_p is added to δ and to the lead."""
     rows, s, _, c, plate = _run(method, N_STEPS)
     t = DT * np.arange(1, N_STEPS + 1)  # v^{n+1/2} holds the impulses of steps 0..n
     v_bar = rows[:, 0] / MASS
@@ -208,6 +255,9 @@ def test_block_dragged_by_a_heavy_plate(method):
     t_star = MASS * V / (MU * F)
     delta = MU * F * (H / C_L + DT) / MASS
     lead = 2.0 * MU * P / (STEEL.density * C_S)
+    if method == "penalty":
+        delta_p = 2 * c.n * MU * 2 * F * DT / plate.mass
+        delta, lead = delta + delta_p, lead + delta_p
     first_stick = int(np.argmax(rows[:, 3] > 0))
     slipping = slice(0, first_stick)
     assert first_stick > 0 and np.all(rows[slipping, 3] == 0)
@@ -235,7 +285,7 @@ def test_block_dragged_by_a_heavy_plate(method):
 
 
 
-@pytest.mark.parametrize("method", ["film", "dme"])
+@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
 def test_an_x_force_on_the_plate(method):
     """An external x force f_x on the plate (from rest, with friction): the x momentum of
     block + plate grows by Σ h f_x (its impulse) within test (b)'s bound, and the ledger,
@@ -257,18 +307,40 @@ def test_an_x_force_on_the_plate(method):
     assert plate.v_x > 0.0 and rows[-1, 0] > 0.0
     assert s["energy_balance_error_rel"] <= ledger(s["n_steps"], s["n_dofs"])
 
+
+def test_penalty_bound_has_the_part():
+    """(d) A given tangential stiffness is checked against Gershgorin's bound with the
+    part's inverse mass, beta_t = k_t h h_n (1/m_k + n/M) (docs/friction.md 11): on a
+    plate as heavy as the block a k_t at beta_t = 1.2 on its lightest node alone (accepted
+    on a fixed face: 1.2 < 4/3) passes 4/3 once the n/M is in, and is refused in one line;
+    forced, it runs."""
+    t = _run("penalty", 1, plate=wall_part())[3].friction
+    m_k = t.mass[:-1].min()  # the lightest node of the face (kg)
+    k_t = 1.2 * m_k / (DT * DT)
+    fixed = _run("penalty", 1, plate=wall_part(), spring=k_t)[3].friction
+    assert fixed.beta_max == pytest.approx(1.2, rel=8 * EPS)
+    light = RigidBody("plate", MASS, v_x=V)
+    with pytest.raises(InputError, match=r"beta_t = 1\.\d+ passes the stable bound 4/3"):
+        _run("penalty", 1, plate=light, spring=k_t)
+    forced = _run("penalty", 1, plate=RigidBody("plate", MASS, v_x=V), spring=k_t,
+                  force=True)[3].friction
+    beta = 1.2 * (1.0 + forced.lo.size * m_k / MASS)  # n rows on the face
+    assert forced.beta_max == pytest.approx(beta, rel=8 * EPS) and beta > 4.0 / 3.0
+
 # ----------------------------------------------------------------------------- scene files
 
 @pytest.mark.skipif(COMM.size > 1, reason="launches its own runs")
-def test_scene_key_velocity_x(tmp_path):
+@pytest.mark.parametrize("method", ["film", "penalty"])
+def test_scene_key_velocity_x(tmp_path, method):
     """[rigid.NAME] velocity_x: a plane-strain punch pressed onto a block and moving
     sideways with friction runs from the command line; its history has the part's u_x and
     v_x, its energy table M V (momentum_x_punch), its contact_pairs.h5 the pairs' x, the
-    ledger closes (the run's own check) and friction slows the punch. In an axisymmetric scene the key is refused in one line."""
+    ledger closes (the run's own check) and friction slows the punch, with FILM's friction
+    and the penalty's. In an axisymmetric scene the key is refused in one line."""
     from scene_texts import RIGID, assert_refused, launch, read_history, replace
 
     text = replace(RIGID, "radius = 0.1\n", 'half_width = 0.1\nfriction = 0.3\n')
-    text = replace(text, 'method = "dme"', 'method = "film"')
+    text = replace(text, 'method = "dme"', f'method = "{method}"')
     text = replace(text, 'components = ["z"]', 'components = ["y"]')
     text = replace(text, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n")
     scene = tmp_path / "slide.toml"
@@ -292,6 +364,8 @@ def test_scene_key_velocity_x(tmp_path):
 
     pairs = read_pairs(str(out / "contact_pairs.h5"))
     assert "x" in pairs and "r" not in pairs and np.all(np.abs(pairs["x"]) <= 0.1 + 1e-12)
+    if method != "film":
+        return
     axi = tmp_path / "axi.toml"
     axi.write_text(replace(RIGID, "mass = 0.1\n", "mass = 0.1\nvelocity_x = 0.5\n"))
     assert_refused(["run", axi, "--out", tmp_path / "out_axi"],

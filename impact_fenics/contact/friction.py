@@ -13,7 +13,8 @@ the normal step, on the r components of the constraints' nodes (the *tangential 
 one per deformable slot of the set, in the same order, and one with zero inverse mass in
 place of a rigid part's). In plane strain a moving rigid part slides along x under FILM
 and DME: its slot gets 1/M and :func:`rigid_slide` solves the face's rows together
-(A = D + (h_n/M) 1 1', docs/friction.md 11).
+(A = D + (h_n/M) 1 1', docs/friction.md 11); under the penalty the spring's kernel runs
+on the part's predicted V~ and :func:`slide_spring` gives the part the rows' sum.
 
 With t = e_r, the relative tangential velocity of constraint i is
 w_t = v_up,r - v_lo,r (m/s) and its multiplier λ_t (N) acts along +r on the upper side,
@@ -405,6 +406,29 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
 
 
 @njit(cache=True)
+def slide_spring(lo, up, state, h_over_m, h, u, v, k_t, s_e, lam, stats, hm_part):
+    """The penalty's springs on a sliding part (docs/friction.md 11), after
+    :func:`penalty_tangential` ran on its slot held (the trials on V~): the part takes
+    the rows' sum, V^{n+1/2} = V~ + (h_n/M) sum_i F_i (``hm_part``: h_n/M; F_i = s_i λ_t,i,
+    N, s_i = +1 where the part is the upper side), U by h_{n+1/2} (``h``) times that,
+    and each loaded row's s_e (m) is committed with the corrected slip rate: shifted by
+    h s_i (V^{n+1/2} - V~); the stored energy 1/2 k_t s_e^2 (J) in ``stats`` follows."""
+    body = u.size - 1
+    total = 0.0
+    for i in range(lo.size):
+        total += lam[i] if up[i] == body else -lam[i]
+    dv = hm_part * total
+    v[body] += dv
+    u[body] += h * dv
+    stored = 0.0
+    for i in range(lo.size):
+        if state[i] != 0:
+            s_e[i] += h * dv if up[i] == body else -h * dv
+        stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
+    stats[STORED] = stored
+
+
+@njit(cache=True)
 def rescale_springs(a_inv, h, scaled, given, k_t, s_e):
     """The penalty's springs at a new step (docs/friction.md 4.3): k_t' = 1 / (h A_ii)
     (``scaled``; ``a_inv`` = 1/A_ii, 1/(m/(N s)), ``h`` = h_{n+1/2}, s) or ``given`` (N/m)
@@ -507,7 +531,11 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
     mu_s, mu_d, decay, stick = x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] != 0.0
     kernel = int(x[X_KERNEL])
     before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
-    if x[X_SLIDES] != 0.0:  # a rigid part that slides along x (docs/friction.md 11)
+    slide = x[X_SLIDES] != 0.0
+    hm_part = h_over_m[u.size - 1]
+    if slide and kernel == PENALTY_T:  # the rows' trials on V~: the part's slot held
+        h_over_m[u.size - 1] = 0.0     # in the spring's pass (docs/friction.md 11)
+    if slide and kernel != PENALTY_T:  # a rigid part that slides along x (FILM, DME)
         rigid_slide(lo, up, active, force, mass, h_over_m, x[X_H_AVG], h, mu_s, mu_d, decay,
                     stick, kernel == DME_T, u_now, v_now, u, v, lam, state, rows[R_CAP],
                     rows[R_BREAKS:R_BREAKS + 2].reshape(2 * lo.size))
@@ -520,6 +548,10 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
     else:
         penalty_tangential(lo, up, active, force, rows[R_K_T], h_over_m, h, mu_s, mu_d, decay,
                            stick, v_now, u, v, lam, state, rows[R_S_E], d_slip, stats)
+        h_over_m[u.size - 1] = hm_part
+    if x[X_SLIDES] != 0.0 and kernel == PENALTY_T:  # the part takes the rows' sum
+        slide_spring(lo, up, state, h_over_m, h, u, v, rows[R_K_T], rows[R_S_E], lam, stats,
+                     hm_part)
     change = stats[RETURN_LOSS] + stats[STORED] - before
     return _commit_tangential(own[0], own[1], src_u, src_v, h, x[X_H_AVG], m_over_h, u, v,
                               v_pred, u_now, v_now, slots[S_F_PREV], slots[S_KU_PREV],
@@ -594,12 +626,12 @@ class Tangential(FrictionFigures):
         free = np.zeros(ns)
         self._gather(integ.mass, free_owned, self.mass[:nd], free[:nd])
         self.free = free > 0.5
-        # a moving rigid part of a plane-strain face slides along x under FILM and DME
-        # (its slot gets 1/M); a fixed part, the axisymmetric axis, the penalty and a face
-        # with a held x node keep it held (docs/friction.md 11)
+        # a moving rigid part of a plane-strain face slides along x under every method
+        # (its slot gets 1/M); a fixed part, the axisymmetric axis and a face with a held
+        # x node keep it held (docs/friction.md 11)
         rigid = c.rigid
         self.slides = bool(rigid is not None and not rigid.fixed and model.geometry.plane
-                           and kernel in (FILM_T, DME_T) and self.free[:nd].all())
+                           and self.free[:nd].all())
         if self.slides:
             self.free[nd] = True
             self.mass[nd] = rigid.mass
@@ -650,6 +682,8 @@ class Tangential(FrictionFigures):
         self.h_over_m[free] = h_avg / self.mass[free]
         self.m_over_h[free] = self.mass[free] / h_avg
         a = self.h_over_m[self.lo] + self.h_over_m[self.up]
+        if self.slides and self.kernel == PENALTY_T:  # Gershgorin's row sum over the
+            a += (self.lo.size - 1) * self.h_over_m[-1]  # part's coupling: 1/m_k + n/M
         self.a_inv[:] = 0.0
         np.divide(1.0, a, out=self.a_inv, where=a > 0.0)
         if self.kernel == PENALTY_T:  # beta_t = k_t h A_ii
@@ -667,7 +701,8 @@ class Tangential(FrictionFigures):
                 raise UnstableRunError(
                     f"tangential_penalty = {self.stiffness!r} N/m: beta_t = "
                     f"{self.beta_max:.3g} passes the stable bound 4/3 (k_t h h_n (1/m_lo + "
-                    f"1/m_up)) at the re-estimated dt = {self.c.dt:.4g} s: the run stops; "
+                    f"1/m_up), + n/M on a sliding part) at the re-estimated dt = "
+                    f"{self.c.dt:.4g} s: the run stops; "
                     "lower it, use 'scaled' or force")
         self._bind()
 

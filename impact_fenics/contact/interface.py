@@ -101,7 +101,8 @@ class RigidBody:
     In plane strain a moving part also translates along x (docs/friction.md 11): ``u_x``,
     ``v_x`` (m, m/s) and the external x force ``force_x(t)`` (N, None: none), its mass M
     (the rod acts along y only). Its set makes the x dof live (``slides``) where the part
-    has a sideways velocity or force, or where FILM's or DME's friction couples it; then
+    has a sideways velocity or force (with any method's friction, the penalty's too), or
+    where FILM's or DME's friction couples it; then
     V^{n+1/2} = V^{n-1/2} + h_n (f_x + sum of the tangential forces) / M and
     U^{n+1} = U^n + h_{n+1/2} V^{n+1/2}. No rotation: the face keeps its orientation.
 
@@ -496,15 +497,14 @@ class ContactSet:
                 rigid.slides = True
                 tangential.initialize()
             elif rigid.sideways:
-                why = ("the penalty's spring on a sliding part is not built"
-                       if kernel == PENALTY_T else "a node of its face is held in x (a "
-                       "symmetry plane holds the part)")
                 raise InputError(f"rigid body '{rigid.name}' with {what}: a sideways velocity "
-                                 f"or force is refused: {why}")
+                                 "or force is refused: a node of its face is held in x (a "
+                                 "symmetry plane holds the part)")
         if kernel == PENALTY_T and tangential.beta_max > STABILITY_BOUND and not force:
             raise InputError(f"tangential_penalty = {tangential_penalty!r} N/m: beta_t = "
                              f"{tangential.beta_max:.3g} passes the stable bound 4/3 (k_t h "
-                             "h_n (1/m_lo + 1/m_up)); lower it, use 'scaled' or force")
+                             "h_n (1/m_lo + 1/m_up), + n/M on a sliding part); lower it, "
+                             "use 'scaled' or force")
         self.friction = tangential
         if self._fused is not None:  # the step's one call runs the pass too (fused.py)
             from ..jit_watch import direct

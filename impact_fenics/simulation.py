@@ -96,7 +96,6 @@ def _set_dofs(constraints) -> np.ndarray:
     return np.concatenate([d for d in (constraints.lower, constraints.upper) if d is not None])
 
 
-
 def position_booked(model: DeformableModel, integ: Integrator) -> np.ndarray:
     """1.0 on the owned dofs of the bodies whose stored energy the ledger takes from their
     positions, where a position jump (DME's) is work: a small-strain path-dependent body
@@ -111,6 +110,7 @@ def position_booked(model: DeformableModel, integ: Integrator) -> np.ndarray:
         for component in range(2):
             booked[model.body_dofs(name, component)] = 1.0
     return booked
+
 
 class Simulation:
     """Deformable bodies, their conditions, loads, contact and the run settings."""

@@ -41,12 +41,12 @@ from .dme import _cluster, _pairs
 from .film import _film_fast
 from .friction import _tangential_pass
 from .penalty import _penalty
-from .state import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U,
-                    FROM_V, GAP, H_AVG, IMPEDANCE, INCIDENT, JUMP, JUMP_BOOK, JUMPS, KAPPA, KU_PREV,
-                    LEDGER, LO, LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE,
-                    N_LOCAL, P, POS, RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV,
-                    RIGID_MASS, RIGID_WORK, STATS, TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED,
-                    WAVES, WORK, _commit, _predicted_gaps, _take, _unpack)
+from .state import (ALL_POS, B, CODE, D_INV, DT, DT_OVER_M, F_PREV, FORCE, FROM_U, FROM_V, GAP,
+                    H_AVG, IMPEDANCE, INCIDENT, JUMP, JUMP_BOOK, JUMPS, KAPPA, KU_PREV, LEDGER, LO,
+                    LOCAL, M_OVER_DT, MASS, MASS_WEIGHTED, N_CONS, N_DEFORMABLE, N_LOCAL, P, POS,
+                    RECV_U, RECV_V, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_MASS, RIGID_WORK, STATS,
+                    TO, U, U_NOW, U_PRED, UP, V, V_NOW, V_PRED, WAVES, WORK, _commit,
+                    _predicted_gaps, _take, _unpack)
 
 # the methods the fused call runs (misc[CODE]); another method runs its own correct()
 PENALTY, FILM_FAST, DME_PAIRS, DME_CLUSTER = 1, 2, 3, 4
@@ -276,8 +276,8 @@ def _general_step(code, src_u, src_v, recv, F, ints, flags, misc):
         _cluster(gap, b, lo, up[0], 1.0, mass, m_over_dt, dt, u_now, u, v, force, active, work)
     return _commit(local, pos, src_u, src_v, dt, misc[H_AVG], int(misc[N_DEFORMABLE]), m_over_dt, u,
                    v, u_pred, v_pred, u_now, v_now, F[F_PREV], F[KU_PREV], F[JUMP],
-                   F[JUMP_BOOK], misc[JUMPS] != 0.0, misc[LEDGER + 2] != 0.0, active, was_active, b, lo, up,
-                   force, misc[STATS:STATS + 3])
+                   F[JUMP_BOOK], misc[JUMPS] != 0.0, misc[LEDGER + 2] != 0.0, active,
+                   was_active, b, lo, up, force, misc[STATS:STATS + 3])
 
 
 @njit(cache=True)

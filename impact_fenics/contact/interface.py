@@ -61,12 +61,12 @@ from .prescribed import PrescribedVelocity
 from .penalty import Penalty, lambda_max_diag_plus_rank_one
 from .segments import (END_TOLERANCE, Repairing, SegmentConstraints, current_positions,
                        repair_reach, rows_of_pairs)
-from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMP_BOOK, JUMPS, KAPPA,
-                    LEDGER, LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
+from .state import (ALL_POS, CODE, DT, H_AVG, IMPEDANCE, INCIDENT, JUMP_BOOK, JUMPS, KAPPA, LEDGER,
+                    LOCAL, MASS_WEIGHTED, MISC_SIZE, N_CONS, N_DEFORMABLE, N_LOCAL, PAIRS, POS,
                     RECV_U, RESTITUTION, RIGID, RIGID_F_PREV, RIGID_FACE, RIGID_MASS, RIGID_WORK,
                     SEGMENTS, STATS, TO, WAVES, PhaseTimes, _commit, _commit_segments,
-                    _committed_gap, _detect_gathered, _detect_local, _detect_segments, _pack,
-                    _take, _unpack, apply_forces, gathered_order, kinetic_share, owned_slots)
+                    _committed_gap, _detect_gathered, _detect_local, _detect_segments, _pack, _take,
+                    _unpack, apply_forces, gathered_order, kinetic_share, owned_slots)
 
 
 @dataclass
@@ -771,8 +771,8 @@ class ContactSet:
         load(_commit, self._local, self._pos, integ.u_owned, integ.v_owned, self.dt,
              self.h_avg, self.n_deformable, self.m_over_dt, self.u, self.v, self.u_pred,
              self.v_pred, self.u_now, self.v_now, self.f_prev, self.ku_prev, self.jump,
-             self.jump_book, self.jumps, w.jumped, self.active, self.was_active, self.b, self.lo, self.up, self.force,
-             self.stats)
+             self.jump_book, self.jumps, w.jumped, self.active, self.was_active, self.b,
+             self.lo, self.up, self.force, self.stats)
         self.u[:], self.v[:] = self.u_now, self.v_now
         self.gap[:] = 1.0  # open: no constraint is active
         self.method.correct(self)

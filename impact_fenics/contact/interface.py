@@ -101,8 +101,8 @@ class RigidBody:
     In plane strain a moving part also translates along x (docs/friction.md 11): ``u_x``,
     ``v_x`` (m, m/s) and the external x force ``force_x(t)`` (N, None: none), its mass M
     (the rod acts along y only). Its set makes the x dof live (``slides``) where the part
-    has a sideways velocity or force (with any method's friction, the penalty's too), or
-    where FILM's or DME's friction couples it; then
+    has a sideways velocity or force, or where any method's friction couples it (the
+    face's x nodes free); then
     V^{n+1/2} = V^{n-1/2} + h_n (f_x + sum of the tangential forces) / M and
     U^{n+1} = U^n + h_{n+1/2} V^{n+1/2}. No rotation: the face keeps its orientation.
 

@@ -59,7 +59,8 @@ F = P * W * TS  # the load on its top (N)
 def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None, spring="scaled",
          force=False):
     """The block on the plate for ``n_steps``; per step (after its contact step) the
-    block's P_x, P_y (kg m/s), the plate's V (m/s) and the stick and slip counts, then
+    block's P_x, P_y (kg m/s), the plate's V (m/s), the stick and slip counts, the stuck
+    rows' largest |V - v_k| (m/s) and the largest μ λ_n (N), then
     the summary, the simulation, the set and the plate (``spring``, ``force``: the
     penalty's tangential stiffness and its forcing)."""
     tmesh = meshing.block(W, H, h=H, comm=COMM)
@@ -85,8 +86,15 @@ def _run(method, n_steps, friction=MU, v_x=V, plate=None, symmetry=None, spring=
         v = sim.integrator.v_owned
         px = COMM.allreduce(float(np.dot(mass[0::2], v[0::2])))
         py = COMM.allreduce(float(np.dot(mass[1::2], v[1::2])))
-        t = c.friction.stats if c.friction is not None else np.zeros(8)
-        rows.append((px, py, plate.v_x, t[N_STICK], t[N_SLIP]))
+        fr = c.friction
+        t = fr.stats if fr is not None else np.zeros(8)
+        # the stuck rows' largest slip rate |V - v_k| (m/s) and the largest cone radius
+        # μ λ_n (N) of the step (the penalty's elastic lag, docs/friction.md 11)
+        lag = cone = 0.0
+        if fr is not None:
+            lag = float(np.abs(plate.v_x - fr.v[fr.up])[fr.state == 1].max(initial=0.0))
+            cone = friction * float(np.max(c.force, initial=0.0))
+        rows.append((px, py, plate.v_x, t[N_STICK], t[N_SLIP], lag, cone))
 
     c.step = recorded
     summary = sim.run()
@@ -360,6 +368,14 @@ def test_block_dragged_by_a_light_plate(method, ratio):
     assert ring <= lead
     assert np.all(np.abs(v_bar[after] - v_c) <= m_plate * lead / (m_plate + MASS))
     assert np.all(np.abs(v_plate[after] - v_c) <= MASS * lead / (m_plate + MASS))
+    # the stick itself: FILM and DME give a stuck row's node the plate's V (a few roundings
+    # of |V| <= V_0); the penalty's spring lets it slip at most δ_p = 3 n max c_i h_n / M,
+    # the docs' bound, with c_i = μ λ_n,i the run's cone radii
+    lag, c_max = rows[:, 5].max(), rows[:, 6].max()
+    lag_bound = 3 * c.n * c_max * DT / m_plate if method == "penalty" else 8 * EPS * V
+    print(f"{method} M = {ratio:g} m: stuck rows slip at most {lag:.3g} m/s (bound "
+          f"{lag_bound:.3g}, 3 n max c_i h / M = {3 * c.n * c_max * DT / m_plate:.3g})")
+    assert lag <= lag_bound and lag_bound < delta_p
 
 
 

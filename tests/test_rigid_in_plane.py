@@ -378,7 +378,6 @@ def test_block_dragged_by_a_light_plate(method, ratio):
     assert lag <= lag_bound and lag_bound < delta_p
 
 
-
 @pytest.mark.parametrize("method", ["film", "dme", "penalty"])
 def test_an_x_force_on_the_plate(method):
     """An external x force f_x on the plate (from rest, with friction): the x momentum of

@@ -15,15 +15,13 @@ moves sideways at V, Coulomb μ between them. Oracles:
   (no external x force) to the round-off of its sums, FILM, DME and the penalty (also on a
   light plate, M = m), and the ledger closes with the plate's 1/2 M V^2 in the kinetic
   energy;
-* (c) the closed form of a block dragged by a heavy plate (M = 1000 m): while every row
-  slips the block's mean x velocity is μ (F t + P_y(t)) / m, F = p W t_s the load and P_y
-  the block's y momentum, which the pressure wave keeps within F H / c (the bottom's
-  force is 0 until the wave arrives at H / c, then 2F for 2H / c, ...); so it rises at
-  μ F / m, reaches V at t* = m V / (μ F) and then moves with the plate (the penalty: plus
-  its elastic lag, docs/friction.md 11);
-* (c') the closed form of the two-body drag on a light plate (M = m, 3 m, free in x and
-  y): the block accelerates at μ F M / ((M + m) m), the gap to the plate closes at μ F / m
-  by t* = m V / (μ F), then both move at M V / (M + m); x momentum to round-off;
+* (c) the closed form of the two-body drag (a light plate, M = m and 3 m, and a heavy one,
+  M = 1000 m, free in x and y): the block's mean x velocity is μ J_n / m, J_n the bottom's
+  normal impulse F t M / (M + m) + P_o, F = p W t_s the load and P_o the block's y
+  momentum about the pair's centre of mass, which the pressure wave keeps within F H / c;
+  so the block accelerates at μ F M / ((M + m) m), the gap to the plate closes at μ F / m
+  by t* = m V / (μ F), then both move at M V / (M + m) (the penalty: plus its elastic
+  lag, docs/friction.md 11); x momentum to round-off;
 * (d) a plate without friction moving sideways keeps V exactly and U = Σ h V.
 
 Serial, 2 and 3 ranks (the plate's state is taken on every rank from the gathered data).
@@ -239,66 +237,10 @@ def test_x_momentum_of_block_and_plate_is_conserved(method):
         assert c.friction.slides and s["friction"][0]["beta_t_max"] <= 1.0 + 4 * EPS
 
 
+@pytest.mark.parametrize("ratio", [1.0, 3.0, 1000.0])
 @pytest.mark.parametrize("method", ["film", "dme", "penalty"])
-def test_block_dragged_by_a_heavy_plate(method):
-    """(c) The closed form. While every loaded row slips, λ_t = μ λ_n exactly, so the
-    block's x impulse is μ Σ h λ_n = μ (F t + P_y): v̄ = μ F t / m within
-    δ = μ F (H / c_L + h) / m (|P_y| <= F H / c_L, the pressure wave's bound, plus one
-    step's offset of the impulse's time). Hence:
-    - the slope over the slipping window [2 H / c_L, t_1] (t_1 the first stick) is μ F / m
-      within 2 δ / (t_1 - 2 H / c_L) (two ends, each within δ of the line);
-    - v̄ reaches V at t* = m V / (μ F) within 2 δ m / (μ F) (the line's band) plus the
-      bottom's lead: rows stick once V - v̄ is below the shear wave's particle velocity
-      2 μ p / (ρ c_s) (the bottom node leads the mean by that, its reflection doubled),
-      after which the mean closes the gap no slower than the slip rate μ F / m;
-    - afterwards v̄ stays within that lead of V (the shear released at the stick rings
-      with particle velocity <= 2 μ p / (ρ c_s)) and the plate's V within m (V + that) / M
-      of V (its momentum is the block's, given up).
-    The penalty (docs/friction.md 11, "the elastic slip in a drag"): in slip its force is
-    ±c_i as FILM's; its trials see the part's V~ rather than V^{n+1/2} and its stick
-    threshold is c_i h_n (1/m_k + n/M) against c_i h_n / m_k, which together shift a row's
-    stick by at most δ_p = 2 n c_max h_n / M in velocity (c_max <= μ 2F, the bottom's
-    largest force): δ_p is added to δ and to the lead."""
-    rows, s, _, c, plate = _run(method, N_STEPS)
-    t = DT * np.arange(1, N_STEPS + 1)  # v^{n+1/2} holds the impulses of steps 0..n
-    v_bar = rows[:, 0] / MASS
-    slope = MU * F / MASS
-    t_star = MASS * V / (MU * F)
-    delta = MU * F * (H / C_L + DT) / MASS
-    lead = 2.0 * MU * P / (STEEL.density * C_S)
-    if method == "penalty":
-        delta_p = 2 * c.n * MU * 2 * F * DT / plate.mass
-        delta, lead = delta + delta_p, lead + delta_p
-    first_stick = int(np.argmax(rows[:, 3] > 0))
-    slipping = slice(0, first_stick)
-    assert first_stick > 0 and np.all(rows[slipping, 3] == 0)
-    off_line = np.abs(v_bar[slipping] - slope * t[slipping]).max()
-    assert off_line <= delta
-    k1 = int(np.ceil(2 * H / C_L / DT))
-    k2 = first_stick - 1
-    measured = (v_bar[k2] - v_bar[k1]) / (t[k2] - t[k1])
-    slope_tol = 2 * delta / (t[k2] - t[k1])
-    reach = t[int(np.argmax(v_bar >= V - delta))]
-    reach_tol = 2 * delta / slope + lead / slope
-    after = t > t_star + reach_tol
-    ring = np.abs(v_bar[after] - V).max()
-    print(f"{method}: slope {measured:.6g} m/s^2 against μF/m = {slope:.6g} (within "
-          f"{abs(measured / slope - 1):.3g}, tolerance {slope_tol / slope:.3g}); off the "
-          f"line by {off_line:.3g} m/s (δ = {delta:.3g}); reaches V at {reach:.5g} s against "
-          f"t* = {t_star:.5g} s (within {abs(reach - t_star):.3g}, tolerance "
-          f"{reach_tol:.3g}); after it |v̄ - V| <= {ring:.3g} m/s (lead {lead:.3g}); "
-          f"first stick at step {first_stick}")
-    assert abs(measured - slope) <= slope_tol
-    assert abs(reach - t_star) <= reach_tol
-    assert ring <= lead
-    # the plate gives up what the block gains: M (V - V_p) = m v̄ <= m (V + lead)
-    assert np.all(np.abs(rows[:, 2] - V) <= MASS * (V + lead) / plate.mass)
-
-
-@pytest.mark.parametrize("ratio", [1.0, 3.0])
-@pytest.mark.parametrize("method", ["film", "dme", "penalty"])
-def test_block_dragged_by_a_light_plate(method, ratio):
-    """(c') The closed form of the two-body Coulomb drag (docs/friction.md 11, "a light
+def test_block_dragged_by_a_plate(method, ratio):
+    """(c) The closed form of the two-body Coulomb drag (docs/friction.md 11, "a light
     plate"): a plate of mass M = ratio m (free in x and y) at V_0 under the block at rest.
     In y the load F accelerates the pair, so the bottom's normal impulse is
     J_n = F t M / (M + m) + P_o, P_o the block's y momentum about the pair's centre of

@@ -266,8 +266,9 @@ def _report(title: str, s: dict, out_dir: str) -> None:
     from .report import console_lines, energy_line
 
     if "final_length" in s:  # a finite-strain bar
-        face = ("x of the impact face's corner" if s.get("geometry", {}).get("kind")
-                == "plane_strain" else "impact-face radius")
+        # the node that started at (R, 0): a Taylor bar's impact face, a billet's foot
+        face = ("x of the corner at y = 0" if s.get("geometry", {}).get("kind")
+                == "plane_strain" else "radius of the face z = 0")
         plastic = any("plastic_work" in b for b in s.get("bodies", {}).values())
         print(f"shape: length {s['final_length'] * 1e3:.4f} mm, {face} "
               f"{s['final_face_radius'] * 1e3:.4f} mm"

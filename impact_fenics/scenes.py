@@ -361,13 +361,12 @@ def upsetting(settings: Settings, material, radius: float = 5e-3, height: float 
     from .quad_meshes import quad_rectangle
     from .stepping import FollowingStep
 
-    require(speed > 0 and t_ramp > 0,
-            "upsetting: speed (m/s) and t_ramp (s) must be > 0")
+    motion = crosshead("platen", speed, t_ramp)  # refused here, before the mesh is built
     model = DeformableModel(quad_rectangle(comm, 0.0, 0.0, radius, height, n_r, n_z, "billet"),
                             [Body("billet", material)])
     sim = Simulation(model, settings, policy=FollowingStep(None, t_end, None, cfl, dt_interval))
     top = rigid_face(model, "top", radius, "platen")
-    platen = RigidBody("platen", math.inf, prescribed=crosshead("platen", speed, t_ramp))
+    platen = RigidBody("platen", math.inf, prescribed=motion)
     chosen = (lambda: make_method(method) if isinstance(method, str) else method)
     sim.add_contact(top, chosen(), rigid=platen)
     nodes = boundary_nodes(model.V, model.n_owned // 2)

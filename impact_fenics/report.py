@@ -132,8 +132,8 @@ def console_lines(s: dict) -> list[str]:
         line = (f"friction {'/'.join(f['surfaces'])} ({f['friction']}): slip work {f['slip_work']:.4g} J, "
                 f"tangential loss {f['tangential_loss']:.4g} J, peak tangential force "
                 f"{f['peak_tangential_force']:.4g} N")
-        if "return_loss" in f:
-            line += f", return loss {f['return_loss']:.4g} J"
+        if "release_loss" in f:
+            line += f", release loss {f['release_loss']:.4g} J"
         lines.append(line)
     peaks = s.get("peak_stress")
     if peaks:

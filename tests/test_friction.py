@@ -34,9 +34,9 @@ from mpi4py import MPI
 
 from impact_fenics import cli
 from impact_fenics.contact import DME, FILM, ContactSet, Penalty
-from impact_fenics.contact.friction import (N_SLIP, N_STICK, RETURN_LOSS, FrictionLaw,
-                                            dme_tangential, film_tangential, friction_law,
-                                            penalty_tangential)
+from impact_fenics.contact.friction import (N_SLIP, N_STICK, RELEASE_LOSS, STORED,
+                                            FrictionLaw, dme_tangential, film_tangential,
+                                            friction_law, penalty_tangential)
 from impact_fenics.contact.pairing import Constraints
 from impact_fenics.contact.plane import _Host, wall_part
 from impact_fenics.errors import InputError
@@ -547,7 +547,10 @@ def test_penalty_one_pair_by_hand(mu, sticks):
     """The pair of test_one_pair_by_hand with a committed elastic slip s_e = 1e-7 m and
     k_t = 3e7 N/m: the trial λ_tr = -k_t (s_e + h w~) = -3 + 1500 = 1497 N. Stick (cone
     1e4 N): λ_t = λ_tr, s_e += h w⁺. Slip (cone 1000 N): λ_t = 1000 N, Δs_p =
-    (c - λ_tr) / k_t, s_e += h w⁺ - Δs_p, D = c |Δs_p|, R = 1/2 k_t Δs_p^2."""
+    (c - λ_tr) / k_t, s_e += h w⁺ - Δs_p, D = c |Δs_p|, and the release loss R stays 0
+    (a return books D alone, docs/friction.md 5.1). A second step with the pair open
+    (λ_n = 0) releases the spring: λ_t = 0, s_e = 0, and R = 1/2 k_t s_e^2, its stored
+    energy, while D is unchanged."""
     m_p, m_q, vp, vq, h, k, s0 = 2.0, 3.0, 0.3, -0.2, 1e-4, 3e7, 1e-7
     fn = 2e4 if sticks else 1e4
     trial = -k * (s0 + h * (vq - vp))
@@ -568,7 +571,15 @@ def test_penalty_one_pair_by_hand(mu, sticks):
     w_new = v[1] - v[0]
     assert abs(s_e[0] - (s0 + h * w_new - dsp)) <= rounding(8, h * 0.5)
     assert abs(d_slip[0] - c * abs(dsp)) <= rounding(8, c * abs(dsp))
-    assert abs(stats[RETURN_LOSS] - 0.5 * k * dsp * dsp) <= rounding(8, 0.5 * k * dsp * dsp)
+    assert stats[RELEASE_LOSS] == 0.0  # the return books nothing into R
+    stored = 0.5 * k * s_e[0] ** 2
+    assert abs(stats[STORED] - stored) <= rounding(4, stored)
+    # the release: the committed spring's energy 1/2 k_t s_e^2 (3 roundings) into R
+    penalty_tangential(lo, up, np.ones(1, np.bool_), np.zeros(1), np.array([k]), h_over_m,
+                       h, mu, mu, 0.0, False, v.copy(), u, v, lam, state, s_e, d_slip, stats)
+    assert lam[0] == 0.0 and state[0] == 0 and s_e[0] == 0.0 and d_slip[0] == 0.0
+    assert abs(stats[RELEASE_LOSS] - stored) <= rounding(4, stored)
+    assert stats[STORED] == 0.0
 
 
 @pytest.mark.parametrize("beta", [1.0, 0.5])
@@ -622,7 +633,8 @@ def test_penalty_scaled_wall_equals_film(tmp):
     assert np.array_equal(hp["n_slip"], hf["n_slip"])
     # the spring's energy is the round-off of s_e = 0 (a step's roundings of the energy)
     assert np.all(hp["spring_energy"] <= rounding(32, np.abs(ep["total"]).max()))
-    assert np.all(np.diff(hp["return_loss"]) >= 0.0) and np.all(np.diff(hp["slip_work"]) >= 0.0)
+    # D's terms c |Δs_p| >= 0; R's only releases (>= 0) at this constant step
+    assert np.all(np.diff(hp["release_loss"]) >= 0.0) and np.all(np.diff(hp["slip_work"]) >= 0.0)
     scale = np.abs(ep["total"]).max()
     assert np.abs(ep["balance_error"]).max() <= ledger(n, 2 * 5 * 17) * scale
 
@@ -702,7 +714,7 @@ def _previous_step(t) -> float:
     t._gather(integ.u_owned, integ.v_owned, t.u_pred[:nd], t.v_pred[:nd])
     t.u[:] = t.u_pred
     t.v[:] = t.v_pred
-    before = t.stats[RETURN_LOSS] + t.stats[STORED]
+    before = t.stats[RELEASE_LOSS] + t.stats[STORED]
     common = (law.static, law.dynamic, law.decay, law.stick)
     if t.kernel == FILM_T:
         film_tangential(t.lo, t.up, c.active, c.force, t.a_inv, t.h_over_m, c.dt, *common,
@@ -713,7 +725,7 @@ def _previous_step(t) -> float:
     else:
         penalty_tangential(t.lo, t.up, c.active, c.force, t.k_t, t.h_over_m, c.dt, *common,
                            t.v_now, t.u, t.v, t.lam, t.state, t.s_e, t.d_slip, t.stats)
-    change = t.stats[RETURN_LOSS] + t.stats[STORED] - before
+    change = t.stats[RELEASE_LOSS] + t.stats[STORED] - before
     w_t, _ = _commit_tangential(t._local, t._pos, integ.u_owned, integ.v_owned, c.dt, c.h_avg,
                                 t.m_over_h, t.u, t.v, t.v_pred, t.u_now, t.v_now, t.f_prev,
                                 t.ku_prev, t.jump, t.lo, t.up, t.lam, t.state, t.stats,

@@ -27,7 +27,7 @@ def _state(c) -> tuple:
     """Every array a step of set ``c`` writes: the owned u and v (m, m/s), the set's packed
     slots, maps, flags and scalars (the ledger: contact work, activation loss), and its
     tangential pass's slots, rows (λ_t, s_e), stick/slip flags and stats (slip work,
-    tangential loss, the penalty's return loss and stored energy)."""
+    tangential loss, the penalty's release loss and stored energy)."""
     integ, t = c.integrator, c.friction
     return (integ.u_owned, integ.v_owned, c._floats, c._ints, c._flags, c._misc, t.slots,
             t.rows, t.state, t.stats)

@@ -13,7 +13,7 @@ Oracles:
   (slaves change segments, the rim slave is released), re-paired every step: at every
   step and loaded row the cone |λ_t| <= μ λ_n (1 + 1e-12); at every re-pairing each
   elastic slip is the rule's, recomputed here from the rows' normals before and after
-  (kept on the same segment, (t . t') s_e on another, 0 released) and the return loss
+  (kept on the same segment, (t . t') s_e on another, 0 released) and the release loss
   grew, and the stored energy fell, by the energy the projections dropped,
   Σ 1/2 k_t (s_e^2 - s_e'^2) >= 0; the ledger closes (roundoff.ledger);
 * a block on an inclined straight face (tests/test_friction_segments.py's) at two soft
@@ -34,7 +34,7 @@ import pytest
 from mpi4py import MPI
 
 from impact_fenics.contact import FILM, Penalty
-from impact_fenics.contact.friction import RETURN_LOSS, STORED
+from impact_fenics.contact.friction import RELEASE_LOSS, STORED
 from impact_fenics.contact.friction_segments import OFF
 from impact_fenics.errors import InputError
 from roundoff import assert_runs_agree, ledger, one_ulp, rounding
@@ -90,7 +90,7 @@ NOSE_REPAIRED = NOSE.replace("h_striker = 0.005", "h_striker = 0.0025").replace(
 class _Watch:
     """Wraps a re-paired set's pass and re-pairing: after each step the cone at every loaded
     row; at each re-pairing the elastic slips against the rule recomputed from the rows'
-    normals before and after, and the return loss and stored energy against the drop."""
+    normals before and after, and the release loss and stored energy against the drop."""
 
     def __init__(self, c, mu):
         self.c, self.f, self.mu = c, c.friction, mu
@@ -118,7 +118,7 @@ class _Watch:
         c, f, seen = self.c, self.f, self.seen
         s_before, cc_before = f.s_e.copy(), c.cc.copy()
         seg_before = c.cs[:, 2::2].copy()
-        loss_before, stored_before = f.stats[RETURN_LOSS], f.stats[STORED]
+        loss_before, stored_before = f.stats[RELEASE_LOSS], f.stats[STORED]
         self._repair()
         # the rule, from the rows' normals: t = (n_z, -n_r) of the slave's entries
         t_old = np.stack([cc_before[:, 1], -cc_before[:, 0]], axis=1)
@@ -134,11 +134,11 @@ class _Watch:
         # each drop >= 0 (|t . t'| <= 1 for unit tangents) within its products' roundings
         assert np.all(drop >= -rounding(8, f.k_t * s_before ** 2))
         total = float(drop.sum())
-        # booked into the return loss and out of the stored energy: a sum of the rows'
+        # booked into the release loss and out of the stored energy: a sum of the rows'
         # terms (8 roundings each, one more per term added) on the energies' scale
         tol = rounding(8 + c.n, float((f.k_t * s_before ** 2).sum()) + abs(loss_before)
                        + abs(stored_before))
-        assert abs(f.stats[RETURN_LOSS] - loss_before - total) <= tol
+        assert abs(f.stats[RELEASE_LOSS] - loss_before - total) <= tol
         assert abs(stored_before - f.stats[STORED] - total) <= tol
         moved = s_before != 0.0
         seen["carried"] += int(np.count_nonzero(moved & same))
@@ -198,7 +198,7 @@ def test_curved_master_repaired_cone(nose):
 
 def test_curved_master_repaired_carry_and_ledger(nose):
     """The elastic slips carried with their segment at every re-pairing (and projected on
-    another's tangent when a slave changed segment); the return loss holds every drop;
+    another's tangent when a slave changed segment); the release loss holds every drop;
     the ledger closes within roundoff.ledger."""
     sim, seen, summary = nose
     assert seen["carried"] > 0, seen
@@ -208,7 +208,9 @@ def test_curved_master_repaired_carry_and_ledger(nose):
     balance = np.abs(np.asarray(e["balance_error"])).max()
     assert balance <= ledger(sim.n_steps, n_dofs) * scale
     h = sim.history.data()
-    assert np.all(np.diff(np.asarray(h["return_loss"])) >= 0.0)
+    # R's increments are releases and projection drops (>= 0 each) at a constant step
+    # (a rescaling, signed, would need a change of step; docs/friction.md 5.1)
+    assert np.all(np.diff(np.asarray(h["release_loss"])) >= 0.0)
     assert np.all(np.diff(np.asarray(h["slip_work"])) >= 0.0)
     if COMM.rank == 0:
         print(f"\nnose penalty re-paired: balance {balance:.3g} J of {scale:.4g} J (bound "
@@ -217,7 +219,7 @@ def test_curved_master_repaired_carry_and_ledger(nose):
 
 def test_breathing_bars_repaired_carry_and_ledger(breathing):
     """Slaves change segments with their springs loaded (projected) and the rim slave is
-    released (its spring dropped), each booked into the return loss; the cone at every
+    released (its spring dropped), each booked into the release loss; the cone at every
     loaded row and step; the balance and the z momentum within roundoff.ledger."""
     sim, seen, summary = breathing
     assert sim.contacts[0].repairs == sim.n_steps and sim.compiled_in_loop == []
@@ -228,7 +230,8 @@ def test_breathing_bars_repaired_carry_and_ledger(breathing):
     assert np.abs(p - p[0]).max() <= bound * abs(p[0])
     assert summary["energy_balance_error_rel"] <= bound
     h = sim.history.data()
-    assert np.all(np.diff(np.asarray(h["return_loss"])) >= 0.0)
+    # R's increments: releases and projection drops, >= 0 each at a constant step
+    assert np.all(np.diff(np.asarray(h["release_loss"])) >= 0.0)
     if COMM.rank == 0:
         print(f"\nbreathing bars penalty re-paired: {seen}; balance "
               f"{summary['energy_balance_error_rel']:.3g} and z momentum "
@@ -261,7 +264,7 @@ def test_penalty_stick_approaches_film_as_one_over_k_t():
     for beta in (0.05, 0.1):
         k_t = beta * m / h ** 2
         c, rows, _, _, _ = _block_on_incline(theta, mu, k_t, n)
-        ln, lt, _, slide, s_e = rows.T
+        ln, lt, _, slide, s_e, _ = rows.T
         assert np.all(np.abs(lt) < mu * ln)  # stick at every step
         assert abs(c.friction.beta_max - beta) <= rounding(8, beta)
         assert abs(s_e[-1] + (1.0 - beta) * F / k_t) <= rounding(32, F / k_t)

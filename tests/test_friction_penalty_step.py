@@ -10,7 +10,7 @@ force k_t s_e across a change (docs/friction.md 4.3). The oracles:
 - the ledger K + W_int + L = K_0 closes at every energy row within roundoff.ledger, and
   the cone |λ_t| <= μ λ_n holds at every row and step (to the rounding of the return,
   1e-12 relative);
-- the return loss's jump at each change of step equals the stored energy the springs
+- the release loss's jump at each change of step equals the stored energy the springs
   gave up, Σ ½ (k_t s_e² − k_t′ s_e′²), recomputed here from the springs before and after
   the change, and each spring's force is kept, k_t′ s_e′ = k_t s_e, both to a few
   roundings.
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from impact_fenics.contact.friction import PENALTY_T, RETURN_LOSS, STORED
+from impact_fenics.contact.friction import PENALTY_T, RELEASE_LOSS, STORED
 from impact_fenics.scene_file import build, read_scene
 from roundoff import EPS, ledger
 
@@ -100,10 +100,10 @@ def test_ledger_cone_and_the_booked_rescale(tmp):
 
         def rescaled():
             k, s_e = friction.k_t.copy(), friction.s_e.copy()
-            r, e = friction.stats[RETURN_LOSS], friction.stats[STORED]
+            r, e = friction.stats[RELEASE_LOSS], friction.stats[STORED]
             set_step()
             changes.append((k, s_e, friction.k_t.copy(), friction.s_e.copy(),
-                            friction.stats[RETURN_LOSS] - r, e, friction.stats[STORED], r))
+                            friction.stats[RELEASE_LOSS] - r, e, friction.stats[STORED], r))
         wall.step = stepped
         friction.set_step = rescaled
     sim, s = _run(_scene(tmp, 3), attach)
@@ -143,8 +143,8 @@ def test_ledger_cone_and_the_booked_rescale(tmp):
         w = s["friction"][0]
         print(f"steps {s['n_steps']}, dt {lo:.4g}..{hi:.4g} s, changes with loaded springs "
               f"{moved}, balance {balance.max():.3g} J (bound "
-              f"{ledger(s['n_steps'], s['n_dofs']) * s['energy_initial']:.3g} J), return loss "
-              f"{w['return_loss']:.4g} J, spring {w['spring_energy']:.4g} J, slip work "
+              f"{ledger(s['n_steps'], s['n_dofs']) * s['energy_initial']:.3g} J), release loss "
+              f"{w['release_loss']:.4g} J, spring {w['spring_energy']:.4g} J, slip work "
               f"{w['slip_work']:.4g} J, rows at the cone {slipped}")
 
 
@@ -169,7 +169,7 @@ def test_a_change_of_step_keeps_each_springs_force(tmp, factor):
     friction.s_e[on] = rng.uniform(-1e-6, 1e-6, int(on.sum()))  # m
     friction.stats[STORED] = float(np.sum(0.5 * friction.k_t * friction.s_e ** 2))
     k, s_e = friction.k_t.copy(), friction.s_e.copy()
-    r = friction.stats[RETURN_LOSS]
+    r = friction.stats[RELEASE_LOSS]
     assert r == 0.0  # (nothing run: the jump is R itself, no rounding on a cumulative R)
     wall.set_step(factor * wall.dt, factor * wall.h_avg)
     k2, s_e2 = friction.k_t, friction.s_e
@@ -177,7 +177,7 @@ def test_a_change_of_step_keeps_each_springs_force(tmp, factor):
     assert np.all(np.abs(k2 * s_e2 - k * s_e) <= 4 * EPS * np.abs(k * s_e))
     e0, e1 = np.sum(0.5 * k * s_e ** 2), np.sum(0.5 * k2 * s_e2 ** 2)
     tol = 8 * k.size * EPS * (e0 + e1)
-    booked = friction.stats[RETURN_LOSS] - r
+    booked = friction.stats[RELEASE_LOSS] - r
     assert abs(booked - (e0 - e1)) <= tol
     assert (booked > 0.0) == (factor < 1.0)
     # force kept: E_s' = E_s k_t / k_t' (here per row: E_s' / E_s = factor^2 exactly but

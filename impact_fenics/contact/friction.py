@@ -40,9 +40,11 @@ The ledger (docs/friction.md 5): the r slots carry only tangential forces, so th
 contact-work booking (:func:`.state._book`) on them gives the tangential work W_t of the
 step, added to the set's contact work. The slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| >= 0
 (the penalty: Σ c |Δs_p|) and the tangential arrival loss L_t = -W_t - D (the penalty:
-minus also the return loss Σ 1/2 k_t Δs_p^2 and the change of the springs' stored
-energy 1/2 k_t s_e^2, both kept) are kept beside it, with the stats of a history row: the total tangential force Σ λ_t (N, on the upper sides along +r) and the
-numbers of sticking and slipping constraints.
+minus also the release loss R, the stored energy the springs give up without work at a
+release or a change of step, and the change of the springs' stored energy 1/2 k_t s_e^2,
+both kept; a return to the cone books D alone, docs/friction.md 5.1) are kept beside it,
+with the stats of a history row: the total tangential force Σ λ_t (N, on the upper sides
+along +r) and the numbers of sticking and slipping constraints.
 
 Under MPI the r components are gathered once per step (one Allgatherv) in slot order;
 every rank takes the decisions on the same gathered data and writes back what it owns.
@@ -64,12 +66,12 @@ from .state import _book, _pack, _take, _unpack, gathered_order, owned_slots
 # the pass's scalars (Tangential.stats): the total tangential force of the step (N), the
 # numbers sticking and slipping, then the cumulative slip work and tangential arrival
 # loss (J) (the history's five columns), the largest |total| so far (N), then the
-# penalty's return loss so far and the stored energy 1/2 k_t s_e^2 now (J)
-T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS, T_PEAK, RETURN_LOSS, STORED = range(8)
+# penalty's release loss so far and the stored energy 1/2 k_t s_e^2 now (J)
+T_FORCE, N_STICK, N_SLIP, SLIP_WORK, T_LOSS, T_PEAK, RELEASE_LOSS, STORED = range(8)
 # a set's history columns and the stats they read (the penalty adds its two energies)
 HISTORY = (("tangential_force", T_FORCE), ("n_stick", N_STICK), ("n_slip", N_SLIP),
            ("slip_work", SLIP_WORK), ("tangential_loss", T_LOSS))
-PENALTY_HISTORY = (("return_loss", RETURN_LOSS), ("spring_energy", STORED))
+PENALTY_HISTORY = (("release_loss", RELEASE_LOSS), ("spring_energy", STORED))
 STABILITY_BOUND = 4.0 / 3.0  # of beta_t = k_t h A_ii (penalty.py's derivation)
 FILM_T, DME_T, PENALTY_T = 1, 2, 3  # the tangential kernels
 
@@ -369,10 +371,11 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
     (``k_t``: N/m, ``s_e``: the committed elastic slip, m), stick inside the cone, else
     λ_t = ±c and the plastic slip Δs_p = -(|λ_tr| - c) sign(λ_tr) / k_t; u, v corrected
     as FILM's, then s_e += h w_t^{n+1/2} - Δs_p. A constraint without a compressive λ_n
-    is released: λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 into the return loss.
-    ``d_slip`` receives c |Δs_p| (J) per constraint; the return loss and the stored
+    is released: λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 into the release loss (a
+    return to the cone books nothing there: its loss is D, docs/friction.md 5.1).
+    ``d_slip`` receives c |Δs_p| (J) per constraint; the release loss and the stored
     energy (J) in ``stats`` are updated."""
-    ret = 0.0
+    released = 0.0
     stored = 0.0
     for i in range(lo.size):
         lam[i] = 0.0
@@ -381,8 +384,8 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
         fn = force[i]
         p, q = lo[i], up[i]
         if not active[i] or not fn > 0.0 or k_t[i] == 0.0:
-            if s_e[i] != 0.0:  # released: the spring's energy is returned as loss
-                ret += 0.5 * k_t[i] * s_e[i] * s_e[i]
+            if s_e[i] != 0.0:  # released: the spring's stored energy is lost
+                released += 0.5 * k_t[i] * s_e[i] * s_e[i]
                 s_e[i] = 0.0
             continue
         trial = -k_t[i] * (s_e[i] + h * (v[q] - v[p]))
@@ -396,12 +399,11 @@ def penalty_tangential(lo, up, active, force, k_t, h_over_m, h, mu_s, mu_d, deca
             if state[i] == 2:
                 dsp = (f - trial) / k_t[i]  # -(|trial| - c) sign(trial) / k_t
                 d_slip[i] = c * abs(dsp)
-                ret += 0.5 * k_t[i] * dsp * dsp
         lam[i] = f
         _apply_tangential(f, p, q, h_over_m, h, u, v)
         s_e[i] += h * (v[q] - v[p]) - dsp
         stored += 0.5 * k_t[i] * s_e[i] * s_e[i]
-    stats[RETURN_LOSS] += ret
+    stats[RELEASE_LOSS] += released
     stats[STORED] = stored
 
 
@@ -460,7 +462,7 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
     the one contact-work booking (:func:`.state._book`, no jump) and roll the r slots
     to n+1; slip work D = Σ h_n |λ_t| |w_t^{n+1/2}| (the ``penalty``: Σ ``d_slip``,
     c |Δs_p|) and L_t = -W_t - D (the penalty: minus also ``spring_change``, the step's
-    return loss and change of stored energy, J) into ``stats`` (cumulative), with the
+    release loss and change of stored energy, J) into ``stats`` (cumulative), with the
     step's total tangential force, its largest magnitude so far and the stick/slip
     counts. Returns (W_t (J), the first constraint whose relative
     tangential displacement u_up,r - u_lo,r exceeds its ``slip_limit`` (m), or -1);
@@ -483,8 +485,8 @@ def _commit_tangential(local, pos, dst_u, dst_v, h, h_avg, m_over_h, u, v, v_pre
             slip += d_slip[i]
         elif f != 0.0:
             slip += h_avg * abs(f) * abs(v[up[i]] - v[lo[i]])
-    w_t, _ = _book(h_avg, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump, jump,
-                   False, False)  # no jump: the tangential pass keeps u = u^n + h v
+    w_t, _ = _book(h_avg, 0, m_over_h, u, v, v_pred, u_now, v_now, f_prev, ku_prev, jump,
+                   jump[:0], False, False)  # no jump (u = u^n + h v): no slot books one
     stats[0] = total
     stats[1] = n_stick
     stats[2] = n_slip
@@ -530,7 +532,7 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
     h = x[X_DT]
     mu_s, mu_d, decay, stick = x[X_MU_S], x[X_MU_D], x[X_DECAY], x[X_STICK] != 0.0
     kernel = int(x[X_KERNEL])
-    before = stats[RETURN_LOSS] + stats[STORED]  # (0 but for the penalty)
+    before = stats[RELEASE_LOSS] + stats[STORED]  # (0 but for the penalty)
     slide = x[X_SLIDES] != 0.0
     hm_part = h_over_m[u.size - 1]
     if slide and kernel == PENALTY_T:  # the rows' trials on V~: the part's slot held
@@ -549,10 +551,10 @@ def _tangential_pass(src_u, src_v, own, recv, unpack, slots, rows, pairs, active
         penalty_tangential(lo, up, active, force, rows[R_K_T], h_over_m, h, mu_s, mu_d, decay,
                            stick, v_now, u, v, lam, state, rows[R_S_E], d_slip, stats)
         h_over_m[u.size - 1] = hm_part
-    if x[X_SLIDES] != 0.0 and kernel == PENALTY_T:  # the part takes the rows' sum
+    if slide and kernel == PENALTY_T:  # the part takes the rows' sum
         slide_spring(lo, up, state, h_over_m, h, u, v, rows[R_K_T], rows[R_S_E], lam, stats,
                      hm_part)
-    change = stats[RETURN_LOSS] + stats[STORED] - before
+    change = stats[RELEASE_LOSS] + stats[STORED] - before
     return _commit_tangential(own[0], own[1], src_u, src_v, h, x[X_H_AVG], m_over_h, u, v,
                               v_pred, u_now, v_now, slots[S_F_PREV], slots[S_KU_PREV],
                               slots[S_JUMP], lo, up, lam, state, stats,
@@ -692,8 +694,8 @@ class Tangential(FrictionFigures):
             released, stored = rescale_springs(self.a_inv, self.c.dt, scaled, given, self.k_t,
                                                self.s_e)
             # the springs' force k_t s_e kept: the stored energy's change booked into the
-            # return loss (signed, docs/friction.md 4.3), the stored column at its new value
-            self.stats[RETURN_LOSS] += released
+            # release loss (signed, docs/friction.md 4.3), the stored column at its new value
+            self.stats[RELEASE_LOSS] += released
             self.stats[STORED] = stored
             self.beta_max = float((self.k_t * self.c.dt * a).max(initial=0.0))
             if not scaled and self.beta_max > STABILITY_BOUND and not self.forced \
@@ -796,7 +798,7 @@ class Tangential(FrictionFigures):
         """The run's friction figures: the law, D and L_t (J), the peak |Σ λ_t| (N)."""
         out = self.figures()
         if self.kernel == PENALTY_T:
-            out.update(return_loss=float(self.stats[RETURN_LOSS]),
+            out.update(release_loss=float(self.stats[RELEASE_LOSS]),
                        spring_energy=float(self.stats[STORED]), beta_t_max=self.beta_max,
                        tangential_penalty=self.stiffness)
         return out

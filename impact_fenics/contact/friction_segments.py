@@ -45,7 +45,7 @@ and a released slave (a zero row) gets λ_t = 0. The penalty's spring is carried
 (docs/friction.md 4.1, :func:`carry_elastic_slip`): a slave kept on its segment keeps its
 elastic slip s_e (the tangent turned with the segment), one paired to another segment
 keeps its projection (t . t') s_e on the new tangent, a released one none; the stored
-energy the projection drops is booked into the return loss at the re-pairing.
+energy the projection drops is booked into the release loss at the re-pairing.
 
 The penalty (docs/friction.md 4) solves nothing: each loaded row's spring k_t (N/m) on its
 committed elastic slip s_e (m) gives the trial λ_tr = -k_t (s_e + h_{n+1/2} w~_t), which is
@@ -69,7 +69,7 @@ from ..plausibility import warn
 from .banded import apply_multipliers, band_factor, band_matvec, band_of_s, \
     band_of_s_steps, band_solve, bandwidth, bandwidth_of, gap_of, gershgorin_beta, \
     gershgorin_of, tolerance
-from .friction import HISTORY, N_SLIP, N_STICK, PENALTY_HISTORY, RETURN_LOSS, SLIP_WORK, \
+from .friction import HISTORY, N_SLIP, N_STICK, PENALTY_HISTORY, RELEASE_LOSS, SLIP_WORK, \
     STABILITY_BOUND, STORED, T_FORCE, T_LOSS, T_PEAK, FrictionFigures, FrictionLaw, \
     _coefficient, _return_to_cone
 
@@ -300,7 +300,7 @@ def carry_elastic_slip(seg, cs, cc, ct_old, k_t, s_e, stats):
     (rewritten here to the new ones). A row on the same segment keeps s_e (m; carried with
     the segment); on another segment s_e' = (t . t') s_e; a released row (zero
     coefficients, t' = 0) s_e' = 0. The drop of stored energy 1/2 k_t (s_e^2 - s_e'^2) (J)
-    goes into the return loss and out of the stored energy in ``stats``."""
+    goes into the release loss and out of the stored energy in ``stats``."""
     drop = 0.0
     for i in range(s_e.shape[0]):
         a, b = cs[i, 2], cs[i, 4]
@@ -311,7 +311,7 @@ def carry_elastic_slip(seg, cs, cc, ct_old, k_t, s_e, stats):
             s_e[i] = s
         seg[i, 0] = a
         seg[i, 1] = b
-    stats[RETURN_LOSS] += drop
+    stats[RELEASE_LOSS] += drop
     stats[STORED] -= drop
 
 
@@ -324,13 +324,14 @@ def _penalty_pass(active, force, no_free, k_t, mu_s, mu_d, decay, stick, cs, ct,
     λ_tr = -k_t (s_e + h w~_t) (``k_t``: N/m; ``s_e``: the committed elastic slip, m),
     returned to the cone c = μ λ_n where it lies outside it (the plastic slip
     Δs_p = (λ_t - λ_tr) / k_t into ``dsp``); a row without a compressive λ_n is released
-    (λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 booked as return loss). The rows' forces
+    (λ_t = 0, s_e = 0, its stored 1/2 k_t s_e^2 booked as release loss). The rows' forces
     are then applied together, v += h_n M^-1 T' λ_t and u += h (that change), and
     s_e += h w_t^{n+1/2} - Δs_p with the corrected w (``w_next``). Books the step's stats
-    (D = Σ c |Δs_p|, the return loss Σ 1/2 k_t Δs_p^2, the stored energy Σ 1/2 k_t s_e^2,
-    L_t = -W_t - D - the change of those two) and returns W_t (J)."""
+    (D = Σ c |Δs_p|, the release loss, the stored energy Σ 1/2 k_t s_e^2, L_t = -W_t - D
+    - the change of those two; a return to the cone books D alone, docs/friction.md 5.1)
+    and returns W_t (J)."""
     n = force.size
-    ret = 0.0
+    released = 0.0
     slip = 0.0
     for i in range(n):
         lam[i] = 0.0
@@ -338,8 +339,8 @@ def _penalty_pass(active, force, no_free, k_t, mu_s, mu_d, decay, stick, cs, ct,
         if not active[i] or not force[i] > 0.0 or no_free[i] or k_t[i] == 0.0:
             state[i] = OFF
             cap[i] = 0.0
-            if s_e[i] != 0.0:  # released: the spring's energy is returned as loss
-                ret += 0.5 * k_t[i] * s_e[i] * s_e[i]
+            if s_e[i] != 0.0:  # released: the spring's stored energy is lost
+                released += 0.5 * k_t[i] * s_e[i] * s_e[i]
                 s_e[i] = 0.0
             continue
         trial = -k_t[i] * (s_e[i] + h * wt[i])
@@ -356,7 +357,6 @@ def _penalty_pass(active, force, no_free, k_t, mu_s, mu_d, decay, stick, cs, ct,
             d = (f - trial) / k_t[i]  # -(|trial| - c) sign(trial) / k_t
             dsp[i] = d
             slip += cap[i] * abs(d)
-            ret += 0.5 * k_t[i] * d * d
         lam[i] = f
     apply_multipliers(lam, cs, ct, mass, free, h_avg, u, v, h)
     _tangential_gaps(cs, ct, v, w_next)
@@ -377,12 +377,12 @@ def _penalty_pass(active, force, no_free, k_t, mu_s, mu_d, decay, stick, cs, ct,
             n_stick += 1
         else:
             n_slip += 1
-    change = ret + stored - stats[STORED]
+    change = released + stored - stats[STORED]
     stats[T_FORCE] = total
     stats[N_STICK] = n_stick
     stats[N_SLIP] = n_slip
     stats[SLIP_WORK] += slip
-    stats[RETURN_LOSS] += ret
+    stats[RELEASE_LOSS] += released
     stats[STORED] = stored
     stats[T_LOSS] += -work - slip - change
     stats[T_PEAK] = max(stats[T_PEAK], abs(total))
@@ -725,10 +725,10 @@ class SegmentTangential(FrictionFigures):
 
     def summary(self) -> dict:
         """The law, D and L_t (J), the peak |Σ λ_t| (N), the pivoting's largest count (the
-        penalty: its return loss, stored energy, beta_t bound and stiffness instead)."""
+        penalty: its release loss, stored energy, beta_t bound and stiffness instead)."""
         out = self.figures()
         if self.penalty:
-            out.update(return_loss=float(self.stats[RETURN_LOSS]),
+            out.update(release_loss=float(self.stats[RELEASE_LOSS]),
                        spring_energy=float(self.stats[STORED]), beta_t_max=self.beta_max,
                        tangential_penalty=self.stiffness)
             return out

@@ -98,10 +98,12 @@ class QuadGeometry:
     """Geometry of Q1 cells at the 2x2 Gauss points (see the module).
 
     ``dofs`` (n, 4) node (block) indices; ``dNdR``, ``dNdZ`` (n, 4 points, 4 nodes)
-    (1/m); ``N`` (4 points, 4 nodes); ``R`` (n, 4) point radii (m) and ``inv_R`` their
-    inverses (1/m); ``w`` (n, 4) weights 1/4 |det J| 2 pi R_q (m^3); ``volume`` (n,) the
-    cells' ring volumes V (m^3). In plane strain ``w`` = 1/4 |det J| t, ``inv_R`` = 0 (the
-    out-of-plane strain's factor) and ``volume`` the slab's t A."""
+    (1/m); ``dxi`` (n, 4 points, 4) the inverse Jacobian J^-1 = dxi/dX at the points,
+    (dxi/dR, dxi/dZ, deta/dR, deta/dZ) (1/m); ``N`` (4 points, 4 nodes); ``R`` (n, 4)
+    point radii (m) and ``inv_R`` their inverses (1/m); ``w`` (n, 4) weights
+    1/4 |det J| 2 pi R_q (m^3); ``volume`` (n,) the cells' ring volumes V (m^3). In plane
+    strain ``w`` = 1/4 |det J| t, ``inv_R`` = 0 (the out-of-plane strain's factor) and
+    ``volume`` the slab's t A."""
 
     def __init__(self, cell_nodes: np.ndarray, node_xy: np.ndarray, cells: np.ndarray,
                  geometry: Geometry):
@@ -125,6 +127,7 @@ class QuadGeometry:
         grad = np.einsum("qib,nqba->nqia", dN, inv)  # dN_i / dX_a
         self.dNdR = np.ascontiguousarray(grad[..., 0])
         self.dNdZ = np.ascontiguousarray(grad[..., 1])
+        self.dxi = np.ascontiguousarray(inv.reshape(inv.shape[0], N_POINTS, 4))
         self.R = np.ascontiguousarray(np.einsum("qi,ni->nq", N, X[:, :, 0]))
         if geometry.plane:
             self.inv_R = np.zeros_like(self.R)  # eps_out = 0

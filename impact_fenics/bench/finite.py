@@ -134,7 +134,7 @@ def _finite_split(ctx, run, dt: float) -> dict:
     state, tau = force.state.copy(), force.tau.copy()
 
     def kernel(fn, state, tau):
-        return lambda: fn(force.params, dt, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, g.volume,
+        return lambda: fn(force.params, dt, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume,
                           run.u, f, state, tau, force._Fq, force._Jq, force._fbar, force._work,
                           force._point_state, force._point_tau)
     return {

@@ -189,12 +189,12 @@ def small_strain_bytes(force, n_owned: int) -> int:
 def finite_strain_bytes(force, n_owned: int) -> int:
     """Bytes the finite-strain step moves on this rank: the state at the points (b_e and
     the equivalent plastic strain) read and written, the Kirchhoff stress written, the
-    cell geometry read (dofs, dN/dR, dN/dZ, R, w, the cell volume), u gathered and f
+    cell geometry read (dofs, J^-1, 1 / R, w, the cell volume), u gathered and f
     zeroed, summed into and read back (local: 32), the trapezoid work reading f, u,
     f_prev, u_prev and writing f_prev, u_prev (owned: 48), the velocity update reading
     coef, f, v and writing v (32), the position update (24)."""
     g = force.geometry
-    return (nbytes(read=(force.state, g.dofs, g.dNdR, g.dNdZ, g.R, g.w, g.volume),
+    return (nbytes(read=(force.state, g.dofs, g.dxi, g.inv_R, g.w, g.volume),
                    written=(force.state, force.tau))
             + 32 * force.f.x.array.size + (48 + 32 + 24) * n_owned)
 

@@ -53,7 +53,9 @@ signature), w_q the Gauss weight times |det dX/dxi| 2 pi R_q (m^3): the Q1 geome
 of :mod:`..q1`, shared with the small-strain (B-bar) forces.
 
 One fused compiled pass over the owned cells reads a cell's nodal displacements
-once, computes F at its four points, J_bar, the four F-bar factors (in a loop of their
+once, computes F at its four points (through the reference cell: Grad u = (du/dxi,
+du/deta) J^-1, and f_a = sum_q (w_q P_q J_q^-T) : dN_a/dxi with the bilinear N_a's
+constant reference gradients, see ``force``), J_bar, the four F-bar factors (in a loop of their
 own: four independent chains of the cube root (near 1 a series, no division), which
 inside the loop of the point updates stood on each point's critical path; one reciprocal
 1 / J_q a point serves the factor's ratio J_bar / J_q and P's 1 / det = F_tt / J_q, one
@@ -77,10 +79,12 @@ from numba import njit
 from .. import compat
 from ..errors import UnstableRunError
 from ..geometry import Geometry
-from ..q1 import N_POINTS, QuadGeometry
+from ..q1 import GAUSS, N_POINTS, QuadGeometry
 from .base import Booking
 
 WORK = 16  # scratch entries a point update may use
+# the Gauss points' reference coordinates, 1/2 -+ 1/(2 sqrt 3) (LO + HI = 1)
+LO, HI = float(GAUSS[0, 0]), float(GAUSS[3, 0])
 THIRD = 1.0 / 3.0
 # the binomial series (1 + e)^(1/3) = 1 + sum_k C(1/3, k) e^k, k = 1..12, for |e| <= E_SERIES
 E_SERIES = 1.0 / 16.0
@@ -177,13 +181,21 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
         return _KERNELS[key]
 
     @njit(fastmath=False, error_model="numpy")
-    def force(params, dt, dofs, dNdR, dNdZ, N, inv_R, w, volume, u, f, state, tau, Fq, Jq, fbar,
+    def force(params, dt, dofs, dxi, N, inv_R, w, volume, u, f, state, tau, Fq, Jq, fbar,
               work, point_state, point_tau):
         """f += f_int (N) over the cells; state and tau (Kirchhoff, Pa) updated in place.
-        ``inv_R``: 1 / R_q (1/m) at the points, the quotient made once at set-up (unread in
-        plane strain).
+        ``dxi`` (n, 4, 4): (dxi/dR, dxi/dZ, deta/dR, deta/dZ) at the points (1/m), the
+        inverse of the reference map's Jacobian. ``inv_R``: 1 / R_q (1/m) at the points, the
+        quotient made once at set-up (unread in plane strain).
         Returns (plastic work increment (J), smallest J, cell of the smallest J). ``Fq``
-        (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q, the F-bar factor and 1 / R_q.
+        (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q, the F-bar factor
+        and 1 / R_q.
+
+        The gradients go through the reference cell: Grad u = (du/dxi, du/deta) J^-1 with
+        du/dxi at the points from the node differences u_1 - u_0 and u_3 - u_2 (bilinear
+        N_a: du/dxi is linear in eta alone, du/deta in xi alone, so two values each per
+        cell), and f_a = sum_q (P J^-T) : dN_a/dxi with the constant reference gradients
+        (the module's docstring); a point reads 4 entries of J^-1 where Grad N_a took 8.
 
         The point update works on the views state[c, q] and tau[c, q], or, with
         ``point_copy`` (a material whose update has a loop: Johnson-Cook's return), on the
@@ -199,14 +211,23 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
             k0, k1, k2, k3 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2], 2 * dofs[c, 3]
             u0r, u1r, u2r, u3r = u[k0], u[k1], u[k2], u[k3]
             u0z, u1z, u2z, u3z = u[k0 + 1], u[k1 + 1], u[k2 + 1], u[k3 + 1]
+            # du/dxi at eta = LO, HI and du/deta at xi = LO, HI (1 - LO = HI)
+            ar, br, cr, dr = u1r - u0r, u3r - u2r, u2r - u0r, u3r - u1r
+            az, bz, cz, dz = u1z - u0z, u3z - u2z, u2z - u0z, u3z - u1z
+            xr0, xr1 = ar * HI + br * LO, ar * LO + br * HI
+            er0, er1 = cr * HI + dr * LO, cr * LO + dr * HI
+            xz0, xz1 = az * HI + bz * LO, az * LO + bz * HI
+            ez0, ez1 = cz * HI + dz * LO, cz * LO + dz * HI
             jbar = 0.0
             for q in range(4):
-                g0, g1, g2, g3 = dNdR[c, q, 0], dNdR[c, q, 1], dNdR[c, q, 2], dNdR[c, q, 3]
-                h0, h1, h2, h3 = dNdZ[c, q, 0], dNdZ[c, q, 1], dNdZ[c, q, 2], dNdZ[c, q, 3]
-                frr = 1.0 + (g0 * u0r + g1 * u1r + g2 * u2r + g3 * u3r)
-                frz = h0 * u0r + h1 * u1r + h2 * u2r + h3 * u3r
-                fzr = g0 * u0z + g1 * u1z + g2 * u2z + g3 * u3z
-                fzz = 1.0 + (h0 * u0z + h1 * u1z + h2 * u2z + h3 * u3z)
+                # point q at (xi, eta) = (LO or HI by q % 2, LO or HI by q // 2)
+                xr, xz = (xr0, xz0) if q < 2 else (xr1, xz1)
+                er, ez = (er0, ez0) if q % 2 == 0 else (er1, ez1)
+                a0, a1, a2, a3 = dxi[c, q, 0], dxi[c, q, 1], dxi[c, q, 2], dxi[c, q, 3]
+                frr = 1.0 + (xr * a0 + er * a2)
+                frz = xr * a1 + er * a3
+                fzr = xz * a0 + ez * a2
+                fzz = 1.0 + (xz * a1 + ez * a3)
                 det2 = frr * fzz - frz * fzr
                 if plane:
                     ftt = 1.0
@@ -254,7 +275,8 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                 else:
                     m_bar += w[c, q] * (tau[c, q, 0] + tau[c, q, 1] + tau[c, q, 2])
             m_bar /= jbar * volume[c]
-            f0r = f1r = f2r = f3r = f0z = f1z = f2z = f3z = 0.0
+            sxr0 = sxr1 = ser0 = ser1 = sxz0 = sxz1 = sez0 = sez1 = 0.0
+            hr0 = hr1 = hr2 = hr3 = 0.0
             for q in range(4):
                 t0, t1, t2, t3 = tau[c, q, 0], tau[c, q, 1], tau[c, q, 2], tau[c, q, 3]
                 frr, frz, fzr, fzz, ftt = Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4]
@@ -276,25 +298,42 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
                 pzz = trz * i10 + tzz * i11
                 # w_q tau_tt / (F_tt R) with 1 / F_tt = det / J_q; no hoop term in plane
                 ptt = 0.0 if plane else wq * ttt * (frr * fzz - frz * fzr) * Fq[q, 5] * Fq[q, 7]
-                g0, g1, g2, g3 = dNdR[c, q, 0], dNdR[c, q, 1], dNdR[c, q, 2], dNdR[c, q, 3]
-                h0, h1, h2, h3 = dNdZ[c, q, 0], dNdZ[c, q, 1], dNdZ[c, q, 2], dNdZ[c, q, 3]
-                f0r += prr * g0 + prz * h0 + ptt * N[q, 0]
-                f1r += prr * g1 + prz * h1 + ptt * N[q, 1]
-                f2r += prr * g2 + prz * h2 + ptt * N[q, 2]
-                f3r += prr * g3 + prz * h3 + ptt * N[q, 3]
-                f0z += pzr * g0 + pzz * h0
-                f1z += pzr * g1 + pzz * h1
-                f2z += pzr * g2 + pzz * h2
-                f3z += pzr * g3 + pzz * h3
+                # (P J^-T) by the reference gradients, summed over the points of a row or column
+                a0, a1, a2, a3 = dxi[c, q, 0], dxi[c, q, 1], dxi[c, q, 2], dxi[c, q, 3]
+                qxr, qer = prr * a0 + prz * a1, prr * a2 + prz * a3
+                qxz, qez = pzr * a0 + pzz * a1, pzr * a2 + pzz * a3
+                if q < 2:
+                    sxr0 += qxr
+                    sxz0 += qxz
+                else:
+                    sxr1 += qxr
+                    sxz1 += qxz
+                if q % 2 == 0:
+                    ser0 += qer
+                    sez0 += qez
+                else:
+                    ser1 += qer
+                    sez1 += qez
+                if not plane:
+                    hr0 += ptt * N[q, 0]
+                    hr1 += ptt * N[q, 1]
+                    hr2 += ptt * N[q, 2]
+                    hr3 += ptt * N[q, 3]
+            # f_a = sum_q Q_xi dN_a/dxi + Q_eta dN_a/deta: dN/dxi = (-(1 - eta), 1 - eta, -eta,
+            # eta), dN/deta = (-(1 - xi), -xi, 1 - xi, xi)
+            ar, br = HI * sxr0 + LO * sxr1, LO * sxr0 + HI * sxr1
+            cr, dr = HI * ser0 + LO * ser1, LO * ser0 + HI * ser1
+            az, bz = HI * sxz0 + LO * sxz1, LO * sxz0 + HI * sxz1
+            cz, dz = HI * sez0 + LO * sez1, LO * sez0 + HI * sez1
             # the cell's force, summed over its points, added once per node
-            f[k0] += f0r
-            f[k1] += f1r
-            f[k2] += f2r
-            f[k3] += f3r
-            f[k0 + 1] += f0z
-            f[k1 + 1] += f1z
-            f[k2 + 1] += f2z
-            f[k3 + 1] += f3z
+            f[k0] += (-ar - cr) + hr0
+            f[k1] += (ar - dr) + hr1
+            f[k2] += (cr - br) + hr2
+            f[k3] += (br + dr) + hr3
+            f[k0 + 1] += -az - cz
+            f[k1 + 1] += az - dz
+            f[k2 + 1] += cz - bz
+            f[k3 + 1] += bz + dz
         return wp, j_min, c_min
 
     @njit(fastmath=False)
@@ -457,7 +496,7 @@ class FiniteStrainForce:
         from ..jit_watch import load
 
         g, u = self.geometry, self.u.x.array
-        load(self._force, self.params, 1.0, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, g.volume, u,
+        load(self._force, self.params, 1.0, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume, u,
              self.f.x.array, self.state, self.tau, self._Fq, self._Jq, self._fbar, self._work,
              self._point_state, self._point_tau)
         load(self._stored, self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
@@ -475,7 +514,7 @@ class FiniteStrainForce:
         g = self.geometry
         arr = self._f_all
         arr.fill(0.0)
-        wp, j_min, c_min = self._force(self.params, dt, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w,
+        wp, j_min, c_min = self._force(self.params, dt, g.dofs, g.dxi, g.N, g.inv_R, g.w,
                                        g.volume, self._u_all, arr, self.state, self.tau,
                                        self._Fq, self._Jq, self._fbar, self._work,
                                        self._point_state, self._point_tau)
@@ -582,7 +621,7 @@ class FiniteStrainForce:
         np.copyto(state, self.state)
         np.copyto(tau, self.tau)
         f.fill(0.0)
-        self._force(self.params, self.h, g.dofs, g.dNdR, g.dNdZ, g.N, g.inv_R, g.w, g.volume, u,
+        self._force(self.params, self.h, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume, u,
                     f, state, tau, self._Fq, self._Jq, self._fbar, self._work,
                     self._point_state, self._point_tau)
         cell_means(tau, state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, u, self._Fq,

@@ -103,8 +103,9 @@ def log_strains(F, state):
     if u <= U_SERIES:  # eps_1 - eps_2 = atanh(d / m): no square root, no 1 / d
         det2 = mean * mean - dd
         em = 0.25 * math.log(det2)
-        g = 0.5 * inv_m * (1.0 + u * (_A1 + u * (_A2 + u * (_A3 + u * (_A4 + u * (
-            _A5 + u * _A6))))))
+        u2 = u * u  # Estrin's scheme: pairs, then u^2 (4 deep where Horner's is 6)
+        g = 0.5 * inv_m * (1.0 + u * ((_A1 + u * _A2) + u2 * ((_A3 + u * _A4)
+                                                             + u2 * (_A5 + u * _A6))))
     else:
         d = math.sqrt(dd)
         l1, l2 = mean + d, mean - d

@@ -44,12 +44,17 @@ def update(F, state, params, dt, tau, work) -> float:
     tau_m, tau_d, tau_tt, q2 = hencky.stresses(lmbda, mu, em, g, e3, dd)
     sy = sy0 + hard * state[0]
     if q2 > sy * sy:  # q > sigma_y without the square root at an elastic point
+        # 1 / (3 mu + H) and 1 / q^2 alongside the square root (independent of it): then the
+        # flow factor k = 1 - 3 mu dg / q, 1 / q = q / q^2, waits on no division after it
+        inv_h = 1.0 / (3.0 * mu + hard)
+        inv_q2 = 1.0 / q2
         q = math.sqrt(q2)
         f = q - sy
         if f > 0.0:
-            dg = f / (3.0 * mu + hard)
-            em, g, e3, tau_m, tau_d, tau_tt = hencky.flow(mu, dg, q, em, g, e3, tau_m, tau_d,
-                                                          tau_tt)
+            dg = f * inv_h
+            k = 1.0 - 3.0 * mu * dg * (q * inv_q2)
+            em, g, e3, tau_m, tau_d, tau_tt = hencky.scale_deviator(mu, k, em, g, e3, tau_m,
+                                                                    tau_d, tau_tt)
             wp = dg * (sy + 0.5 * hard * dg)
             state[0] += dg
             b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)

@@ -135,7 +135,13 @@ def flow(mu, dgamma, q_trial, em, g, e3, tau_m, tau_d, tau_tt):
     """The exponential-map return: dev tau scaled by k = 1 - 3 mu dgamma / q_trial, the log
     strains moved by -dgamma 3/2 dev tau / q_trial (eps_m by -(1 - k) a, eps_3 by
     2 (1 - k) a, g to k g); returns (eps_m, g, eps_3, tau_m, tau_d, tau_tt)."""
-    k = 1.0 - 3.0 * mu * dgamma / q_trial
+    return scale_deviator(mu, 1.0 - 3.0 * mu * dgamma / q_trial, em, g, e3, tau_m, tau_d,
+                          tau_tt)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def scale_deviator(mu, k, em, g, e3, tau_m, tau_d, tau_tt):
+    """:func:`flow` given its factor k = 1 - 3 mu dgamma / q_trial (-)."""
     c = 1.0 - k
     ca = c * (em - e3) * THIRD
     two_mu_ca = 2.0 * mu * ca

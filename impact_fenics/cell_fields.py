@@ -389,9 +389,12 @@ class CellStress:
                         for name, force in zip(finite, finite_forces)]
         plastic |= set(finite)
         # their cells' mean eps_bar_p (-) and temperature (K, a material with one) of the last
-        # evaluation, zero on the other cells
+        # evaluation; eps_bar_p zero on the other cells, the temperature NaN there (a body
+        # without one has none: not 0 K, which would also stretch a picture's colour range)
         self.finite_eps_p = np.zeros(self.n_cells)
-        self.finite_temperature = np.zeros(self.n_cells)
+        self.finite_temperature = np.full(self.n_cells, np.nan)
+        self._has_temperature = [getattr(f.material, "temperature_index", -1) >= 0
+                                 for f in finite_forces]
         by_d = []  # (D, [cells of the bodies of that D])
         self._quads = []  # Q1 linear bodies: (owned cells, their geometry, D, the mean strains)
         for body in model.bodies.values():
@@ -481,8 +484,10 @@ class CellStress:
         for cells, force, run in self._points:
             point_mean_stress(force.point_stresses(u).sigma, force.geometry.w, cells, values)
             _von_mises(values, cells, run)
-        for cells, force in self._finite:  # (stress columns rr, tt, zz, rz)
-            sig, self.finite_eps_p[cells], self.finite_temperature[cells] = force.frame_values(u)
+        for (cells, force), heat in zip(self._finite, self._has_temperature):
+            sig, self.finite_eps_p[cells], temp = force.frame_values(u)  # (rr, tt, zz, rz)
+            if heat:
+                self.finite_temperature[cells] = temp
             values[0, cells], values[1, cells] = sig[:, 0], sig[:, 2]
             values[2, cells], values[3, cells] = sig[:, 1], sig[:, 3]
             von_mises_cells(values, cells)

@@ -344,6 +344,8 @@ def _unit(field: str) -> tuple[float, str]:
         return 1e3, "mm"
     if field == "velocity":
         return 1.0, "m/s"
+    if field == "temperature":
+        return 1.0, "K"
     return 1.0, ""
 
 

@@ -532,10 +532,10 @@ TOP = Section("top", "top level", "Keys outside every table.", (
         "sigma_out (out of the plane, eps_out = 0), sigma_xy, the displacements u_x, u_y, "
         "and nothing is held on x = 0 unless `symmetry` says so. It runs small-strain "
         "bodies, linear elastic and path-dependent (J2, Drucker-Prager: the plastic "
-        "strain's out-of-plane component evolves), with contact (node pairs paired by x, "
-        "node to segment, a rigid face of a `half_width` moving along y, the wall) and its "
-        "friction (along x), without finite strain for now "
-        "([plane_strain.md](plane_strain.md))."),
+        "strain's out-of-plane component evolves) and finite-strain bodies (Q1 F-bar, "
+        "every finite-strain material), with contact (node pairs paired by x, node to "
+        "segment, a rigid face of a `half_width` moving along y, the wall) and its "
+        "friction (along x) ([plane_strain.md](plane_strain.md))."),
     Key("thickness", "positive", "m", None, "plane strain: the slab's thickness t",
         default_text="1 (per metre)"),
     Key("symmetry", "text", "", None, "plane strain: a symmetry plane of a half model, u_x = 0 "

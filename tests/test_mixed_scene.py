@@ -248,3 +248,33 @@ def test_the_mixed_scene_refuses(tmp_path_factory, capsys, edits, message):
         lines = [ln for ln in err.splitlines() if ln.strip()]
         assert len(lines) == 1 and lines[0].startswith(f"error: {message}"), err
         assert "Traceback" not in err
+
+
+# the target Johnson-Cook copper (a material with a temperature), fields written
+JC_TARGET = [('model = "j2"\nE = 117e9\nnu = 0.35\ndensity = 8930.0\nyield_stress = 400e6\n'
+              "hardening = 100e6\n",
+              'model = "johnson_cook"\nE = 117e9\nnu = 0.35\ndensity = 8930.0\nA = 90e6\n'
+              "B = 292e6\nn = 0.31\nC = 0.025\nrate0 = 1.0\nm = 1.09\nt_room = 293.0\n"
+              "t_melt = 1356.0\nchi = 0.9\nc_p = 383.0\n"),
+             ("fields = false", "fields = true\noutput_every = 50")]
+
+
+def test_the_temperature_field_is_the_heated_bodys_alone(tmp_path_factory):
+    """A Johnson-Cook target under an elastic striker: fields.xdmf's temperature is the
+    target's (at least its room temperature, up to the last bits of a running sum: a
+    point only heats, dT = chi dW_p / (rho c_p) >= 0) and NaN on the striker's cells,
+    which have no temperature (not 0 K, which a picture would show as the coldest)."""
+    from impact_fenics.plotting import read_xdmf
+
+    base, scene, out, s = _run(tmp_path_factory, "mixed_jc", _text(JC_TARGET))
+    assert s["status"] == "completed"
+    data = read_xdmf(os.path.join(out, "fields.xdmf"))
+    last = len(data.fields["temperature"].times) - 1
+    temp = data.values("temperature", last)
+    target = data.values("body_id", last) == 1  # bodies in order: striker 0, target 1
+    assert target.any() and (~target).any()
+    assert np.isnan(temp[~target]).all()
+    t_room = 293.0  # K, the scene's
+    assert np.isfinite(temp[target]).all()
+    assert temp[target].min() >= t_room * (1.0 - 8 * np.finfo(float).eps * s["n_steps"])
+    assert temp[target].max() > t_room  # the foot yields and heats

@@ -21,6 +21,7 @@ from .checks import (DIVERGENCE_EVERY, PENALTY_BOUND, ContactTrack, Divergence, 
                      penalty_trouble, runaway_speed)
 from .contact import ContactSet, RigidBody
 from .contact.interface import refuse_shared_rigid
+from .contact.state import shared_jump_work
 from .contact.pairing import Constraints
 from .contact.segments import SegmentConstraints
 from .energy import (Ledger, LoadWork, OutputSums, copy_state,
@@ -96,20 +97,70 @@ def _set_dofs(constraints) -> np.ndarray:
     return np.concatenate([d for d in (constraints.lower, constraints.upper) if d is not None])
 
 
+def _position_bodies(integ: Integrator) -> list[str]:
+    """The bodies whose stored energy the ledger takes from their positions (one_loop.md
+    4.7): the small-strain path-dependent ones, and the linear ones whose energy
+    telescopes (their force the MatMultAdd of a constant step)."""
+    bodies = [force.body for force in integ.nonlinear]
+    if integ.linear is not None and integ.linear.scaled:
+        bodies += integ.force_bodies[0]
+    return bodies
+
+
+def _flag_dofs(model: DeformableModel, bodies) -> np.ndarray:
+    """1.0 on the owned dofs of ``bodies``, 0.0 elsewhere. Collective."""
+    flags = np.zeros(model.n_owned)
+    for name in bodies:
+        for component in range(2):
+            flags[model.body_dofs(name, component)] = 1.0
+    return flags
+
+
 def position_booked(model: DeformableModel, integ: Integrator) -> np.ndarray:
     """1.0 on the owned dofs of the bodies whose stored energy the ledger takes from their
     positions, where a position jump (DME's) is work: a small-strain path-dependent body
     (its trapezoid of f . du), a linear body whose energy telescopes (its force the
     MatMultAdd of a constant step); 0.0 on the others, whose work is booked by the kinetic
     identity (a finite-strain body, the linear per-step pass): one_loop.md 4.7. Collective."""
-    booked = np.zeros(model.n_owned)
-    bodies = [force.body for force in integ.nonlinear]
-    if integ.linear is not None and integ.linear.scaled:
-        bodies += integ.force_bodies[0]
-    for name in bodies:
-        for component in range(2):
-            booked[model.body_dofs(name, component)] = 1.0
-    return booked
+    return _flag_dofs(model, _position_bodies(integ))
+
+
+def shared_booked(model: DeformableModel, integ: Integrator) -> np.ndarray | None:
+    """1.0 on the owned dofs that a body booked from its positions shares with a body
+    booked by the kinetic identity (a bonded node: one node in both bodies' cells), where
+    a jump is due on the first body's share of the force alone; None when no rank has
+    one. Such a pair needs a finite-strain body or a varying step, so the first body is
+    a small-strain path-dependent one (its force's own array). Collective."""
+    mine = _position_bodies(integ)
+    others = [name for name in model.bodies if name not in mine]
+    if not others:
+        return None
+    shared = _flag_dofs(model, mine) * _flag_dofs(model, others)
+    return shared if model.comm.allreduce(bool(shared.any()), op=MPI.LOR) else None
+
+
+class SharedJumps:
+    """The jumps' work on the contact slots of bonded dofs (:func:`shared_booked`):
+    1/2 j . (f^{n-1} + f^n) with f each small-strain force's own array, booked after the
+    prediction of step n and before the sets' commits (which record j and book the other
+    slots' jumps; one_loop.md 4.7). Its work (J, this rank) goes into the contact work."""
+
+    def __init__(self, integ: Integrator, slots: list[tuple]):
+        """``slots``: per contact set, (the set, its shared slots' positions, their owned
+        dofs), as :meth:`.ContactSet.book_jumps_on` returns them."""
+        self.entries = [(c, pos, local, force.f_owned, np.zeros(pos.size))
+                        for c, pos, local in slots if pos.size
+                        for force in integ.nonlinear]
+        self.work_local = 0.0
+        for c, pos, local, f, f_prev in self.entries:
+            load(shared_jump_work, c.jump, pos, local, f, f_prev)
+
+    def book(self) -> None:
+        """Book the previous step's jumps on the shared slots (after the prediction)."""
+        work = 0.0
+        for c, pos, local, f, f_prev in self.entries:
+            work += shared_jump_work(c.jump, pos, local, f, f_prev)
+        self.work_local += work
 
 
 class Simulation:
@@ -378,10 +429,13 @@ class Simulation:
             self._v_before = np.empty(model.n_owned)  # v^{n-1/2} (m/s), for those terms
             self._neg_mass = -integ.mass
             load(gap_dot, integ.mass, integ.mass, integ.mass)  # (its entry loaded now)
+        self._shared_jumps = None
         if any(c.jumps for c in self.contacts):  # the jumps' work where it is due (4.7)
             booked = position_booked(model, integ)
-            for c in self.contacts:
-                c.book_jumps_on(booked)
+            shared = shared_booked(model, integ)
+            split = [(c, *c.book_jumps_on(booked, shared)) for c in self.contacts]
+            if shared is not None:
+                self._shared_jumps = SharedJumps(integ, split)
         times = PhaseTimers(PHASES) if s.timers else None
         # an output step's u^n, v^{n-1/2} and internal force f_int(u^n)
         buf = {k: np.empty(model.n_owned) for k in ("u", "v", "f")}
@@ -436,6 +490,7 @@ class Simulation:
         accumulate = load_work.accumulate if self.loads else None
         complete = load_work.complete
         predict, advance = integ.predictor(), integ.advance
+        shared_jumps = self._shared_jumps.book if self._shared_jumps is not None else None
         history_row = self._history_row
         rows = times.rows if times is not None else None
         rows_end = times.rows_end if times is not None else 0
@@ -560,6 +615,8 @@ class Simulation:
                 if varying and integ.nonlinear:
                     np.copyto(self._v_before, integ.v_owned)
                 predict()
+                if shared_jumps is not None:  # bonded slots' jumps, before the commits
+                    shared_jumps()
                 if is_output:
                     self._internal_force_from_prediction(buf)
                 t1 = clock()
@@ -879,6 +936,8 @@ class Simulation:
         if self._varying:
             self._row_time = integ.t - integ.step.h  # t^n (s)
             self._work_gap = self._work_gap_now(buf, dt)
+        if self._shared_jumps is not None:  # the bonded slots' jumps (J, every rank's)
+            self._shared_work = self.comm.allreduce(self._shared_jumps.work_local)
         return self._row_from_record(rec, integ.n - 1, ledger)
 
     def _work_gap_now(self, buf, h: float) -> float:
@@ -915,6 +974,8 @@ class Simulation:
             work_c += rec[j]
             activation += rec[j + 1]
             j += 2
+        if self._shared_jumps is not None:
+            work_c += self._shared_work
         plastic = deformation = gap = 0.0
         if self._split_forces:
             strain += rec[k + 1]

@@ -20,16 +20,17 @@ EIG = 64 + 3 * 32
 
 
 def two_halves(comm, lo: tuple[float, float], hi: tuple[float, float], n_r: int, n_z: int,
-               quadrilateral: bool, names: tuple[str, str]) -> TaggedMesh:
+               quadrilateral: bool, names: tuple[str, str], split: int = 1) -> TaggedMesh:
     """The rectangle lo..hi (m, (r, z)) of n_r x n_z cells (triangles or quadrilaterals):
-    the cell group names[0] below the middle height, names[1] above; no facet groups."""
+    the cell group names[0] below the middle of coordinate ``split`` (1: the height; 0:
+    the radius, an inner core and an outer ring), names[1] beyond; no facet groups."""
     cell = dmesh.CellType.quadrilateral if quadrilateral else dmesh.CellType.triangle
     mesh = dmesh.create_rectangle(comm, [np.array(lo, dtype=float), np.array(hi, dtype=float)],
                                   [n_r, n_z], cell_type=cell)
     cmap = mesh.topology.index_map(2)
     cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
-    centre_z = mesh.geometry.x[compat.geometry_dofs(mesh)[cells], 1].mean(axis=1)
-    middle = 0.5 * (lo[1] + hi[1])
-    cell_tags = dmesh.meshtags(mesh, 2, cells, np.where(centre_z < middle, 1, 2).astype(np.int32))
+    centre = mesh.geometry.x[compat.geometry_dofs(mesh)[cells], split].mean(axis=1)
+    middle = 0.5 * (lo[split] + hi[split])
+    cell_tags = dmesh.meshtags(mesh, 2, cells, np.where(centre < middle, 1, 2).astype(np.int32))
     facet_tags = dmesh.meshtags(mesh, 1, np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
     return TaggedMesh(mesh, cell_tags, facet_tags, {names[0]: 1, names[1]: 2}, {})

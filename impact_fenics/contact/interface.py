@@ -628,23 +628,38 @@ class ContactSet:
         self.jumps = False
         self._misc[JUMPS] = 0.0
 
-    def book_jumps_on(self, owned: np.ndarray) -> None:
+    def book_jumps_on(self, owned: np.ndarray, shared: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
         """Book the work of the position jumps on the slots whose dof ``owned`` (a flag per
         owned dof of this rank) marks as a body's whose stored energy is booked from its
         positions (a small-strain path-dependent body's trapezoid; a linear body's
         telescoped energy under a constant step), and on no other: a finite-strain body's
         work, and a linear body's per-step pass, are their kinetic shares, which no jump
         enters (one_loop.md 4.7). Every slot booked: as before; none: :meth:`book_no_jumps`.
-        Collective (each rank knows the flags of the slots it owns)."""
+        ``shared`` (a flag per owned dof, or None) marks the flagged dofs that such a body
+        shares with a body of the other kind (a bonded node): their jumps are due on the
+        first body's share of the force only, so this set's commit books none of them and
+        the caller books them (:func:`.state.shared_jump_work`) from the slots' jumps, which
+        the set still records. Returns this rank's shared slots: (their positions in the
+        slot arrays, their owned dofs), empty when none. Collective (each rank knows the
+        flags of the slots it owns)."""
+        none = (np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
         if not self.jumps:
-            return
+            return none
         mine = np.zeros(self.n_slots)
         mine[self._pos] = owned[self._local]
+        split = none
+        if shared is not None:
+            here = shared[self._local] != 0.0
+            mine[self._pos[here]] = 0.0
+            split = (self._pos[here].astype(np.int32), self._local[here].astype(np.int32))
         self.comm.Allreduce(mine, self.jump_book, op=MPI.MAX)
         if self.rigid is not None:
             self.jump_book[-1] = 0.0  # the part's slot: not deformable, never read
-        if not self.jump_book[:self.n_deformable].any():
+        any_shared = self.comm.allreduce(int(split[0].size), op=MPI.SUM) > 0
+        if not self.jump_book[:self.n_deformable].any() and not any_shared:
             self.book_no_jumps()
+        return split
 
     def set_step(self, h: float, h_avg: float) -> None:
         """Steps h_{n+1/2} (positions) and h_n (velocities) of the next step (s): rewrite

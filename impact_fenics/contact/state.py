@@ -197,6 +197,22 @@ def _book(h_n, n_deformable, m_over_dt, u, v, v_pred, u_now, v_now, f_prev, ku_p
 
 
 @njit(cache=True)
+def shared_jump_work(jump, pos, local, f, f_prev):
+    """The work of the previous step's position jumps j (m) on the slots ``pos`` whose dofs
+    (``local``, owned) two bonded bodies share, one booked from its positions and one by
+    the kinetic identity: 1/2 j . (f^{n-1} + f^n) with f (N) the first body's force alone
+    (``f``: a small-strain force's owned array at u^n; ``f_prev`` keeps f^{n-1} per slot),
+    :func:`_book`'s term on that body's share (one_loop.md 4.7). Called after the
+    prediction, before the set's commit overwrites j. Returns the work (J, this rank)."""
+    work = 0.0
+    for i in range(pos.size):
+        fk = f[local[i]]
+        work += 0.5 * jump[pos[i]] * (f_prev[i] + fk)
+        f_prev[i] = fk
+    return work
+
+
+@njit(cache=True)
 def _commit(local, pos, dst_u, dst_v, dt, h_n, n_deformable, m_over_dt, u, v, u_pred, v_pred,
             u_now, v_now, f_prev, ku_prev, jump, books, jumps, jumped, active, was_active, b, lo,
             up, force, stats):

@@ -145,24 +145,73 @@ def cube_root(x: float) -> float:
     return np.cbrt(x)
 
 
-@njit(cache=True, inline="always")
-def deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, F, plane) -> float:
-    """F at point q of cell c into F = (F_rr, F_rz, F_zr, F_zz, F_tt); returns J. In plane
-    strain (``plane``) the out-of-plane stretch F_tt is 1."""
-    frr = frz = fzr = fzz = ur = 0.0
-    for a in range(4):
-        k = 2 * dofs[c, a]
-        gr, gz = dNdR[c, q, a], dNdZ[c, q, a]
-        frr += gr * u[k]
-        frz += gz * u[k]
-        fzr += gr * u[k + 1]
-        fzz += gz * u[k + 1]
-        ur += N[q, a] * u[k]
-    if plane:
-        F[0], F[1], F[2], F[3], F[4] = 1.0 + frr, frz, fzr, 1.0 + fzz, 1.0
-        return F[0] * F[3] - F[1] * F[2]
-    F[0], F[1], F[2], F[3], F[4] = 1.0 + frr, frz, fzr, 1.0 + fzz, 1.0 + ur / R[c, q]
-    return (F[0] * F[3] - F[1] * F[2]) * F[4]
+@njit(cache=True, error_model="numpy", inline="always")
+def cell_deformation(c, dofs, dxi, N, inv_R, u, Fq, Jq, plane) -> None:
+    """F at the four points of cell c through the reference cell, the one place F is formed
+    (the force, the stored energy and the cell means call it, inlined):
+
+        Grad u = (du/dxi, du/deta) J^-1,   F = I + Grad u,   F_tt = 1 + u_r / R,
+
+    with du/dxi at the points from the node differences u_1 - u_0 and u_3 - u_2 (bilinear
+    N_a: du/dxi is linear in eta alone, du/deta in xi alone, so two values each per cell)
+    and J^-1 = ``dxi`` (n, 4, 4) = (dxi/dR, dxi/dZ, deta/dR, deta/dZ) at the points (1/m);
+    u_r at the point from N (4 points, 4 nodes) and ``inv_R`` = 1 / R_q (1/m). Writes, per
+    point q, Fq[q, 0:5] = (F_rr, F_rz, F_zr, F_zz, F_tt), Jq[q] = J_q = det F, Fq[q, 5] =
+    1 / J_q and, in axisymmetry, Fq[q, 7] = 1 / R_q (plane strain, ``plane``: F_tt = 1,
+    J_q the in-plane determinant)."""
+    # the cell's nodal displacements, read once for its four points
+    k0, k1, k2, k3 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2], 2 * dofs[c, 3]
+    u0r, u1r, u2r, u3r = u[k0], u[k1], u[k2], u[k3]
+    u0z, u1z, u2z, u3z = u[k0 + 1], u[k1 + 1], u[k2 + 1], u[k3 + 1]
+    # du/dxi at eta = LO, HI and du/deta at xi = LO, HI (1 - LO = HI)
+    ar, br, cr, dr = u1r - u0r, u3r - u2r, u2r - u0r, u3r - u1r
+    az, bz, cz, dz = u1z - u0z, u3z - u2z, u2z - u0z, u3z - u1z
+    xr0, xr1 = ar * HI + br * LO, ar * LO + br * HI
+    er0, er1 = cr * HI + dr * LO, cr * LO + dr * HI
+    xz0, xz1 = az * HI + bz * LO, az * LO + bz * HI
+    ez0, ez1 = cz * HI + dz * LO, cz * LO + dz * HI
+    for q in range(4):
+        # point q at (xi, eta) = (LO or HI by q % 2, LO or HI by q // 2)
+        xr, xz = (xr0, xz0) if q < 2 else (xr1, xz1)
+        er, ez = (er0, ez0) if q % 2 == 0 else (er1, ez1)
+        a0, a1, a2, a3 = dxi[c, q, 0], dxi[c, q, 1], dxi[c, q, 2], dxi[c, q, 3]
+        frr = 1.0 + (xr * a0 + er * a2)
+        frz = xr * a1 + er * a3
+        fzr = xz * a0 + ez * a2
+        fzz = 1.0 + (xz * a1 + ez * a3)
+        det2 = frr * fzz - frz * fzr
+        if plane:
+            ftt = 1.0
+            jq = det2
+        else:
+            inv_r = inv_R[c, q]
+            Fq[q, 7] = inv_r
+            ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r + N[q, 3] * u3r) * inv_r
+            jq = det2 * ftt
+        Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
+        Jq[q] = jq
+        Fq[q, 5] = 1.0 / jq
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def fbar_factors(jbar: float, Fq, plane) -> None:
+    """The four points' F-bar factors (J_bar / J_q)^(1/3) (plane strain: ^(1/2)) into
+    Fq[q, 6], from 1 / J_q in Fq[q, 5] (:func:`cell_deformation`): four independent
+    chains of the root, no division."""
+    for q in range(4):
+        if plane:
+            Fq[q, 6] = math.sqrt(jbar * Fq[q, 5])
+        else:
+            Fq[q, 6] = cube_root(jbar * Fq[q, 5])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def scaled_gradient(Fq, q: int, fbar, plane) -> None:
+    """F_bar_q = Fq[q, 6] F_q into ``fbar`` (5 entries; plane strain: F_bar_tt = 1)."""
+    alpha = Fq[q, 6]
+    fbar[0], fbar[1], fbar[2], fbar[3] = (alpha * Fq[q, 0], alpha * Fq[q, 1],
+                                          alpha * Fq[q, 2], alpha * Fq[q, 3])
+    fbar[4] = 1.0 if plane else alpha * Fq[q, 4]
 
 
 _KERNELS: dict = {}
@@ -191,11 +240,10 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
         (4, 8) is the cell's scratch: per point F (5 entries), 1 / J_q, the F-bar factor
         and 1 / R_q.
 
-        The gradients go through the reference cell: Grad u = (du/dxi, du/deta) J^-1 with
-        du/dxi at the points from the node differences u_1 - u_0 and u_3 - u_2 (bilinear
-        N_a: du/dxi is linear in eta alone, du/deta in xi alone, so two values each per
-        cell), and f_a = sum_q (P J^-T) : dN_a/dxi with the constant reference gradients
-        (the module's docstring); a point reads 4 entries of J^-1 where Grad N_a took 8.
+        The gradients go through the reference cell: F from :func:`cell_deformation`
+        (Grad u = (du/dxi, du/deta) J^-1, from the node differences), and f_a = sum_q
+        (P J^-T) : dN_a/dxi with the constant reference gradients (the module's docstring);
+        a point reads 4 entries of J^-1 where Grad N_a took 8.
 
         The point update works on the views state[c, q] and tau[c, q], or, with
         ``point_copy`` (a material whose update has a loop: Johnson-Cook's return), on the
@@ -207,40 +255,10 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
         j_min = np.inf
         c_min = -1
         for c in range(dofs.shape[0]):
-            # the cell's nodal displacements, read once for its four points
-            k0, k1, k2, k3 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2], 2 * dofs[c, 3]
-            u0r, u1r, u2r, u3r = u[k0], u[k1], u[k2], u[k3]
-            u0z, u1z, u2z, u3z = u[k0 + 1], u[k1 + 1], u[k2 + 1], u[k3 + 1]
-            # du/dxi at eta = LO, HI and du/deta at xi = LO, HI (1 - LO = HI)
-            ar, br, cr, dr = u1r - u0r, u3r - u2r, u2r - u0r, u3r - u1r
-            az, bz, cz, dz = u1z - u0z, u3z - u2z, u2z - u0z, u3z - u1z
-            xr0, xr1 = ar * HI + br * LO, ar * LO + br * HI
-            er0, er1 = cr * HI + dr * LO, cr * LO + dr * HI
-            xz0, xz1 = az * HI + bz * LO, az * LO + bz * HI
-            ez0, ez1 = cz * HI + dz * LO, cz * LO + dz * HI
+            cell_deformation(c, dofs, dxi, N, inv_R, u, Fq, Jq, plane)
             jbar = 0.0
             for q in range(4):
-                # point q at (xi, eta) = (LO or HI by q % 2, LO or HI by q // 2)
-                xr, xz = (xr0, xz0) if q < 2 else (xr1, xz1)
-                er, ez = (er0, ez0) if q % 2 == 0 else (er1, ez1)
-                a0, a1, a2, a3 = dxi[c, q, 0], dxi[c, q, 1], dxi[c, q, 2], dxi[c, q, 3]
-                frr = 1.0 + (xr * a0 + er * a2)
-                frz = xr * a1 + er * a3
-                fzr = xz * a0 + ez * a2
-                fzz = 1.0 + (xz * a1 + ez * a3)
-                det2 = frr * fzz - frz * fzr
-                if plane:
-                    ftt = 1.0
-                    jq = det2
-                else:
-                    inv_r = inv_R[c, q]
-                    Fq[q, 7] = inv_r
-                    ftt = 1.0 + (N[q, 0] * u0r + N[q, 1] * u1r + N[q, 2] * u2r
-                                 + N[q, 3] * u3r) * inv_r
-                    jq = det2 * ftt
-                Fq[q, 0], Fq[q, 1], Fq[q, 2], Fq[q, 3], Fq[q, 4] = frr, frz, fzr, fzz, ftt
-                Jq[q] = jq
-                Fq[q, 5] = 1.0 / jq
+                jq = Jq[q]
                 jbar += w[c, q] * jq
                 if jq < j_min:
                     j_min = jq
@@ -248,18 +266,10 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
             jbar /= volume[c]
             if jbar <= 0.0 or j_min <= 0.0:
                 return wp, j_min, c_min
-            # the four points' F-bar factors, independent of each other
-            for q in range(4):
-                if plane:
-                    Fq[q, 6] = math.sqrt(jbar * Fq[q, 5])
-                else:
-                    Fq[q, 6] = cube_root(jbar * Fq[q, 5])
+            fbar_factors(jbar, Fq, plane)
             m_bar = 0.0
             for q in range(4):
-                alpha = Fq[q, 6]
-                fbar[0], fbar[1], fbar[2], fbar[3] = (alpha * Fq[q, 0], alpha * Fq[q, 1],
-                                                      alpha * Fq[q, 2], alpha * Fq[q, 3])
-                fbar[4] = 1.0 if plane else alpha * Fq[q, 4]
+                scaled_gradient(Fq, q, fbar, plane)
                 if point_copy:
                     for i in range(n_state):
                         point_state[i] = state[c, q, i]
@@ -326,6 +336,7 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
             az, bz = HI * sxz0 + LO * sxz1, LO * sxz0 + HI * sxz1
             cz, dz = HI * sez0 + LO * sez1, LO * sez0 + HI * sez1
             # the cell's force, summed over its points, added once per node
+            k0, k1, k2, k3 = 2 * dofs[c, 0], 2 * dofs[c, 1], 2 * dofs[c, 2], 2 * dofs[c, 3]
             f[k0] += (-ar - cr) + hr0
             f[k1] += (ar - dr) + hr1
             f[k2] += (cr - br) + hr2
@@ -336,26 +347,20 @@ def kernels(update, energy, n_state: int = 1, point_copy: bool = False, plane: b
             f[k3 + 1] += bz + dz
         return wp, j_min, c_min
 
-    @njit(fastmath=False)
-    def stored(params, dofs, dNdR, dNdZ, N, R, w, volume, u, state, Fq, Jq, fbar, work):
-        """sum_q w_q psi(F_bar_q) (J) with the current state."""
+    @njit(fastmath=False, error_model="numpy")
+    def stored(params, dofs, dxi, N, inv_R, w, volume, u, state, Fq, Jq, fbar, work):
+        """sum_q w_q psi(F_bar_q) (J) with the current state: F, J_bar and F_bar as ``force``
+        forms them."""
         total = 0.0
         for c in range(dofs.shape[0]):
+            cell_deformation(c, dofs, dxi, N, inv_R, u, Fq, Jq, plane)
             jbar = 0.0
             for q in range(4):
-                Jq[q] = deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q], plane)
                 jbar += w[c, q] * Jq[q]
             jbar /= volume[c]
+            fbar_factors(jbar, Fq, plane)
             for q in range(4):
-                if plane:
-                    alpha = math.sqrt(jbar / Jq[q])
-                    for i in range(4):
-                        fbar[i] = alpha * Fq[q, i]
-                    fbar[4] = 1.0
-                else:
-                    alpha = cube_root(jbar / Jq[q])
-                    for i in range(5):
-                        fbar[i] = alpha * Fq[q, i]
+                scaled_gradient(Fq, q, fbar, plane)
                 total += w[c, q] * energy(fbar, state[c, q], params, work)
         return total
 
@@ -408,15 +413,17 @@ def cell_length_min(dofs, X, u) -> float:
     return best
 
 
-@njit(cache=True)
-def cell_means(tau, state, w, volume, dofs, dNdR, dNdZ, N, R, u, Fq, Jq, out_sigma, out_eps, out_t,
+@njit(cache=True, error_model="numpy")
+def cell_means(tau, state, w, volume, dofs, dxi, N, inv_R, u, Fq, Jq, out_sigma, out_eps, out_t,
                i_temp, plane) -> None:
     """Per cell: Cauchy stress (rr, tt, zz, rz) = mean tau / J_bar (Pa), mean eps_bar_p and,
-    when ``i_temp`` >= 0, mean state[i_temp] (the temperature, K); ``plane``: plane strain."""
+    when ``i_temp`` >= 0, mean state[i_temp] (the temperature, K); ``plane``: plane strain.
+    J_q from :func:`cell_deformation`."""
     for c in range(dofs.shape[0]):
+        cell_deformation(c, dofs, dxi, N, inv_R, u, Fq, Jq, plane)
         jbar = 0.0
         for q in range(4):
-            jbar += w[c, q] * deformation_gradient(c, q, dNdR, dNdZ, N, R, dofs, u, Fq[q], plane)
+            jbar += w[c, q] * Jq[q]
         jbar /= volume[c]
         for i in range(4):
             s = 0.0
@@ -499,13 +506,13 @@ class FiniteStrainForce:
         load(self._force, self.params, 1.0, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume, u,
              self.f.x.array, self.state, self.tau, self._Fq, self._Jq, self._fbar, self._work,
              self._point_state, self._point_tau)
-        load(self._stored, self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume, u,
+        load(self._stored, self.params, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume, u,
              self.state, self._Fq, self._Jq, self._fbar, self._work)
         load(cell_length_min, g.dofs, self.node_xy, u)
         load(trapezoid_work, self.f_owned, self.u_owned, self._f_prev, self._u_prev)
         load(velocity_update, self.f_owned, self.f_owned, self.f_owned, 1.0)
         n = g.dofs.shape[0]
-        load(cell_means, self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
+        load(cell_means, self.tau, self.state, g.w, g.volume, g.dofs, g.dxi, g.N, g.inv_R,
              u, self._Fq, self._Jq, np.zeros((n, 4)), np.zeros(n), np.zeros(n), -1, self.plane)
 
     def compute(self, dt: float) -> np.ndarray:
@@ -579,7 +586,7 @@ class FiniteStrainForce:
         current u, or ``u`` (m, every local entry: the state u^n a step kept)."""
         g = self.geometry
         u = self.u.x.array if u is None else u
-        return self._stored(self.params, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, g.w, g.volume,
+        return self._stored(self.params, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume,
                             u, self.state, self._Fq, self._Jq, self._fbar, self._work)
 
     def length_min_local(self) -> float:
@@ -596,7 +603,7 @@ class FiniteStrainForce:
         n = g.dofs.shape[0]
         sig, eps, temp = np.zeros((n, 4)), np.zeros(n), np.zeros(n)
         i_temp = getattr(self.material, "temperature_index", -1)
-        cell_means(self.tau, self.state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R,
+        cell_means(self.tau, self.state, g.w, g.volume, g.dofs, g.dxi, g.N, g.inv_R,
                    self.u.x.array if u is None else u, self._Fq, self._Jq, sig, eps, temp, i_temp,
                    self.plane)
         return sig, eps, temp
@@ -624,7 +631,7 @@ class FiniteStrainForce:
         self._force(self.params, self.h, g.dofs, g.dxi, g.N, g.inv_R, g.w, g.volume, u,
                     f, state, tau, self._Fq, self._Jq, self._fbar, self._work,
                     self._point_state, self._point_tau)
-        cell_means(tau, state, g.w, g.volume, g.dofs, g.dNdR, g.dNdZ, g.N, g.R, u, self._Fq,
+        cell_means(tau, state, g.w, g.volume, g.dofs, g.dxi, g.N, g.inv_R, u, self._Fq,
                    self._Jq, sig, eps, temp, getattr(self.material, "temperature_index", -1),
                    self.plane)
         return sig, eps, temp

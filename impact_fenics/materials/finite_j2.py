@@ -57,8 +57,7 @@ def update(F, state, params, dt, tau, work) -> float:
                                                                     tau_d, tau_tt)
             wp = dg * (sy + 0.5 * hard * dg)
             state[0] += dg
-            b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)
-            hencky.set_plastic_state(F, state, b_m, b_d, b_tt, h, s)
+            hencky.set_returned_state(F, state, em, g, dd, det_b, h, s)
             hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
             return wp
     # (tau written in each branch: written once after them, where they join, it keeps numba

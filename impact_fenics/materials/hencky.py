@@ -49,9 +49,10 @@ The point update of every finite-strain material (the seam of
 ``tau`` receives the Kirchhoff stress (rr, tt, zz, rz) in Pa; ``work`` is a
 float64 scratch array of 16 entries (no allocation per point). The package's models
 call the functions below that take and return scalars (:func:`log_strains`,
-:func:`stresses`, :func:`flow`, :func:`left_cauchy_green`, :func:`set_kirchhoff`,
-:func:`set_plastic_state`); the functions of the same steps through ``work`` serve a
-material written against the scratch array.
+:func:`stresses`, :func:`flow`, :func:`set_kirchhoff`, :func:`set_returned_state`:
+:func:`left_cauchy_green` and :func:`set_plastic_state` in one, with one division for the
+hoop entry); the functions of the same steps through ``work`` serve a material written
+against the scratch array.
 
 Compiled with numpy's error model (a float division by zero gives inf or nan, as
 in numpy, instead of a test and a Python exception at every division) and inlined
@@ -150,10 +151,10 @@ def scale_deviator(mu, k, em, g, e3, tau_m, tau_d, tau_tt):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def left_cauchy_green(em, g, dd, det_b):
-    """b_e = exp(2 eps) of the log strains: (its in-plane mean exp(2 eps_m) cosh w, its
-    half difference over d exp(2 eps_m) sinh(w) / d, w = 2 g d, and its hoop value
-    det b_e / exp(2 eps_m)^2) (-)."""
+def exp_in_plane(em, g, dd):
+    """The (r, z) block of b_e = exp(2 eps) of the log strains: (exp(2 eps_m), its mean
+    exp(2 eps_m) cosh w, its half difference over d exp(2 eps_m) sinh(w) / d), w = 2 g d
+    (-)."""
     x = 4.0 * g * g * dd  # w^2
     if x <= X_SERIES:
         ch = 1.0 + x * (_C1 + x * (_C2 + x * (_C3 + x * (_C4 + x * _C5))))
@@ -163,7 +164,16 @@ def left_cauchy_green(em, g, dd, det_b):
         ch = math.cosh(2.0 * g * d)
         sh = math.sinh(2.0 * g * d) / d
     e2m = math.exp(2.0 * em)
-    return e2m * ch, e2m * sh, det_b / (e2m * e2m)
+    return e2m, e2m * ch, e2m * sh
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def left_cauchy_green(em, g, dd, det_b):
+    """b_e = exp(2 eps) of the log strains: (its in-plane mean exp(2 eps_m) cosh w, its
+    half difference over d exp(2 eps_m) sinh(w) / d, w = 2 g d, and its hoop value
+    det b_e / exp(2 eps_m)^2) (-)."""
+    e2m, b_m, b_d = exp_in_plane(em, g, dd)
+    return b_m, b_d, det_b / (e2m * e2m)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -176,10 +186,11 @@ def set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s) -> None:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def set_plastic_state(F, state, b_m, b_d, b_tt, h, s) -> None:
-    """a = C_p^-1 = F^-1 b_e F^-T into state[1:5] from b_e = b_m I + b_d (h, s), b_tt."""
+def set_plastic_block(F, state, b_m, b_d, h, s) -> None:
+    """The (r, z) block of a = C_p^-1 = F^-1 b_e F^-T into state[1:4] from the block of
+    b_e = b_m I + b_d (h, s)."""
     brr, bzz, brz = b_m + b_d * h, b_m - b_d * h, b_d * s
-    frr, frz, fzr, fzz, ftt = F[0], F[1], F[2], F[3], F[4]
+    frr, frz, fzr, fzz = F[0], F[1], F[2], F[3]
     inv = 1.0 / (frr * fzz - frz * fzr)
     i00, i01, i10, i11 = fzz * inv, -frz * inv, -fzr * inv, frr * inv  # F^-1
     n00 = i00 * brr + i01 * brz  # F^-1 b
@@ -189,7 +200,29 @@ def set_plastic_state(F, state, b_m, b_d, b_tt, h, s) -> None:
     state[1] = n00 * i00 + n01 * i01  # (F^-1 b F^-T)_rr
     state[2] = n10 * i10 + n11 * i11
     state[3] = n00 * i10 + n01 * i11
-    state[4] = b_tt / (ftt * ftt)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def set_plastic_state(F, state, b_m, b_d, b_tt, h, s) -> None:
+    """a = C_p^-1 = F^-1 b_e F^-T into state[1:5] from b_e = b_m I + b_d (h, s), b_tt."""
+    set_plastic_block(F, state, b_m, b_d, h, s)
+    state[4] = b_tt / (F[4] * F[4])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def set_returned_state(F, state, em, g, dd, det_b, h, s) -> None:
+    """a = C_p^-1 = F^-1 b_e F^-T into state[1:5] for b_e = exp(2 eps) of the returned log
+    strains: :func:`left_cauchy_green` then :func:`set_plastic_state` with one division
+    where they take two in a row, the hoop entry
+
+        a_tt = b_tt / F_tt^2 = det b_e,trial / (exp(2 eps_m)^2 F_tt^2)
+
+    (the same roundings in number, 4, in another order: F_tt^2 is formed beside the
+    exponential, off the chain that follows it)."""
+    e2m, b_m, b_d = exp_in_plane(em, g, dd)
+    set_plastic_block(F, state, b_m, b_d, h, s)
+    ftt = F[4]
+    state[4] = det_b / ((e2m * e2m) * (ftt * ftt))
 
 
 @njit(cache=True, error_model="numpy", inline="always")

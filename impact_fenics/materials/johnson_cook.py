@@ -179,8 +179,7 @@ def update(F, state, params, dt, tau, work) -> float:
         temperature = temperature + chi * wp / rho_cp
         state[TEMPERATURE] = temperature
         state[THERMAL] = thermal_factor(params, temperature)  # T changes only here
-        b_m, b_d, b_tt = hencky.left_cauchy_green(em, g, dd, det_b)
-        hencky.set_plastic_state(F, state, b_m, b_d, b_tt, h, s)
+        hencky.set_returned_state(F, state, em, g, dd, det_b, h, s)
     hencky.set_kirchhoff(tau, tau_m, tau_d, tau_tt, h, s)
     return wp
 

@@ -26,9 +26,8 @@ Oracles:
   cell h changes u and v by at most eps c0 t / h of their largest value. And the
   difference is first order: halving v0 halves it, within the same O(eps) factor
   (tests/test_two_finite_bodies.py states the same bound for two finite bodies).
-* bad input: a held [wall] face off quad_bar, a finite-strain body on triangles, and
-  node-to-segment contact under a step that follows the cells are refused in one line,
-  exit 2.
+* bad input: a held [wall] face off quad_bar and a finite-strain body on triangles are
+  refused in one line, exit 2.
 
 Every test runs unchanged on 1, 2 and 3 ranks (the compared arrays gathered).
 """
